@@ -1,0 +1,1 @@
+"""The robot's brain: geometry, EKF, fuzzy control, collision avoidance, formations."""

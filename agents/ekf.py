@@ -1,0 +1,203 @@
+"""Extended Kalman filter of paper section 3 (eq. 14-21) on filterpy.
+
+State, in the follower frame: the reference robot's centre (x_r, y_r) in m,
+its orientation relative to the follower phi in rad, its speed v_r in m/s and
+its turn rate w_r in rad/s.
+The virtual target is the fixed function P_g = P_r + R_z(phi) P_vt (eq. 2) of
+this state, so a formation change (a new P_vt) does not disturb the filter
+and eq. 11-12 get P_r directly (docs/paper.md, section 3).
+
+Prediction (eq. 14, 17-18) moves the reference at v_r along its heading,
+turning at w_r, and applies the follower's own motion from its wheel speeds
+(eq. 7-10, the paper's B u term): the frame translates and turns under the
+point. Correction (eq. 19-21) uses the camera reading z = (rho_r, beta, phi)
+through the nonlinear h of eq. 1 and its Jacobian; angle residuals wrap.
+A missing reading (dropped, out of view) only predicts.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.kalman import ExtendedKalmanFilter
+
+from agents.geometry import Point, leader_point, rotate
+from swarm.checks import finite, non_negative, positive
+from world.kinematics import body_twist, wrap_angle
+
+
+@dataclass(frozen=True)
+class EkfParams:
+    """Noise model. Measurement sigmas should match the camera's."""
+
+    sigma_rho_m: float = 0.05
+    sigma_phi_rad: float = math.radians(3.0)
+    sigma_beta_rad: float = math.radians(1.5)
+    # Process noise densities: unmodelled reference motion per sqrt(s).
+    q_pos_m: float = 0.02
+    q_phi_rad: float = 0.02
+    q_speed_mps: float = 0.5
+    # The scenario leaders ramp their turn rate 0 -> 0.25 rad/s in about 0.5 s.
+    q_turn_rps: float = 0.5
+    initial_speed_sigma_mps: float = 1.0
+    initial_turn_sigma_rps: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("sigma_rho_m", "sigma_phi_rad", "sigma_beta_rad"):
+            positive(name, getattr(self, name))
+        for name in ("q_pos_m", "q_phi_rad", "q_speed_mps", "q_turn_rps"):
+            non_negative(name, getattr(self, name))
+        positive("initial_speed_sigma_mps", self.initial_speed_sigma_mps)
+        positive("initial_turn_sigma_rps", self.initial_turn_sigma_rps)
+
+
+def _residual(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    y = a - b
+    y[1, 0] = wrap_angle(y[1, 0])
+    y[2, 0] = wrap_angle(y[2, 0])
+    return y
+
+
+class _Filter(ExtendedKalmanFilter):
+    """filterpy's EKF with the nonlinear prediction of this model."""
+
+    def predict_x(self, u: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+        v_f, dth, dt = u
+        x, y, phi, v, w = self.x[:, 0]
+        # The follower's own displacement over the step, on its arc (eq. 7).
+        if abs(dth) < 1e-9:
+            tx, ty = 0.0, v_f * dt
+        else:
+            radius = v_f * dt / dth
+            tx, ty = -radius * (1.0 - math.cos(dth)), radius * math.sin(dth)
+        # Reference moves along its mid-step heading R(phi_m)[0, 1] = (-sin, cos).
+        phi_m = phi + 0.5 * w * dt
+        x1 = x - v * dt * math.sin(phi_m) - tx
+        y1 = y + v * dt * math.cos(phi_m) - ty
+        # The follower turns by dth: points rotate by -dth in its frame.
+        c = math.cos(dth)
+        s = math.sin(dth)
+        self.x = np.array([[c * x1 + s * y1], [-s * x1 + c * y1], [wrap_angle(phi + w * dt - dth)], [v], [w]])
+
+
+def _hx(state: np.ndarray, d: float) -> np.ndarray:
+    x, y, phi = state[0, 0], state[1, 0], state[2, 0]
+    mx = x + d * math.sin(phi)
+    my = y - d * math.cos(phi)
+    return np.array([[math.hypot(mx, my)], [math.atan2(mx, my)], [phi]])
+
+
+def _h_jacobian(state: np.ndarray, d: float) -> np.ndarray:
+    x, y, phi = state[0, 0], state[1, 0], state[2, 0]
+    mx = x + d * math.sin(phi)
+    my = y - d * math.cos(phi)
+    r2 = max(mx * mx + my * my, 1e-12)
+    r = math.sqrt(r2)
+    dmx_dphi = d * math.cos(phi)
+    dmy_dphi = d * math.sin(phi)
+    return np.array(
+        [
+            [mx / r, my / r, (mx * dmx_dphi + my * dmy_dphi) / r, 0.0, 0.0],
+            [my / r2, -mx / r2, (my * dmx_dphi - mx * dmy_dphi) / r2, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0, 0.0],
+        ]
+    )
+
+
+class TargetEKF:
+    """Tracks one reference robot from marker readings and the own wheel speeds."""
+
+    def __init__(self, params: EkfParams, marker_offset_m: float, width_m: float) -> None:
+        self.params = params
+        self.marker_offset_m = non_negative("marker_offset_m", marker_offset_m)
+        self.width_m = positive("width_m", width_m)
+        self._kf = _Filter(dim_x=5, dim_z=3)
+        self._kf.R = np.diag([params.sigma_rho_m**2, params.sigma_beta_rad**2, params.sigma_phi_rad**2])
+        self.initialized = False
+
+    def reset(self) -> None:
+        self.initialized = False
+
+    def predict(self, v_left_mps: float, v_right_mps: float, dt_s: float) -> None:
+        """Eq. 17-18 with the follower's own wheel speeds (eq. 8-9)."""
+        if not self.initialized:
+            return
+        dt = positive("dt_s", dt_s)
+        v_f, w_f = body_twist(finite("v_left_mps", v_left_mps), finite("v_right_mps", v_right_mps), self.width_m)
+        dth = w_f * dt
+        kf = self._kf
+        _, _, phi, v, w = kf.x[:, 0]
+        c = math.cos(dth)
+        s = math.sin(dth)
+        phi_m = phi + 0.5 * w * dt
+        sp = math.sin(phi_m)
+        cp = math.cos(phi_m)
+        # Jacobian of predict_x with respect to the state.
+        j_pre = np.eye(5)
+        j_pre[0, 2:] = (-v * dt * cp, -dt * sp, -0.5 * v * dt * dt * cp)
+        j_pre[1, 2:] = (-v * dt * sp, dt * cp, -0.5 * v * dt * dt * sp)
+        j_pre[2, 4] = dt
+        rot = np.eye(5)
+        rot[:2, :2] = ((c, s), (-s, c))
+        kf.F = rot @ j_pre
+        p = self.params
+        kf.Q = np.diag([p.q_pos_m**2, p.q_pos_m**2, p.q_phi_rad**2, p.q_speed_mps**2, p.q_turn_rps**2]) * dt
+        kf.predict(u=(v_f, dth, dt))
+
+    def update(self, reading: tuple[float, float, float] | None) -> None:
+        """Eq. 19-21 with z = (rho_r, phi, beta); None only keeps the prediction."""
+        if reading is None:
+            if self.initialized:
+                self._kf.update(None, _h_jacobian, _hx)
+            return
+        rho = non_negative("rho_m", reading[0])
+        phi = finite("phi_rad", reading[1])
+        beta = finite("beta_rad", reading[2])
+        if not self.initialized:
+            self._initialize(rho, phi, beta)
+            return
+        z = np.array([[rho], [beta], [phi]])
+        d = self.marker_offset_m
+        self._kf.update(z, _h_jacobian, _hx, args=(d,), hx_args=(d,), residual=_residual)
+        self._kf.x[2, 0] = wrap_angle(self._kf.x[2, 0])
+
+    def _initialize(self, rho: float, phi: float, beta: float) -> None:
+        """Invert eq. 1 for the first reading; speed unknown (0 +- initial sigma)."""
+        pr = leader_point(rho, phi, beta, self.marker_offset_m)
+        p = self.params
+        # First-order covariance of the inverted reading.
+        sb, cb = math.sin(beta), math.cos(beta)
+        j = np.array([[sb, rho * cb], [cb, -rho * sb]])
+        cov_xy = j @ np.diag([p.sigma_rho_m**2, p.sigma_beta_rad**2]) @ j.T
+        cov_xy += np.eye(2) * (self.marker_offset_m * p.sigma_phi_rad) ** 2
+        self._kf.x = np.array([[pr.x_m], [pr.y_m], [phi], [0.0], [0.0]])
+        self._kf.P = np.zeros((5, 5))
+        self._kf.P[:2, :2] = cov_xy
+        self._kf.P[2, 2] = p.sigma_phi_rad**2
+        self._kf.P[3, 3] = p.initial_speed_sigma_mps**2
+        self._kf.P[4, 4] = p.initial_turn_sigma_rps**2
+        self.initialized = True
+
+    @property
+    def state(self) -> np.ndarray:
+        """(x_r, y_r, phi, v_r, w_r), a copy."""
+        return self._kf.x[:, 0].copy()
+
+    @property
+    def covariance(self) -> np.ndarray:
+        return self._kf.P.copy()
+
+    def leader(self) -> tuple[Point, float]:
+        x, y, phi = self._kf.x[:3, 0]
+        return Point(float(x), float(y)), float(phi)
+
+    def target(self, offset: Point) -> tuple[Point, np.ndarray]:
+        """Eq. 2 on the estimate: P_g and its 2x2 covariance (first order)."""
+        x, y, phi = self._kf.x[:3, 0]
+        off = rotate(float(phi), offset[0], offset[1])
+        # d/dphi R(phi) P_vt = R(phi + pi/2) P_vt = (-off_y, off_x)
+        j = np.array([[1.0, 0.0, -off.y_m, 0.0, 0.0], [0.0, 1.0, off.x_m, 0.0, 0.0]])
+        cov = j @ self._kf.P @ j.T
+        return Point(float(x) + off.x_m, float(y) + off.y_m), cov

@@ -1,0 +1,139 @@
+"""A follower's per-tick brain, pure: reading -> EKF -> target -> fuzzy -> wheels.
+
+This is the whole controller of paper Fig. 4 plus the EKF of section 3 and
+the collision avoidance of section 2.2, with no I/O, so the same object runs
+inside an agent process, the one-process simulator and the benchmarks.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from agents import fuzzy as fz
+from agents.avoidance import Choice, select_target
+from agents.ekf import EkfParams, TargetEKF
+from agents.geometry import Point, errors, leader_point, target_from_reading, target_point
+from swarm.checks import non_negative, positive
+
+
+@dataclass(frozen=True)
+class FollowerParams:
+    width_m: float = 0.5
+    marker_offset_m: float = 0.1
+    dt_s: float = 0.05
+    clearance_m: float = 1.0
+    # Without a reading for this long the follower stops and waits.
+    lost_after_s: float = 1.0
+    fuzzy: fz.FuzzyParams = field(default_factory=fz.FuzzyParams)
+    speed: fz.SpeedMode = field(default_factory=fz.SpeedMode)
+    ekf: EkfParams = field(default_factory=EkfParams)
+    use_ekf: bool = True
+
+    def __post_init__(self) -> None:
+        positive("width_m", self.width_m)
+        non_negative("marker_offset_m", self.marker_offset_m)
+        positive("dt_s", self.dt_s)
+        positive("clearance_m", self.clearance_m)
+        positive("lost_after_s", self.lost_after_s)
+
+
+class Decision(NamedTuple):
+    """What the follower did this tick, for the command and the telemetry."""
+
+    left_mps: float
+    right_mps: float
+    vn: float
+    alpha_rad: float
+    rho_m: float
+    drho_m: float
+    measured: Point | None  # target from this tick's raw reading (eq. 1-2)
+    estimate: Point | None  # target from the EKF
+    estimate_cov: np.ndarray | None
+    steering_to: Choice
+    changing: bool
+
+
+class Follower:
+    """One follower: holds its formation slot, EKF and last errors."""
+
+    def __init__(self, params: FollowerParams, offset: Point) -> None:
+        self.p = params
+        self.offset = Point(float(offset[0]), float(offset[1]))
+        self.ekf = TargetEKF(params.ekf, params.marker_offset_m, params.width_m)
+        self._last_cmd = (0.0, 0.0)
+        self._prev_rho: float | None = None
+        self._prev_choice = Choice.T0
+        self._since_reading_s = math.inf
+        self._raw: tuple[float, float, float] | None = None
+        self.changing = False
+
+    def set_offset(self, offset: Point) -> None:
+        """A new formation slot: start the collision-avoiding change (sec. 2.2)."""
+        new = Point(float(offset[0]), float(offset[1]))
+        if new != self.offset:
+            self.offset = new
+            self.changing = True
+
+    def step(self, reading: tuple[float, float, float] | None) -> Decision:
+        """One tick. ``reading`` is the reference's (rho_r, phi, beta), or None."""
+        p = self.p
+        measured = None
+        if reading is not None:
+            measured = target_from_reading(reading[0], reading[1], reading[2], p.marker_offset_m, self.offset)
+            self._since_reading_s = 0.0
+            self._raw = (float(reading[0]), float(reading[1]), float(reading[2]))
+        else:
+            self._since_reading_s += p.dt_s
+        if p.use_ekf:
+            self.ekf.predict(self._last_cmd[0], self._last_cmd[1], p.dt_s)
+            self.ekf.update(reading)
+        if self._since_reading_s > p.lost_after_s or self._raw is None:
+            return self._stop(measured)
+
+        if p.use_ekf:
+            leader, phi = self.ekf.leader()
+            estimate, cov = self.ekf.target(self.offset)
+        else:
+            # Raw mode (no EKF): act on the latest reading as it is.
+            rho_r, phi, beta = self._raw
+            leader = leader_point(rho_r, phi, beta, p.marker_offset_m)
+            estimate, cov = target_point(leader, phi, self.offset), None
+        choice = Choice.T0
+        goal = estimate
+        if self.changing:
+            sel = select_target(leader, phi, self.offset, p.clearance_m)
+            choice, goal = sel.choice, sel.target
+        # A switch of target makes rho jump; eq. 6 restarts from the new target.
+        prev_rho = self._prev_rho if choice == self._prev_choice else None
+        err = errors(goal, prev_rho)
+        if self.changing and (choice is Choice.T0 or (choice is Choice.T3 and err.rho_m < p.fuzzy.dn_m)):
+            # Reached T3 behind the reference, or T0 is the nearer: the change is
+            # over, track T0 from now on (docs/paper.md, eq. 13).
+            self.changing = False
+        vn, wheels = fz.control(err.alpha_rad, err.rho_m, err.drho_m, p.dt_s, p.fuzzy, p.speed)
+        self._prev_rho = err.rho_m
+        self._prev_choice = choice
+        self._last_cmd = (wheels.left_mps, wheels.right_mps)
+        return Decision(
+            wheels.left_mps,
+            wheels.right_mps,
+            vn,
+            err.alpha_rad,
+            err.rho_m,
+            err.drho_m,
+            measured,
+            estimate,
+            cov,
+            choice,
+            self.changing,
+        )
+
+    def _stop(self, measured: Point | None) -> Decision:
+        self._last_cmd = (0.0, 0.0)
+        self._prev_rho = None
+        nan = math.nan
+        return Decision(0.0, 0.0, nan, nan, nan, nan, measured, None, None, Choice.T0, self.changing)

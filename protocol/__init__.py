@@ -1,0 +1,1 @@
+"""What crosses the wire: message schemas, key expressions, link faults."""

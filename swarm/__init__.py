@@ -1,0 +1,3 @@
+"""Distributed leader-follower formation emulator (vision, fuzzy control, EKF)."""
+
+__version__ = "0.1.0"

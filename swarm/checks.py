@@ -1,0 +1,50 @@
+"""Validation helpers shared by the pure maths: each raises ValueError or
+TypeError naming the parameter and the offending value."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+
+def finite(name: str, value: object) -> float:
+    """Return ``value`` as a float, rejecting non-numbers, NaN and inf."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
+    out = float(value)
+    if not math.isfinite(out):
+        raise ValueError(f"{name} must be finite, got {out!r}")
+    return out
+
+
+def positive(name: str, value: object) -> float:
+    out = finite(name, value)
+    if out <= 0.0:
+        raise ValueError(f"{name} must be > 0, got {out!r}")
+    return out
+
+
+def non_negative(name: str, value: object) -> float:
+    out = finite(name, value)
+    if out < 0.0:
+        raise ValueError(f"{name} must be >= 0, got {out!r}")
+    return out
+
+
+def probability(name: str, value: object) -> float:
+    out = finite(name, value)
+    if not 0.0 <= out <= 1.0:
+        raise ValueError(f"{name} must be in [0, 1], got {out!r}")
+    return out
+
+
+def vector(name: str, value: object, size: int) -> tuple[float, ...]:
+    """Return a finite vector of exactly ``size`` numbers as a tuple."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
+        raise TypeError(f"{name} must be a sequence of {size} numbers, got {value!r}")
+    arr = np.asarray(value, dtype=object).ravel() if isinstance(value, np.ndarray) else value
+    if len(arr) != size:
+        raise ValueError(f"{name} must have {size} elements, got {len(arr)}: {value!r}")
+    return tuple(finite(f"{name}[{i}]", v) for i, v in enumerate(arr))

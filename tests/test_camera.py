@@ -1,0 +1,65 @@
+"""The camera model: geometry, field of view, range, seeded noise."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from world.camera import CameraParams, observe, true_reading
+from world.kinematics import Pose
+
+
+def test_reading_of_a_robot_straight_ahead() -> None:
+    rho, phi, beta = true_reading(Pose(0, 0, 0), Pose(3.0, 0.0, 0.5), 0.1)
+    # Marker 0.1 m behind the target along its heading 0.5 rad.
+    mx, my = 3.0 - 0.1 * math.cos(0.5), -0.1 * math.sin(0.5)
+    assert rho == pytest.approx(math.hypot(mx, my))
+    assert phi == pytest.approx(0.5)
+    assert beta == pytest.approx(math.atan2(-my, mx))  # right of the heading is +beta
+
+
+def test_field_of_view_and_range_hide_markers() -> None:
+    params = CameraParams(fov_rad=math.radians(90), range_m=5.0, sigma_rho_m=0, sigma_phi_rad=0, sigma_beta_rad=0)
+    poses = {
+        1: Pose(0.0, 0.0, 0.0),
+        2: Pose(3.0, 0.5, 0.0),  # ahead, in view
+        3: Pose(-3.0, 0.0, 0.0),  # behind: outside the 90 deg cone
+        4: Pose(8.0, 0.0, 0.0),  # ahead but beyond 5 m
+        5: Pose(2.0, 2.5, 0.0),  # 51 deg left: outside +-45 deg
+    }
+    seen = observe(1, poses, params, np.random.default_rng(0))
+    assert [m.robot_id for m in seen] == [2]
+    assert seen[0].rho_m == pytest.approx(true_reading(poses[1], poses[2], params.marker_offset_m)[0])
+
+
+def test_noise_statistics_and_seeding() -> None:
+    params = CameraParams(sigma_rho_m=0.05, sigma_phi_rad=0.03, sigma_beta_rad=0.02)
+    poses = {1: Pose(0, 0, 0), 2: Pose(2.0, 0.3, 0.2)}
+    truth = true_reading(poses[1], poses[2], params.marker_offset_m)
+    rng = np.random.default_rng(42)
+    samples = np.array([observe(1, poses, params, rng)[0][1:] for _ in range(20000)])
+    err = samples - np.array(truth)
+    assert np.abs(err.mean(axis=0)).max() < 0.002
+    assert err.std(axis=0) == pytest.approx([0.05, 0.03, 0.02], rel=0.03)
+    a = observe(1, poses, params, np.random.default_rng(5))
+    b = observe(1, poses, params, np.random.default_rng(5))
+    c = observe(1, poses, params, np.random.default_rng(6))
+    assert a == b
+    assert a != c
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"fov_rad": 0.0}, "fov_rad"),
+        ({"fov_rad": 7.0}, "fov_rad"),
+        ({"range_m": -1.0}, "range_m"),
+        ({"sigma_rho_m": math.nan}, "sigma_rho_m"),
+        ({"marker_offset_m": -0.1}, "marker_offset_m"),
+    ],
+)
+def test_bad_camera_parameters(kwargs: dict, name: str) -> None:
+    with pytest.raises(ValueError, match=name):
+        CameraParams(**kwargs)

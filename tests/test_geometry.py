@@ -1,0 +1,151 @@
+"""Eq. 1-6 and 11-13 on hand-computed cases, and against the world's camera."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from agents import geometry as g
+from agents.avoidance import Choice, Zone, select_target, zone_of
+from agents.formation import Formation, Slot, line, wedge
+from agents.geometry import Point
+from world.camera import true_reading
+from world.kinematics import Pose, from_body_frame, to_body_frame
+
+
+def test_leader_straight_ahead() -> None:
+    # Marker 2 m ahead, leader aligned: centre is d further ahead.
+    pr = g.leader_point(2.0, 0.0, 0.0, 0.1)
+    assert pr == pytest.approx((0.0, 2.1))
+    # Offset 1 m behind and 1 m left of the leader.
+    pg = g.target_point(pr, 0.0, Point(-1.0, -1.0))
+    assert pg == pytest.approx((-1.0, 1.1))
+    e = g.errors(pg, None)
+    assert e.alpha_rad == pytest.approx(math.atan2(-1.0, 1.1))
+    assert e.rho_m == pytest.approx(math.hypot(1.0, 1.1))
+    assert e.drho_m == 0.0
+    assert g.errors(pg, 2.0).drho_m == pytest.approx(math.hypot(1.0, 1.1) - 2.0)
+
+
+def test_leader_at_bearing_and_rotated() -> None:
+    # Marker at 2 m, 30 deg to the right; leader turned 90 deg left (facing -x).
+    beta, phi, d = math.radians(30), math.pi / 2, 0.2
+    pr = g.leader_point(2.0, phi, beta, d)
+    # Marker at (1, sqrt 3); centre is d along the leader's heading (-x).
+    assert pr == pytest.approx((1.0 - 0.2, math.sqrt(3.0)))
+    # P_vt = (0, -1): 1 m behind the leader, i.e. +x in the follower frame.
+    assert g.target_point(pr, phi, Point(0.0, -1.0)) == pytest.approx((1.8, math.sqrt(3.0)))
+    # A target on the follower's right has alpha > 0.
+    assert g.errors(Point(1.0, 1.0), None).alpha_rad == pytest.approx(math.pi / 4)
+
+
+def test_geometry_inverts_the_camera_for_random_poses() -> None:
+    """Eq. 1-2 on a noise-free reading give the true target (world maths)."""
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        f = Pose(*rng.uniform(-5, 5, 2), rng.uniform(-math.pi, math.pi))
+        lead = Pose(*rng.uniform(-5, 5, 2), rng.uniform(-math.pi, math.pi))
+        off = Point(*rng.uniform(-2, 2, 2))
+        d = float(rng.uniform(0, 0.3))
+        rho, phi, beta = true_reading(f, lead, d)
+        pg = g.target_from_reading(rho, phi, beta, d, off)
+        want = to_body_frame(f, *from_body_frame(lead, off.x_m, off.y_m))
+        assert pg == pytest.approx(want, abs=1e-9)
+        pr = g.leader_point(rho, phi, beta, d)
+        # Eq. 11-12: the follower seen from the leader.
+        assert g.follower_in_leader_frame(pr, phi) == pytest.approx(to_body_frame(lead, f.x_m, f.y_m), abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("follower_in_leader", "zone"),
+    [((1.0, 1.0), Zone.I), ((-1.0, 1.0), Zone.II), ((1.0, -1.0), Zone.III), ((-1.0, -0.5), Zone.III)],
+)
+def test_zones_eq_11_12(follower_in_leader: tuple[float, float], zone: Zone) -> None:
+    lead = Pose(0.0, 0.0, 0.3)
+    fx, fy = from_body_frame(lead, *follower_in_leader)
+    f = Pose(fx, fy, -0.8)
+    pr_x, pr_y = to_body_frame(f, lead.x_m, lead.y_m)
+    phi = lead.theta_rad - f.theta_rad
+    assert zone_of(Point(pr_x, pr_y), phi) is zone
+
+
+def _selection(follower_in_leader: tuple[float, float], offset: Point, clearance: float = 1.0) -> tuple:
+    """Run eq. 13 from a follower placed in the leader frame; targets back in it."""
+    lead = Pose(2.0, -1.0, 1.1)
+    f = Pose(*from_body_frame(lead, *follower_in_leader), -0.4)
+    pr = Point(*to_body_frame(f, lead.x_m, lead.y_m))
+    sel = select_target(pr, lead.theta_rad - f.theta_rad, offset, clearance)
+    return sel.zone, sel.choice, to_body_frame(lead, *from_body_frame(f, *sel.target))
+
+
+def test_eq13_zone_i_goes_beside_right() -> None:
+    zone, choice, t = _selection((0.5, 0.5), Point(0.0, -1.5))
+    assert (zone, choice) == (Zone.I, Choice.T1)
+    assert t == pytest.approx((1.0, 0.0))
+
+
+def test_eq13_zone_ii_goes_beside_left() -> None:
+    zone, choice, t = _selection((-0.5, 2.0), Point(0.0, -1.5))
+    assert (zone, choice) == (Zone.II, Choice.T2)
+    assert t == pytest.approx((-1.0, 0.0))
+
+
+def test_eq13_zone_iii_far_target_goes_behind_first() -> None:
+    # Behind-right, new slot behind-left far away: T3 (behind the leader) is nearer.
+    zone, choice, t = _selection((1.5, -1.0), Point(-2.0, -3.0))
+    assert (zone, choice) == (Zone.III, Choice.T3)
+    assert t == pytest.approx((0.0, -1.0))
+
+
+def test_eq13_zone_iii_near_target_goes_straight() -> None:
+    zone, choice, t = _selection((0.2, -1.4), Point(0.0, -1.5))
+    assert (zone, choice) == (Zone.III, Choice.T0)
+    assert t == pytest.approx((0.0, -1.5))
+
+
+def test_formations_triangle_and_line() -> None:
+    tri = wedge(3, 1.5, 1.5)
+    assert tri.leader == 1
+    assert tri.slots[2] == Slot(1, Point(-1.5, -1.5))
+    assert tri.slots[3] == Slot(2, Point(3.0, 0.0))
+    assert tri.slot_positions()[3] == pytest.approx((1.5, -1.5))
+    ln = line(3, 1.5)
+    assert ln.slots[3] == Slot(2, Point(0.0, -1.5))
+    big = wedge(7, 1.0, 1.0)
+    assert big.slot_positions()[6] == pytest.approx((-3.0, -3.0))
+    assert big.slot_positions()[7] == pytest.approx((3.0, -3.0))
+
+
+@pytest.mark.parametrize(
+    ("slots", "match"),
+    [
+        ({2: Slot(2, Point(0, -1))}, "references itself"),
+        ({2: Slot(3, Point(0, -1)), 3: Slot(2, Point(0, -1))}, "cycle"),
+        ({2: Slot(1, Point(math.nan, -1))}, "offset x"),
+        ({0: Slot(1, Point(0, -1))}, "robot id"),
+        ({}, "no follower"),
+    ],
+)
+def test_bad_formations(slots: dict, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        Formation("f", slots)
+
+
+@pytest.mark.parametrize(
+    ("call", "name"),
+    [
+        (lambda: g.leader_point(-1.0, 0.0, 0.0, 0.1), "rho_m"),
+        (lambda: g.leader_point(1.0, math.nan, 0.0, 0.1), "phi_rad"),
+        (lambda: g.leader_point(1.0, 0.0, math.inf, 0.1), "beta_rad"),
+        (lambda: g.leader_point(1.0, 0.0, 0.0, -0.1), "marker_offset_m"),
+        (lambda: g.errors(Point(math.nan, 1.0), None), "target.x_m"),
+        (lambda: select_target(Point(0.0, 1.0), 0.0, Point(0, -1), 0.0), "clearance_m"),
+        (lambda: line(1, 1.0), "n must be"),
+        (lambda: wedge(3, -1.0, 1.0), "lateral_m"),
+    ],
+)
+def test_bad_input_names_the_parameter(call: object, name: str) -> None:
+    with pytest.raises(ValueError, match=name):
+        call()  # type: ignore[operator]

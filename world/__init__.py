@@ -1,0 +1,1 @@
+"""The robots' bodies and senses: kinematics, cameras, and the world process."""
