@@ -109,9 +109,10 @@ class Follower:
             choice, goal = sel.choice, sel.target
         # A switch of target makes rho jump; eq. 6 restarts from the new target.
         prev_rho = self._prev_rho if choice == self._prev_choice else None
-        err = errors(goal, prev_rho)
-        if self.changing and (choice is Choice.T0 or (choice is Choice.T3 and err.rho_m < p.fuzzy.dn_m)):
-            # Reached T3 behind the reference, or T0 is the nearer: the change is
+        err = errors(goal, prev_rho, phi)
+        if self.changing and (choice is Choice.T0 or (choice is Choice.T3 and abs(err.rho_m) <= p.fuzzy.d1_m)):
+            # Reached T3 behind the reference (within the Enough band, rho <= d1),
+            # or T0 is the nearer: the change is
             # over, track T0 from now on (docs/paper.md, eq. 13).
             self.changing = False
         vn, wheels = fz.control(err.alpha_rad, err.rho_m, err.drho_m, p.dt_s, p.fuzzy, p.speed)

@@ -97,7 +97,8 @@ def alpha_memberships(alpha_rad: float, gamma_rad: float) -> tuple[float, float,
 def rho_memberships(rho_m: float, p: FuzzyParams) -> tuple[float, float, float]:
     """(Close, Enough, Far) of the distance error; a partition of unity.
 
-    Close is 1 up to d0 and falls to 0 at dn; Enough rises d0..dn, is 1 on
+    Close is 1 up to d0 (and for every negative, behind-the-robot rho) and
+    falls to 0 at dn; Enough rises d0..dn, is 1 on
     [dn, d1] and falls to 0 at dmax; Far rises d1..dmax and stays 1.
     """
     close = _clip01((p.dn_m - rho_m) / (p.dn_m - p.d0_m))
@@ -181,9 +182,7 @@ def control(
     Inputs are validated here, once per tick, so the inner functions stay lean.
     """
     alpha = finite("alpha_rad", alpha_rad)
-    rho = finite("rho_m", rho_m)
-    if rho < 0.0:
-        raise ValueError(f"rho_m must be >= 0, got {rho!r}")
+    rho = finite("rho_m", rho_m)  # signed: < 0 when the target is behind (eq. 5)
     drho = finite("drho_m", drho_m)
     dt = positive("dt_s", dt_s)
     vn = fis2(drho / dt, rho, p) if mode.static_vn is None else mode.static_vn

@@ -68,17 +68,24 @@ def target_from_reading(rho_m: float, phi_rad: float, beta_rad: float, marker_of
     return target_point(pr, phi_rad, offset)
 
 
-def errors(target: Point, prev_rho_m: float | None) -> TargetErrors:
+def errors(target: Point, prev_rho_m: float | None, phi_rad: float = 0.0) -> TargetErrors:
     """Eq. 4-6: heading error alpha, distance error rho and its change.
 
     alpha = atan2(x_g, y_g) (eq. 4), positive when the target is to the
-    follower's right. rho = |P_g| (eq. 5, the follower-to-target distance; the
-    printed "-(lambda_g + y_g)" is garbled, docs/paper.md). drho = rho_t -
-    rho_{t-1} (eq. 6), 0 on the first tick.
+    follower's right. rho (eq. 5) is the follower-to-target distance |P_g|,
+    signed: negative when the follower is ahead of its target along the
+    reference robot's heading (``phi_rad``, as in eq. 11-12), i.e. when the
+    target is still to come. The printed "-(lambda_g + y_g)" is garbled; we
+    keep its sign and its y (docs/paper.md, eq. 5). A negative rho is "Close"
+    for FIS-1: a follower, which cannot reverse, slows down and lets its target
+    come instead of looping back to it. drho = rho_t - rho_{t-1} (eq. 6), 0
+    on the first tick.
     """
     xg = finite("target.x_m", target[0])
     yg = finite("target.y_m", target[1])
-    rho = math.hypot(xg, yg)
+    phi = finite("phi_rad", phi_rad)
+    along = -xg * math.sin(phi) + yg * math.cos(phi)  # P_g . R(phi)[0, 1]
+    rho = math.copysign(math.hypot(xg, yg), along)
     drho = 0.0 if prev_rho_m is None else rho - finite("prev_rho_m", prev_rho_m)
     return TargetErrors(math.atan2(xg, yg), rho, drho)
 

@@ -45,6 +45,42 @@ def _vn(text: str) -> str:
     return text
 
 
+def _cmd_run(args: argparse.Namespace) -> int:
+    from swarm.launcher import KillAt, Launch, print_result
+    from swarm.scenario import ScenarioError
+
+    kills = []
+    for spec in args.kill:
+        who, _, when = spec.partition("@")
+        try:
+            kills.append(KillAt(who, float(when)))
+        except ValueError:
+            print(f"swarm run: --kill takes PROCESS@SECONDS (e.g. agent-3@20), got {spec!r}", file=sys.stderr)
+            return 2
+    try:
+        launch = Launch(
+            args.scenario, mode=args.mode, seed=args.seed, out=args.out, logger=not args.no_logger,
+            live=args.live, serve_web=args.serve_web, kills=kills,
+        )  # fmt: skip
+    except (ScenarioError, ValueError) as exc:
+        print(f"swarm run: {exc}", file=sys.stderr)
+        return 2
+    print(f"[swarm] run {launch.run_id}: {launch.sc.name}, {len(launch.sc.robots)} robots, {args.mode}, "
+          f"seed {launch.sc.seed}, folder {launch.run_dir}", flush=True)  # fmt: skip
+    with launch:
+        result = launch.wait(timeout_s=args.timeout)
+    print_result(result)
+    return result.exit_code
+
+
+DELEGATED = {
+    "world": ("world.process", "the world process alone (router by default)"),
+    "agent": ("agents.process", "one robot's agent alone (client of a router)"),
+    "logger": ("swarm.logger", "the Rerun logger alone"),
+    "router": ("swarm.router", "a Zenoh router for agents on other machines"),
+}
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="swarm", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -53,10 +89,33 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--duration", type=_positive_float, default=60.0, help="s (the path ends first)")
     sim.add_argument("--vn", type=_vn, default="dynamic", help="'dynamic' (FIS-2) or a static V_N, e.g. 1.5")
     sim.set_defaults(func=_cmd_sim)
+
+    run = sub.add_parser("run", help="run a scenario, every robot its own process (world, logger, agents)")
+    run.add_argument("scenario", help="scenario file (TOML), e.g. scenarios/fig11_obstacles.toml")
+    run.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
+    run.add_argument("--seed", type=int, default=None, help="overrides the scenario's seed")
+    run.add_argument("--out", default=None, help="run folder (default runs/<run id>)")
+    run.add_argument("--no-logger", action="store_true", help="no Rerun recording")
+    run.add_argument(
+        "--live", metavar="URL", help="also stream to a Rerun viewer, e.g. rerun+http://127.0.0.1:9876/proxy"
+    )
+    run.add_argument("--serve-web", action="store_true", help="also serve the Rerun web viewer")
+    run.add_argument("--kill", action="append", default=[], metavar="PROC@SECONDS",
+                     help="fault injection: SIGKILL a process (agent-N, logger) at that sim time")  # fmt: skip
+    run.add_argument("--timeout", type=float, default=None, help="wall-clock limit in s")
+    run.set_defaults(func=_cmd_run)
+
+    for name, (_, text) in DELEGATED.items():
+        sub.add_parser(name, help=text + f"; see swarm {name} --help")
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in DELEGATED:
+        import importlib
+
+        return int(importlib.import_module(DELEGATED[argv[0]][0]).main(argv[1:]))
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))

@@ -43,7 +43,7 @@ def _oracle(p: FuzzyParams) -> tuple[object, object]:
             universe_of_discourse=[-4, 4],
         ),
     )
-    fis1.add_linguistic_variable("rho", LV(rho_sets, universe_of_discourse=[0, 100]))
+    fis1.add_linguistic_variable("rho", LV(rho_sets, universe_of_discourse=[-100, 100]))
     rules = []
     # Table 1 transcribed from the paper, row by row, independently of agents.fuzzy.
     left = {"Close": "SSS", "Enough": "MMS", "Far": "FFM"}
@@ -67,7 +67,7 @@ def _oracle(p: FuzzyParams) -> tuple[object, object]:
             universe_of_discourse=[-10, 10],
         ),
     )
-    fis2.add_linguistic_variable("rho", LV(rho_sets, universe_of_discourse=[0, 100]))
+    fis2.add_linguistic_variable("rho", LV(rho_sets, universe_of_discourse=[-100, 100]))
     table2 = {"Positive": ("Mid", "H", "H"), "Zero": ("Mid", "Mid", "Mid"), "Negative": ("L", "L", "Mid")}
     fis2.add_rules(
         [
@@ -103,7 +103,7 @@ def test_fis1_matches_simpful_on_random_inputs(oracle: tuple[object, object]) ->
     n = 1500
     alphas = rng.uniform(-math.pi, math.pi, n)
     # Half the draws inside the interesting band, half anywhere up to 3 m.
-    rhos = np.where(rng.random(n) < 0.5, rng.uniform(0.0, 0.6, n), rng.uniform(0.0, 3.0, n))
+    rhos = np.where(rng.random(n) < 0.5, rng.uniform(-0.5, 0.6, n), rng.uniform(-3.0, 3.0, n))
     alphas[: n // 4] = rng.uniform(-0.4, 0.4, n // 4)
     vns = rng.uniform(1.5, 2.0, n)
     worst = 0.0
@@ -117,7 +117,7 @@ def test_fis1_matches_simpful_on_random_inputs(oracle: tuple[object, object]) ->
 def test_fis2_matches_simpful_on_random_inputs(oracle: tuple[object, object]) -> None:
     rng = np.random.default_rng(20122)
     worst = 0.0
-    for d, r in zip(rng.uniform(-1.5, 1.5, 1500), rng.uniform(0.0, 3.0, 1500), strict=True):
+    for d, r in zip(rng.uniform(-1.5, 1.5, 1500), rng.uniform(-3.0, 3.0, 1500), strict=True):
         oracle[1].set_variable("drho", float(d), verbose=False)
         oracle[1].set_variable("rho", float(r), verbose=False)
         ref = oracle[1].Sugeno_inference(["vn"], ignore_warnings=True)["vn"]
@@ -201,7 +201,7 @@ def test_bad_parameters_name_the_field(kwargs: dict[str, float], name: str) -> N
     ("args", "name"),
     [
         ((math.nan, 1.0, 0.0, 0.05), "alpha_rad"),
-        ((0.0, -1.0, 0.0, 0.05), "rho_m"),
+        ((0.0, math.nan, 0.0, 0.05), "rho_m"),
         ((0.0, 1.0, math.inf, 0.05), "drho_m"),
         ((0.0, 1.0, 0.0, 0.0), "dt_s"),
     ],

@@ -39,6 +39,13 @@ def test_leader_at_bearing_and_rotated() -> None:
     assert g.target_point(pr, phi, Point(0.0, -1.0)) == pytest.approx((1.8, math.sqrt(3.0)))
     # A target on the follower's right has alpha > 0.
     assert g.errors(Point(1.0, 1.0), None).alpha_rad == pytest.approx(math.pi / 4)
+    # A follower ahead of its target along the reference's heading has a
+    # negative rho (eq. 5, signed): here the reference faces the follower's way.
+    behind = g.errors(Point(0.3, -0.4), 0.2, phi_rad=0.0)
+    assert behind.rho_m == pytest.approx(-0.5)
+    assert behind.drho_m == pytest.approx(-0.7)
+    # The same target with the reference facing the other way is still ahead.
+    assert g.errors(Point(0.3, -0.4), None, phi_rad=math.pi).rho_m == pytest.approx(0.5)
 
 
 def test_geometry_inverts_the_camera_for_random_poses() -> None:

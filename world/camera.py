@@ -82,16 +82,16 @@ def observe(
     for rid in sorted(poses):
         if rid == observer_id:
             continue
-        noise = rng.standard_normal(3)
+        n_rho, n_phi, n_beta = rng.standard_normal(3).tolist()
         rho, phi, beta = true_reading(observer, poses[rid], params.marker_offset_m)
         if rho > params.range_m or abs(beta) > half_fov:
             continue
         out.append(
             MarkerReading(
                 rid,
-                max(0.0, rho + params.sigma_rho_m * noise[0]),
-                wrap_angle(phi + params.sigma_phi_rad * noise[1]),
-                wrap_angle(beta + params.sigma_beta_rad * noise[2]),
+                max(0.0, rho + params.sigma_rho_m * n_rho),
+                wrap_angle(phi + params.sigma_phi_rad * n_phi),
+                wrap_angle(beta + params.sigma_beta_rad * n_beta),
             )
         )
     return out

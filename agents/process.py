@@ -1,0 +1,277 @@
+"""One robot's agent process: its brain on the run's Zenoh key space.
+
+    swarm agent --id N --scenario S.toml --run RUN [--seed N] [--stats FILE] --connect ENDPOINT
+
+A follower turns each observation into wheel speeds with the paper's
+controller (agents.follower) and obeys the formation codes its leader sends.
+The leader flies its scripted path, watches for obstacles and sends the
+formation code to every follower every tick over one-way links.
+
+The agent answers every observation it receives, even one its link layer
+drops (then without the reading), so that lockstep never waits on a drop.
+It holds a liveliness token while it runs and exits when the world says the
+run is done, when the world's token disappears, or on SIGINT/SIGTERM.
+"""
+
+from __future__ import annotations
+
+import argparse
+import queue
+import sys
+import threading
+import time
+from typing import Any
+
+import zenoh
+
+from agents.follower import Decision, Follower
+from agents.leader import FormationSwitch
+from agents.pilot import PathPilot
+from protocol import session
+from protocol.keys import Keys
+from protocol.links import Link, link_name
+from protocol.messages import Command, FormationCode, Observation, Rejections, Status, Telemetry
+from swarm import scenario as scenario_mod
+from swarm.proc import install_stop_handlers, write_json
+from world.kinematics import Pose
+
+STARTUP_TIMEOUT_S = 60.0
+WORLD_ID = 0
+
+
+class Agent:
+    def __init__(self, sess: zenoh.Session, sc: scenario_mod.Scenario, rid: int, run_id: str, seed: int,
+                 stop: threading.Event) -> None:  # fmt: skip
+        if rid not in sc.robots:
+            raise ValueError(f"--id {rid} is not a robot of this scenario; robots are {list(sc.robots)}")
+        self.session = sess
+        self.sc = sc
+        self.rid = rid
+        self.keys = Keys(run_id)
+        self.stop = stop
+        self.is_leader = rid == sc.leader.robot_id
+        self.rejections = Rejections()
+        self.inbox: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
+        self.seq = 0
+        self.code = sc.code_of(sc.leader.formation)
+        self.obs_link = Link(link_name("obs", WORLD_ID, rid), sc.links.obs_drop, seed)
+        self.formation_link = Link(link_name("formation", sc.leader.robot_id, rid), sc.links.formation_drop, seed)
+        self.world_alive = False
+        self.world_seen = False
+        self.done = False
+        self.answered = 0
+        self.formation_changes: list[dict[str, Any]] = []
+        if self.is_leader:
+            ld = sc.leader
+            self.pilot = PathPilot(ld.waypoints, ld.speed_mps, sc.width_m, ld.lookahead_m, ld.turn_rate_rps)
+            avoid = None if ld.avoid_formation is None else sc.code_of(ld.avoid_formation)
+            self.switch = FormationSwitch(self.code, avoid, ld.clear_after_s, sc.dt_s)
+            self.last_cmd = (0.0, 0.0)
+        else:
+            slot = sc.formation_by_code(self.code).slots[rid]
+            self.reference = slot.reference
+            self.follower = Follower(sc.followers[rid], slot.offset)
+
+    # -- callbacks: short, into the loop's queue, order kept ---------------------
+    def _on_inbox(self, sample: zenoh.Sample) -> None:
+        self.inbox.put(("msg", (str(sample.key_expr), sample.payload.to_bytes())))
+
+    def _on_status(self, sample: zenoh.Sample) -> None:
+        self.inbox.put(("status", sample.payload.to_bytes()))
+
+    def _on_world_alive(self, sample: zenoh.Sample) -> None:
+        self.inbox.put(("world", sample.kind == zenoh.SampleKind.PUT))
+
+    def run(self) -> int:
+        s, k = self.session, self.keys
+        s.declare_subscriber(k.inbox(self.rid), self._on_inbox, allowed_origin=zenoh.Locality.REMOTE)
+        s.declare_subscriber(k.status, self._on_status)
+        s.liveliness().declare_subscriber(k.alive("world", 0), self._on_world_alive, history=True)
+        self.cmd_pub = s.declare_publisher(k.cmd(self.rid))
+        self.tel_pub = s.declare_publisher(k.telemetry(self.rid))
+        self.form_pubs = (
+            {f: s.declare_publisher(k.formation(f)) for f in self.sc.follower_ids} if self.is_leader else {}
+        )
+        # Announce ourselves only once the world can hear our commands.
+        deadline = time.monotonic() + STARTUP_TIMEOUT_S
+        while not self.cmd_pub.matching_status.matching or (self.is_leader and not all(
+                p.matching_status.matching for p in self.form_pubs.values())):  # fmt: skip
+            if self.stop.wait(0.01):
+                return 130
+            if time.monotonic() > deadline:
+                print(f"agent {self.rid}: no world (or follower) matched within {STARTUP_TIMEOUT_S:.0f} s",
+                      file=sys.stderr)  # fmt: skip
+                return 2
+        token = s.liveliness().declare_token(k.alive("agent", self.rid))
+        try:
+            return self._loop()
+        finally:
+            token.undeclare()
+
+    def _loop(self) -> int:
+        while not self.stop.is_set() and not self.done:
+            try:
+                kind, data = self.inbox.get(timeout=0.2)
+            except queue.Empty:
+                continue
+            if kind == "msg":
+                self._on_message(*data)
+            elif kind == "status":
+                st = self.rejections.decode(Status, data)
+                if st is not None and st.state == "done":
+                    self.done = True
+            elif kind == "world":
+                if data:
+                    self.world_seen = True
+                elif self.world_seen:
+                    print(f"agent {self.rid}: the world is gone; exiting", flush=True)
+                    return 0
+        return 130 if self.stop.is_set() and not self.done else 0
+
+    def _on_message(self, key: str, payload: bytes) -> None:
+        rk = self.keys.parse_robot(key)
+        if rk is None or rk.robot_id != self.rid:
+            self.rejections.reject("unknown key")
+            return
+        if rk.kind == "obs":
+            msg = self.rejections.decode(Observation, payload, sender=WORLD_ID)
+            if msg is not None:
+                self._on_observation(msg, self.obs_link.accept(msg.seq))
+        elif rk.kind == "formation" and not self.is_leader:
+            fc = self.rejections.decode(FormationCode, payload, sender=self.sc.leader.robot_id)
+            if fc is not None and self.formation_link.accept(fc.seq):
+                self._apply_formation(fc)
+        else:
+            self.rejections.reject("unexpected key")
+
+    def _apply_formation(self, fc: FormationCode) -> None:
+        if fc.code >= len(self.sc.formation_names):
+            self.rejections.reject("unknown formation")
+            return
+        if fc.code == self.code:
+            return
+        slot = self.sc.formation_by_code(fc.code).slots.get(self.rid)
+        if slot is None:
+            self.rejections.reject("no slot in formation")
+            return
+        self.code = fc.code
+        self.reference = slot.reference
+        self.follower.set_offset(slot.offset)
+        self.formation_changes.append({"tick": fc.tick, "code": fc.code, "name": self.sc.formation_names[fc.code]})
+
+    def _on_observation(self, obs: Observation, delivered: bool) -> None:
+        if self.is_leader:
+            self._lead(obs, delivered)
+        else:
+            self._follow(obs, delivered)
+        self.answered += 1
+
+    def _send_cmd(self, tick: int, left: float, right: float, done: bool = False) -> None:
+        self.seq += 1
+        self.cmd_pub.put(Command(self.rid, self.seq, tick, left, right, self.code, done).to_bytes())
+
+    def _lead(self, obs: Observation, delivered: bool) -> None:
+        if delivered:
+            self.code = self.switch.step(obs.obstacles)
+            self.last_cmd = self.pilot.step(Pose(*obs.pose))
+        for pub in self.form_pubs.values():
+            self.seq += 1
+            pub.put(FormationCode(self.rid, self.seq, obs.tick, self.code).to_bytes())
+        self._send_cmd(obs.tick, *self.last_cmd, done=self.pilot.finished)
+
+    def _follow(self, obs: Observation, delivered: bool) -> None:
+        reading = None
+        if delivered:
+            for rid, rho, phi, beta in obs.readings:
+                if rid == self.reference:
+                    reading = (rho, phi, beta)
+                    break
+        d: Decision = self.follower.step(reading)
+        self._send_cmd(obs.tick, d.left_mps, d.right_mps)
+        cov = None if d.estimate_cov is None else (
+            float(d.estimate_cov[0, 0]), float(d.estimate_cov[0, 1]), float(d.estimate_cov[1, 1]))  # fmt: skip
+        self.seq += 1
+        self.tel_pub.put(
+            Telemetry(
+                self.rid,
+                self.seq,
+                obs.tick,
+                obs.time_s,
+                self.reference,
+                self.code,
+                None if d.measured is None else tuple(d.measured),
+                None if d.estimate is None else tuple(d.estimate),
+                cov,
+                _opt(d.rho_m),
+                _opt(d.alpha_rad),
+                _opt(d.vn),
+                d.left_mps,
+                d.right_mps,
+                int(d.steering_to),
+                d.changing,
+                self.obs_link.dropped,
+                self.formation_link.dropped,
+                self.rejections.total,
+            ).to_bytes()  # fmt: skip
+        )
+
+    def stats(self) -> dict[str, Any]:
+        return {
+            "robot": self.rid,
+            "role": "leader" if self.is_leader else "follower",
+            "answered": self.answered,
+            "formation": self.sc.formation_names[self.code],
+            "formation_changes": self.formation_changes,
+            "links": {
+                lk.name: {"received": lk.received, "dropped": lk.dropped}
+                for lk in ((self.obs_link,) if self.is_leader else (self.obs_link, self.formation_link))
+            },
+            "rejected": dict(self.rejections.by_reason),
+        }
+
+
+def _opt(x: float) -> float | None:
+    return None if x != x else x  # NaN -> None (the wire carries no NaN)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="swarm agent", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--id", type=int, required=True, help="robot id")
+    ap.add_argument("--scenario", required=True)
+    ap.add_argument("--run", required=True)
+    ap.add_argument("--seed", type=int, default=None, help="overrides the scenario's seed (link drops)")
+    ap.add_argument("--stats", help="write this agent's counters (JSON) here at exit")
+    session.add_arguments(ap, default_mode="client")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    stop = install_stop_handlers()
+    try:
+        sc = scenario_mod.load(args.scenario)
+        conf = session.config_from_args(args)
+    except ValueError as exc:
+        print(f"agent: {exc}", file=sys.stderr)
+        return 2
+    seed = sc.seed if args.seed is None else args.seed
+    try:
+        sess_cm = zenoh.open(conf)
+    except zenoh.ZError as exc:
+        print(f"agent: cannot open the Zenoh session: {exc}", file=sys.stderr)
+        return 2
+    with sess_cm as sess:
+        try:
+            agent = Agent(sess, sc, args.id, args.run, seed, stop)
+        except ValueError as exc:
+            print(f"agent: {exc}", file=sys.stderr)
+            return 2
+        code = agent.run()
+        write_json(args.stats, agent.stats())
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,127 @@
+"""Every Zenoh key expression of a run, built here and only here.
+
+All keys start with ``swarm/<run>`` so that runs never cross-talk::
+
+    swarm/<run>/robot/<id>/obs        world -> agent    Observation for tick k
+    swarm/<run>/robot/<id>/cmd        agent -> world    Command (wheel speeds) for tick k
+    swarm/<run>/robot/<id>/formation  leader -> follower <id>: FormationCode (one-way link)
+    swarm/<run>/robot/<id>/telemetry  agent -> logger   Telemetry
+    swarm/<run>/world/truth           world -> logger   Truth (true poses and targets)
+    swarm/<run>/world/status          world -> all      Status (progress, end of run)
+    swarm/<run>/alive/<role>/<id>     liveliness tokens (role: world, agent, logger)
+
+An agent reads its inbox ``swarm/<run>/robot/<id>/*`` with one subscriber so
+that the order in which observations and formation codes arrive is kept.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import NamedTuple
+
+ROOT = "swarm"
+MAX_ROBOT_ID = 10_000
+_RUN_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+ROBOT_KINDS = ("obs", "cmd", "formation", "telemetry")
+ROLES = ("world", "agent", "logger")
+
+
+def check_run_id(run_id: str) -> str:
+    if not isinstance(run_id, str) or not _RUN_ID.match(run_id):
+        raise ValueError(
+            f"run id must be 1-64 characters of letters, digits, '_', '.', '-' starting with a letter or digit, "
+            f"got {run_id!r}"
+        )
+    return run_id
+
+
+def check_robot_id(robot_id: int) -> int:
+    if isinstance(robot_id, bool) or not isinstance(robot_id, int) or not 1 <= robot_id <= MAX_ROBOT_ID:
+        raise ValueError(f"robot id must be an integer in [1, {MAX_ROBOT_ID}], got {robot_id!r}")
+    return robot_id
+
+
+class RobotKey(NamedTuple):
+    robot_id: int
+    kind: str
+
+
+class Keys:
+    """The key expressions of one run."""
+
+    def __init__(self, run_id: str) -> None:
+        self.run_id = check_run_id(run_id)
+        self.prefix = f"{ROOT}/{run_id}"
+
+    def robot(self, robot_id: int, kind: str) -> str:
+        if kind not in ROBOT_KINDS:
+            raise ValueError(f"robot key kind must be one of {ROBOT_KINDS}, got {kind!r}")
+        return f"{self.prefix}/robot/{check_robot_id(robot_id)}/{kind}"
+
+    def obs(self, robot_id: int) -> str:
+        return self.robot(robot_id, "obs")
+
+    def cmd(self, robot_id: int) -> str:
+        return self.robot(robot_id, "cmd")
+
+    def formation(self, follower_id: int) -> str:
+        return self.robot(follower_id, "formation")
+
+    def telemetry(self, robot_id: int) -> str:
+        return self.robot(robot_id, "telemetry")
+
+    def inbox(self, robot_id: int) -> str:
+        """Everything addressed to one robot (its obs and formation keys)."""
+        return f"{self.prefix}/robot/{check_robot_id(robot_id)}/*"
+
+    @property
+    def all_cmd(self) -> str:
+        return f"{self.prefix}/robot/*/cmd"
+
+    @property
+    def all_telemetry(self) -> str:
+        return f"{self.prefix}/robot/*/telemetry"
+
+    @property
+    def truth(self) -> str:
+        return f"{self.prefix}/world/truth"
+
+    @property
+    def status(self) -> str:
+        return f"{self.prefix}/world/status"
+
+    @property
+    def everything(self) -> str:
+        return f"{self.prefix}/**"
+
+    def alive(self, role: str, ident: int | str) -> str:
+        if role not in ROLES:
+            raise ValueError(f"role must be one of {ROLES}, got {role!r}")
+        return f"{self.prefix}/alive/{role}/{ident}"
+
+    def alive_all(self, role: str) -> str:
+        if role not in ROLES:
+            raise ValueError(f"role must be one of {ROLES}, got {role!r}")
+        return f"{self.prefix}/alive/{role}/*"
+
+    def parse_robot(self, key: str) -> RobotKey | None:
+        """``swarm/<run>/robot/<id>/<kind>`` -> (id, kind); None for anything else."""
+        head = self.prefix + "/robot/"
+        if not key.startswith(head):
+            return None
+        rest = key[len(head) :].split("/")
+        if len(rest) != 2 or rest[1] not in ROBOT_KINDS or not rest[0].isdigit():
+            return None
+        rid = int(rest[0])
+        if not 1 <= rid <= MAX_ROBOT_ID:
+            return None
+        return RobotKey(rid, rest[1])
+
+    def parse_alive(self, key: str) -> tuple[str, str] | None:
+        head = self.prefix + "/alive/"
+        if not key.startswith(head):
+            return None
+        parts = key[len(head) :].split("/")
+        if len(parts) != 2 or parts[0] not in ROLES:
+            return None
+        return parts[0], parts[1]

@@ -1,0 +1,58 @@
+"""One helper builds the zenoh.Config of every process from the same flags.
+
+    --mode client|peer|router   (default: client)
+    --connect ENDPOINT          (repeatable), e.g. tcp/127.0.0.1:7447
+    --listen ENDPOINT           (repeatable)
+    --config FILE               a Zenoh JSON5 configuration, applied first
+
+Multicast scouting is off unless a configuration file turns it on: endpoints
+are explicit (a full mesh of peers does not scale, docs in DESIGN).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Sequence
+
+import zenoh
+
+
+def add_arguments(parser: argparse.ArgumentParser, default_mode: str = "client") -> None:
+    group = parser.add_argument_group("zenoh")
+    group.add_argument("--mode", choices=("client", "peer", "router"), default=default_mode)
+    group.add_argument("--connect", action="append", default=[], metavar="ENDPOINT")
+    group.add_argument("--listen", action="append", default=[], metavar="ENDPOINT")
+    group.add_argument("--config", metavar="FILE", help="Zenoh JSON5 configuration file")
+
+
+def make_config(
+    mode: str = "client",
+    connect: Sequence[str] = (),
+    listen: Sequence[str] = (),
+    config_file: str | None = None,
+    connect_timeout_s: float = 30.0,
+) -> zenoh.Config:
+    if mode not in ("client", "peer", "router"):
+        raise ValueError(f"mode must be client, peer or router, got {mode!r}")
+    for ep in (*connect, *listen):
+        if not isinstance(ep, str) or "/" not in ep:
+            raise ValueError(f"endpoint must look like tcp/HOST:PORT, got {ep!r}")
+    if mode == "client" and not connect and config_file is None:
+        raise ValueError("a client needs --connect ENDPOINT (scouting is off)")
+    conf = zenoh.Config.from_file(config_file) if config_file else zenoh.Config()
+    conf.insert_json5("mode", json.dumps(mode))
+    if config_file is None:
+        conf.insert_json5("scouting/multicast/enabled", "false")
+    if connect:
+        conf.insert_json5("connect/endpoints", json.dumps(list(connect)))
+        # The router may start after us: retry for a while instead of failing at once.
+        conf.insert_json5("connect/timeout_ms", json.dumps(int(connect_timeout_s * 1000)))
+        conf.insert_json5("connect/retry", '{"period_init_ms": 50, "period_max_ms": 500, "period_increase_factor": 2}')
+    if listen:
+        conf.insert_json5("listen/endpoints", json.dumps(list(listen)))
+    return conf
+
+
+def config_from_args(args: argparse.Namespace) -> zenoh.Config:
+    return make_config(args.mode, args.connect, args.listen, args.config)

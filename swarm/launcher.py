@@ -1,0 +1,394 @@
+"""``swarm run``: one run, every robot its own process, on this machine.
+
+Starts the world (which is also the Zenoh router, listening on a free
+loopback port), the logger and one agent per robot; shows progress; stops
+them all at the end, on Ctrl-C or when the world fails, and always reaps
+them (a child also dies with the launcher: PR_SET_PDEATHSIG). The run folder
+holds the scenario as run, recording.rrd, summary.json and logs/.
+
+An agent or the logger that dies is reported in the summary and the run goes
+on (the world stops a robot whose agent is gone); a world that dies ends the run.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import json
+import queue
+import signal
+import socket
+import subprocess
+import sys
+import time
+import uuid
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+import zenoh
+
+from protocol.keys import Keys
+from protocol.messages import Rejections, Status
+from protocol.session import make_config
+from swarm import scenario as scenario_mod
+from swarm.proc import clean_json
+
+STOP_GRACE_S = 2.0
+END_GRACE_S = 3.0
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _die_with_parent() -> None:  # pragma: no cover - runs in the child
+    """Linux: the child gets SIGTERM if the launcher dies, even by SIGKILL."""
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+
+
+@dataclass
+class Child:
+    name: str
+    argv: list[str]
+    log_path: Path
+    proc: subprocess.Popen[bytes] | None = None
+    log: Any = None
+    stop_sent_at: float | None = None
+    exited_at: float | None = None
+    reported: bool = False
+
+    @property
+    def pid(self) -> int | None:
+        return None if self.proc is None else self.proc.pid
+
+    def start(self) -> None:
+        self.log = open(self.log_path, "wb")  # noqa: SIM115 - closed in close()
+        self.proc = subprocess.Popen(
+            self.argv,
+            stdout=self.log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            start_new_session=True,
+            preexec_fn=_die_with_parent,
+        )
+
+    def poll(self) -> int | None:
+        if self.proc is None:
+            return None
+        code = self.proc.poll()
+        if code is not None and self.exited_at is None:
+            self.exited_at = time.monotonic()
+        return code
+
+    def signal(self, sig: int) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                self.proc.send_signal(sig)
+            if sig in (signal.SIGTERM, signal.SIGINT) and self.stop_sent_at is None:
+                self.stop_sent_at = time.monotonic()
+
+    def close(self) -> None:
+        if self.log is not None:
+            self.log.close()
+            self.log = None
+
+
+@dataclass
+class RunResult:
+    run_dir: Path
+    summary: dict[str, Any]
+    exit_code: int
+    pids: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def recording(self) -> Path:
+        return self.run_dir / "recording.rrd"
+
+
+@dataclass
+class KillAt:
+    """Fault injection: SIGKILL ``who`` ("agent-3", "logger") at sim time ``time_s``."""
+
+    who: str
+    time_s: float
+
+
+class Launch:
+    """One run. Use as a context manager: leaving it always stops and reaps."""
+
+    def __init__(
+        self,
+        scenario_path: str | Path,
+        *,
+        mode: str = "lockstep",
+        seed: int | None = None,
+        out: str | Path | None = None,
+        overrides: dict[str, Any] | None = None,
+        logger: bool = True,
+        live: str | None = None,
+        serve_web: bool = False,
+        kills: Sequence[KillAt] = (),
+        progress: Callable[[str], None] | None = None,
+        run_id: str | None = None,
+        python: str = sys.executable,
+    ) -> None:
+        if mode not in ("lockstep", "realtime"):
+            raise ValueError(f"mode must be 'lockstep' or 'realtime', got {mode!r}")
+        self.scenario_path = Path(scenario_path)
+        ov = dict(overrides or {})
+        if seed is not None:
+            ov["run.seed"] = seed
+        self.sc = scenario_mod.load(self.scenario_path, ov)
+        self.mode = mode
+        self.run_id = run_id or f"{_slug(self.sc.name)}-{uuid.uuid4().hex[:8]}"
+        Keys(self.run_id)  # validates
+        self.run_dir = Path(out) if out is not None else Path("runs") / self.run_id
+        self.logger = logger
+        self.live = live
+        self.serve_web = serve_web
+        self.kills = sorted(kills, key=lambda k: k.time_s)
+        self.progress = progress or (lambda line: print(line, flush=True))
+        self.python = python
+        self.port = 0
+        self.children: dict[str, Child] = {}
+        self.session: zenoh.Session | None = None
+        self.status_q: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+        self.last_status: Status | None = None
+        self.events: list[dict[str, Any]] = []
+        self.started_at = 0.0
+        for k in self.kills:
+            if k.who not in self._names():
+                raise ValueError(f"cannot kill {k.who!r}: processes are {self._names()}")
+
+    def _names(self) -> list[str]:
+        return ["world", *(["logger"] if self.logger else []), *(f"agent-{r}" for r in self.sc.robots)]
+
+    @property
+    def endpoint(self) -> str:
+        return f"tcp/127.0.0.1:{self.port}"
+
+    # -- lifecycle ----------------------------------------------------------------
+    def __enter__(self) -> Launch:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def start(self) -> None:
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        (self.run_dir / "logs").mkdir(exist_ok=True)
+        (self.run_dir / "stats").mkdir(exist_ok=True)
+        scenario_file = self.run_dir / "scenario.toml"
+        scenario_file.write_text(scenario_mod.dumps(self.sc.raw))
+        self.port = free_port()
+        common = ["--scenario", str(scenario_file), "--run", self.run_id]
+        py = [self.python, "-m"]
+        stats = self.run_dir / "stats"
+        specs = {
+            "world": [*py, "world.process", *common, "--clock", self.mode, "--stats", str(stats / "world.json"),
+                      "--mode", "router", "--listen", self.endpoint, *(["--expect-logger"] if self.logger else [])],
+        }  # fmt: skip
+        if self.logger:
+            extra = (["--live", self.live] if self.live else []) + (["--serve-web"] if self.serve_web else [])
+            specs["logger"] = [*py, "swarm.logger", *common, "--out", str(self.run_dir / "recording.rrd"),
+                               "--stats", str(stats / "logger.json"), "--connect", self.endpoint, *extra]  # fmt: skip
+        for rid in self.sc.robots:
+            agent_stats = str(stats / f"agent-{rid}.json")
+            specs[f"agent-{rid}"] = [*py, "agents.process", "--id", str(rid), *common,
+                                     "--stats", agent_stats, "--connect", self.endpoint]  # fmt: skip
+        self.started_at = time.monotonic()
+        for name, argv in specs.items():
+            child = Child(name, argv, self.run_dir / "logs" / f"{name}.log")
+            self.children[name] = child
+            child.start()
+        conf = make_config("client", [self.endpoint], connect_timeout_s=30.0)
+        self.session = zenoh.open(conf)
+        self.session.declare_subscriber(Keys(self.run_id).status, lambda s: self.status_q.put(s.payload.to_bytes()))
+
+    def pids(self) -> dict[str, int]:
+        return {n: c.pid for n, c in self.children.items() if c.pid is not None}
+
+    def sim_time(self) -> float:
+        self._read_status()
+        return -1.0 if self.last_status is None else self.last_status.time_s
+
+    def _read_status(self) -> None:
+        rej = Rejections()
+        while True:
+            try:
+                payload = self.status_q.get_nowait()
+            except queue.Empty:
+                return
+            st = rej.decode(Status, payload)
+            if st is not None and (self.last_status is None or st.seq > self.last_status.seq):
+                self.last_status = st
+
+    def wait_until(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
+        """Poll ``predicate`` (and watch the children) until true or the timeout."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if predicate():
+                return True
+            self._watch()
+            if self.children["world"].poll() is not None:
+                return predicate()
+            time.sleep(0.02)
+        return False
+
+    def _watch(self) -> None:
+        self._read_status()
+        t = self.sim_time()
+        while self.kills and t >= self.kills[0].time_s:
+            k = self.kills.pop(0)
+            self.children[k.who].signal(signal.SIGKILL)
+            self.events.append({"event": "killed", "process": k.who, "sim_time_s": t})
+            self.progress(f"[swarm] killed {k.who} at sim t={t:.2f} s (fault injection)")
+        for name, child in self.children.items():
+            code = child.poll()
+            if code is not None and not child.reported and name != "world":
+                child.reported = True
+                if code != 0 and child.stop_sent_at is None:
+                    self.events.append({"event": "exited", "process": name, "code": code, "sim_time_s": t})
+                    self.progress(f"[swarm] {name} exited with code {code} at sim t={t:.2f} s; see logs/{name}.log")
+
+    def wait(self, timeout_s: float | None = None) -> RunResult:
+        """Run to the end (or timeout/Ctrl-C), stop everything, write the summary."""
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        interrupted = timed_out = False
+        last_line = 0.0
+        world = self.children["world"]
+        try:
+            while world.poll() is None:
+                self._watch()
+                now = time.monotonic()
+                if now - last_line >= 2.0 and self.last_status is not None:
+                    st = self.last_status
+                    pct = 100.0 * st.tick / max(1, st.total_ticks)
+                    self.progress(f"[swarm] tick {st.tick}/{st.total_ticks} ({pct:.0f}%), sim {st.time_s:.1f} s")
+                    last_line = now
+                if deadline is not None and now > deadline:
+                    timed_out = True
+                    self.progress(f"[swarm] timeout after {timeout_s:.0f} s: stopping the run")
+                    break
+                time.sleep(0.05)
+        except KeyboardInterrupt:
+            interrupted = True
+            self.progress("[swarm] interrupted: stopping every process")
+        self._watch()
+        self.stop(graceful_first=not (interrupted or timed_out))
+        world_code = world.proc.returncode if world.proc is not None else None
+        code = 130 if interrupted else (124 if timed_out else (0 if world_code == 0 else 1))
+        summary = self._summary(code, interrupted, timed_out)
+        return RunResult(self.run_dir, summary, code, self.pids())
+
+    def stop(self, graceful_first: bool = True) -> None:
+        """End of run: give everyone END_GRACE_S to leave on the world's "done",
+        then SIGTERM, then SIGKILL after STOP_GRACE_S. Always reaps."""
+        if graceful_first:
+            self._wait_exit(END_GRACE_S)
+        for c in self.children.values():
+            c.signal(signal.SIGTERM)
+        self._wait_exit(STOP_GRACE_S + 1.0)
+        for c in self.children.values():
+            if c.poll() is None:
+                self.events.append({"event": "killed after stop timeout", "process": c.name})
+                c.signal(signal.SIGKILL)
+        for c in self.children.values():
+            if c.proc is not None:
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    c.proc.wait(timeout=5.0)
+                c.poll()
+            c.close()
+        if self.session is not None:
+            self.session.close()
+            self.session = None
+
+    def _wait_exit(self, seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline and any(c.poll() is None for c in self.children.values()):
+            time.sleep(0.02)
+
+    # -- summary ------------------------------------------------------------------
+    def _summary(self, code: int, interrupted: bool, timed_out: bool) -> dict[str, Any]:
+        stats_dir = self.run_dir / "stats"
+        parts: dict[str, Any] = {}
+        for p in sorted(stats_dir.glob("*.json")):
+            with contextlib.suppress(OSError, json.JSONDecodeError):
+                parts[p.stem] = json.loads(p.read_text())
+        world = parts.get("world", {})
+        rejected = {name: part.get("rejected", {}) for name, part in parts.items() if part.get("rejected")}
+        links: dict[str, Any] = dict(world.get("cmd_links", {}))
+        for name, part in parts.items():
+            if name.startswith("agent-"):
+                links.update(part.get("links", {}))
+        procs = {}
+        for name, c in self.children.items():
+            exit_after_stop = None
+            if c.stop_sent_at is not None and c.exited_at is not None:
+                exit_after_stop = max(0.0, c.exited_at - c.stop_sent_at)
+            procs[name] = {"pid": c.pid, "exit_code": None if c.proc is None else c.proc.returncode,
+                           "exit_after_stop_s": exit_after_stop}  # fmt: skip
+        summary = {
+            "run_id": self.run_id,
+            "scenario": self.sc.name,
+            "mode": self.mode,
+            "seed": self.sc.seed,
+            "exit_code": code,
+            "interrupted": interrupted,
+            "timed_out": timed_out,
+            "ticks": world.get("ticks"),
+            "sim_time_s": world.get("sim_time_s"),
+            "ticks_per_s": world.get("ticks_per_s"),
+            "followers": world.get("followers", {}),
+            "min_distance_m": world.get("min_distance_m"),
+            "robot_diameter_m": world.get("robot_diameter_m"),
+            "collisions": world.get("collisions"),
+            "obstacle_collisions": world.get("obstacle_collisions"),
+            "lockstep_misses": world.get("lockstep_misses"),
+            "late_ticks": world.get("late_ticks"),
+            "max_tick_lateness_s": world.get("max_tick_lateness_s"),
+            "stale_stops": world.get("stale_stops"),
+            "formation_events": world.get("formation_events", []),
+            "deaths": world.get("deaths", []),
+            "messages": world.get("messages", {}),
+            "links": links,
+            "drops_total": sum(v.get("dropped", 0) for v in links.values()),
+            "rejected": rejected,
+            "rejected_total": sum(sum(r.values()) for r in rejected.values()),
+            "trajectory_digest": world.get("trajectory_digest"),
+            "events": self.events,
+            "processes": procs,
+            "recording": "recording.rrd" if self.logger else None,
+            "parts": parts,
+        }
+        (self.run_dir / "summary.json").write_text(json.dumps(clean_json(summary), indent=2, allow_nan=False))
+        return summary
+
+
+def _slug(name: str) -> str:
+    out = "".join(ch if ch.isalnum() or ch in "-_" else "-" for ch in name).strip("-")
+    return out[:40] or "run"
+
+
+def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
+    s = res.summary
+    w = out.write
+    w(f"run {s['run_id']}: exit {res.exit_code}, {s.get('ticks')} ticks, sim {s.get('sim_time_s')} s\n")
+    for rid, m in sorted(s.get("followers", {}).items()):
+        w(f"  follower R{rid}: formation error RMS {m.get('rms_m'):.3f} m, max {m.get('max_m'):.3f} m\n")
+    w(f"  min distance {s.get('min_distance_m'):.3f} m (diameter {s.get('robot_diameter_m')} m), "
+      f"collisions {s.get('collisions')}, obstacle collisions {s.get('obstacle_collisions')}\n")  # fmt: skip
+    w(f"  formation events: {[(e['robot'], e['formation'], round(e['time_s'], 2)) for e in s['formation_events']]}\n")
+    w(f"  lockstep misses {s.get('lockstep_misses')}, drops {s.get('drops_total')}, ")
+    w(f"rejected {s.get('rejected_total')}\n")
+    for ev in s.get("events", []):
+        w(f"  event: {ev}\n")
+    w(f"run folder: {res.run_dir}\n  summary: {res.run_dir / 'summary.json'}\n")
+    if s.get("recording"):
+        w(f"  recording: {res.recording}\n  open it:   rerun {res.recording}\n")

@@ -1,0 +1,461 @@
+"""Scenario files (TOML): robots, formations, the leader's path, obstacles,
+noise, controller parameters, link faults, seed, dt and duration.
+
+Unknown keys are errors that name the key and suggest the closest valid one;
+invalid values are errors that name the key and the value. See
+``scenarios/*.toml`` for complete examples.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from agents.ekf import EkfParams
+from agents.follower import FollowerParams
+from agents.formation import Formation, Slot, line, wedge
+from agents.fuzzy import FuzzyParams, SpeedMode
+from agents.geometry import Point
+from protocol.keys import MAX_ROBOT_ID
+from world.camera import CameraParams
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot run; the message names the key."""
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    x_m: float
+    y_m: float
+    radius_m: float
+
+
+@dataclass(frozen=True)
+class LeaderSpec:
+    robot_id: int
+    speed_mps: float
+    turn_rate_rps: float
+    lookahead_m: float
+    waypoints: tuple[tuple[float, float], ...]
+    sensing_range_m: float
+    formation: str
+    avoid_formation: str | None
+    clear_after_s: float
+
+
+@dataclass(frozen=True)
+class LinkFaults:
+    obs_drop: float = 0.0
+    cmd_drop: float = 0.0
+    formation_drop: float = 0.0
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    seed: int
+    dt_s: float
+    duration_s: float
+    lockstep_deadline_s: float
+    stale_after_s: float
+    robots: tuple[int, ...]
+    width_m: float
+    diameter_m: float
+    camera: CameraParams
+    leader: LeaderSpec
+    formations: Mapping[str, Formation]
+    followers: Mapping[int, FollowerParams]
+    obstacles: tuple[Obstacle, ...]
+    links: LinkFaults
+    raw: Mapping[str, Any] = field(repr=False, compare=False)
+
+    @property
+    def formation_names(self) -> tuple[str, ...]:
+        """Formation codes are indices into this tuple."""
+        return tuple(self.formations)
+
+    def code_of(self, name: str) -> int:
+        return self.formation_names.index(name)
+
+    def formation_by_code(self, code: int) -> Formation:
+        return self.formations[self.formation_names[code]]
+
+    @property
+    def follower_ids(self) -> tuple[int, ...]:
+        return tuple(r for r in self.robots if r != self.leader.robot_id)
+
+    @property
+    def ticks(self) -> int:
+        return int(round(self.duration_s / self.dt_s))
+
+    def with_seed(self, seed: int) -> Scenario:
+        raw = _deep_set(self.raw, ("run", "seed"), seed)
+        return replace(self, seed=seed, raw=raw)
+
+
+# -- schema --------------------------------------------------------------------
+
+_NUM = (int, float)
+RUN_KEYS = {
+    "name": (str, "scenario"),
+    "seed": (int, 0),
+    "robots": (int, None),
+    "dt_s": (_NUM, 0.05),
+    "duration_s": (_NUM, None),
+    "lockstep_deadline_s": (_NUM, 2.0),
+    "stale_after_s": (_NUM, 0.5),
+}
+ROBOT_KEYS = {"width_m": (_NUM, 0.5), "marker_offset_m": (_NUM, 0.1), "diameter_m": (_NUM, 0.4)}
+CAMERA_KEYS = {
+    "fov_deg": (_NUM, 360.0),
+    "range_m": (_NUM, 10.0),
+    "sigma_rho_m": (_NUM, 0.05),
+    "sigma_phi_deg": (_NUM, 3.0),
+    "sigma_beta_deg": (_NUM, 1.5),
+}
+LEADER_KEYS = {
+    "id": (int, 1),
+    "speed_mps": (_NUM, 1.5),
+    "turn_rate_rps": (_NUM, 0.25),
+    "lookahead_m": (_NUM, 1.0),
+    "waypoints": (list, None),
+    "sensing_range_m": (_NUM, 6.0),
+    "formation": (str, None),
+    "avoid_formation": (str, ""),
+    "clear_after_s": (_NUM, 2.0),
+}
+FORMATION_KEYS = {
+    "shape": (str, None),
+    "lateral_m": (_NUM, 1.5),
+    "back_m": (_NUM, 1.5),
+    "spacing_m": (_NUM, 1.5),
+    "slots": (dict, {}),
+}
+EKF_KEYS = {f.name: (_NUM, getattr(EkfParams(), f.name)) for f in EkfParams.__dataclass_fields__.values()}
+_FZ = FuzzyParams()
+CONTROLLER_KEYS: dict[str, tuple[Any, Any]] = {
+    "vn": ((str, int, float), "dynamic"),
+    "use_ekf": (bool, True),
+    "clearance_m": (_NUM, 1.0),
+    "lost_after_s": (_NUM, 1.0),
+    "gamma_deg": (_NUM, math.degrees(_FZ.gamma_rad)),
+    **{k: (_NUM, getattr(_FZ, k)) for k in ("d0_m", "dn_m", "d1_m", "dmax_m", "a_mps", "vn_min", "vm", "vn_max")},
+    "drho_rate_tol_mps": (_NUM, _FZ.drho_rate_tol_mps),
+    "ekf": (dict, {}),
+}
+OBSTACLE_KEYS = {"x_m": (_NUM, None), "y_m": (_NUM, None), "radius_m": (_NUM, None)}
+LINK_KEYS = {"obs_drop": (_NUM, 0.0), "cmd_drop": (_NUM, 0.0), "formation_drop": (_NUM, 0.0)}
+TOP_KEYS = ("run", "robot", "camera", "leader", "formations", "controller", "followers", "obstacles", "links")
+
+
+def _suggest(key: str, valid: list[str] | tuple[str, ...]) -> str:
+    close = difflib.get_close_matches(key, list(valid), n=1, cutoff=0.5)
+    return f"; did you mean {close[0]!r}?" if close else f"; valid keys: {', '.join(valid)}"
+
+
+def _table(raw: Any, where: str, schema: Mapping[str, tuple[Any, Any]]) -> dict[str, Any]:
+    """Check one table against its schema; fill defaults; reject unknown keys."""
+    if raw is None:
+        raw = {}
+    if not isinstance(raw, dict):
+        raise ScenarioError(f"{where} must be a table, got {type(raw).__name__}")
+    out: dict[str, Any] = {}
+    for key, value in raw.items():
+        if key not in schema:
+            raise ScenarioError(f"unknown key {where}.{key}" + _suggest(key, tuple(schema)))
+        types, _ = schema[key]
+        if isinstance(value, bool) and types is not bool and bool not in (types if isinstance(types, tuple) else ()):
+            raise ScenarioError(f"{where}.{key} must be {_type_name(types)}, got {value!r}")
+        if not isinstance(value, types):
+            raise ScenarioError(f"{where}.{key} must be {_type_name(types)}, got {value!r}")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ScenarioError(f"{where}.{key} must be finite, got {value!r}")
+        out[key] = value
+    for key, (_, default) in schema.items():
+        if key not in out:
+            if default is None:
+                raise ScenarioError(f"missing key {where}.{key}")
+            out[key] = default
+    return out
+
+
+def _type_name(types: Any) -> str:
+    if isinstance(types, tuple):
+        return " or ".join(sorted({t.__name__.replace("int", "number").replace("float", "number") for t in types}))
+    return {"list": "an array", "dict": "a table", "str": "a string", "bool": "true or false", "int": "an integer"}.get(
+        types.__name__, types.__name__
+    )
+
+
+def _positive(where: str, value: float) -> float:
+    if not value > 0:
+        raise ScenarioError(f"{where} must be > 0, got {value!r}")
+    return float(value)
+
+
+def _wrap(where: str, fn: Any, *args: Any, **kwargs: Any) -> Any:
+    """Call a constructor that validates, re-raising its error with the scenario key."""
+    try:
+        return fn(*args, **kwargs)
+    except (ValueError, TypeError) as exc:
+        raise ScenarioError(f"{where}: {exc}") from None
+
+
+def _formation(name: str, raw: Any, robots: tuple[int, ...]) -> Formation:
+    where = f"formations.{name}"
+    t = _table(raw, where, FORMATION_KEYS)
+    n = len(robots)
+    shape = t["shape"]
+    if shape == "wedge":
+        form = _wrap(where, wedge, n, t["lateral_m"], t["back_m"], first_id=robots[0])
+    elif shape == "line":
+        form = _wrap(where, line, n, t["spacing_m"], first_id=robots[0])
+    elif shape == "custom":
+        slots = {}
+        for rid_text, slot in t["slots"].items():
+            sw = f"{where}.slots.{rid_text}"
+            if not str(rid_text).isdigit():
+                raise ScenarioError(f"{sw}: slot keys are robot ids, got {rid_text!r}")
+            st = _table(slot, sw, {"reference": (int, None), "offset": (list, None)})
+            off = st["offset"]
+            if len(off) != 2 or not all(isinstance(v, _NUM) and not isinstance(v, bool) for v in off):
+                raise ScenarioError(f"{sw}.offset must be [x_m, y_m], got {off!r}")
+            slots[int(rid_text)] = Slot(st["reference"], Point(float(off[0]), float(off[1])))
+        form = _wrap(where, Formation, name, slots)
+    else:
+        raise ScenarioError(f"{where}.shape must be 'wedge', 'line' or 'custom', got {shape!r}" + _suggest(
+            str(shape), ("wedge", "line", "custom")))  # fmt: skip
+    form = Formation(name, form.slots)
+    if sorted(form.robots) != list(robots):
+        raise ScenarioError(f"{where} covers robots {form.robots}, the run has {list(robots)}")
+    return form
+
+
+def _follower_params(where: str, t: Mapping[str, Any], robot: Mapping[str, Any], dt: float) -> FollowerParams:
+    vn = t["vn"]
+    if isinstance(vn, str):
+        if vn != "dynamic":
+            raise ScenarioError(f"{where}.vn must be 'dynamic' or a number, got {vn!r}")
+        mode = SpeedMode()
+    else:
+        mode = _wrap(f"{where}.vn", SpeedMode, vn)
+    fz = _wrap(
+        where,
+        FuzzyParams,
+        gamma_rad=math.radians(t["gamma_deg"]),
+        **{k: float(t[k]) for k in ("d0_m", "dn_m", "d1_m", "dmax_m", "a_mps", "vn_min", "vm", "vn_max")},
+        drho_rate_tol_mps=float(t["drho_rate_tol_mps"]),
+    )
+    ekf_t = _table(t["ekf"], f"{where}.ekf", EKF_KEYS)
+    ekf = _wrap(f"{where}.ekf", EkfParams, **{k: float(v) for k, v in ekf_t.items()})
+    return _wrap(
+        where,
+        FollowerParams,
+        width_m=float(robot["width_m"]),
+        marker_offset_m=float(robot["marker_offset_m"]),
+        dt_s=dt,
+        clearance_m=float(t["clearance_m"]),
+        lost_after_s=float(t["lost_after_s"]),
+        fuzzy=fz,
+        speed=mode,
+        ekf=ekf,
+        use_ekf=t["use_ekf"],
+    )
+
+
+def from_dict(raw: Mapping[str, Any]) -> Scenario:
+    if not isinstance(raw, Mapping):
+        raise ScenarioError(f"a scenario must be a table, got {type(raw).__name__}")
+    for key in raw:
+        if key not in TOP_KEYS:
+            raise ScenarioError(f"unknown section [{key}]" + _suggest(key, TOP_KEYS))
+    run = _table(raw.get("run"), "run", RUN_KEYS)
+    dt = _positive("run.dt_s", run["dt_s"])
+    duration = _positive("run.duration_s", run["duration_s"])
+    _positive("run.lockstep_deadline_s", run["lockstep_deadline_s"])
+    _positive("run.stale_after_s", run["stale_after_s"])
+    n = run["robots"]
+    if not 2 <= n <= MAX_ROBOT_ID:
+        raise ScenarioError(f"run.robots must be in [2, {MAX_ROBOT_ID}], got {n!r}")
+    robot = _table(raw.get("robot"), "robot", ROBOT_KEYS)
+    for k in ("width_m", "diameter_m"):
+        _positive(f"robot.{k}", robot[k])
+    cam = _table(raw.get("camera"), "camera", CAMERA_KEYS)
+    camera = _wrap(
+        "camera",
+        CameraParams,
+        fov_rad=math.radians(cam["fov_deg"]),
+        range_m=float(cam["range_m"]),
+        sigma_rho_m=float(cam["sigma_rho_m"]),
+        sigma_phi_rad=math.radians(cam["sigma_phi_deg"]),
+        sigma_beta_rad=math.radians(cam["sigma_beta_deg"]),
+        marker_offset_m=float(robot["marker_offset_m"]),
+    )
+    ld = _table(raw.get("leader"), "leader", LEADER_KEYS)
+    robots = tuple(range(ld["id"], ld["id"] + n))
+    if not 1 <= ld["id"] <= MAX_ROBOT_ID - n + 1:
+        raise ScenarioError(f"leader.id must be in [1, {MAX_ROBOT_ID - n + 1}], got {ld['id']!r}")
+    wps = ld["waypoints"]
+    if len(wps) < 2 or not all(
+        isinstance(p, list) and len(p) == 2 and all(isinstance(v, _NUM) and not isinstance(v, bool) for v in p)
+        for p in wps
+    ):
+        raise ScenarioError(f"leader.waypoints must be at least 2 points [x_m, y_m], got {wps!r}")
+    for k in ("speed_mps", "turn_rate_rps", "lookahead_m", "sensing_range_m", "clear_after_s"):
+        _positive(f"leader.{k}", ld[k])
+
+    forms_raw = raw.get("formations")
+    if not isinstance(forms_raw, dict) or not forms_raw:
+        raise ScenarioError("[formations] must hold at least one named formation")
+    if len(forms_raw) > 256:
+        raise ScenarioError(f"at most 256 formations, got {len(forms_raw)}")
+    formations = {name: _formation(name, spec, robots) for name, spec in forms_raw.items()}
+    for key in ("formation", "avoid_formation"):
+        val = ld[key]
+        if key == "avoid_formation" and val == "":
+            continue
+        if val not in formations:
+            raise ScenarioError(f"leader.{key} = {val!r} is not a formation" + _suggest(val, tuple(formations)))
+    for name, form in formations.items():
+        if form.leader != ld["id"]:
+            raise ScenarioError(f"formations.{name} is led by robot {form.leader}, leader.id is {ld['id']}")
+
+    ctrl = _table(raw.get("controller"), "controller", CONTROLLER_KEYS)
+    followers: dict[int, FollowerParams] = {}
+    per = raw.get("followers", {})
+    if not isinstance(per, dict):
+        raise ScenarioError("[followers] must be a table of robot ids")
+    follower_ids = [r for r in robots if r != ld["id"]]
+    for key in per:
+        if not str(key).isdigit() or int(key) not in follower_ids:
+            raise ScenarioError(f"followers.{key}: not a follower id; followers are {follower_ids}")
+    for rid in follower_ids:
+        merged = dict(raw.get("controller") or {})
+        override = per.get(str(rid), {})
+        if not isinstance(override, dict):
+            raise ScenarioError(f"followers.{rid} must be a table")
+        merged.update(override)
+        where = f"followers.{rid}" if override else "controller"
+        followers[rid] = _follower_params(where, _table(merged, where, CONTROLLER_KEYS), robot, dt)
+    _ = ctrl  # validated above even when every follower overrides it
+
+    obstacles = []
+    obs_raw = raw.get("obstacles", [])
+    if not isinstance(obs_raw, list):
+        raise ScenarioError("obstacles must be an array of tables ([[obstacles]])")
+    for i, o in enumerate(obs_raw):
+        t = _table(o, f"obstacles[{i}]", OBSTACLE_KEYS)
+        obstacles.append(
+            Obstacle(float(t["x_m"]), float(t["y_m"]), _positive(f"obstacles[{i}].radius_m", t["radius_m"]))
+        )
+    lk = _table(raw.get("links"), "links", LINK_KEYS)
+    for k, v in lk.items():
+        if not 0.0 <= v <= 1.0:
+            raise ScenarioError(f"links.{k} must be a probability in [0, 1], got {v!r}")
+    return Scenario(
+        name=run["name"],
+        seed=run["seed"],
+        dt_s=dt,
+        duration_s=duration,
+        lockstep_deadline_s=float(run["lockstep_deadline_s"]),
+        stale_after_s=float(run["stale_after_s"]),
+        robots=robots,
+        width_m=float(robot["width_m"]),
+        diameter_m=float(robot["diameter_m"]),
+        camera=camera,
+        leader=LeaderSpec(
+            robot_id=ld["id"],
+            speed_mps=float(ld["speed_mps"]),
+            turn_rate_rps=float(ld["turn_rate_rps"]),
+            lookahead_m=float(ld["lookahead_m"]),
+            waypoints=tuple((float(p[0]), float(p[1])) for p in wps),
+            sensing_range_m=float(ld["sensing_range_m"]),
+            formation=ld["formation"],
+            avoid_formation=ld["avoid_formation"] or None,
+            clear_after_s=float(ld["clear_after_s"]),
+        ),
+        formations=formations,
+        followers=followers,
+        obstacles=tuple(obstacles),
+        links=LinkFaults(**{k: float(v) for k, v in lk.items()}),
+        raw=raw,
+    )
+
+
+def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
+    """Read a scenario file; ``overrides`` maps dotted keys ("run.seed") to values."""
+    p = Path(path)
+    try:
+        raw = tomllib.loads(p.read_text())
+    except FileNotFoundError:
+        raise ScenarioError(f"scenario file not found: {p}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{p}: not valid TOML: {exc}") from None
+    for dotted, value in (overrides or {}).items():
+        raw = _deep_set(raw, tuple(dotted.split(".")), value)
+    try:
+        return from_dict(raw)
+    except ScenarioError as exc:
+        raise ScenarioError(f"{p}: {exc}") from None
+
+
+def _deep_set(raw: Mapping[str, Any], path: tuple[str, ...], value: Any) -> dict[str, Any]:
+    out = dict(raw)
+    if len(path) == 1:
+        out[path[0]] = value
+        return out
+    inner = out.get(path[0], {})
+    if not isinstance(inner, Mapping):
+        raise ScenarioError(f"cannot set {'.'.join(path)}: {path[0]} is not a table")
+    out[path[0]] = _deep_set(inner, path[1:], value)
+    return out
+
+
+def dumps(raw: Mapping[str, Any]) -> str:
+    """The scenario as run, as TOML (the subset scenarios use)."""
+    lines: list[str] = []
+
+    def val(v: Any) -> str:
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, str):
+            return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        if isinstance(v, (int, float)):
+            return repr(v)
+        if isinstance(v, list):
+            return "[" + ", ".join(val(x) for x in v) + "]"
+        if isinstance(v, dict):
+            return "{ " + ", ".join(f'"{k}" = {val(x)}' for k, x in v.items()) + " }"
+        raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+    def table(prefix: str, t: Mapping[str, Any]) -> None:
+        scalars = {k: v for k, v in t.items() if not isinstance(v, dict) and not _is_table_array(v)}
+        subs = {k: v for k, v in t.items() if isinstance(v, dict)}
+        arrays = {k: v for k, v in t.items() if _is_table_array(v)}
+        if prefix and (scalars or not subs):
+            lines.append(f"[{prefix}]")
+        for k, v in scalars.items():
+            lines.append(f'"{k}" = {val(v)}' if not k.isidentifier() else f"{k} = {val(v)}")
+        if scalars:
+            lines.append("")
+        for k, v in subs.items():
+            table(f"{prefix}.{k}" if prefix else k, v)
+        for k, v in arrays.items():
+            for item in v:
+                lines.append(f"[[{prefix + '.' if prefix else ''}{k}]]")
+                for ik, iv in item.items():
+                    lines.append(f"{ik} = {val(iv)}")
+                lines.append("")
+
+    table("", raw)
+    return "\n".join(lines)
+
+
+def _is_table_array(v: Any) -> bool:
+    return isinstance(v, list) and bool(v) and all(isinstance(x, dict) for x in v)

@@ -1,0 +1,201 @@
+"""The world's state and physics, with no I/O: one object the world process
+drives tick by tick (and tests drive directly).
+
+It integrates every robot (eq. 7-10), simulates the cameras and the leader's
+obstacle sensing, holds each robot's latest command and stops a robot whose
+command is stale or whose process is gone, and keeps the run's metrics:
+formation error per follower, minimum distance, collisions, a digest of the
+trajectories.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import struct
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from swarm.scenario import Scenario
+from world.camera import observe
+from world.kinematics import Pose, _step_unchecked, from_body_frame, to_body_frame
+
+
+@dataclass
+class RobotState:
+    pose: Pose
+    rng: np.random.Generator
+    command: tuple[float, float] = (0.0, 0.0)
+    command_time_s: float = -math.inf
+    formation: int = 0
+    alive: bool = True
+    answered: bool = False
+
+
+@dataclass
+class FollowerMetrics:
+    sum_sq_m2: float = 0.0
+    max_m: float = 0.0
+    samples: int = 0
+
+    def add(self, err_m: float) -> None:
+        self.sum_sq_m2 += err_m * err_m
+        self.max_m = max(self.max_m, err_m)
+        self.samples += 1
+
+    def as_dict(self) -> dict[str, float | int]:
+        rms = math.sqrt(self.sum_sq_m2 / self.samples) if self.samples else math.nan
+        return {"rms_m": rms, "max_m": self.max_m, "samples": self.samples}
+
+
+@dataclass
+class WorldEngine:
+    scenario: Scenario
+    seed: int
+    tick: int = 0
+    robots: dict[int, RobotState] = field(init=False)
+    metrics: dict[int, FollowerMetrics] = field(init=False)
+    min_distance_m: float = field(init=False, default=math.inf)
+    collisions: int = field(init=False, default=0)
+    obstacle_collisions: int = field(init=False, default=0)
+    stale_stops: int = field(init=False, default=0)
+    formation_events: list[dict[str, object]] = field(init=False, default_factory=list)
+    _touching: set[tuple[int, int]] = field(init=False, default_factory=set)
+    _digest: hashlib._Hash = field(init=False)
+
+    def __post_init__(self) -> None:
+        sc = self.scenario
+        wp = sc.leader.waypoints
+        heading = math.atan2(wp[1][1] - wp[0][1], wp[1][0] - wp[0][0])
+        start = Pose(wp[0][0], wp[0][1], heading)
+        form = sc.formations[sc.leader.formation]
+        code = sc.code_of(sc.leader.formation)
+        self.robots = {}
+        for rid, pt in form.slot_positions().items():
+            x, y = from_body_frame(start, pt.x_m, pt.y_m)
+            self.robots[rid] = RobotState(Pose(x, y, heading), np.random.default_rng([self.seed, rid]), formation=code)
+        self.metrics = {rid: FollowerMetrics() for rid in sc.follower_ids}
+        self._digest = hashlib.sha256()
+
+    @property
+    def time_s(self) -> float:
+        return self.tick * self.scenario.dt_s
+
+    @property
+    def alive_ids(self) -> list[int]:
+        return [rid for rid, r in self.robots.items() if r.alive]
+
+    def observation(self, rid: int) -> tuple[tuple[float, float, float], list, list]:
+        """(own pose, marker readings, obstacles in range) for robot ``rid`` now."""
+        sc = self.scenario
+        r = self.robots[rid]
+        poses = {i: s.pose for i, s in self.robots.items()}
+        readings: list = []
+        obstacles = []
+        if rid != sc.leader.robot_id:
+            # The leader uses no camera: it flies its path and senses obstacles.
+            readings = [tuple(m) for m in observe(rid, poses, sc.camera, r.rng)]
+        else:
+            for ob in sc.obstacles:
+                xb, yb = to_body_frame(r.pose, ob.x_m, ob.y_m)
+                dist = math.hypot(xb, yb)
+                if dist - ob.radius_m <= sc.leader.sensing_range_m:
+                    obstacles.append((dist, math.atan2(xb, yb), ob.radius_m))
+        return tuple(r.pose), readings, obstacles
+
+    def set_command(self, rid: int, left_mps: float, right_mps: float, formation: int, now_s: float) -> None:
+        r = self.robots[rid]
+        r.command = (left_mps, right_mps)
+        r.command_time_s = now_s
+        if formation != r.formation and formation < len(self.scenario.formation_names):
+            self.formation_events.append(
+                {
+                    "tick": self.tick,
+                    "time_s": self.time_s,
+                    "robot": rid,
+                    "formation": self.scenario.formation_names[formation],
+                }
+            )
+            r.formation = formation
+        elif formation >= len(self.scenario.formation_names):
+            return
+
+    def kill(self, rid: int) -> None:
+        """The robot's process is gone: it stops where it is, for good."""
+        r = self.robots[rid]
+        r.alive = False
+        r.command = (0.0, 0.0)
+
+    def true_target(self, rid: int) -> tuple[float, float]:
+        r = self.robots[rid]
+        slot = self.scenario.formation_by_code(r.formation).slots[rid]
+        return from_body_frame(self.robots[slot.reference].pose, slot.offset[0], slot.offset[1])
+
+    def step(self, now_s: float) -> None:
+        """Record the metrics of tick k, then integrate to tick k+1.
+
+        ``now_s`` is the clock staleness is measured on (sim time in
+        lockstep, wall time in real time).
+        """
+        sc = self.scenario
+        for rid in self.metrics:
+            r = self.robots[rid]
+            tx, ty = self.true_target(rid)
+            self.metrics[rid].add(math.hypot(r.pose.x_m - tx, r.pose.y_m - ty))
+        self._contacts()
+        h = self._digest
+        for rid in sorted(self.robots):
+            h.update(struct.pack("<3d", *self.robots[rid].pose))
+        width, dt = sc.width_m, sc.dt_s
+        for r in self.robots.values():
+            vl, vr = r.command
+            if not r.alive:
+                vl = vr = 0.0
+            elif now_s - r.command_time_s > sc.stale_after_s + 1e-9:
+                if r.command != (0.0, 0.0) and r.command_time_s > -math.inf:
+                    self.stale_stops += 1
+                r.command = (0.0, 0.0)
+                vl = vr = 0.0
+            x, y, th = r.pose
+            r.pose = _step_unchecked(x, y, th, vl, vr, width, dt)
+        self.tick += 1
+
+    def _contacts(self) -> None:
+        sc = self.scenario
+        ids = sorted(self.robots)
+        touching: set[tuple[int, int]] = set()
+        for i, a in enumerate(ids):
+            pa = self.robots[a].pose
+            for b in ids[i + 1 :]:
+                pb = self.robots[b].pose
+                d = math.hypot(pa.x_m - pb.x_m, pa.y_m - pb.y_m)
+                self.min_distance_m = min(self.min_distance_m, d)
+                if d < sc.diameter_m:
+                    touching.add((a, b))
+            for k, ob in enumerate(sc.obstacles):
+                if math.hypot(pa.x_m - ob.x_m, pa.y_m - ob.y_m) < ob.radius_m + 0.5 * sc.diameter_m:
+                    touching.add((a, -1 - k))
+        new = touching - self._touching
+        self.collisions += sum(1 for _, b in new if b > 0)
+        self.obstacle_collisions += sum(1 for _, b in new if b < 0)
+        self._touching = touching
+
+    def digest(self) -> str:
+        return self._digest.hexdigest()
+
+    def summary(self) -> dict[str, object]:
+        return {
+            "ticks": self.tick,
+            "sim_time_s": self.time_s,
+            "followers": {str(rid): m.as_dict() for rid, m in self.metrics.items()},
+            "min_distance_m": self.min_distance_m,
+            "robot_diameter_m": self.scenario.diameter_m,
+            "collisions": self.collisions,
+            "obstacle_collisions": self.obstacle_collisions,
+            "stale_stops": self.stale_stops,
+            "formation_events": self.formation_events,
+            "trajectory_digest": self.digest(),
+            "final_poses": {str(rid): list(r.pose) for rid, r in self.robots.items()},
+            "dead_robots": [rid for rid, r in self.robots.items() if not r.alive],
+        }

@@ -1,0 +1,307 @@
+"""The world process: clock, physics and sensors of one run over Zenoh.
+
+    swarm world --scenario S.toml --run RUN [--clock lockstep|realtime] [--seed N]
+                [--stats FILE] [--expect-logger] [zenoh flags]
+
+By default it is also the run's Zenoh router (``--mode router --listen ...``):
+agents and the logger connect to it as clients.
+
+Lockstep: tick k is published to every live agent; tick k+1 starts when
+every live agent has answered tick k, or when ``lockstep_deadline_s`` passes
+(the miss is counted, that robot's command is not renewed). Real time: ticks
+follow the wall clock at 1/dt Hz; the latest command is held; a robot whose
+command is older than ``stale_after_s`` is stopped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import queue
+import sys
+import threading
+import time
+from typing import Any
+
+import zenoh
+
+from protocol import session
+from protocol.keys import Keys
+from protocol.links import Link, link_name
+from protocol.messages import Command, Observation, Rejections, Status, Truth
+from swarm import scenario as scenario_mod
+from swarm.proc import install_stop_handlers, write_json
+from world.engine import WorldEngine
+
+STARTUP_TIMEOUT_S = 60.0
+STATUS_PERIOD_S = 0.25
+
+
+class World:
+    def __init__(
+        self,
+        sess: zenoh.Session,
+        sc: scenario_mod.Scenario,
+        run_id: str,
+        seed: int,
+        mode: str,
+        expect_logger: bool,
+        stop: threading.Event,
+    ) -> None:
+        self.session = sess
+        self.sc = sc
+        self.keys = Keys(run_id)
+        self.mode = mode
+        self.expect_logger = expect_logger
+        self.stop = stop
+        self.engine = WorldEngine(sc, seed)
+        self.rejections = Rejections()
+        self.seq = 0
+        self.inbox: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
+        self.cmd_links = {rid: Link(link_name("cmd", rid, 0), sc.links.cmd_drop, seed) for rid in sc.robots}
+        self.misses = 0
+        self.late_answers = 0
+        self.late_ticks = 0
+        self.max_tick_lateness_s = 0.0
+        self.agents_seen: set[int] = set()
+        self.logger_seen = False
+        self.deaths: list[dict[str, Any]] = []
+        self.leader_done = False
+        self.wall_s = 0.0
+        self.loop_wall_s = 0.0
+        self.counts = {"obs_sent": 0, "cmd_received": 0, "truth_sent": 0}
+
+    # -- Zenoh callbacks: keep them short, hand everything to the loop --------
+    def _on_cmd(self, sample: zenoh.Sample) -> None:
+        self.inbox.put(("cmd", (str(sample.key_expr), sample.payload.to_bytes())))
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        self.inbox.put(("alive", (str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)))
+
+    def run(self) -> int:
+        s, k, sc = self.session, self.keys, self.sc
+        obs_pubs = {rid: s.declare_publisher(k.obs(rid)) for rid in sc.robots}
+        truth_pub = s.declare_publisher(k.truth)
+        status_pub = s.declare_publisher(k.status)
+        s.declare_subscriber(k.all_cmd, self._on_cmd)
+        s.liveliness().declare_subscriber(f"{k.prefix}/alive/*/*", self._on_alive, history=True)
+        token = s.liveliness().declare_token(k.alive("world", 0))
+        try:
+            if not self._wait_ready(obs_pubs):
+                return 2 if not self.stop.is_set() else 130
+            self._publish_status(status_pub, "running")
+            t0 = time.monotonic()
+            code = self._loop(obs_pubs, truth_pub, status_pub)
+            self.loop_wall_s = time.monotonic() - t0
+            self._publish_status(status_pub, "done")
+            return code
+        finally:
+            token.undeclare()
+
+    def _wait_ready(self, obs_pubs: dict[int, zenoh.Publisher]) -> bool:
+        """Every agent's token (declared after its subscribers and after its
+        command publisher matched us) and every observation publisher matched."""
+        deadline = time.monotonic() + STARTUP_TIMEOUT_S
+        want = set(self.sc.robots)
+        while not self.stop.is_set():
+            self._drain(0.05)
+            matched = all(p.matching_status.matching for p in obs_pubs.values())
+            if self.agents_seen >= want and matched and (self.logger_seen or not self.expect_logger):
+                return True
+            if time.monotonic() > deadline:
+                missing = sorted(want - self.agents_seen)
+                print(
+                    f"world: gave up after {STARTUP_TIMEOUT_S:.0f} s waiting for agents {missing}"
+                    + ("" if self.logger_seen or not self.expect_logger else " and the logger"),
+                    file=sys.stderr,
+                )
+                return False
+        return False
+
+    def _publish_status(self, pub: zenoh.Publisher, state: str) -> None:
+        self.seq += 1
+        pub.put(Status(0, self.seq, self.engine.tick, self.engine.time_s, state, self.sc.ticks).to_bytes())
+
+    def _drain(self, timeout_s: float) -> None:
+        """Handle inbox items until it is empty (waiting up to ``timeout_s`` for the first)."""
+        try:
+            item = self.inbox.get(timeout=timeout_s) if timeout_s > 0 else self.inbox.get_nowait()
+        except queue.Empty:
+            return
+        while True:
+            self._handle(*item)
+            try:
+                item = self.inbox.get_nowait()
+            except queue.Empty:
+                return
+
+    def _handle(self, kind: str, data: Any) -> None:
+        if kind == "cmd":
+            key, payload = data
+            rk = self.keys.parse_robot(key)
+            if rk is None or rk.robot_id not in self.engine.robots:
+                self.rejections.reject("unknown robot")
+                return
+            msg = self.rejections.decode(Command, payload, sender=rk.robot_id)
+            if msg is None:
+                return
+            self._on_command(msg)
+        elif kind == "alive":
+            key, present = data
+            parsed = self.keys.parse_alive(key)
+            if parsed is None:
+                return
+            role, ident = parsed
+            if role == "logger":
+                self.logger_seen = self.logger_seen or present
+            elif role == "agent" and ident.isdigit() and int(ident) in self.engine.robots:
+                rid = int(ident)
+                if present:
+                    self.agents_seen.add(rid)
+                elif self.engine.robots[rid].alive:
+                    self.engine.kill(rid)
+                    self.deaths.append({"robot": rid, "tick": self.engine.tick, "time_s": self.engine.time_s})
+                    print(f"world: robot {rid} lost its agent at t={self.engine.time_s:.2f} s; stopped", flush=True)
+
+    def _on_command(self, msg: Command) -> None:
+        eng = self.engine
+        r = eng.robots[msg.sender]
+        self.counts["cmd_received"] += 1
+        if self.mode == "lockstep" and msg.tick != eng.tick:
+            self.late_answers += 1
+            return
+        r.answered = True
+        if msg.done and msg.sender == self.sc.leader.robot_id:
+            self.leader_done = True
+        if not self.cmd_links[msg.sender].accept(msg.seq):
+            return
+        if not r.alive:
+            return
+        now = eng.time_s if self.mode == "lockstep" else self.wall_s
+        eng.set_command(msg.sender, msg.left_mps, msg.right_mps, msg.formation, now)
+
+    def _publish_tick(self, obs_pubs: dict[int, zenoh.Publisher], truth_pub: zenoh.Publisher) -> None:
+        eng = self.engine
+        tick, t = eng.tick, eng.time_s
+        for rid in eng.alive_ids:
+            eng.robots[rid].answered = False
+            pose, readings, obstacles = eng.observation(rid)
+            self.seq += 1
+            obs_pubs[rid].put(Observation(0, self.seq, tick, t, pose, tuple(readings), tuple(obstacles)).to_bytes())
+            self.counts["obs_sent"] += 1
+        robots = tuple((rid, *r.pose, r.alive) for rid, r in eng.robots.items())
+        targets = tuple((rid, *eng.true_target(rid)) for rid in self.sc.follower_ids)
+        self.seq += 1
+        truth_pub.put(Truth(0, self.seq, tick, t, robots, targets).to_bytes())
+        self.counts["truth_sent"] += 1
+
+    def _loop(
+        self, obs_pubs: dict[int, zenoh.Publisher], truth_pub: zenoh.Publisher, status_pub: zenoh.Publisher
+    ) -> int:
+        eng, sc = self.engine, self.sc
+        period = sc.dt_s
+        start = time.monotonic()
+        next_status = start
+        while eng.tick < sc.ticks and not self.leader_done:
+            if self.stop.is_set():
+                return 130
+            tick_start = start + eng.tick * period
+            now = time.monotonic()
+            if self.mode == "realtime":
+                # Wait for this tick's time, handling commands meanwhile.
+                while now < tick_start and not self.stop.is_set():
+                    self._drain(tick_start - now)
+                    now = time.monotonic()
+                lateness = now - tick_start
+                self.max_tick_lateness_s = max(self.max_tick_lateness_s, lateness)
+                if lateness > 0.5 * period:
+                    self.late_ticks += 1
+                self.wall_s = now - start
+            self._publish_tick(obs_pubs, truth_pub)
+            if self.mode == "lockstep":
+                deadline = time.monotonic() + sc.lockstep_deadline_s
+                while not self.stop.is_set():
+                    waiting = [rid for rid in eng.alive_ids if not eng.robots[rid].answered]
+                    if not waiting:
+                        break
+                    left = deadline - time.monotonic()
+                    if left <= 0:
+                        self.misses += len(waiting)
+                        for rid in waiting:
+                            eng.robots[rid].command = (0.0, 0.0)  # missed: stopped this tick
+                        break
+                    self._drain(left)
+            else:
+                self._drain(0.0)
+            if now >= next_status:
+                self._publish_status(status_pub, "running")
+                next_status = now + STATUS_PERIOD_S
+            eng.step(eng.time_s if self.mode == "lockstep" else self.wall_s)
+        return 0
+
+    def stats(self, wall_s: float) -> dict[str, Any]:
+        out = self.engine.summary()
+        out.update(
+            {
+                "mode": self.mode,
+                "wall_time_s": wall_s,
+                "loop_wall_time_s": self.loop_wall_s,
+                "ticks_per_s": self.engine.tick / self.loop_wall_s if self.loop_wall_s > 0 else math.nan,
+                "lockstep_misses": self.misses,
+                "late_answers": self.late_answers,
+                "late_ticks": self.late_ticks,
+                "max_tick_lateness_s": self.max_tick_lateness_s,
+                "deaths": self.deaths,
+                "leader_done": self.leader_done,
+                "messages": dict(self.counts),
+                "cmd_links": {
+                    lk.name: {"received": lk.received, "dropped": lk.dropped} for lk in self.cmd_links.values()
+                },
+                "rejected": dict(self.rejections.by_reason),
+            }
+        )
+        return out
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="swarm world", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--scenario", required=True)
+    ap.add_argument("--run", required=True, help="run id: the first segment of every key")
+    ap.add_argument("--clock", choices=("lockstep", "realtime"), default="lockstep")
+    ap.add_argument("--seed", type=int, default=None, help="overrides the scenario's seed")
+    ap.add_argument("--stats", help="write the world's metrics (JSON) here at the end")
+    ap.add_argument("--expect-logger", action="store_true", help="wait for the logger before tick 0")
+    session.add_arguments(ap, default_mode="router")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    stop = install_stop_handlers()
+    try:
+        sc = scenario_mod.load(args.scenario)
+        conf = session.config_from_args(args)
+    except ValueError as exc:
+        print(f"world: {exc}", file=sys.stderr)
+        return 2
+    seed = sc.seed if args.seed is None else args.seed
+    started = time.monotonic()
+    try:
+        sess_cm = zenoh.open(conf)
+    except zenoh.ZError as exc:
+        print(f"world: cannot open the Zenoh session: {exc}", file=sys.stderr)
+        return 2
+    with sess_cm as sess:
+        world = World(sess, sc, args.run, seed, args.clock, args.expect_logger, stop)
+        code = world.run()
+        wall = time.monotonic() - started
+        stats = world.stats(wall)
+        stats["exit_code"] = code
+        write_json(args.stats, stats)
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())
