@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from collections.abc import Sequence
 
@@ -45,6 +46,10 @@ def _vn(text: str) -> str:
     return text
 
 
+def _raise_interrupt(_sig: int, _frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from swarm.launcher import KillAt, Launch, print_result
     from swarm.scenario import ScenarioError
@@ -67,6 +72,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return 2
     print(f"[swarm] run {launch.run_id}: {launch.sc.name}, {len(launch.sc.robots)} robots, {args.mode}, "
           f"seed {launch.sc.seed}, folder {launch.run_dir}", flush=True)  # fmt: skip
+    # Ctrl-C and SIGTERM stop the run cleanly, even if this process was started
+    # with SIGINT ignored (as background jobs of a shell are).
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, _raise_interrupt)
+    try:
+        launch.start()
+    except KeyboardInterrupt:
+        print(f"[swarm] interrupted while starting; every process stopped; folder {launch.run_dir}", flush=True)
+        return 130
     with launch:
         result = launch.wait(timeout_s=args.timeout)
     print_result(result)

@@ -20,9 +20,10 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 import uuid
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
@@ -181,6 +182,18 @@ class Launch:
         self.stop()
 
     def start(self) -> None:
+        """Spawn every process (once); on any failure (Ctrl-C included) reap what started."""
+        if self.children:
+            return
+        try:
+            self._start()
+        except BaseException:
+            self.stop(graceful_first=False)
+            if self.run_dir.exists():
+                self._summary(130, interrupted=True, timed_out=False)
+            raise
+
+    def _start(self) -> None:
         self.run_dir.mkdir(parents=True, exist_ok=True)
         (self.run_dir / "logs").mkdir(exist_ok=True)
         (self.run_dir / "stats").mkdir(exist_ok=True)
@@ -289,7 +302,12 @@ class Launch:
 
     def stop(self, graceful_first: bool = True) -> None:
         """End of run: give everyone END_GRACE_S to leave on the world's "done",
-        then SIGTERM, then SIGKILL after STOP_GRACE_S. Always reaps."""
+        then SIGTERM, then SIGKILL after STOP_GRACE_S. Always reaps; a second
+        Ctrl-C meanwhile does not interrupt the reaping."""
+        with _sigint_ignored():
+            self._stop(graceful_first)
+
+    def _stop(self, graceful_first: bool) -> None:
         if graceful_first:
             self._wait_exit(END_GRACE_S)
         for c in self.children.values():
@@ -369,6 +387,18 @@ class Launch:
         }
         (self.run_dir / "summary.json").write_text(json.dumps(clean_json(summary), indent=2, allow_nan=False))
         return summary
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _slug(name: str) -> str:

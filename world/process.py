@@ -160,7 +160,8 @@ class World:
                     self.agents_seen.add(rid)
                 elif self.engine.robots[rid].alive:
                     self.engine.kill(rid)
-                    self.deaths.append({"robot": rid, "tick": self.engine.tick, "time_s": self.engine.time_s})
+                    self.deaths.append({"robot": rid, "tick": self.engine.tick, "time_s": self.engine.time_s,
+                                        "pose": list(self.engine.robots[rid].pose)})  # fmt: skip
                     print(f"world: robot {rid} lost its agent at t={self.engine.time_s:.2f} s; stopped", flush=True)
 
     def _on_command(self, msg: Command) -> None:
@@ -233,7 +234,7 @@ class World:
                     self._drain(left)
             else:
                 self._drain(0.0)
-            if now >= next_status:
+            if self.mode == "realtime" or now >= next_status:
                 self._publish_status(status_pub, "running")
                 next_status = now + STATUS_PERIOD_S
             eng.step(eng.time_s if self.mode == "lockstep" else self.wall_s)

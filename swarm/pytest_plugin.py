@@ -1,0 +1,57 @@
+"""pytest plugin (registered through the ``pytest11`` entry point).
+
+Fixtures:
+
+``swarm_run``
+    ``swarm_run(scenario, mode="lockstep", seed=None, overrides=None,
+    logger=True, kills=(), timeout_s=300) -> RunResult``: runs a scenario as
+    real processes (world, logger, one agent per robot) with a unique run id
+    and its own loopback port, in the test's tmp_path; returns the summary and
+    the run folder. Every process is reaped when the test ends, pass or fail.
+
+``swarm_launch``
+    ``swarm_launch(scenario, **kwargs) -> Launch``: the same, started but not
+    waited for, for tests that act on a run while it runs (``launch.endpoint``,
+    ``launch.run_id``, ``launch.wait_until(...)``, ``launch.wait()``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from swarm.launcher import Launch, RunResult
+
+
+@pytest.fixture
+def swarm_launch(tmp_path: Path) -> Iterator[Callable[..., Launch]]:
+    """Start runs (``Launch`` objects) that are stopped and reaped at teardown."""
+    launches: list[Launch] = []
+
+    def start(scenario: str | Path, **kwargs: Any) -> Launch:
+        kwargs.setdefault("out", tmp_path / f"run-{len(launches)}")
+        kwargs.setdefault("progress", lambda _line: None)
+        launch = Launch(scenario, **kwargs)
+        launches.append(launch)
+        launch.start()
+        return launch
+
+    try:
+        yield start
+    finally:
+        for launch in launches:
+            launch.stop(graceful_first=False)
+
+
+@pytest.fixture
+def swarm_run(swarm_launch: Callable[..., Launch]) -> Callable[..., RunResult]:
+    """Run a scenario to its end as real processes; returns a ``RunResult``."""
+
+    def run(scenario: str | Path, *, timeout_s: float = 300.0, **kwargs: Any) -> RunResult:
+        launch = swarm_launch(scenario, **kwargs)
+        return launch.wait(timeout_s=timeout_s)
+
+    return run

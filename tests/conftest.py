@@ -1,0 +1,36 @@
+"""Suite-wide guard: no process of ours may outlive the test session."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENARIOS = ROOT / "scenarios"
+OUR_MODULES = ("world.process", "agents.process", "swarm.logger", "swarm.router")
+
+
+def our_processes() -> list[tuple[int, str]]:
+    """Live processes running one of our roles (zombies excluded)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            cmd = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            state = (entry / "stat").read_text().split(") ", 1)[1][0]
+        except OSError:
+            continue
+        if state != "Z" and any(f"-m {m} " in cmd for m in OUR_MODULES):
+            found.append((int(entry.name), cmd.strip()))
+    return found
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _no_process_left_behind() -> object:
+    before = {pid for pid, _ in our_processes()}
+    yield
+    left = [(pid, cmd) for pid, cmd in our_processes() if pid not in before]
+    assert not left, f"processes left behind by the suite: {left}"
