@@ -16,6 +16,7 @@ run is done, when the world's token disappears, or on SIGINT/SIGTERM.
 from __future__ import annotations
 
 import argparse
+import gc
 import queue
 import sys
 import threading
@@ -60,6 +61,8 @@ class Agent:
         self.world_seen = False
         self.done = False
         self.answered = 0
+        self.handoff_s = 0.0  # callback -> loop delay, summed
+        self.busy_s = 0.0  # time handling messages in the loop, summed
         self.formation_changes: list[dict[str, Any]] = []
         if self.is_leader:
             ld = sc.leader
@@ -74,7 +77,7 @@ class Agent:
 
     # -- callbacks: short, into the loop's queue, order kept ---------------------
     def _on_inbox(self, sample: zenoh.Sample) -> None:
-        self.inbox.put(("msg", (str(sample.key_expr), sample.payload.to_bytes())))
+        self.inbox.put(("msg", (str(sample.key_expr), sample.payload.to_bytes(), time.perf_counter())))
 
     def _on_status(self, sample: zenoh.Sample) -> None:
         self.inbox.put(("status", sample.payload.to_bytes()))
@@ -102,6 +105,7 @@ class Agent:
                 print(f"agent {self.rid}: no world (or follower) matched within {STARTUP_TIMEOUT_S:.0f} s",
                       file=sys.stderr)  # fmt: skip
                 return 2
+        gc.freeze()  # start-up objects (numpy, scipy, zenoh) leave the collector's scans
         token = s.liveliness().declare_token(k.alive("agent", self.rid))
         try:
             return self._loop()
@@ -115,7 +119,11 @@ class Agent:
             except queue.Empty:
                 continue
             if kind == "msg":
-                self._on_message(*data)
+                key, payload, stamp = data
+                t0 = time.perf_counter()
+                self.handoff_s += t0 - stamp
+                self._on_message(key, payload)
+                self.busy_s += time.perf_counter() - t0
             elif kind == "status":
                 st = self.rejections.decode(Status, data)
                 if st is not None and st.state == "done":
@@ -220,6 +228,8 @@ class Agent:
             "robot": self.rid,
             "role": "leader" if self.is_leader else "follower",
             "answered": self.answered,
+            "handoff_s": self.handoff_s,
+            "busy_s": self.busy_s,
             "formation": self.sc.formation_names[self.code],
             "formation_changes": self.formation_changes,
             "links": {

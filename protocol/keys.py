@@ -91,6 +91,10 @@ class Keys:
         return f"{self.prefix}/world/status"
 
     @property
+    def world_all(self) -> str:
+        return f"{self.prefix}/world/**"
+
+    @property
     def everything(self) -> str:
         return f"{self.prefix}/**"
 

@@ -16,6 +16,7 @@ command is older than ``stale_after_s`` is stopped.
 from __future__ import annotations
 
 import argparse
+import gc
 import math
 import queue
 import sys
@@ -69,6 +70,7 @@ class World:
         self.leader_done = False
         self.wall_s = 0.0
         self.loop_wall_s = 0.0
+        self.wait_s = 0.0  # lockstep: time waiting for the agents' answers
         self.counts = {"obs_sent": 0, "cmd_received": 0, "truth_sent": 0}
 
     # -- Zenoh callbacks: keep them short, hand everything to the loop --------
@@ -90,6 +92,7 @@ class World:
             if not self._wait_ready(obs_pubs):
                 return 2 if not self.stop.is_set() else 130
             self._publish_status(status_pub, "running")
+            gc.freeze()  # start-up objects leave the collector's scans
             t0 = time.monotonic()
             code = self._loop(obs_pubs, truth_pub, status_pub)
             self.loop_wall_s = time.monotonic() - t0
@@ -220,6 +223,7 @@ class World:
                 self.wall_s = now - start
             self._publish_tick(obs_pubs, truth_pub)
             if self.mode == "lockstep":
+                t_wait = time.perf_counter()
                 deadline = time.monotonic() + sc.lockstep_deadline_s
                 while not self.stop.is_set():
                     waiting = [rid for rid in eng.alive_ids if not eng.robots[rid].answered]
@@ -232,6 +236,7 @@ class World:
                             eng.robots[rid].command = (0.0, 0.0)  # missed: stopped this tick
                         break
                     self._drain(left)
+                self.wait_s += time.perf_counter() - t_wait
             else:
                 self._drain(0.0)
             if self.mode == "realtime" or now >= next_status:
@@ -247,6 +252,7 @@ class World:
                 "mode": self.mode,
                 "wall_time_s": wall_s,
                 "loop_wall_time_s": self.loop_wall_s,
+                "answer_wait_s": self.wait_s,
                 "ticks_per_s": self.engine.tick / self.loop_wall_s if self.loop_wall_s > 0 else math.nan,
                 "lockstep_misses": self.misses,
                 "late_answers": self.late_answers,

@@ -1,0 +1,173 @@
+"""Lockstep tick rate of the three-robot scenario beside a bare Zenoh exchange.
+
+Both are measured in the same invocation, alternating, so their ratio holds
+on a loaded machine:
+
+- bare: a world process (the router) publishes one observation per robot and
+  the truth each tick and waits for the three answers; the leader answers
+  with two formation codes and a command, each follower with a command and a
+  telemetry message; a logger-like process subscribes to the whole key space
+  and only counts. Same processes, keys, message count and payload sizes as
+  a run, with no physics, camera, controller, EKF or Rerun.
+- full: ``swarm run scenarios/fig11_obstacles.toml`` in lockstep with the
+  logger writing its recording; the rate is the world's loop (ticks / wall s).
+
+    python bench/lockstep.py [--repeat 3] [--ticks 3000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import queue
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import uuid
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+import zenoh  # noqa: E402
+
+from protocol.keys import Keys  # noqa: E402
+from protocol.session import make_config  # noqa: E402
+from swarm.launcher import Launch, free_port  # noqa: E402
+
+OBS = b"o" * 110
+CMD = b"c" * 40
+FORM = b"f" * 20
+TEL = b"t" * 150
+TRUTH = b"r" * 160
+
+
+def bare_world(endpoint: str, run: str, ticks: int) -> None:
+    k = Keys(run)
+    with zenoh.open(make_config("router", listen=[endpoint])) as s:
+        q: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+        s.declare_subscriber(k.all_cmd, lambda smp: q.put(smp.payload.to_bytes()))
+        pubs = [s.declare_publisher(k.obs(r)) for r in (1, 2, 3)]
+        truth = s.declare_publisher(k.truth)
+        done = s.declare_publisher(k.status)
+        logger = s.declare_publisher(f"{k.prefix}/bench/logger-ready")
+        deadline = time.monotonic() + 60
+        while not (all(p.matching_status.matching for p in pubs) and truth.matching_status.matching):
+            if time.monotonic() > deadline:
+                raise SystemExit("bare world: peers never matched")
+            time.sleep(0.01)
+        # Each agent's command publisher matched us before it subscribed? Wait for one round.
+        del logger
+        time.sleep(0.5)
+        t0 = time.perf_counter()
+        for _ in range(ticks):
+            for p in pubs:
+                p.put(OBS)
+            truth.put(TRUTH)
+            for _ in range(3):
+                q.get(timeout=5)
+        rate = ticks / (time.perf_counter() - t0)
+        done.put(b"done")
+        print(f"{rate:.1f}", flush=True)
+
+
+def bare_agent(endpoint: str, run: str, rid: int) -> None:
+    k = Keys(run)
+    with zenoh.open(make_config("client", [endpoint])) as s:
+        q: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+        s.declare_subscriber(
+            k.inbox(rid), lambda smp: q.put(smp.payload.to_bytes()), allowed_origin=zenoh.Locality.REMOTE
+        )
+        s.declare_subscriber(k.status, lambda smp: q.put(b"done"))
+        cmd = s.declare_publisher(k.cmd(rid))
+        tel = s.declare_publisher(k.telemetry(rid))
+        forms = [s.declare_publisher(k.formation(f)) for f in (2, 3)] if rid == 1 else []
+        while True:
+            m = q.get()
+            if m == b"done":
+                return
+            if m is FORM or m == FORM:
+                continue
+            for f in forms:
+                f.put(FORM)
+            cmd.put(CMD)
+            if rid != 1:
+                tel.put(TEL)
+
+
+def bare_logger(endpoint: str, run: str) -> None:
+    k = Keys(run)
+    with zenoh.open(make_config("client", [endpoint])) as s:
+        q: queue.SimpleQueue[str] = queue.SimpleQueue()
+        s.declare_subscriber(k.everything, lambda smp: q.put(str(smp.key_expr)))
+        while not q.get().endswith("/world/status"):
+            pass
+
+
+def measure_bare(ticks: int) -> float:
+    run = f"bench-{uuid.uuid4().hex[:8]}"
+    ep = f"tcp/127.0.0.1:{free_port()}"
+    me = [sys.executable, __file__]
+    world = subprocess.Popen([*me, "--role", "world", ep, run, str(ticks)], stdout=subprocess.PIPE, text=True)
+    others = [subprocess.Popen([*me, "--role", "logger", ep, run])]
+    others += [subprocess.Popen([*me, "--role", "agent", ep, run, str(r)]) for r in (1, 2, 3)]
+    try:
+        out, _ = world.communicate(timeout=600)
+    finally:
+        for p in others:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+    return float(out.strip().splitlines()[-1])
+
+
+def measure_full(duration_s: float) -> tuple[float, dict]:
+    with (
+        tempfile.TemporaryDirectory() as tmp,
+        Launch(
+            ROOT / "scenarios" / "fig11_obstacles.toml",
+            out=Path(tmp) / "run",
+            overrides={"run.duration_s": duration_s, "leader.waypoints": [[0.0, 0.0], [0.0, 400.0]]},
+            progress=lambda _l: None,
+        ) as launch,
+    ):
+        res = launch.wait(timeout_s=600)
+        if res.exit_code != 0:
+            raise SystemExit(f"full run failed: exit {res.exit_code}, see {res.run_dir}")
+        return float(res.summary["ticks_per_s"]), res.summary
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--ticks", type=int, default=3000, help="ticks per measurement (full: the same, as sim time)")
+    ap.add_argument("--role", nargs="+", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.role:
+        role, ep, run, *rest = args.role
+        if role == "world":
+            bare_world(ep, run, int(rest[0]))
+        elif role == "agent":
+            bare_agent(ep, run, int(rest[0]))
+        else:
+            bare_logger(ep, run)
+        return
+    bare, full = [], []
+    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
+    for i in range(args.repeat):
+        bare.append(measure_bare(args.ticks))
+        rate, summary = measure_full(args.ticks * 0.05)
+        full.append(rate)
+        print(f"  round {i + 1}: bare {bare[-1]:7.0f} ticks/s   full (controller + logger) {full[-1]:7.0f} ticks/s "
+              f"({summary['ticks']} ticks, misses {summary['lockstep_misses']})", flush=True)  # fmt: skip
+    b, f = statistics.median(bare), statistics.median(full)
+    print(f"median: bare {b:.0f} ticks/s, full {f:.0f} ticks/s, full/bare {f / b:.2f}")
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
