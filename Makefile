@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/swarm sim
+	$(BIN)/swarm run scenarios/fig11_obstacles.toml
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
@@ -25,6 +25,8 @@ test: lint
 
 bench: $(STAMP)
 	$(BIN)/python bench/fuzzy_step.py
+	$(BIN)/python bench/lockstep.py
+	$(BIN)/python bench/realtime.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info
