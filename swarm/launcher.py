@@ -17,6 +17,7 @@ import ctypes
 import json
 import os
 import queue
+import shutil
 import signal
 import socket
 import subprocess
@@ -420,7 +421,7 @@ def _slug(name: str) -> str:
 def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
     s = res.summary
     w = out.write
-    w(f"run {s['run_id']}: exit {res.exit_code}, {s.get('ticks')} ticks, sim {s.get('sim_time_s')} s\n")
+    w(f"run {s['run_id']}: exit {res.exit_code}, {s.get('ticks')} ticks, sim {s.get('sim_time_s') or 0.0:.2f} s\n")
     for rid, m in sorted(s.get("followers", {}).items()):
         w(f"  follower R{rid}: formation error RMS {m.get('rms_m'):.3f} m, max {m.get('max_m'):.3f} m\n")
     w(f"  min distance {s.get('min_distance_m'):.3f} m (diameter {s.get('robot_diameter_m')} m), "
@@ -432,4 +433,5 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
         w(f"  event: {ev}\n")
     w(f"run folder: {res.run_dir}\n  summary: {res.run_dir / 'summary.json'}\n")
     if s.get("recording"):
-        w(f"  recording: {res.recording}\n  open it:   rerun {res.recording}\n")
+        viewer = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+        w(f"  recording: {res.recording}\n  open it:   {viewer} {res.recording}\n")

@@ -46,7 +46,7 @@ from protocol import session
 from protocol.keys import Keys
 from protocol.messages import Rejections, Status, Telemetry, Truth
 from swarm import scenario as scenario_mod
-from swarm.proc import install_stop_handlers, write_json
+from swarm.proc import install_stop_handlers, role_inputs, write_json
 from world.kinematics import Pose, from_body_frame
 
 SEND_PERIOD_S = 0.25
@@ -334,28 +334,21 @@ def main(argv: list[str] | None = None) -> int:
         # agents; the logger buffers and catches up in their slack.
         with contextlib.suppress(OSError):
             os.nice(args.nice)
-    try:
-        sc = scenario_mod.load(args.scenario)
-        conf = session.config_from_args(args)
-    except ValueError as exc:
-        print(f"logger: {exc}", file=sys.stderr)
+    inputs = role_inputs(args, "logger")
+    if inputs is None:
         return 2
-    rec = rr.RecordingStream("formation-swarm", recording_id=args.run,
-                             batcher_config=rr.ChunkBatcherConfig(flush_tick=0.1))  # fmt: skip
-    sinks: list[Any] = [rr.FileSink(args.out)]
-    if args.live:
-        sinks.append(rr.GrpcSink(args.live))
-    rec.set_sinks(*sinks, default_blueprint=blueprint())
-    if args.serve_web:
-        url = rr.serve_grpc(recording=rec, default_blueprint=blueprint())
-        rr.serve_web_viewer(connect_to=url, open_browser=False)
-        print(f"logger: web viewer serving {url}", flush=True)
-    try:
-        sess_cm = zenoh.open(conf)
-    except zenoh.ZError as exc:
-        print(f"logger: cannot open the Zenoh session: {exc}", file=sys.stderr)
-        return 2
+    sc, sess_cm = inputs
     with sess_cm as sess:
+        rec = rr.RecordingStream("formation-swarm", recording_id=args.run,
+                                 batcher_config=rr.ChunkBatcherConfig(flush_tick=0.1))  # fmt: skip
+        sinks: list[Any] = [rr.FileSink(args.out)]
+        if args.live:
+            sinks.append(rr.GrpcSink(args.live))
+        rec.set_sinks(*sinks, default_blueprint=blueprint())
+        if args.serve_web:
+            url = rr.serve_grpc(recording=rec, default_blueprint=blueprint())
+            rr.serve_web_viewer(connect_to=url, open_browser=False)
+            print(f"logger: web viewer serving {url}", flush=True)
         logger = Logger(sess, sc, args.run, rec, stop)
         code = logger.run()
         write_json(args.stats, logger.stats())

@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import signal
+import sys
 import threading
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import zenoh
+
+    from swarm.scenario import Scenario
 
 
 def install_stop_handlers() -> threading.Event:
@@ -42,3 +49,24 @@ def clean_json(o: Any) -> Any:
     if isinstance(o, (list, tuple)):
         return [clean_json(v) for v in o]
     return o
+
+
+def role_inputs(args: argparse.Namespace, who: str) -> tuple[Scenario, zenoh.Session] | None:
+    """A role's scenario and open Zenoh session from its flags, or None after
+    printing why not (bad scenario, bad flags, no router)."""
+    import zenoh
+
+    from protocol import session
+    from swarm import scenario as scenario_mod
+
+    try:
+        sc = scenario_mod.load(args.scenario)
+        conf = session.config_from_args(args)
+    except ValueError as exc:
+        print(f"{who}: {exc}", file=sys.stderr)
+        return None
+    try:
+        return sc, zenoh.open(conf)
+    except zenoh.ZError as exc:
+        print(f"{who}: cannot open the Zenoh session: {exc}", file=sys.stderr)
+        return None

@@ -31,7 +31,7 @@ from protocol.keys import Keys
 from protocol.links import Link, link_name
 from protocol.messages import Command, Observation, Rejections, Status, Truth
 from swarm import scenario as scenario_mod
-from swarm.proc import install_stop_handlers, write_json
+from swarm.proc import install_stop_handlers, role_inputs, write_json
 from world.engine import WorldEngine
 
 STARTUP_TIMEOUT_S = 60.0
@@ -287,19 +287,12 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     stop = install_stop_handlers()
-    try:
-        sc = scenario_mod.load(args.scenario)
-        conf = session.config_from_args(args)
-    except ValueError as exc:
-        print(f"world: {exc}", file=sys.stderr)
-        return 2
-    seed = sc.seed if args.seed is None else args.seed
     started = time.monotonic()
-    try:
-        sess_cm = zenoh.open(conf)
-    except zenoh.ZError as exc:
-        print(f"world: cannot open the Zenoh session: {exc}", file=sys.stderr)
+    inputs = role_inputs(args, "world")
+    if inputs is None:
         return 2
+    sc, sess_cm = inputs
+    seed = sc.seed if args.seed is None else args.seed
     with sess_cm as sess:
         world = World(sess, sc, args.run, seed, args.clock, args.expect_logger, stop)
         code = world.run()
