@@ -153,7 +153,8 @@ def test_random_bytes_on_every_key_kill_nothing(swarm_launch: Callable[..., Laun
             for pub in pubs.values():
                 payload = crafted[i] if i < len(crafted) else rng.bytes(int(rng.integers(0, 200)))
                 pub.put(payload)
-    res = launch.wait(timeout_s=120)
+        # Close our session only after the run: closing drops what is still queued.
+        res = launch.wait(timeout_s=120)
     s = res.summary
     assert res.exit_code == 0
     assert all(p["exit_code"] == 0 for p in s["processes"].values()), s["processes"]
