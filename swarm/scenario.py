@@ -326,7 +326,8 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         if form.leader != ld["id"]:
             raise ScenarioError(f"formations.{name} is led by robot {form.leader}, leader.id is {ld['id']}")
 
-    ctrl = _table(raw.get("controller"), "controller", CONTROLLER_KEYS)
+    # [controller] is validated on its own too, even when every follower overrides it.
+    _table(raw.get("controller"), "controller", CONTROLLER_KEYS)
     followers: dict[int, FollowerParams] = {}
     per = raw.get("followers", {})
     if not isinstance(per, dict):
@@ -343,7 +344,6 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         merged.update(override)
         where = f"followers.{rid}" if override else "controller"
         followers[rid] = _follower_params(where, _table(merged, where, CONTROLLER_KEYS), robot, dt)
-    _ = ctrl  # validated above even when every follower overrides it
 
     obstacles = []
     obs_raw = raw.get("obstacles", [])

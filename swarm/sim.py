@@ -18,7 +18,7 @@ from agents.formation import Formation
 from agents.geometry import Point
 from agents.pilot import PathPilot
 from world import kinematics
-from world.camera import CameraParams, observe, true_reading
+from world.camera import CameraParams, observe
 from world.kinematics import Pose, from_body_frame
 
 
@@ -127,6 +127,3 @@ def paper_turning_setup(seed: int = 0, **overrides: object) -> ClosedLoopSetup:
     form = Formation("two", {2: Slot(1, Point(-1.5, -1.5))})
     kwargs: dict[str, object] = {"waypoints": PAPER_TURNING_PATH, **overrides}
     return ClosedLoopSetup(formation=form, seed=seed, **kwargs)  # type: ignore[arg-type]
-
-
-__all__ = ["ClosedLoopResult", "ClosedLoopSetup", "paper_turning_setup", "run", "true_reading"]

@@ -90,11 +90,11 @@ class WorldEngine:
         """(own pose, marker readings, obstacles in range) for robot ``rid`` now."""
         sc = self.scenario
         r = self.robots[rid]
-        poses = {i: s.pose for i, s in self.robots.items()}
         readings: list = []
         obstacles = []
         if rid != sc.leader.robot_id:
             # The leader uses no camera: it flies its path and senses obstacles.
+            poses = {i: s.pose for i, s in self.robots.items()}
             readings = [tuple(m) for m in observe(rid, poses, sc.camera, r.rng)]
         else:
             for ob in sc.obstacles:
@@ -118,8 +118,6 @@ class WorldEngine:
                 }
             )
             r.formation = formation
-        elif formation >= len(self.scenario.formation_names):
-            return
 
     def kill(self, rid: int) -> None:
         """The robot's process is gone: it stops where it is, for good."""
