@@ -16,6 +16,7 @@ run is done, when the world's token disappears, or on SIGINT/SIGTERM.
 from __future__ import annotations
 
 import argparse
+import collections
 import gc
 import queue
 import sys
@@ -64,6 +65,7 @@ class Agent:
         self.handoff_s = 0.0  # callback -> loop delay, summed
         self.busy_s = 0.0  # time handling messages in the loop, summed
         self.formation_changes: list[dict[str, Any]] = []
+        self.pending_codes: collections.deque[FormationCode] = collections.deque(maxlen=64)
         if self.is_leader:
             ld = sc.leader
             self.pilot = PathPilot(ld.waypoints, ld.speed_mps, sc.width_m, ld.lookahead_m, ld.turn_rate_rps)
@@ -90,11 +92,15 @@ class Agent:
         s.declare_subscriber(k.inbox(self.rid), self._on_inbox, allowed_origin=zenoh.Locality.REMOTE)
         s.declare_subscriber(k.status, self._on_status)
         s.liveliness().declare_subscriber(k.alive("world", 0), self._on_world_alive, history=True)
-        self.cmd_pub = s.declare_publisher(k.cmd(self.rid))
+        # Control messages are never dropped by Zenoh itself (only by our link layer);
+        # telemetry may be, if the logger falls behind.
+        block = zenoh.CongestionControl.BLOCK
+        self.cmd_pub = s.declare_publisher(k.cmd(self.rid), congestion_control=block)
         self.tel_pub = s.declare_publisher(k.telemetry(self.rid))
         self.form_pubs = (
-            {f: s.declare_publisher(k.formation(f)) for f in self.sc.follower_ids} if self.is_leader else {}
-        )
+            {f: s.declare_publisher(k.formation(f), congestion_control=block) for f in self.sc.follower_ids}
+            if self.is_leader else {}
+        )  # fmt: skip
         # Announce ourselves only once the world can hear our commands.
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         while not self.cmd_pub.matching_status.matching or (self.is_leader and not all(
@@ -148,20 +154,22 @@ class Agent:
         elif rk.kind == "formation" and not self.is_leader:
             fc = self.rejections.decode(FormationCode, payload, sender=self.sc.leader.robot_id)
             if fc is not None and self.formation_link.accept(fc.seq):
-                self._apply_formation(fc)
+                self._accept_formation(fc)
         else:
             self.rejections.reject("unexpected key")
 
-    def _apply_formation(self, fc: FormationCode) -> None:
+    def _accept_formation(self, fc: FormationCode) -> None:
         if fc.code >= len(self.sc.formation_names):
             self.rejections.reject("unknown formation")
-            return
+        elif self.rid not in self.sc.formation_by_code(fc.code).slots:
+            self.rejections.reject("no slot in formation")
+        else:
+            self.pending_codes.append(fc)
+
+    def _apply_formation(self, fc: FormationCode) -> None:
         if fc.code == self.code:
             return
-        slot = self.sc.formation_by_code(fc.code).slots.get(self.rid)
-        if slot is None:
-            self.rejections.reject("no slot in formation")
-            return
+        slot = self.sc.formation_by_code(fc.code).slots[self.rid]
         self.code = fc.code
         self.reference = slot.reference
         self.follower.set_offset(slot.offset)
@@ -188,6 +196,12 @@ class Agent:
         self._send_cmd(obs.tick, *self.last_cmd, done=self.pilot.finished)
 
     def _follow(self, obs: Observation, delivered: bool) -> None:
+        # The leader answers tick k with its code for k; that code can reach us before
+        # or after our own observation k (the world publishes them one by one), so it
+        # is applied from tick k + 1 on: never earlier, and in lockstep never later,
+        # since the world publishes k + 1 only after the leader's answer to k.
+        while self.pending_codes and self.pending_codes[0].tick < obs.tick:
+            self._apply_formation(self.pending_codes.popleft())
         reading = None
         if delivered:
             for rid, rho, phi, beta in obs.readings:

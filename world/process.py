@@ -82,7 +82,8 @@ class World:
 
     def run(self) -> int:
         s, k, sc = self.session, self.keys, self.sc
-        obs_pubs = {rid: s.declare_publisher(k.obs(rid)) for rid in sc.robots}
+        block = zenoh.CongestionControl.BLOCK  # Zenoh never drops an observation; our link layer may
+        obs_pubs = {rid: s.declare_publisher(k.obs(rid), congestion_control=block) for rid in sc.robots}
         truth_pub = s.declare_publisher(k.truth)
         status_pub = s.declare_publisher(k.status)
         s.declare_subscriber(k.all_cmd, self._on_cmd)
