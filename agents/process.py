@@ -27,12 +27,12 @@ from typing import Any
 import zenoh
 
 from agents.follower import Decision, Follower
-from agents.leader import FormationSwitch
+from agents.leader import CodeRepeats, FormationSwitch
 from agents.pilot import PathPilot
 from protocol import session
 from protocol.keys import Keys
 from protocol.links import Link, link_name
-from protocol.messages import Command, FormationCode, Observation, Rejections, Status, Telemetry
+from protocol.messages import BatchPublisher, Command, FormationCode, Observation, Rejections, Status, Telemetry
 from swarm import scenario as scenario_mod
 from swarm.proc import install_stop_handlers, role_inputs, write_json
 from world.kinematics import Pose
@@ -71,6 +71,7 @@ class Agent:
             self.pilot = PathPilot(ld.waypoints, ld.speed_mps, sc.width_m, ld.lookahead_m, ld.turn_rate_rps)
             avoid = None if ld.avoid_formation is None else sc.code_of(ld.avoid_formation)
             self.switch = FormationSwitch(self.code, avoid, ld.clear_after_s, sc.dt_s)
+            self.repeats = CodeRepeats(ld.code_burst_s, ld.code_period_s, sc.dt_s)
             self.last_cmd = (0.0, 0.0)
         else:
             slot = sc.formation_by_code(self.code).slots[rid]
@@ -92,11 +93,11 @@ class Agent:
         s.declare_subscriber(k.inbox(self.rid), self._on_inbox, allowed_origin=zenoh.Locality.REMOTE)
         s.declare_subscriber(k.status, self._on_status)
         s.liveliness().declare_subscriber(k.alive("world", 0), self._on_world_alive, history=True)
-        # Control messages are never dropped by Zenoh itself (only by our link layer);
-        # telemetry may be, if the logger falls behind.
+        # Control messages are never dropped by Zenoh itself (only by our link
+        # layer); telemetry, for the logger only, travels in batches.
         block = zenoh.CongestionControl.BLOCK
         self.cmd_pub = s.declare_publisher(k.cmd(self.rid), congestion_control=block)
-        self.tel_pub = s.declare_publisher(k.telemetry(self.rid))
+        self.tel_pub = BatchPublisher(s.declare_publisher(k.telemetry(self.rid)))
         self.form_pubs = (
             {f: s.declare_publisher(k.formation(f), congestion_control=block) for f in self.sc.follower_ids}
             if self.is_leader else {}
@@ -116,6 +117,7 @@ class Agent:
         try:
             return self._loop()
         finally:
+            self.tel_pub.close()  # the logger waits for this end-of-stream mark
             token.undeclare()
 
     def _loop(self) -> int:
@@ -190,9 +192,10 @@ class Agent:
         if delivered:
             self.code = self.switch.step(obs.obstacles)
             self.last_cmd = self.pilot.step(Pose(*obs.pose))
-        for pub in self.form_pubs.values():
-            self.seq += 1
-            pub.put(FormationCode(self.rid, self.seq, obs.tick, self.code).to_bytes())
+        if self.repeats.due(self.code):
+            for pub in self.form_pubs.values():
+                self.seq += 1
+                pub.put(FormationCode(self.rid, self.seq, obs.tick, self.code).to_bytes())
         self._send_cmd(obs.tick, *self.last_cmd, done=self.pilot.finished)
 
     def _follow(self, obs: Observation, delivered: bool) -> None:

@@ -10,11 +10,17 @@ everything (type, length, version, ranges, NaN/inf, size) and raises
 :class:`DecodeError` with a reason; processes call :meth:`Rejections.decode`,
 which counts the reason and returns None instead, so bad input never kills a
 process nor reaches its state.
+
+Streams that only feed the logger (telemetry, ground truth) travel in
+batches: :class:`BatchPublisher` gathers encoded messages for a few
+milliseconds of wall time into one ``[BATCH_TAG, version, [msg, ...]]``
+payload, and :meth:`Rejections.decode_batch` takes it apart.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, fields
@@ -29,6 +35,8 @@ MAX_PAYLOAD_BYTES = 64 * 1024
 MAX_ITEMS = 1024  # longest list in any message (robots, readings, obstacles)
 WORLD_ID = 0
 MAX_TICK = 2**53
+BATCH_TAG = 100
+MAX_BATCH_ITEMS = 256
 
 
 class DecodeError(ValueError):
@@ -202,7 +210,7 @@ class Command(Message):
 
 @dataclass(frozen=True, slots=True)
 class FormationCode(Message):
-    """Leader -> one follower: the formation to fly, repeated every tick."""
+    """Leader -> one follower: the formation to fly, repeated (agents.leader.CodeRepeats)."""
 
     code: int
 
@@ -276,6 +284,57 @@ class Status(Message):
     CHECKS = (_float, _one_of("waiting", "running", "done"), _count)
 
 
+def pack_batch(encoded: list[bytes]) -> bytes:
+    """Encoded messages in one payload (see :class:`BatchPublisher`)."""
+    return msgpack.packb([BATCH_TAG, VERSION, encoded], use_bin_type=True)
+
+
+class BatchPublisher:
+    """Puts to one key gathered into batches, for streams off the control path.
+
+    A message goes out with the ones before it once ``window_s`` of wall time
+    has passed since the last put, or when the batch is full, so at 20 Hz every
+    message leaves at once and in a fast lockstep run one put carries many
+    ticks. ``flush`` sends what is held; ``close`` flushes and then sends an
+    empty batch, which tells the receiver that the stream has ended (it comes
+    after the data, whereas a liveliness token's end may overtake it).
+    """
+
+    def __init__(self, pub: Any, window_s: float = 0.02, max_bytes: int = MAX_PAYLOAD_BYTES // 2,
+                 clock: Callable[[], float] = time.monotonic) -> None:  # fmt: skip
+        if not window_s >= 0.0:
+            raise ValueError(f"window_s must be >= 0, got {window_s!r}")
+        if not 0 < max_bytes <= MAX_PAYLOAD_BYTES // 2:
+            raise ValueError(f"max_bytes must be in (0, {MAX_PAYLOAD_BYTES // 2}], got {max_bytes!r}")
+        self.pub = pub
+        self.window_s = window_s
+        self.max_bytes = max_bytes
+        self.clock = clock
+        self.items: list[bytes] = []
+        self.size = 0
+        self.last_put = -math.inf
+        self.puts = 0
+
+    def put(self, payload: bytes) -> None:
+        if self.size + len(payload) > self.max_bytes:
+            self.flush()
+        self.items.append(payload)
+        self.size += len(payload)
+        if len(self.items) >= MAX_BATCH_ITEMS or self.clock() - self.last_put >= self.window_s:
+            self.flush()
+
+    def flush(self) -> None:
+        if self.items:
+            self.pub.put(pack_batch(self.items))
+            self.puts += 1
+            self.items, self.size = [], 0
+        self.last_put = self.clock()
+
+    def close(self) -> None:
+        self.flush()
+        self.pub.put(pack_batch([]))
+
+
 class Rejections:
     """Counts rejected payloads by reason; decoding at a process boundary."""
 
@@ -301,3 +360,38 @@ class Rejections:
             self.by_reason["sender mismatch"] += 1
             return None
         return msg
+
+    def decode_batch(self, cls: type[T], payload: bytes, sender: int | None = None) -> list[T] | None:
+        """The valid messages of a batch of ``cls`` ([] for the end-of-stream
+        batch), or None for a payload that is not a batch (one rejection
+        counted); each bad message inside counts as one rejection."""
+        try:
+            items = _unpack_batch(payload)
+        except DecodeError as exc:
+            self.by_reason[exc.reason] += 1
+            return None
+        out = []
+        for item in items:
+            msg = self.decode(cls, item, sender)
+            if msg is not None:
+                out.append(msg)
+        return out
+
+
+def _unpack_batch(payload: bytes) -> list[bytes]:
+    if len(payload) > MAX_PAYLOAD_BYTES:
+        raise DecodeError("oversized", f"{len(payload)} bytes > {MAX_PAYLOAD_BYTES}")
+    try:
+        raw = msgpack.unpackb(payload, raw=False, max_array_len=MAX_BATCH_ITEMS, max_map_len=0)
+    except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError) as exc:
+        raise DecodeError("not msgpack", type(exc).__name__) from None
+    if not isinstance(raw, list) or len(raw) != 3:
+        raise DecodeError("wrong type", "a batch is a msgpack list [tag, version, items]")
+    if raw[0] != BATCH_TAG:
+        raise DecodeError("wrong message type", f"tag {raw[0]!r}, expected a batch ({BATCH_TAG})")
+    if raw[1] != VERSION:
+        raise DecodeError("unknown version", f"{raw[1]!r}, expected {VERSION}")
+    items = raw[2]
+    if not isinstance(items, list) or not all(isinstance(b, bytes) for b in items):
+        raise DecodeError("wrong type", "a batch's items must be a list of encoded messages")
+    return items

@@ -47,11 +47,13 @@ from protocol.keys import Keys
 from protocol.messages import Rejections, Status, Telemetry, Truth
 from swarm import scenario as scenario_mod
 from swarm.proc import install_stop_handlers, role_inputs, write_json
-from world.kinematics import Pose, from_body_frame
+from world.kinematics import Pose
 
 SEND_PERIOD_S = 0.25
 FLUSH_PERIOD_S = 0.5
 TIMELINE = "sim_time"
+END_WAIT_S = 1.0  # after "done", for the followers' last telemetry
+HISTORY_TICKS = 400  # telemetry waits this long for its tick's truth
 _CIRCLE = np.stack([np.cos(np.linspace(0, 2 * np.pi, 25)), np.sin(np.linspace(0, 2 * np.pi, 25))], axis=1)
 
 
@@ -83,39 +85,10 @@ def blueprint() -> rrb.Blueprint:
     )
 
 
-class Columns:
-    """Rows buffered per entity, sent with send_columns."""
-
-    def __init__(self) -> None:
-        self.rows: dict[tuple[str, str], list[tuple[float, Any]]] = defaultdict(list)
-        self.count = 0
-
-    def add(self, entity: str, kind: str, t: float, value: Any) -> None:
-        self.rows[(entity, kind)].append((t, value))
-        self.count += 1
-
-    def send(self, rec: rr.RecordingStream) -> None:
-        rows, self.rows = self.rows, defaultdict(list)
-        self.count = 0
-        for (entity, kind), items in rows.items():
-            times = np.array([t for t, _ in items])
-            idx = [rr.TimeColumn(TIMELINE, duration=times)]
-            vals = [v for _, v in items]
-            if kind == "scalar":
-                cols = rr.Scalars.columns(scalars=np.array(vals, dtype=float))
-            elif kind == "point":
-                cols = rr.Points2D.columns(positions=np.array(vals, dtype=float).reshape(-1, 2))
-            elif kind == "arrow":
-                arr = np.array(vals, dtype=float).reshape(-1, 4)
-                cols = rr.Arrows2D.columns(origins=arr[:, :2], vectors=arr[:, 2:])
-            elif kind == "strip":
-                cols = rr.LineStrips2D.columns(strips=vals)
-            else:  # pragma: no cover - programming error
-                raise ValueError(f"unknown column kind {kind!r}")
-            rec.send_columns(entity, indexes=idx, columns=cols)
-
-
 class Logger:
+    """Messages are kept as they arrive (cheap, per tick) and turned into Rerun
+    columns every SEND_PERIOD_S with numpy (per send, not per tick)."""
+
     def __init__(self, sess: zenoh.Session, sc: scenario_mod.Scenario, run_id: str, rec: rr.RecordingStream,
                  stop: threading.Event) -> None:  # fmt: skip
         self.session = sess
@@ -125,12 +98,13 @@ class Logger:
         self.stop = stop
         self.inbox: queue.SimpleQueue[tuple[str, bytes]] = queue.SimpleQueue()
         self.rejections = Rejections()
-        self.cols = Columns()
-        self.poses: dict[int, dict[int, Pose]] = {}  # tick -> robot -> pose
+        self.truths: list[Truth] = []  # since the last send
+        self.tels: list[Telemetry] = []  # waiting for their tick's truth
+        self.poses: dict[int, dict[int, Pose]] = {}  # tick -> robot -> pose, bounded history
         self.targets: dict[int, dict[int, tuple[float, float]]] = {}
-        self.pending: list[Telemetry] = []
         self.formation: dict[int, int] = {}
-        self.counts = {"truth": 0, "telemetry": 0, "other": 0, "log_errors": 0, "rows": 0}
+        self.ended: set[int] = set()  # followers whose telemetry stream has ended
+        self.counts = {"truth": 0, "telemetry": 0, "other": 0, "log_errors": 0, "rows": 0, "unjoined": 0}
         self.last_time_s = -1.0
         self.done = False
 
@@ -148,16 +122,20 @@ class Logger:
         token = s.liveliness().declare_token(k.alive("logger", 0))
         last_send = last_flush = time.monotonic()
         try:
-            while not self.stop.is_set() and not self.done:
+            # After "done", each follower flushes its last telemetry and marks the
+            # end of its stream: wait for those (bounded: a killed one never
+            # will), then close the file.
+            followers, end_by = set(self.sc.follower_ids), math.inf
+            while not self.stop.is_set() and not (self.done and (self.ended >= followers or time.monotonic() > end_by)):
                 try:
-                    key, payload = self.inbox.get(timeout=0.05)
-                    self._handle(key, payload)
+                    self._handle(*self.inbox.get(timeout=0.05))
                     for _ in range(5000):  # drain what is there, bounded
-                        key, payload = self.inbox.get_nowait()
-                        self._handle(key, payload)
+                        self._handle(*self.inbox.get_nowait())
                 except queue.Empty:
                     pass
                 now = time.monotonic()
+                if self.done and end_by == math.inf:
+                    end_by = now + END_WAIT_S
                 if now - last_send >= SEND_PERIOD_S:
                     self._send()
                     last_send = now
@@ -170,7 +148,7 @@ class Logger:
                     self._handle(*self.inbox.get_nowait())
                 except queue.Empty:
                     break
-            self._send()
+            self._send(final=True)
             self._flush(timeout_s=1.0)
         finally:
             token.undeclare()
@@ -183,10 +161,6 @@ class Logger:
             self.counts["log_errors"] += 1
             if self.counts["log_errors"] <= 3:
                 print(f"logger: rerun error ({type(exc).__name__}: {exc}); continuing", file=sys.stderr, flush=True)
-
-    def _send(self) -> None:
-        self.counts["rows"] += self.cols.count
-        self._guard(self.cols.send, self.rec)
 
     def _flush(self, timeout_s: float) -> None:
         self._guard(self.rec.flush, timeout_sec=timeout_s)
@@ -210,15 +184,16 @@ class Logger:
     def _handle(self, key: str, payload: bytes) -> None:
         rk = self.keys.parse_robot(key)
         if key == self.keys.truth:
-            msg = self.rejections.decode(Truth, payload)
-            if msg is not None:
-                self.counts["truth"] += 1
-                self._on_truth(msg)
+            truths = self.rejections.decode_batch(Truth, payload) or []
+            self.counts["truth"] += len(truths)
+            self.truths.extend(truths)
         elif rk is not None and rk.kind == "telemetry":
-            tel = self.rejections.decode(Telemetry, payload, sender=rk.robot_id)
-            if tel is not None:
-                self.counts["telemetry"] += 1
-                self._on_telemetry(tel)
+            tels = self.rejections.decode_batch(Telemetry, payload, sender=rk.robot_id)
+            if tels == []:
+                self.ended.add(rk.robot_id)
+            elif tels is not None:
+                self.counts["telemetry"] += len(tels)
+                self.tels.extend(tels)
         elif key == self.keys.status:
             st = self.rejections.decode(Status, payload)
             if st is not None and st.state == "done":
@@ -226,72 +201,111 @@ class Logger:
         else:
             self.counts["other"] += 1
 
-    def _on_truth(self, msg: Truth) -> None:
-        t = msg.time_s
-        self.last_time_s = max(self.last_time_s, t)
-        poses = {}
-        for rid, x, y, th, _alive in msg.robots:
-            poses[rid] = Pose(x, y, th)
-            base = f"robots/r{rid}"
-            self.cols.add(f"{base}/pose", "point", t, (x, y))
-            self.cols.add(f"{base}/trajectory", "point", t, (x, y))
-            self.cols.add(f"{base}/heading", "arrow", t, (x, y, 0.4 * math.cos(th), 0.4 * math.sin(th)))
-        targets = {}
-        for rid, x, y in msg.targets:
-            targets[rid] = (x, y)
-            self.cols.add(f"robots/r{rid}/target/true", "point", t, (x, y))
-            if rid in poses:
-                self.cols.add(f"robots/r{rid}/error/formation", "scalar", t, math.dist(poses[rid][:2], (x, y)))
-        self.poses[msg.tick] = poses
-        self.targets[msg.tick] = targets
-        # Keep a bounded history to join telemetry with.
-        for old in [k for k in self.poses if k < msg.tick - 400]:
-            self.poses.pop(old, None)
-            self.targets.pop(old, None)
-        still = []
-        for tel in self.pending:
-            if tel.tick in self.poses:
-                self._on_telemetry(tel)
-            elif tel.tick > msg.tick - 400:
-                still.append(tel)
-        self.pending = still
+    def _send(self, final: bool = False) -> None:
+        self._guard(self._send_truth)
+        self._guard(self._send_telemetry, final)
 
-    def _on_telemetry(self, tel: Telemetry) -> None:
-        pose = self.poses.get(tel.tick, {}).get(tel.sender)
-        if pose is None:
-            if len(self.pending) < 10_000:
-                self.pending.append(tel)
+    def _columns(self, entity: str, kind: str, times: np.ndarray, values: Any) -> None:
+        """One entity's rows since the last send, as Rerun columns."""
+        if len(times) == 0:
             return
-        t, base = tel.time_s, f"robots/r{tel.sender}"
-        true_target = self.targets.get(tel.tick, {}).get(tel.sender)
-        for name, value in (("rho", tel.rho_m), ("alpha", tel.alpha_rad), ("v_n", tel.vn)):
-            if value is not None:
-                self.cols.add(f"{base}/fis/{name}", "scalar", t, value)
-        self.cols.add(f"{base}/wheels/left", "scalar", t, tel.left_mps)
-        self.cols.add(f"{base}/wheels/right", "scalar", t, tel.right_mps)
-        self.cols.add(f"{base}/links/obs_dropped", "scalar", t, float(tel.obs_dropped))
-        self.cols.add(f"{base}/links/formation_dropped", "scalar", t, float(tel.formation_dropped))
-        if self.formation.get(tel.sender) != tel.formation:
-            self.formation[tel.sender] = tel.formation
-            self.cols.add(f"{base}/formation", "scalar", t, float(tel.formation))
-            name = self.sc.formation_names[tel.formation] if tel.formation < len(self.sc.formation_names) else "?"
-            self._guard(self._event, t, f"R{tel.sender} flies {name}")
-        if tel.measured is not None:
-            m = from_body_frame(pose, *tel.measured)
-            self.cols.add(f"{base}/target/measured", "point", t, m)
-            if true_target is not None:
-                self.cols.add(f"{base}/error/measured", "scalar", t, math.dist(m, true_target))
-        if tel.estimate is not None:
-            e = from_body_frame(pose, *tel.estimate)
-            self.cols.add(f"{base}/ekf/target", "point", t, e)
-            if true_target is not None:
-                self.cols.add(f"{base}/error/ekf", "scalar", t, math.dist(e, true_target))
-            if tel.target_cov is not None:
-                self.cols.add(f"{base}/ekf/cov", "strip", t, _ellipse(pose, e, tel.target_cov))
+        if kind == "scalar":
+            cols = rr.Scalars.columns(scalars=values)
+        elif kind == "point":
+            cols = rr.Points2D.columns(positions=values)
+        elif kind == "arrow":
+            cols = rr.Arrows2D.columns(origins=values[:, :2], vectors=values[:, 2:])
+        elif kind == "strip":
+            cols = rr.LineStrips2D.columns(strips=list(values))
+        else:  # pragma: no cover - programming error
+            raise ValueError(f"unknown column kind {kind!r}")
+        self.rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=times)], columns=cols)
+        self.counts["rows"] += len(times)
+
+    def _send_truth(self) -> None:
+        truths, self.truths = self.truths, []
+        robots: dict[int, list[tuple[float, float, float, float]]] = defaultdict(list)
+        targets: dict[int, list[tuple[float, float, float, float, float]]] = defaultdict(list)
+        for msg in truths:
+            t = msg.time_s
+            self.last_time_s = max(self.last_time_s, t)
+            poses = {rid: Pose(x, y, th) for rid, x, y, th, _alive in msg.robots}
+            self.poses[msg.tick] = poses
+            self.targets[msg.tick] = {rid: (x, y) for rid, x, y in msg.targets}
+            for rid, pose in poses.items():
+                robots[rid].append((t, *pose))
+            for rid, x, y in msg.targets:
+                if rid in poses:
+                    targets[rid].append((t, x, y, poses[rid].x_m, poses[rid].y_m))
+        for rid, rows in robots.items():
+            a = np.array(rows)
+            t, xy, th = a[:, 0], a[:, 1:3], a[:, 3]
+            base = f"robots/r{rid}"
+            self._columns(f"{base}/pose", "point", t, xy)
+            self._columns(f"{base}/trajectory", "point", t, xy)
+            self._columns(f"{base}/heading", "arrow", t, np.column_stack([xy, 0.4 * np.cos(th), 0.4 * np.sin(th)]))
+        for rid, rows in targets.items():
+            a = np.array(rows)
+            self._columns(f"robots/r{rid}/target/true", "point", a[:, 0], a[:, 1:3])
+            err = np.hypot(a[:, 1] - a[:, 3], a[:, 2] - a[:, 4])
+            self._columns(f"robots/r{rid}/error/formation", "scalar", a[:, 0], err)
+
+    def _send_telemetry(self, final: bool) -> None:
+        """Telemetry whose tick's truth has arrived, joined with it: the follower's
+        pose turns its body-frame points into world-frame ones."""
+        newest = max(self.poses, default=-1)
+        ready: dict[int, list[tuple[Telemetry, Pose, tuple[float, float] | None]]] = defaultdict(list)
+        waiting = []
+        for tel in self.tels:
+            pose = self.poses.get(tel.tick, {}).get(tel.sender)
+            if pose is not None:
+                ready[tel.sender].append((tel, pose, self.targets[tel.tick].get(tel.sender)))
+            elif tel.tick > newest - HISTORY_TICKS and not final:
+                waiting.append(tel)
+            else:
+                self.counts["unjoined"] += 1
+        self.tels = waiting
+        for old in [k for k in self.poses if k < newest - HISTORY_TICKS]:
+            del self.poses[old], self.targets[old]
+        for rid, rows in ready.items():
+            self._send_follower(rid, rows)
+
+    def _send_follower(self, rid: int, rows: list[tuple[Telemetry, Pose, tuple[float, float] | None]]) -> None:
+        nan = math.nan
+        base = f"robots/r{rid}"
+        for tel, _pose, _target in rows:
+            if self.formation.get(rid) != tel.formation:
+                self.formation[rid] = tel.formation
+                self._columns(f"{base}/formation", "scalar", np.array([tel.time_s]), np.array([float(tel.formation)]))
+                names = self.sc.formation_names
+                self._event(tel.time_s, f"R{rid} flies {names[tel.formation] if tel.formation < len(names) else '?'}")
+        a = np.array([
+            (tel.time_s, *pose, *(target or (nan, nan)), *(tel.measured or (nan, nan)), *(tel.estimate or (nan, nan)),
+             *(tel.target_cov or (nan, nan, nan)), _nan(tel.rho_m), _nan(tel.alpha_rad), _nan(tel.vn),
+             tel.left_mps, tel.right_mps, tel.obs_dropped, tel.formation_dropped)
+            for tel, pose, target in rows
+        ])  # fmt: skip
+        t, pose, target = a[:, 0], a[:, 1:4], a[:, 4:6]
+        measured, estimate = _to_world(pose, a[:, 6:8]), _to_world(pose, a[:, 8:10])
+        cov = a[:, 10:13]
+        scalars = ("fis/rho", "fis/alpha", "fis/v_n", "wheels/left", "wheels/right", "links/obs_dropped",
+                   "links/formation_dropped")  # fmt: skip
+        for col, name in enumerate(scalars, start=13):
+            ok = ~np.isnan(a[:, col])
+            self._columns(f"{base}/{name}", "scalar", t[ok], a[ok, col])
+        for name, pts in (("measured", measured), ("ekf", estimate)):
+            ok = ~np.isnan(pts[:, 0])
+            self._columns(f"{base}/target/measured" if name == "measured" else f"{base}/ekf/target", "point",
+                          t[ok], pts[ok])  # fmt: skip
+            ok &= ~np.isnan(target[:, 0])
+            self._columns(f"{base}/error/{name}", "scalar", t[ok], np.hypot(*(pts[ok] - target[ok]).T))
+        ok = ~np.isnan(estimate[:, 0]) & ~np.isnan(cov[:, 0])
+        if ok.any():
+            self._columns(f"{base}/ekf/cov", "strip", t[ok], _ellipses(pose[ok], estimate[ok], cov[ok]))
 
     def _event(self, t: float, text: str) -> None:
-        self.rec.set_time(TIMELINE, duration=t)
-        self.rec.log("events", rr.TextLog(text))
+        self._guard(self.rec.set_time, TIMELINE, duration=t)
+        self._guard(self.rec.log, "events", rr.TextLog(text))
 
     def stats(self) -> dict[str, Any]:
         return {
@@ -301,15 +315,27 @@ class Logger:
         }
 
 
-def _ellipse(pose: Pose, center: tuple[float, float], cov: tuple[float, float, float]) -> np.ndarray:
-    """2-sigma ellipse of a follower-frame covariance, as a world-frame polygon."""
-    c = np.array([[cov[0], cov[1]], [cov[1], cov[2]]])
-    vals, vecs = np.linalg.eigh(c)
-    pts_body = (_CIRCLE * (2.0 * np.sqrt(np.maximum(vals, 0.0)))) @ vecs.T
+def _nan(x: float | None) -> float:
+    return math.nan if x is None else x
+
+
+def _to_world(pose: np.ndarray, body: np.ndarray) -> np.ndarray:
+    """Body-frame points (x right, y ahead) of robots at ``pose`` (n x 3), world frame."""
+    s, c = np.sin(pose[:, 2]), np.cos(pose[:, 2])
+    x, y = body[:, 0], body[:, 1]
+    return np.column_stack([pose[:, 0] + x * s + y * c, pose[:, 1] - x * c + y * s])
+
+
+def _ellipses(pose: np.ndarray, center: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """2-sigma ellipses of follower-frame covariances (xx, xy, yy), as world-frame
+    polygons: n x 25 x 2."""
+    c = np.stack([np.stack([cov[:, 0], cov[:, 1]], -1), np.stack([cov[:, 1], cov[:, 2]], -1)], -2)
+    vals, vecs = np.linalg.eigh(c)  # n x 2, n x 2 x 2
+    body = np.einsum("kj,nj,nij->nki", _CIRCLE, 2.0 * np.sqrt(np.maximum(vals, 0.0)), vecs)
     # Body-frame directions to world frame: x right -> (sin, -cos), y ahead -> (cos, sin).
-    s, co = math.sin(pose[2]), math.cos(pose[2])
-    rot = np.array([[s, co], [-co, s]])
-    return pts_body @ rot.T + np.asarray(center)
+    s, co = np.sin(pose[:, 2])[:, None], np.cos(pose[:, 2])[:, None]
+    bx, by = body[..., 0], body[..., 1]
+    return np.stack([bx * s + by * co, -bx * co + by * s], -1) + center[:, None, :]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -47,6 +47,8 @@ class LeaderSpec:
     formation: str
     avoid_formation: str | None
     clear_after_s: float
+    code_burst_s: float
+    code_period_s: float
 
 
 @dataclass(frozen=True)
@@ -129,6 +131,8 @@ LEADER_KEYS = {
     "formation": (str, None),
     "avoid_formation": (str, ""),
     "clear_after_s": (_NUM, 2.0),
+    "code_burst_s": (_NUM, 1.0),
+    "code_period_s": (_NUM, 0.5),
 }
 FORMATION_KEYS = {
     "shape": (str, None),
@@ -307,8 +311,10 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         for p in wps
     ):
         raise ScenarioError(f"leader.waypoints must be at least 2 points [x_m, y_m], got {wps!r}")
-    for k in ("speed_mps", "turn_rate_rps", "lookahead_m", "sensing_range_m", "clear_after_s"):
+    for k in ("speed_mps", "turn_rate_rps", "lookahead_m", "sensing_range_m", "clear_after_s", "code_period_s"):
         _positive(f"leader.{k}", ld[k])
+    if not ld["code_burst_s"] >= 0:
+        raise ScenarioError(f"leader.code_burst_s must be >= 0, got {ld['code_burst_s']!r}")
 
     forms_raw = raw.get("formations")
     if not isinstance(forms_raw, dict) or not forms_raw:
@@ -379,6 +385,8 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
             formation=ld["formation"],
             avoid_formation=ld["avoid_formation"] or None,
             clear_after_s=float(ld["clear_after_s"]),
+            code_burst_s=float(ld["code_burst_s"]),
+            code_period_s=float(ld["code_period_s"]),
         ),
         formations=formations,
         followers=followers,

@@ -80,8 +80,9 @@ def test_recording_verifies_and_reads_back(fig11_run: RunResult) -> None:
     for r in (1, 2, 3):
         assert rows.get(f"/robots/r{r}/trajectory", 0) == ticks
     for r in (2, 3):
-        assert rows.get(f"/robots/r{r}/ekf/target", 0) >= ticks - 5
-        assert rows.get(f"/robots/r{r}/fis/v_n", 0) >= ticks - 5
+        # Telemetry travels in batches; the last one still arrives before the logger closes.
+        assert rows.get(f"/robots/r{r}/ekf/target", 0) == ticks
+        assert rows.get(f"/robots/r{r}/fis/v_n", 0) == ticks
     assert rows.get("/world/obstacles") == 1
 
 

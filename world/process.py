@@ -29,13 +29,14 @@ import zenoh
 from protocol import session
 from protocol.keys import Keys
 from protocol.links import Link, link_name
-from protocol.messages import Command, Observation, Rejections, Status, Truth
+from protocol.messages import BatchPublisher, Command, Observation, Rejections, Status, Truth
 from swarm import scenario as scenario_mod
 from swarm.proc import install_stop_handlers, role_inputs, write_json
 from world.engine import WorldEngine
 
 STARTUP_TIMEOUT_S = 60.0
 STATUS_PERIOD_S = 0.25
+LINGER_S = 2.0  # after "done", at most this long for the others to leave
 
 
 class World:
@@ -66,6 +67,8 @@ class World:
         self.max_tick_lateness_s = 0.0
         self.agents_seen: set[int] = set()
         self.logger_seen = False
+        self.present: set[str] = set()  # alive keys of the agents and the logger
+        self.finished = False  # "done" sent: agents leaving now are not deaths
         self.deaths: list[dict[str, Any]] = []
         self.leader_done = False
         self.wall_s = 0.0
@@ -84,7 +87,7 @@ class World:
         s, k, sc = self.session, self.keys, self.sc
         block = zenoh.CongestionControl.BLOCK  # Zenoh never drops an observation; our link layer may
         obs_pubs = {rid: s.declare_publisher(k.obs(rid), congestion_control=block) for rid in sc.robots}
-        truth_pub = s.declare_publisher(k.truth)
+        truth_pub = BatchPublisher(s.declare_publisher(k.truth))  # for the logger only: batched
         status_pub = s.declare_publisher(k.status)
         s.declare_subscriber(k.all_cmd, self._on_cmd)
         s.liveliness().declare_subscriber(f"{k.prefix}/alive/*/*", self._on_alive, history=True)
@@ -97,10 +100,20 @@ class World:
             t0 = time.monotonic()
             code = self._loop(obs_pubs, truth_pub, status_pub)
             self.loop_wall_s = time.monotonic() - t0
+            truth_pub.flush()  # before "done": the logger stops listening after it
             self._publish_status(status_pub, "done")
+            self.finished = True
+            self._linger()
             return code
         finally:
             token.undeclare()
+
+    def _linger(self) -> None:
+        """Stay up (we may be the router) until the agents and the logger have left
+        on "done", so that their last messages still get routed. Bounded."""
+        end = time.monotonic() + LINGER_S
+        while self.present and not self.stop.is_set() and (left := end - time.monotonic()) > 0:
+            self._drain(min(left, 0.05))
 
     def _wait_ready(self, obs_pubs: dict[int, zenoh.Publisher]) -> bool:
         """Every agent's token (declared after its subscribers and after its
@@ -156,13 +169,15 @@ class World:
             if parsed is None:
                 return
             role, ident = parsed
+            if role in ("agent", "logger"):
+                (self.present.add if present else self.present.discard)(key)
             if role == "logger":
                 self.logger_seen = self.logger_seen or present
             elif role == "agent" and ident.isdigit() and int(ident) in self.engine.robots:
                 rid = int(ident)
                 if present:
                     self.agents_seen.add(rid)
-                elif self.engine.robots[rid].alive:
+                elif self.engine.robots[rid].alive and not self.finished:
                     self.engine.kill(rid)
                     self.deaths.append({"robot": rid, "tick": self.engine.tick, "time_s": self.engine.time_s,
                                         "pose": list(self.engine.robots[rid].pose)})  # fmt: skip
@@ -185,7 +200,7 @@ class World:
         now = eng.time_s if self.mode == "lockstep" else self.wall_s
         eng.set_command(msg.sender, msg.left_mps, msg.right_mps, msg.formation, now)
 
-    def _publish_tick(self, obs_pubs: dict[int, zenoh.Publisher], truth_pub: zenoh.Publisher) -> None:
+    def _publish_tick(self, obs_pubs: dict[int, zenoh.Publisher], truth_pub: BatchPublisher) -> None:
         eng = self.engine
         tick, t = eng.tick, eng.time_s
         for rid in eng.alive_ids:
@@ -201,7 +216,7 @@ class World:
         self.counts["truth_sent"] += 1
 
     def _loop(
-        self, obs_pubs: dict[int, zenoh.Publisher], truth_pub: zenoh.Publisher, status_pub: zenoh.Publisher
+        self, obs_pubs: dict[int, zenoh.Publisher], truth_pub: BatchPublisher, status_pub: zenoh.Publisher
     ) -> int:
         eng, sc = self.engine, self.sc
         period = sc.dt_s

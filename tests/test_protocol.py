@@ -1,0 +1,107 @@
+"""Batches of logger-bound messages: packing, timing, end of stream, bad input."""
+
+from __future__ import annotations
+
+import msgpack
+import pytest
+
+from protocol.messages import (
+    MAX_BATCH_ITEMS,
+    BatchPublisher,
+    Command,
+    FormationCode,
+    Rejections,
+    pack_batch,
+)
+
+
+class FakePub:
+    def __init__(self) -> None:
+        self.payloads: list[bytes] = []
+
+    def put(self, payload: bytes) -> None:
+        self.payloads.append(payload)
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def _codes(n: int, start: int = 0) -> list[bytes]:
+    return [FormationCode(1, start + i + 1, start + i, i % 3).to_bytes() for i in range(n)]
+
+
+def test_batch_round_trip_keeps_order() -> None:
+    msgs = _codes(10)
+    rej = Rejections()
+    out = rej.decode_batch(FormationCode, pack_batch(msgs), sender=1)
+    assert [m.seq for m in out] == list(range(1, 11))
+    assert rej.total == 0
+
+
+def test_first_message_goes_at_once_then_one_put_per_window() -> None:
+    pub, clock = FakePub(), FakeClock()
+    bp = BatchPublisher(pub, window_s=0.02, clock=clock)
+    msgs = _codes(30)
+    bp.put(msgs[0])  # nothing sent before: leaves at once (a 20 Hz stream is never delayed)
+    assert len(pub.payloads) == 1
+    for i in range(1, 11):  # 10 more within 10 ms: held
+        clock.t = i * 0.001
+        bp.put(msgs[i])
+    assert len(pub.payloads) == 1
+    clock.t = 0.021
+    bp.put(msgs[11])  # window passed: the 11 held leave together
+    assert len(pub.payloads) == 2
+    rej = Rejections()
+    assert [m.seq for m in rej.decode_batch(FormationCode, pub.payloads[1])] == list(range(2, 13))
+
+
+def test_close_flushes_then_marks_the_end() -> None:
+    pub, clock = FakePub(), FakeClock()
+    bp = BatchPublisher(pub, window_s=1.0, clock=clock)
+    msgs = _codes(5)
+    for m in msgs:
+        bp.put(m)
+    bp.close()
+    rej = Rejections()
+    batches = [rej.decode_batch(FormationCode, p) for p in pub.payloads]
+    assert [len(b) for b in batches] == [1, 4, 0]  # first at once, the held 4, the end mark
+    assert rej.total == 0
+
+
+def test_full_batches_leave_early() -> None:
+    pub, clock = FakePub(), FakeClock()
+    bp = BatchPublisher(pub, window_s=10.0, clock=clock)
+    for m in _codes(1 + 2 * MAX_BATCH_ITEMS):
+        bp.put(m)
+    assert [len(msgpack.unpackb(p)[2]) for p in pub.payloads] == [1, MAX_BATCH_ITEMS, MAX_BATCH_ITEMS]
+    small = BatchPublisher(FakePub(), window_s=10.0, max_bytes=100, clock=clock)
+    for m in _codes(40):
+        small.put(m)
+        assert small.size <= 100
+
+
+def test_bad_batches_are_counted_once_and_bad_items_each() -> None:
+    rej = Rejections()
+    assert rej.decode_batch(FormationCode, b"\xc1") is None
+    assert rej.decode_batch(FormationCode, Command(2, 1, 1, 0.0, 0.0, 0, False).to_bytes()) is None
+    assert rej.decode_batch(FormationCode, msgpack.packb([100, 99, []])) is None  # unknown version
+    assert rej.decode_batch(FormationCode, msgpack.packb([100, 1, [1, 2]])) is None  # items not bytes
+    assert rej.decode_batch(FormationCode, b"\x00" * 70_000) is None
+    assert rej.total == 5
+    mixed = pack_batch([*_codes(2), b"junk", Command(2, 1, 1, 0.0, 0.0, 0, False).to_bytes()])
+    assert len(rej.decode_batch(FormationCode, mixed, sender=1)) == 2
+    assert rej.total == 7
+    assert len(rej.decode_batch(FormationCode, pack_batch(_codes(2)), sender=2)) == 0  # wrong sender
+    assert rej.by_reason["sender mismatch"] == 2
+
+
+@pytest.mark.parametrize(("kwargs", "name"), [({"window_s": -1.0}, "window_s"), ({"max_bytes": 0}, "max_bytes"),
+                                              ({"max_bytes": 10**6}, "max_bytes")])  # fmt: skip
+def test_bad_parameters_name_themselves(kwargs: dict, name: str) -> None:
+    with pytest.raises(ValueError, match=name):
+        BatchPublisher(FakePub(), **kwargs)
