@@ -1,5 +1,9 @@
 """A follower's per-tick brain, pure: reading -> EKF -> target -> fuzzy -> wheels.
 
+``law = "lpsi"`` swaps the fuzzy controller for the separation-bearing
+baseline (agents.lpsi) on the same EKF estimate; that baseline tracks its
+slot directly (no partition-zone avoidance during formation changes).
+
 This is the whole controller of paper Fig. 4 plus the EKF of section 3 and
 the collision avoidance of section 2.2, with no I/O, so the same object runs
 inside an agent process, the one-process simulator and the benchmarks.
@@ -17,7 +21,11 @@ from agents import fuzzy as fz
 from agents.avoidance import Choice, select_target
 from agents.ekf import EkfParams, TargetEKF
 from agents.geometry import Point, errors, leader_point, target_from_reading, target_point
+from agents.lpsi import LpsiParams
+from agents.lpsi import control as lpsi_control
 from swarm.checks import non_negative, positive
+
+LAWS = ("fuzzy", "lpsi")
 
 
 @dataclass(frozen=True)
@@ -32,8 +40,12 @@ class FollowerParams:
     speed: fz.SpeedMode = field(default_factory=fz.SpeedMode)
     ekf: EkfParams = field(default_factory=EkfParams)
     use_ekf: bool = True
+    law: str = "fuzzy"  # or "lpsi", the baseline
+    lpsi: LpsiParams = field(default_factory=LpsiParams)
 
     def __post_init__(self) -> None:
+        if self.law not in LAWS:
+            raise ValueError(f"law must be one of {LAWS}, got {self.law!r}")
         positive("width_m", self.width_m)
         non_negative("marker_offset_m", self.marker_offset_m)
         positive("dt_s", self.dt_s)
@@ -102,6 +114,8 @@ class Follower:
             rho_r, phi, beta = self._raw
             leader = leader_point(rho_r, phi, beta, p.marker_offset_m)
             estimate, cov = target_point(leader, phi, self.offset), None
+        if p.law == "lpsi":
+            return self._lpsi(leader, phi, measured, estimate, cov)
         choice = Choice.T0
         goal = estimate
         if self.changing:
@@ -132,6 +146,18 @@ class Follower:
             choice,
             self.changing,
         )
+
+    def _lpsi(self, leader: Point, phi: float, measured: Point | None, estimate: Point,
+              cov: np.ndarray | None) -> Decision:  # fmt: skip
+        p = self.p
+        v_ref, w_ref = (float(v) for v in self.ekf.state[3:5]) if p.use_ekf else (0.0, 0.0)
+        left, right = lpsi_control(leader, phi, v_ref, w_ref, self.offset, p.width_m, p.lpsi)
+        err = errors(estimate, self._prev_rho, phi)
+        self.changing = False
+        self._prev_rho = err.rho_m
+        self._last_cmd = (left, right)
+        return Decision(left, right, math.nan, err.alpha_rad, err.rho_m, err.drho_m, measured, estimate, cov,
+                        Choice.T0, False)  # fmt: skip
 
     def _stop(self, measured: Point | None) -> Decision:
         self._last_cmd = (0.0, 0.0)

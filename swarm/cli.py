@@ -92,6 +92,9 @@ DELEGATED = {
     "agent": ("agents.process", "one robot's agent alone (client of a router)"),
     "logger": ("swarm.logger", "the Rerun logger alone"),
     "router": ("swarm.router", "a Zenoh router for agents on other machines"),
+    "sweep": ("swarm.sweep", "many lockstep runs: seeds x parameter values, in parallel, resumable"),
+    "report": ("swarm.report", "figures (PNG) and a markdown summary of a run folder"),
+    "results": ("swarm.results", "the baseline comparison table of docs/results.md"),
 }
 
 

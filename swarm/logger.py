@@ -103,6 +103,8 @@ class Logger:
         self.poses: dict[int, dict[int, Pose]] = {}  # tick -> robot -> pose, bounded history
         self.targets: dict[int, dict[int, tuple[float, float]]] = {}
         self.formation: dict[int, int] = {}
+        # Per follower: squared error of the measured and of the EKF target vs the true one.
+        self.target_errors: dict[int, dict[str, float]] = defaultdict(lambda: defaultdict(float))
         self.ended: set[int] = set()  # followers whose telemetry stream has ended
         self.counts = {"truth": 0, "telemetry": 0, "other": 0, "log_errors": 0, "rows": 0, "unjoined": 0}
         self.last_time_s = -1.0
@@ -298,7 +300,11 @@ class Logger:
             self._columns(f"{base}/target/measured" if name == "measured" else f"{base}/ekf/target", "point",
                           t[ok], pts[ok])  # fmt: skip
             ok &= ~np.isnan(target[:, 0])
-            self._columns(f"{base}/error/{name}", "scalar", t[ok], np.hypot(*(pts[ok] - target[ok]).T))
+            err = np.hypot(*(pts[ok] - target[ok]).T)
+            self._columns(f"{base}/error/{name}", "scalar", t[ok], err)
+            acc = self.target_errors[rid]
+            acc[f"{name}_sum_sq_m2"] += float(np.sum(err**2))
+            acc[f"{name}_samples"] += int(err.size)
         ok = ~np.isnan(estimate[:, 0]) & ~np.isnan(cov[:, 0])
         if ok.any():
             self._columns(f"{base}/ekf/cov", "strip", t[ok], _ellipses(pose[ok], estimate[ok], cov[ok]))
@@ -311,6 +317,15 @@ class Logger:
         return {
             "messages": dict(self.counts),
             "last_sim_time_s": self.last_time_s,
+            "target_errors": {
+                str(rid): {
+                    f"{name}_rms_m": math.sqrt(acc[f"{name}_sum_sq_m2"] / acc[f"{name}_samples"])
+                    if acc[f"{name}_samples"]
+                    else None
+                    for name in ("measured", "ekf")
+                }
+                for rid, acc in sorted(self.target_errors.items())
+            },
             "rejected": dict(self.rejections.by_reason),
         }
 

@@ -21,6 +21,7 @@ from agents.follower import FollowerParams
 from agents.formation import Formation, Slot, line, wedge
 from agents.fuzzy import FuzzyParams, SpeedMode
 from agents.geometry import Point
+from agents.lpsi import LpsiParams
 from protocol.keys import MAX_ROBOT_ID
 from world.camera import CameraParams
 
@@ -152,6 +153,10 @@ CONTROLLER_KEYS: dict[str, tuple[Any, Any]] = {
     **{k: (_NUM, getattr(_FZ, k)) for k in ("d0_m", "dn_m", "d1_m", "dmax_m", "a_mps", "vn_min", "vm", "vn_max")},
     "drho_rate_tol_mps": (_NUM, _FZ.drho_rate_tol_mps),
     "ekf": (dict, {}),
+    "law": (str, "fuzzy"),
+    "lpsi_l_gain": (_NUM, 1.0),
+    "lpsi_psi_gain": (_NUM, 1.0),
+    "lpsi_d_m": (_NUM, 0.25),
 }
 OBSTACLE_KEYS = {"x_m": (_NUM, None), "y_m": (_NUM, None), "radius_m": (_NUM, None)}
 LINK_KEYS = {"obs_drop": (_NUM, 0.0), "cmd_drop": (_NUM, 0.0), "formation_drop": (_NUM, 0.0)}
@@ -270,6 +275,15 @@ def _follower_params(where: str, t: Mapping[str, Any], robot: Mapping[str, Any],
         speed=mode,
         ekf=ekf,
         use_ekf=t["use_ekf"],
+        law=t["law"],
+        lpsi=_wrap(
+            where,
+            LpsiParams,
+            l_gain=float(t["lpsi_l_gain"]),
+            psi_gain=float(t["lpsi_psi_gain"]),
+            d_m=float(t["lpsi_d_m"]),
+            max_wheel_mps=fz.vn_max + fz.a_mps,
+        ),  # fmt: skip
     )
 
 

@@ -21,6 +21,11 @@ from swarm.scenario import Scenario
 from world.camera import observe
 from world.kinematics import Pose, _step_unchecked, from_body_frame, to_body_frame
 
+# A reference turning at least this fast (from its wheel commands) is "in a turn"
+# for the metrics; the paper's path turns at 0.25 rad/s, pure pursuit on a
+# straight line stays well under this.
+TURN_RATE_RPS = 0.1
+
 
 @dataclass
 class RobotState:
@@ -35,18 +40,50 @@ class RobotState:
 
 @dataclass
 class FollowerMetrics:
+    """Formation error of one follower: overall, and split by whether its reference
+    is turning (|w| >= TURN_RATE_RPS) or going straight. ``along`` is the error's
+    component along the reference's heading: > 0 the follower is behind its
+    target (lags), < 0 it is ahead of it (overshoots)."""
+
     sum_sq_m2: float = 0.0
     max_m: float = 0.0
     samples: int = 0
+    turn_sum_sq_m2: float = 0.0
+    turn_max_m: float = 0.0
+    turn_samples: int = 0
+    turn_along_sum_m: float = 0.0
+    max_lag_m: float = 0.0
+    max_ahead_m: float = 0.0
 
-    def add(self, err_m: float) -> None:
+    def add(self, err_m: float, along_m: float = 0.0, turning: bool = False) -> None:
         self.sum_sq_m2 += err_m * err_m
         self.max_m = max(self.max_m, err_m)
         self.samples += 1
+        self.max_lag_m = max(self.max_lag_m, along_m)
+        self.max_ahead_m = max(self.max_ahead_m, -along_m)
+        if turning:
+            self.turn_sum_sq_m2 += err_m * err_m
+            self.turn_max_m = max(self.turn_max_m, err_m)
+            self.turn_samples += 1
+            self.turn_along_sum_m += along_m
 
     def as_dict(self) -> dict[str, float | int]:
-        rms = math.sqrt(self.sum_sq_m2 / self.samples) if self.samples else math.nan
-        return {"rms_m": rms, "max_m": self.max_m, "samples": self.samples}
+        def rms(sq: float, n: int) -> float:
+            return math.sqrt(sq / n) if n else math.nan
+
+        straight = self.samples - self.turn_samples
+        return {
+            "rms_m": rms(self.sum_sq_m2, self.samples),
+            "max_m": self.max_m,
+            "samples": self.samples,
+            "turn_rms_m": rms(self.turn_sum_sq_m2, self.turn_samples),
+            "straight_rms_m": rms(self.sum_sq_m2 - self.turn_sum_sq_m2, straight),
+            "turn_max_m": self.turn_max_m,
+            "turn_samples": self.turn_samples,
+            "turn_mean_lag_m": self.turn_along_sum_m / self.turn_samples if self.turn_samples else math.nan,
+            "max_lag_m": self.max_lag_m,
+            "max_ahead_m": self.max_ahead_m,
+        }
 
 
 @dataclass
@@ -139,8 +176,12 @@ class WorldEngine:
         sc = self.scenario
         for rid in self.metrics:
             r = self.robots[rid]
+            ref = self.robots[sc.formation_by_code(r.formation).slots[rid].reference]
             tx, ty = self.true_target(rid)
-            self.metrics[rid].add(math.hypot(r.pose.x_m - tx, r.pose.y_m - ty))
+            ex, ey = tx - r.pose.x_m, ty - r.pose.y_m
+            along = ex * math.cos(ref.pose.theta_rad) + ey * math.sin(ref.pose.theta_rad)
+            turning = abs(ref.command[1] - ref.command[0]) / sc.width_m >= TURN_RATE_RPS
+            self.metrics[rid].add(math.hypot(ex, ey), along, turning)
         self._contacts()
         h = self._digest
         for rid in sorted(self.robots):

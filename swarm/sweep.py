@@ -1,0 +1,307 @@
+"""Many lockstep runs of one scenario: seeds x parameter values, in parallel.
+
+    swarm sweep SCENARIO.toml --seeds N [--seed-start S] [--set key=v1,v2 ...]
+                [--jobs J] [--out DIR] [--logger]
+
+Every combination of the ``--set`` values is run with each seed, as many runs
+at once as ``--jobs`` (default: the number of cores). Each run keeps its own
+folder under DIR/runs/; a run whose summary is already there is not run again,
+so an interrupted sweep resumes where it stopped. DIR/runs.csv holds one row
+of metrics per run and DIR/aggregate.csv, per combination, the mean, standard
+deviation and 95% confidence interval (Student t) of every metric.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import hashlib
+import itertools
+import json
+import math
+import os
+import signal
+import statistics
+import sys
+import threading
+import time
+import tomllib
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from swarm import scenario as scenario_mod
+from swarm.launcher import Launch, RunResult
+
+# 97.5% quantile of Student's t for n - 1 degrees of freedom (n <= 31), then normal.
+_T975 = (
+    12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145, 2.131,
+    2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042,
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Job:
+    label: str  # the combination, e.g. "controller.vn=1.5"
+    overrides: Mapping[str, Any]
+    seed: int
+
+    @property
+    def name(self) -> str:
+        digest = hashlib.blake2b(self.label.encode(), digest_size=4).hexdigest()
+        return f"{_slug(self.label) or 'base'}-{digest}-s{self.seed}"
+
+
+def parse_set(text: str) -> tuple[str, list[Any]]:
+    """``key=v1,v2`` -> (key, [v1, v2]); values are TOML (numbers, booleans,
+    quoted strings) or else bare strings."""
+    key, sep, values = text.partition("=")
+    if not sep or not key.strip() or not values.strip():
+        raise ValueError(f"--set takes key=v1,v2,..., got {text!r}")
+    out = []
+    for raw in values.split(","):
+        raw = raw.strip()
+        try:
+            out.append(tomllib.loads(f"v = {raw}")["v"])
+        except tomllib.TOMLDecodeError:
+            out.append(raw)
+    return key.strip(), out
+
+
+def grid(sets: Sequence[tuple[str, list[Any]]]) -> list[tuple[str, dict[str, Any]]]:
+    """Every combination of the values, as (label, overrides)."""
+    if not sets:
+        return [("", {})]
+    keys = [k for k, _ in sets]
+    combos = itertools.product(*(v for _, v in sets))
+    return [(" ".join(f"{k}={v}" for k, v in zip(keys, c, strict=True)), dict(zip(keys, c, strict=True)))
+            for c in combos]  # fmt: skip
+
+
+def metrics(summary: Mapping[str, Any]) -> dict[str, Any]:
+    """The flat row of one run's summary: what the sweep tables hold."""
+    row: dict[str, Any] = {
+        "exit_code": summary.get("exit_code"),
+        "ticks": summary.get("ticks"),
+        "min_distance_m": summary.get("min_distance_m"),
+        "collisions": summary.get("collisions"),
+        "obstacle_collisions": summary.get("obstacle_collisions"),
+        "lockstep_misses": summary.get("lockstep_misses"),
+        "drops": summary.get("drops_total"),
+        "rejected": summary.get("rejected_total"),
+        "ticks_per_s": summary.get("ticks_per_s"),
+    }
+    for rid, m in sorted(summary.get("followers", {}).items()):
+        for k in ("rms_m", "max_m", "turn_rms_m", "straight_rms_m", "turn_mean_lag_m", "max_lag_m", "max_ahead_m"):
+            row[f"r{rid}_{k}"] = m.get(k)
+    errs = summary.get("parts", {}).get("logger", {}).get("target_errors", {})
+    for rid, e in sorted(errs.items()):
+        row[f"r{rid}_measured_rms_m"] = e.get("measured_rms_m")
+        row[f"r{rid}_ekf_rms_m"] = e.get("ekf_rms_m")
+        if e.get("measured_rms_m") and e.get("ekf_rms_m") is not None:
+            row[f"r{rid}_ekf_ratio"] = e["ekf_rms_m"] / e["measured_rms_m"]
+    seq: dict[int, list[str]] = {}
+    for ev in summary.get("formation_events", []):
+        seq.setdefault(ev["robot"], []).append(ev["formation"])
+    for rid, names in sorted(seq.items()):
+        row[f"r{rid}_formations"] = ">".join(names)
+    return row
+
+
+def aggregate(rows: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """Per combination and numeric metric: n, mean, std and the 95% CI of the mean."""
+    by_label: dict[str, list[Mapping[str, Any]]] = {}
+    for r in rows:
+        by_label.setdefault(r["combination"], []).append(r)
+    out = []
+    for label, group in by_label.items():
+        keys = [k for k in group[0] if k not in ("combination", "seed", "run")]
+        for k in keys:
+            vals = [float(r[k]) for r in group if _is_number(r.get(k))]
+            vals = [v for v in vals if math.isfinite(v)]
+            if not vals:
+                continue
+            n = len(vals)
+            mean = statistics.fmean(vals)
+            std = statistics.stdev(vals) if n > 1 else 0.0
+            half = (_T975[n - 2] if n - 2 < len(_T975) else 1.96) * std / math.sqrt(n) if n > 1 else math.nan
+            out.append({"combination": label, "metric": k, "n": n, "mean": mean, "std": std, "ci95_low": mean - half,
+                        "ci95_high": mean + half, "min": min(vals), "max": max(vals)})  # fmt: skip
+    return out
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+class Sweep:
+    def __init__(self, scenario: str | Path, jobs: Sequence[Job], out: str | Path, *, workers: int | None = None,
+                 logger: bool = False, progress: Callable[[str], None] = print,
+                 run_timeout_s: float = 600.0) -> None:  # fmt: skip
+        self.scenario = Path(scenario)
+        scenario_mod.load(self.scenario)  # a bad scenario fails here, not in every run
+        for label, ov in {j.label: j.overrides for j in jobs}.items():
+            scenario_mod.load(self.scenario, dict(ov))  # and so does a bad --set value
+            del label
+        self.jobs = list(jobs)
+        self.out = Path(out)
+        self.workers = max(1, workers or os.cpu_count() or 1)
+        self.logger = logger
+        self.progress = progress
+        self.run_timeout_s = run_timeout_s
+        self._stop = threading.Event()
+        self._live: set[Launch] = set()
+        self._lock = threading.Lock()
+
+    def run(self) -> list[dict[str, Any]]:
+        """Runs what is missing, then writes runs.csv and aggregate.csv; the rows."""
+        runs_dir = self.out / "runs"
+        runs_dir.mkdir(parents=True, exist_ok=True)
+        rows: dict[str, dict[str, Any]] = {}
+        todo = []
+        for job in self.jobs:
+            done = _load_done(runs_dir / job.name)
+            if done is not None:
+                rows[job.name] = self._row(job, done)
+            else:
+                todo.append(job)
+        total = len(self.jobs)
+        if rows:
+            self.progress(f"[sweep] {len(rows)}/{total} runs already done in {runs_dir}; {len(todo)} to go")
+        started = time.monotonic()
+        finished = 0
+        try:
+            with ThreadPoolExecutor(max_workers=self.workers) as pool:
+                pending: dict[Future[RunResult | None], Job] = {}
+                queue = list(reversed(todo))
+                while queue or pending:
+                    while queue and len(pending) < self.workers and not self._stop.is_set():
+                        job = queue.pop()
+                        pending[pool.submit(self._one, job, runs_dir / job.name)] = job
+                    if not pending:
+                        break
+                    done_set, _ = wait(pending, return_when=FIRST_COMPLETED)
+                    for fut in done_set:
+                        job = pending.pop(fut)
+                        res = fut.result()
+                        if res is None:
+                            continue
+                        finished += 1
+                        rows[job.name] = self._row(job, res.summary)
+                        self._write(rows)
+                        el = time.monotonic() - started
+                        eta = el / finished * (len(todo) - finished)
+                        self.progress(f"[sweep] {len(rows)}/{total} {job.name}: exit {res.exit_code}, "
+                                      f"{_brief(rows[job.name])} ({el:.0f} s, about {eta:.0f} s left)")  # fmt: skip
+        except KeyboardInterrupt:
+            self.progress("[sweep] interrupted: stopping the runs in flight (finished runs are kept)")
+            self._stop.set()
+            with self._lock:
+                for launch in list(self._live):
+                    launch.stop(graceful_first=False)
+            raise
+        finally:
+            self._write(rows)
+        return [rows[j.name] for j in self.jobs if j.name in rows]
+
+    def _one(self, job: Job, run_dir: Path) -> RunResult | None:
+        if self._stop.is_set():
+            return None
+        with Launch(self.scenario, seed=job.seed, out=run_dir, overrides=dict(job.overrides), logger=self.logger,
+                    progress=lambda _line: None) as launch:  # fmt: skip
+            with self._lock:
+                self._live.add(launch)
+            try:
+                return launch.wait(timeout_s=self.run_timeout_s)
+            finally:
+                with self._lock:
+                    self._live.discard(launch)
+
+    def _row(self, job: Job, summary: Mapping[str, Any]) -> dict[str, Any]:
+        return {"combination": job.label, "seed": job.seed, "run": job.name, **metrics(summary)}
+
+    def _write(self, rows: Mapping[str, dict[str, Any]]) -> None:
+        ordered = [rows[j.name] for j in self.jobs if j.name in rows]
+        _write_csv(self.out / "runs.csv", ordered)
+        _write_csv(self.out / "aggregate.csv", aggregate(ordered))
+
+
+def _load_done(run_dir: Path) -> dict[str, Any] | None:
+    """The summary of a run that completed (exit 0), else None (to be run again)."""
+    try:
+        s = json.loads((run_dir / "summary.json").read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+    return s if isinstance(s, dict) and s.get("exit_code") == 0 else None
+
+
+def _write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:
+    cols: list[str] = []
+    for r in rows:
+        cols += [k for k in r if k not in cols]
+    tmp = path.with_suffix(".csv.tmp")
+    with tmp.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=cols)
+        w.writeheader()
+        w.writerows(rows)
+    tmp.replace(path)  # never a half-written table
+
+
+def _brief(row: Mapping[str, Any]) -> str:
+    parts = [f"{k[:-2]} {row[k]:.2f} m" for k in row if k.endswith("_rms_m") and k.count("_") == 2
+             and _is_number(row[k])]  # fmt: skip
+    return ", ".join(parts) or "no follower metrics"
+
+
+def _slug(text: str) -> str:
+    out = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in text)
+    return out.strip("_")[:60]
+
+
+def _raise_interrupt(_sig: int, _frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="swarm sweep", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    ap.add_argument("scenario")
+    ap.add_argument("--seeds", type=int, required=True, help="runs per combination")
+    ap.add_argument("--seed-start", type=int, default=0)
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2",
+                    help="scenario key and the values to sweep (repeatable: the grid is their product)")  # fmt: skip
+    ap.add_argument("--jobs", type=int, default=None, help="runs at once (default: the number of cores)")
+    ap.add_argument("--out", default=None, help="sweep folder (default sweeps/<scenario name>)")
+    ap.add_argument("--logger", action="store_true", help="record each run (needed for the EKF error metrics)")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.seeds < 1:
+        print("swarm sweep: --seeds must be >= 1", file=sys.stderr)
+        return 2
+    try:
+        sets = [parse_set(s) for s in args.set]
+        sc = scenario_mod.load(args.scenario)
+        jobs = [Job(label, ov, seed) for label, ov in grid(sets)
+                for seed in range(args.seed_start, args.seed_start + args.seeds)]  # fmt: skip
+        out = Path(args.out) if args.out else Path("sweeps") / _slug(sc.name)
+        sweep = Sweep(args.scenario, jobs, out, workers=args.jobs, logger=args.logger)
+    except (ValueError, OSError) as exc:
+        print(f"swarm sweep: {exc}", file=sys.stderr)
+        return 2
+    for sig in (signal.SIGINT, signal.SIGTERM):  # both stop the runs in flight cleanly
+        signal.signal(sig, _raise_interrupt)
+    try:
+        rows = sweep.run()
+    except KeyboardInterrupt:
+        return 130
+    failed = [r["run"] for r in rows if r.get("exit_code") != 0]
+    print(f"[sweep] {len(rows)} runs; tables: {out / 'runs.csv'}, {out / 'aggregate.csv'}")
+    if failed:
+        print(f"[sweep] {len(failed)} runs failed: {', '.join(failed[:10])}", file=sys.stderr)
+        return 1
+    return 0
