@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint bench clean
+.PHONY: run test lint bench results clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,6 +27,10 @@ bench: $(STAMP)
 	$(BIN)/python bench/fuzzy_step.py
 	$(BIN)/python bench/lockstep.py
 	$(BIN)/python bench/realtime.py
+
+# The baseline table of docs/results.md (180 lockstep runs, resumable).
+results: $(STAMP)
+	$(BIN)/swarm results --seeds 10 --write docs/results.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info

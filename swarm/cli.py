@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 from collections.abc import Sequence
 
@@ -46,12 +45,9 @@ def _vn(text: str) -> str:
     return text
 
 
-def _raise_interrupt(_sig: int, _frame: object) -> None:
-    raise KeyboardInterrupt
-
-
 def _cmd_run(args: argparse.Namespace) -> int:
     from swarm.launcher import KillAt, Launch, print_result
+    from swarm.proc import interrupt_on_stop_signals
     from swarm.scenario import ScenarioError
 
     kills = []
@@ -72,10 +68,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return 2
     print(f"[swarm] run {launch.run_id}: {launch.sc.name}, {len(launch.sc.robots)} robots, {args.mode}, "
           f"seed {launch.sc.seed}, folder {launch.run_dir}", flush=True)  # fmt: skip
-    # Ctrl-C and SIGTERM stop the run cleanly, even if this process was started
-    # with SIGINT ignored (as background jobs of a shell are).
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, _raise_interrupt)
+    interrupt_on_stop_signals()  # Ctrl-C and SIGTERM stop the run cleanly
     try:
         launch.start()
     except KeyboardInterrupt:

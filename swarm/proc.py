@@ -29,6 +29,18 @@ def install_stop_handlers() -> threading.Event:
     return stop
 
 
+def interrupt_on_stop_signals() -> None:
+    """SIGINT and SIGTERM raise KeyboardInterrupt in the main thread, even when the
+    process was started with SIGINT ignored (as a shell's background jobs are):
+    for the commands that stop their children cleanly in an ``except``."""
+
+    def handler(_sig: int, _frame: object) -> None:
+        raise KeyboardInterrupt
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, handler)
+
+
 def write_json(path: str | None, data: dict[str, Any]) -> None:
     """Write ``data`` atomically (a crash leaves the old file or none, never half)."""
     if not path:

@@ -20,7 +20,6 @@ import itertools
 import json
 import math
 import os
-import signal
 import statistics
 import sys
 import threading
@@ -34,6 +33,7 @@ from typing import Any
 
 from swarm import scenario as scenario_mod
 from swarm.launcher import Launch, RunResult
+from swarm.proc import interrupt_on_stop_signals
 
 # 97.5% quantile of Student's t for n - 1 degrees of freedom (n <= 31), then normal.
 _T975 = (
@@ -260,10 +260,6 @@ def _slug(text: str) -> str:
     return out.strip("_")[:60]
 
 
-def _raise_interrupt(_sig: int, _frame: object) -> None:
-    raise KeyboardInterrupt
-
-
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="swarm sweep", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
@@ -293,8 +289,7 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, OSError) as exc:
         print(f"swarm sweep: {exc}", file=sys.stderr)
         return 2
-    for sig in (signal.SIGINT, signal.SIGTERM):  # both stop the runs in flight cleanly
-        signal.signal(sig, _raise_interrupt)
+    interrupt_on_stop_signals()  # both stop the runs in flight cleanly
     try:
         rows = sweep.run()
     except KeyboardInterrupt:

@@ -29,8 +29,11 @@ def our_processes() -> list[tuple[int, str]]:
 
 
 @pytest.fixture(scope="session", autouse=True)
-def _no_process_left_behind() -> object:
+def _no_process_left_behind(tmp_path_factory: pytest.TempPathFactory) -> object:
+    # Every run of the suite lives under its base temp folder (the run's scenario
+    # path is in each command line): runs of other sessions or users do not count.
+    base = str(tmp_path_factory.getbasetemp())
     before = {pid for pid, _ in our_processes()}
     yield
-    left = [(pid, cmd) for pid, cmd in our_processes() if pid not in before]
+    left = [(pid, cmd) for pid, cmd in our_processes() if pid not in before and base in cmd]
     assert not left, f"processes left behind by the suite: {left}"

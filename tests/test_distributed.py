@@ -229,8 +229,8 @@ def test_ctrl_c_on_swarm_run_leaves_no_process(tmp_path: Path, when: str) -> Non
     reader.start()
     deadline = time.monotonic() + 60
 
-    def mine() -> list[int]:
-        return [p for p, _ in our_processes() if p not in before]
+    def mine() -> list[int]:  # this run's processes: their command lines name its folder
+        return [p for p, cmd in our_processes() if p not in before and str(tmp_path) in cmd]
 
     while time.monotonic() < deadline and len(mine()) < 5:
         time.sleep(0.02)

@@ -1,0 +1,252 @@
+"""Figures and a markdown summary of one run folder, in the spirit of the paper.
+
+    swarm report RUN_DIR [--snapshots 6]
+
+Reads RUN_DIR/recording.rrd (so the run needs its logger) and summary.json,
+and writes into RUN_DIR/report/:
+
+    trajectories.png      paths, obstacles and formation snapshots (Fig. 6a/c, 7a, 11)
+    formation_error.png   each follower's distance to its true target (Fig. 6b/d, 7b)
+    vn.png                V_N of each follower (Fig. 8)
+    targets.png           true, measured and EKF target, and their errors (Fig. 9-10)
+    report.md             the run's metrics and the figures
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import warnings
+from collections import defaultdict
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+FIGURES = ("trajectories.png", "formation_error.png", "vn.png", "targets.png")
+
+
+class Series:
+    """One entity's rows from the recording: times (s) and values, time-sorted."""
+
+    def __init__(self, t: np.ndarray, v: np.ndarray) -> None:
+        order = np.argsort(t, kind="stable")
+        self.t, self.v = t[order], v[order]
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+
+def read_recording(path: Path) -> dict[str, Series]:
+    """Every point and scalar entity of a recording, by entity path."""
+    from rerun.chunk import RrdReader
+
+    times: dict[str, list[np.ndarray]] = defaultdict(list)
+    values: dict[str, list[np.ndarray]] = defaultdict(list)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a recording cut by a kill has no footer: still readable
+        chunks = list(RrdReader(str(path)).stream())
+    for ch in chunks:
+        rb = ch.to_record_batch()
+        names = rb.schema.names
+        if "sim_time" not in names:
+            continue
+        col = next((n for n in ("Points2D:positions", "Scalars:scalars") if n in names), None)
+        if col is None:
+            continue
+        t = rb.column("sim_time").cast("int64").to_numpy(zero_copy_only=False) / 1e9
+        rows = rb.column(col).to_pylist()
+        keep = [i for i, r in enumerate(rows) if r]
+        entity = str(ch.entity_path)
+        times[entity].append(t[keep])
+        values[entity].append(np.array([r[0] for i, r in enumerate(rows) if r], dtype=float))
+    return {e: Series(np.concatenate(times[e]), np.concatenate(values[e])) for e in times}
+
+
+def robots_in(data: Mapping[str, Series]) -> list[int]:
+    ids = {int(e.split("/")[2][1:]) for e in data if e.startswith("/robots/r") and e.endswith("/pose")}
+    return sorted(ids)
+
+
+def make_report(run_dir: str | Path, snapshots: int = 6) -> Path:
+    """Writes RUN_DIR/report/ and returns it. Raises ValueError for a folder it cannot use."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    run_dir = Path(run_dir)
+    summary_path, rrd = run_dir / "summary.json", run_dir / "recording.rrd"
+    if not summary_path.is_file():
+        raise ValueError(f"{run_dir} is not a run folder: no summary.json")
+    if not rrd.is_file():
+        raise ValueError(f"{run_dir} has no recording.rrd: run it with its logger (without --no-logger)")
+    summary = json.loads(summary_path.read_text())
+    data = read_recording(rrd)
+    robots = robots_in(data)
+    if not robots:
+        raise ValueError(f"{rrd} holds no robot poses")
+    followers = [r for r in robots if f"/robots/r{r}/error/formation" in data]
+    out = run_dir / "report"
+    out.mkdir(exist_ok=True)
+    obstacles = _obstacles(run_dir)
+    _trajectories(out / "trajectories.png", data, robots, followers, obstacles, snapshots, summary)
+    _over_time(out / "formation_error.png", data, followers, "error/formation", "distance to target, m",
+               "Formation error (Fig. 6b/d, 7b)")  # fmt: skip
+    _over_time(out / "vn.png", data, followers, "fis/v_n", "V_N, m/s", "Normal speed V_N (Fig. 8)")
+    _targets(out / "targets.png", data, followers)
+    (out / "report.md").write_text(_markdown(summary, followers))
+    return out
+
+
+def _obstacles(run_dir: Path) -> list[tuple[float, float, float]]:
+    from swarm import scenario as scenario_mod
+
+    try:
+        sc = scenario_mod.load(run_dir / "scenario.toml")
+    except (OSError, ValueError):
+        return []
+    return [(o.x_m, o.y_m, o.radius_m) for o in sc.obstacles]
+
+
+def _trajectories(path: Path, data: Mapping[str, Series], robots: list[int], followers: list[int],
+                  obstacles: list[tuple[float, float, float]], snapshots: int,
+                  summary: Mapping[str, Any]) -> None:  # fmt: skip
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 7))
+    for x, y, r in obstacles:
+        ax.add_patch(plt.Circle((x, y), r, color="tab:red", alpha=0.4))
+    poses = {r: data[f"/robots/r{r}/pose"] for r in robots}
+    for r, s in poses.items():
+        ax.plot(s.v[:, 0], s.v[:, 1], lw=1.2, label=f"R{r}" + (" (leader)" if r not in followers else ""))
+    leader = next(r for r in robots if r not in followers) if len(followers) < len(robots) else robots[0]
+    t_end = poses[leader].t[-1] if len(poses[leader]) else 0.0
+    for k, ts in enumerate(np.linspace(0.0, t_end, max(2, snapshots))):
+        pts = {r: s.v[min(np.searchsorted(s.t, ts), len(s) - 1)] for r, s in poses.items() if len(s)}
+        xs = [pts[r][0] for r in sorted(pts)] + [pts[sorted(pts)[0]][0]]
+        ys = [pts[r][1] for r in sorted(pts)] + [pts[sorted(pts)[0]][1]]
+        ax.plot(xs, ys, color="0.4", lw=0.8, ls="--", label="formation snapshots" if k == 0 else None)
+        ax.scatter([p[0] for p in pts.values()], [p[1] for p in pts.values()], s=14, color="k", zorder=3)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x, m")
+    ax.set_ylabel("y, m")
+    ax.set_title(f"{summary.get('scenario', '')}: trajectories (Fig. 6a/c, 7a, 11)")
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _over_time(path: Path, data: Mapping[str, Series], followers: list[int], entity: str, ylabel: str,
+               title: str) -> None:  # fmt: skip
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 3.5))
+    for r in followers:
+        s = data.get(f"/robots/r{r}/{entity}")
+        if s is not None and len(s):
+            ax.plot(s.t, s.v, lw=1.0, label=f"R{r}")
+    ax.set_xlabel("time, s")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    if ax.lines:
+        ax.legend(fontsize=8)
+    else:
+        ax.text(0.5, 0.5, "no data (l-psi followers have no V_N)", ha="center", transform=ax.transAxes)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _targets(path: Path, data: Mapping[str, Series], followers: list[int]) -> None:
+    import matplotlib.pyplot as plt
+
+    n = max(1, len(followers))
+    fig, axes = plt.subplots(n, 2, figsize=(11, 4 * n), squeeze=False)
+    for row, r in zip(axes, followers, strict=False):
+        base = f"/robots/r{r}"
+        xy, err = row
+        for name, style in (("target/measured", dict(s=3, alpha=0.35, color="tab:orange", label="measured")),):
+            s = data.get(f"{base}/{name}")
+            if s is not None and len(s):
+                xy.scatter(s.v[:, 0], s.v[:, 1], **style)
+        for name, label, color in (("target/true", "true", "k"), ("ekf/target", "EKF", "tab:blue")):
+            s = data.get(f"{base}/{name}")
+            if s is not None and len(s):
+                xy.plot(s.v[:, 0], s.v[:, 1], lw=1.0, color=color, label=label)
+        xy.set_aspect("equal", adjustable="datalim")
+        xy.set_title(f"R{r}: virtual target (Fig. 9)")
+        xy.legend(fontsize=8)
+        xy.grid(alpha=0.3)
+        for name, label, color in (("error/measured", "measured", "tab:orange"), ("error/ekf", "EKF", "tab:blue")):
+            s = data.get(f"{base}/{name}")
+            if s is not None and len(s):
+                rms = math.sqrt(float(np.mean(s.v**2)))
+                err.plot(s.t, s.v, lw=0.8, color=color, label=f"{label} (RMS {rms:.3f} m)")
+        err.set_title(f"R{r}: target error vs the true target (Fig. 10)")
+        err.set_xlabel("time, s")
+        err.set_ylabel("m")
+        err.legend(fontsize=8)
+        err.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _markdown(summary: Mapping[str, Any], followers: list[int]) -> str:
+    def f(x: Any, fmt: str = ".3f") -> str:
+        return "-" if not isinstance(x, (int, float)) or isinstance(x, bool) else format(x, fmt)
+
+    lines = [
+        f"# Run {summary.get('run_id')}: {summary.get('scenario')}",
+        "",
+        f"Mode {summary.get('mode')}, seed {summary.get('seed')}, {summary.get('ticks')} ticks "
+        f"({f(summary.get('sim_time_s'), '.1f')} s simulated), exit code {summary.get('exit_code')}.",
+        "",
+        "| follower | RMS error, m | max, m | RMS in turns, m | RMS on straights, m | mean lag in turns, m "
+        "| max ahead of target, m | measured target RMS, m | EKF target RMS, m |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    errs = summary.get("parts", {}).get("logger", {}).get("target_errors", {})
+    for r in followers:
+        m = summary.get("followers", {}).get(str(r), {})
+        e = errs.get(str(r), {})
+        lines.append(
+            f"| R{r} | {f(m.get('rms_m'))} | {f(m.get('max_m'))} | {f(m.get('turn_rms_m'))} | "
+            f"{f(m.get('straight_rms_m'))} | {f(m.get('turn_mean_lag_m'))} | {f(m.get('max_ahead_m'))} | "
+            f"{f(e.get('measured_rms_m'))} | {f(e.get('ekf_rms_m'))} |"
+        )
+    events = ", ".join(f"R{e['robot']} {e['formation']} at {e['time_s']:.2f} s" for e in summary.get(
+        "formation_events", [])) or "none"  # fmt: skip
+    lines += [
+        "",
+        f"Minimum distance between robots {f(summary.get('min_distance_m'))} m "
+        f"(diameter {f(summary.get('robot_diameter_m'))} m); collisions {summary.get('collisions')}, "
+        f"with obstacles {summary.get('obstacle_collisions')}.",
+        f"Formation changes: {events}.",
+        f"Messages dropped by the link layer: {summary.get('drops_total')}; lockstep misses "
+        f"{summary.get('lockstep_misses')}; rejected payloads {summary.get('rejected_total')}.",
+        "",
+        *[f"![{name[:-4]}]({name})" for name in FIGURES],
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="swarm report", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    ap.add_argument("run_dir")
+    ap.add_argument("--snapshots", type=int, default=6, help="formation snapshots on the trajectory figure")
+    args = ap.parse_args(argv)
+    try:
+        out = make_report(args.run_dir, args.snapshots)
+    except ValueError as exc:
+        print(f"swarm report: {exc}", file=sys.stderr)
+        return 2
+    print(f"[report] {out}: {', '.join(FIGURES)}, report.md")
+    return 0

@@ -1,0 +1,121 @@
+"""The baseline comparison: fuzzy static / fuzzy dynamic / l-psi, under
+observation drops and two camera-noise levels, on the paper's turning path.
+
+    swarm results [--seeds 10] [--jobs J] [--out sweeps/results] [--write docs/results.md]
+
+Runs the grid through ``swarm sweep`` (resumable: rerunning reuses finished
+runs), then prints a markdown table of the follower's RMS and max formation
+error (mean over seeds, with the 95% confidence half-width) and, with
+``--write``, replaces the table between the markers in that file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from swarm.proc import interrupt_on_stop_signals
+from swarm.sweep import Job, Sweep, aggregate
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENARIO = ROOT / "scenarios" / "fig7_turn_vn_dynamic.toml"
+CONTROLLERS: dict[str, dict[str, Any]] = {
+    "fuzzy, static V_N = 1.5": {"controller.vn": 1.5},
+    "fuzzy, dynamic V_N": {"controller.vn": "dynamic"},
+    "l-psi (Desai et al.)": {"controller.law": "lpsi"},
+}
+DROPS = (0.0, 0.1, 0.3)
+# Camera noise, with the EKF told the same sigmas: the scenarios' default and Fig. 9's.
+NOISE: dict[str, dict[str, Any]] = {
+    "low": {},
+    "high": {
+        "camera.sigma_rho_m": 0.1, "camera.sigma_phi_deg": 5.0, "camera.sigma_beta_deg": 2.5,
+        "controller.ekf.sigma_rho_m": 0.1, "controller.ekf.sigma_phi_rad": 0.0873,
+        "controller.ekf.sigma_beta_rad": 0.0436,
+    },
+}  # fmt: skip
+BEGIN, END = "<!-- results table: begin -->", "<!-- results table: end -->"
+
+
+def jobs(seeds: Sequence[int]) -> list[Job]:
+    out = []
+    for ctrl, c_ov in CONTROLLERS.items():
+        for noise, n_ov in NOISE.items():
+            for drop in DROPS:
+                label = f"{ctrl} | noise {noise} | obs drop {drop:.0%}"
+                ov = {**c_ov, **n_ov, "links.obs_drop": drop}
+                out += [Job(label, ov, s) for s in seeds]
+    return out
+
+
+def table(rows: Sequence[Mapping[str, Any]], seeds: int) -> str:
+    agg = {(a["combination"], a["metric"]): a for a in aggregate(rows)}
+
+    def cell(label: str, metric: str) -> str:
+        a = agg.get((label, metric))
+        if a is None:
+            return "-"
+        half = (a["ci95_high"] - a["ci95_low"]) / 2
+        return f"{a['mean']:.2f} ± {half:.2f}"
+
+    head = ["controller", "noise"] + [f"obs drop {d:.0%}" for d in DROPS]
+    lines = [
+        f"Follower RMS formation error, m: mean over {seeds} seeds ± 95% CI half-width "
+        f"(max error in brackets, mean over seeds). Scenario `{SCENARIO.relative_to(ROOT)}`, lockstep.",
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "---|" * len(head),
+    ]
+    for ctrl in CONTROLLERS:
+        for noise in NOISE:
+            cells = []
+            for d in DROPS:
+                label = f"{ctrl} | noise {noise} | obs drop {d:.0%}"
+                mx = agg.get((label, "r2_max_m"))
+                cells.append(cell(label, "r2_rms_m") + (f" [{mx['mean']:.2f}]" if mx else ""))
+            lines.append(f"| {ctrl} | {noise} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def write_into(path: Path, text: str) -> None:
+    doc = path.read_text()
+    if BEGIN not in doc or END not in doc:
+        raise ValueError(f"{path} has no {BEGIN} ... {END} markers")
+    new = re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), lambda _m: f"{BEGIN}\n{text}\n{END}", doc, flags=re.S)
+    path.write_text(new)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="swarm results", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    ap.add_argument("--seeds", type=int, default=10)
+    ap.add_argument("--jobs", type=int, default=None)
+    ap.add_argument("--out", default="sweeps/results")
+    ap.add_argument("--write", metavar="MARKDOWN", help="replace the table between the markers in this file")
+    args = ap.parse_args(argv)
+    if args.seeds < 2:
+        print("swarm results: --seeds must be >= 2 (confidence intervals)", file=sys.stderr)
+        return 2
+    sweep = Sweep(SCENARIO, jobs(range(args.seeds)), args.out, workers=args.jobs)
+    interrupt_on_stop_signals()
+    try:
+        rows = sweep.run()
+    except KeyboardInterrupt:
+        return 130
+    text = table(rows, args.seeds)
+    print(text)
+    if args.write:
+        try:
+            write_into(Path(args.write), text)
+        except (OSError, ValueError) as exc:
+            print(f"swarm results: {exc}", file=sys.stderr)
+            return 2
+    failed = [r["run"] for r in rows if r.get("exit_code") != 0]
+    if failed:
+        print(f"swarm results: {len(failed)} runs failed: {', '.join(failed[:10])}", file=sys.stderr)
+        return 1
+    return 0
