@@ -30,7 +30,7 @@ bench: $(STAMP)
 
 # The baseline table of docs/results.md (180 lockstep runs, resumable).
 results: $(STAMP)
-	$(BIN)/swarm results --seeds 10 --write docs/results.md
+	$(BIN)/swarm results --seeds 10 --write docs/results.md --write README.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info

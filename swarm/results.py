@@ -1,7 +1,7 @@
 """The baseline comparison: fuzzy static / fuzzy dynamic / l-psi, under
 observation drops and two camera-noise levels, on the paper's turning path.
 
-    swarm results [--seeds 10] [--jobs J] [--out sweeps/results] [--write docs/results.md]
+    swarm results [--seeds 10] [--jobs J] [--out sweeps/results] [--write docs/results.md ...]
 
 Runs the grid through ``swarm sweep`` (resumable: rerunning reuses finished
 runs), then prints a markdown table of the follower's RMS and max formation
@@ -95,7 +95,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=10)
     ap.add_argument("--jobs", type=int, default=None)
     ap.add_argument("--out", default="sweeps/results")
-    ap.add_argument("--write", metavar="MARKDOWN", help="replace the table between the markers in this file")
+    ap.add_argument("--write", metavar="MARKDOWN", action="append", default=[],
+                    help="replace the table between the markers in this file (repeatable)")  # fmt: skip
     args = ap.parse_args(argv)
     if args.seeds < 2:
         print("swarm results: --seeds must be >= 2 (confidence intervals)", file=sys.stderr)
@@ -108,9 +109,9 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     text = table(rows, args.seeds)
     print(text)
-    if args.write:
+    for target in args.write:
         try:
-            write_into(Path(args.write), text)
+            write_into(Path(target), text)
         except (OSError, ValueError) as exc:
             print(f"swarm results: {exc}", file=sys.stderr)
             return 2
