@@ -7,8 +7,10 @@ on a loaded machine:
   the truth each tick and waits for the three answers; the leader answers
   with two formation codes and a command, each follower with a command and a
   telemetry message; a logger-like process subscribes to the whole key space
-  and only counts. Same processes, keys, message count and payload sizes as
-  a run, with no physics, camera, controller, EKF or Rerun.
+  and only counts. Same processes, keys and payload sizes as a run, with no
+  physics, camera, controller, EKF or Rerun; every message is sent every
+  tick, one put each (a run batches telemetry and truth and repeats the
+  formation code less often: the bare figure is the plain exchange).
 - full: ``swarm run scenarios/fig11_obstacles.toml`` in lockstep with the
   logger writing its recording; the rate is the world's loop (ticks / wall s).
 
