@@ -313,7 +313,6 @@ class BatchPublisher:
         self.items: list[bytes] = []
         self.size = 0
         self.last_put = -math.inf
-        self.puts = 0
 
     def put(self, payload: bytes) -> None:
         if self.size + len(payload) > self.max_bytes:
@@ -326,7 +325,6 @@ class BatchPublisher:
     def flush(self) -> None:
         if self.items:
             self.pub.put(pack_batch(self.items))
-            self.puts += 1
             self.items, self.size = [], 0
         self.last_put = self.clock()
 

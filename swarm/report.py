@@ -170,10 +170,9 @@ def _targets(path: Path, data: Mapping[str, Series], followers: list[int]) -> No
     for row, r in zip(axes, followers, strict=False):
         base = f"/robots/r{r}"
         xy, err = row
-        for name, style in (("target/measured", dict(s=3, alpha=0.35, color="tab:orange", label="measured")),):
-            s = data.get(f"{base}/{name}")
-            if s is not None and len(s):
-                xy.scatter(s.v[:, 0], s.v[:, 1], **style)
+        s = data.get(f"{base}/target/measured")
+        if s is not None and len(s):
+            xy.scatter(s.v[:, 0], s.v[:, 1], s=3, alpha=0.35, color="tab:orange", label="measured")
         for name, label, color in (("target/true", "true", "k"), ("ekf/target", "EKF", "tab:blue")):
             s = data.get(f"{base}/{name}")
             if s is not None and len(s):

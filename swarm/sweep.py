@@ -142,9 +142,8 @@ class Sweep:
                  run_timeout_s: float = 600.0) -> None:  # fmt: skip
         self.scenario = Path(scenario)
         scenario_mod.load(self.scenario)  # a bad scenario fails here, not in every run
-        for label, ov in {j.label: j.overrides for j in jobs}.items():
+        for ov in {j.label: j.overrides for j in jobs}.values():
             scenario_mod.load(self.scenario, dict(ov))  # and so does a bad --set value
-            del label
         self.jobs = list(jobs)
         self.out = Path(out)
         self.workers = max(1, workers or os.cpu_count() or 1)
