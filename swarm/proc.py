@@ -8,6 +8,7 @@ import math
 import signal
 import sys
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -17,9 +18,28 @@ if TYPE_CHECKING:
     from swarm.scenario import Scenario
 
 
-def install_stop_handlers() -> threading.Event:
+class StopEvent(threading.Event):
+    """An event that also calls its wakers when set, for a loop blocked in a
+    call no timeout ends (a Zenoh channel's ``recv``): the waker ends it."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._wakers: list[Callable[[], None]] = []
+
+    def add_waker(self, waker: Callable[[], None]) -> None:
+        self._wakers.append(waker)
+        if self.is_set():
+            waker()
+
+    def set(self) -> None:
+        super().set()
+        for waker in list(self._wakers):
+            waker()
+
+
+def install_stop_handlers() -> StopEvent:
     """SIGINT and SIGTERM set an event that every loop checks."""
-    stop = threading.Event()
+    stop = StopEvent()
 
     def handler(_sig: int, _frame: object) -> None:
         stop.set()

@@ -164,6 +164,11 @@ def test_random_bytes_on_every_key_kill_nothing(swarm_launch: Callable[..., Laun
     ]
     with zenoh.open(make_config("client", [launch.endpoint])) as sess:
         pubs = {k: sess.declare_publisher(k, congestion_control=zenoh.CongestionControl.BLOCK) for k in targets}
+        # What is published before a subscriber matched is lost: wait for all.
+        deadline = time.monotonic() + 30
+        while not all(p.matching_status.matching for p in pubs.values()):
+            assert time.monotonic() < deadline, [k for k, p in pubs.items() if not p.matching_status.matching]
+            time.sleep(0.01)
         for i in range(n):
             for pub in pubs.values():
                 payload = crafted[i] if i < len(crafted) else rng.bytes(int(rng.integers(0, 200)))
