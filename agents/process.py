@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import contextlib
 import gc
 import sys
 import threading
@@ -103,10 +104,10 @@ class Agent:
 
     def _close_inbox(self) -> None:
         """End the loop: its ``recv`` raises once the messages already queued are read."""
-        with self._inbox_lock:
+        with self._inbox_lock, contextlib.suppress(zenoh.ZError):  # a stop may come after the session closed
             if self.inbox is not None:
-                self.inbox.undeclare()
-                self.inbox = None
+                inbox, self.inbox = self.inbox, None
+                inbox.undeclare()
 
     def run(self) -> int:
         s, k = self.session, self.keys

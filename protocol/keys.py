@@ -9,6 +9,7 @@ All keys start with ``swarm/<run>`` so that runs never cross-talk::
     swarm/<run>/world/truth           world -> logger   Truth (true poses and targets)
     swarm/<run>/world/status          world -> all      Status (progress, end of run)
     swarm/<run>/alive/<role>/<id>     liveliness tokens (role: world, agent, logger)
+    swarm/<run>/robot/wake/cmd        world -> itself   wakes its command loop (local only)
 
 An agent reads its inbox ``swarm/<run>/robot/<id>/*`` with one subscriber so
 that the order in which observations and formation codes arrive is kept.
@@ -77,6 +78,12 @@ class Keys:
     @property
     def all_cmd(self) -> str:
         return f"{self.prefix}/robot/*/cmd"
+
+    @property
+    def world_wake(self) -> str:
+        """Matched by ``all_cmd`` and by no other subscriber: the world puts on it
+        locally to end its wait for commands (a Zenoh channel's recv has no timeout)."""
+        return f"{self.prefix}/robot/wake/cmd"
 
     @property
     def all_telemetry(self) -> str:

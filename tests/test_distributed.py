@@ -203,8 +203,11 @@ def test_logger_sigkill_keeps_the_recording_up_to_the_kill(swarm_run: Callable[.
     assert last >= killed["sim_time_s"] - 1.0, (last, killed)
 
 
-def test_every_process_exits_within_2s_of_sigterm(swarm_launch: Callable[..., Launch]) -> None:
-    launch = swarm_launch(FIG11, mode="realtime", overrides={"run.duration_s": 60.0})
+@pytest.mark.parametrize("mode", ["realtime", "lockstep"])
+def test_every_process_exits_within_2s_of_sigterm(swarm_launch: Callable[..., Launch], mode: str) -> None:
+    # A long straight path: the lockstep run must still be going when it is stopped.
+    long_run = {"run.duration_s": 600.0, "leader.waypoints": [[0.0, 0.0], [0.0, 1000.0]]}
+    launch = swarm_launch(FIG11, mode=mode, overrides=long_run)
     assert launch.wait_until(lambda: launch.sim_time() >= 1.0, timeout_s=60)
     launch.stop(graceful_first=False)
     for name, child in launch.children.items():
@@ -214,6 +217,41 @@ def test_every_process_exits_within_2s_of_sigterm(swarm_launch: Callable[..., La
         assert child.exited_at is not None, name
         assert child.exited_at - child.stop_sent_at <= 2.0, (name, child.exited_at - child.stop_sent_at)
         assert child.proc.returncode in (0, 130), (name, child.proc.returncode)
+
+
+def test_lockstep_deadline_counts_a_frozen_agent_and_goes_on(swarm_launch: Callable[..., Launch]) -> None:
+    deadline_s = 0.05
+    launch = swarm_launch(
+        FIG11,
+        logger=False,
+        overrides={
+            "run.lockstep_deadline_s": deadline_s,
+            "run.duration_s": 120.0,  # long enough to be running still when frozen
+            "leader.waypoints": [[0.0, 0.0], [0.0, 1000.0]],
+        },
+    )
+    assert launch.wait_until(lambda: launch.sim_time() >= 1.0, timeout_s=60)
+    pid = launch.pids()["agent-3"]
+    os.kill(pid, signal.SIGSTOP)  # alive (its token stays) but answers nothing
+    try:
+        # Status comes every 0.25 s of wall time: the second one from now was sent
+        # after the freeze (at most 5 ticks after it, each tick now lasting 50 ms).
+        for _ in range(2):
+            seen = launch.sim_time()
+            assert launch.wait_until(lambda seen=seen: launch.sim_time() > seen, timeout_s=60)
+        frozen_at = launch.sim_time()
+        # Each tick now waits out the deadline: 1 s of sim time is 20 misses.
+        assert launch.wait_until(lambda: launch.sim_time() >= frozen_at + 1.0, timeout_s=60)
+    finally:
+        os.kill(pid, signal.SIGCONT)
+    res = launch.wait(timeout_s=120)
+    s = res.summary
+    assert res.exit_code == 0
+    assert s["ticks"] == 2400  # the whole 120 s ran
+    assert s["lockstep_misses"] >= 20
+    # Misses are agent 3's only: the others answered every tick.
+    assert s["parts"]["world"]["late_answers"] >= 1  # its answers to the ticks it missed, ignored
+    assert s["processes"]["agent-3"]["exit_code"] == 0
 
 
 def test_every_process_exits_within_2s_of_the_run_end(swarm_run: Callable[..., RunResult]) -> None:

@@ -11,17 +11,25 @@ every live agent has answered tick k, or when ``lockstep_deadline_s`` passes
 (the miss is counted, that robot's command is not renewed). Real time: ticks
 follow the wall clock at 1/dt Hz; the latest command is held; a robot whose
 command is older than ``stale_after_s`` is stopped.
+
+Commands reach the loop through a Zenoh FIFO channel read on the loop's own
+thread (one thread switch per message; a callback thread and a queue made
+two). That recv has no timeout: a deadline, a tick of the wall clock, a
+liveliness change or a stop signal wakes it with a local put on
+``Keys.world_wake``, which only this process subscribes to.
 """
 
 from __future__ import annotations
 
 import argparse
+import collections
+import contextlib
 import gc
 import math
-import queue
 import sys
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import zenoh
@@ -31,12 +39,55 @@ from protocol.keys import Keys
 from protocol.links import Link, link_name
 from protocol.messages import BatchPublisher, Command, Observation, Rejections, Status, Truth
 from swarm import scenario as scenario_mod
-from swarm.proc import install_stop_handlers, role_inputs, write_json
+from swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
 from world.engine import WorldEngine
 
 STARTUP_TIMEOUT_S = 60.0
 STATUS_PERIOD_S = 0.25
 LINGER_S = 2.0  # after "done", at most this long for the others to leave
+# Lockstep holds at most one command per robot here; when full, Zenoh waits
+# for the loop (back-pressure) rather than dropping.
+CMD_CAPACITY = 1024
+
+
+class Alarm:
+    """Calls ``wake`` at a time of ``time.monotonic()``, from a thread of its own.
+
+    Moving the alarm later costs no thread switch: the thread wakes at the
+    earlier time, sees the later one and sleeps again. So a lockstep world can
+    re-arm its deadline every tick and the thread wakes once per deadline
+    span, not once per tick.
+    """
+
+    def __init__(self, wake: Callable[[], None]) -> None:
+        self._wake = wake
+        self._at = math.inf
+        self._closed = False
+        self._cond = threading.Condition()
+        self._thread = threading.Thread(target=self._run, name="world-alarm", daemon=True)
+        self._thread.start()
+
+    def set(self, at: float) -> None:
+        with self._cond:
+            if at < self._at:
+                self._cond.notify()
+            self._at = at
+
+    def close(self) -> None:
+        with self._cond:
+            self._closed = True
+            self._cond.notify()
+        self._thread.join(timeout=1.0)
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while (left := self._at - time.monotonic()) > 0 and not self._closed:
+                    self._cond.wait(None if left == math.inf else left)
+                if self._closed:
+                    return
+                self._at = math.inf
+            self._wake()
 
 
 class World:
@@ -48,7 +99,7 @@ class World:
         seed: int,
         mode: str,
         expect_logger: bool,
-        stop: threading.Event,
+        stop: StopEvent,
     ) -> None:
         self.session = sess
         self.sc = sc
@@ -59,7 +110,8 @@ class World:
         self.engine = WorldEngine(sc, seed)
         self.rejections = Rejections()
         self.seq = 0
-        self.inbox: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
+        self.events: collections.deque[tuple[str, bool]] = collections.deque()  # liveliness, from its callback
+        self.wakes = 0
         self.cmd_links = {rid: Link(link_name("cmd", rid, 0), sc.links.cmd_drop, seed) for rid in sc.robots}
         self.misses = 0
         self.late_answers = 0
@@ -76,12 +128,14 @@ class World:
         self.wait_s = 0.0  # lockstep: time waiting for the agents' answers
         self.counts = {"obs_sent": 0, "cmd_received": 0, "truth_sent": 0}
 
-    # -- Zenoh callbacks: keep them short, hand everything to the loop --------
-    def _on_cmd(self, sample: zenoh.Sample) -> None:
-        self.inbox.put(("cmd", (str(sample.key_expr), sample.payload.to_bytes())))
-
+    # -- Zenoh callback: short, hands the event to the loop and wakes it -------
     def _on_alive(self, sample: zenoh.Sample) -> None:
-        self.inbox.put(("alive", (str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT)))
+        self.events.append((str(sample.key_expr), sample.kind == zenoh.SampleKind.PUT))
+        self._wake()
+
+    def _wake(self) -> None:
+        with contextlib.suppress(zenoh.ZError):  # a stop signal may come after the session closed
+            self.wake_pub.put(b"")
 
     def run(self) -> int:
         s, k, sc = self.session, self.keys, self.sc
@@ -89,7 +143,10 @@ class World:
         obs_pubs = {rid: s.declare_publisher(k.obs(rid), congestion_control=block) for rid in sc.robots}
         truth_pub = BatchPublisher(s.declare_publisher(k.truth))  # for the logger only: batched
         status_pub = s.declare_publisher(k.status)
-        s.declare_subscriber(k.all_cmd, self._on_cmd)
+        self.wake_pub = s.declare_publisher(k.world_wake, congestion_control=block)
+        self.cmds = s.declare_subscriber(k.all_cmd, zenoh.handlers.FifoChannel(CMD_CAPACITY))
+        self.alarm = Alarm(self._wake)
+        self.stop.add_waker(self._wake)
         s.liveliness().declare_subscriber(f"{k.prefix}/alive/*/*", self._on_alive, history=True)
         token = s.liveliness().declare_token(k.alive("world", 0))
         try:
@@ -106,14 +163,15 @@ class World:
             self._linger()
             return code
         finally:
+            self.alarm.close()
             token.undeclare()
 
     def _linger(self) -> None:
         """Stay up (we may be the router) until the agents and the logger have left
         on "done", so that their last messages still get routed. Bounded."""
         end = time.monotonic() + LINGER_S
-        while self.present and not self.stop.is_set() and (left := end - time.monotonic()) > 0:
-            self._drain(min(left, 0.05))
+        while self.present and not self.stop.is_set() and time.monotonic() < end:
+            self._drain(until=end)
 
     def _wait_ready(self, obs_pubs: dict[int, zenoh.Publisher]) -> bool:
         """Every agent's token (declared after its subscribers and after its
@@ -121,7 +179,7 @@ class World:
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         want = set(self.sc.robots)
         while not self.stop.is_set():
-            self._drain(0.05)
+            self._drain(until=time.monotonic() + 0.05)  # matching status changes wake nobody: look again
             matched = all(p.matching_status.matching for p in obs_pubs.values())
             if self.agents_seen >= want and matched and (self.logger_seen or not self.expect_logger):
                 return True
@@ -139,49 +197,51 @@ class World:
         self.seq += 1
         pub.put(Status(0, self.seq, self.engine.tick, self.engine.time_s, state, self.sc.ticks).to_bytes())
 
-    def _drain(self, timeout_s: float) -> None:
-        """Handle inbox items until it is empty (waiting up to ``timeout_s`` for the first)."""
-        try:
-            item = self.inbox.get(timeout=timeout_s) if timeout_s > 0 else self.inbox.get_nowait()
-        except queue.Empty:
-            return
-        while True:
-            self._handle(*item)
-            try:
-                item = self.inbox.get_nowait()
-            except queue.Empty:
-                return
+    def _drain(self, until: float) -> None:
+        """Handle what has arrived; if nothing has, wait for it until ``until``
+        (``time.monotonic()``), or until a wake-up (liveliness, stop)."""
+        channel = self.cmds.handler
+        sample = channel.try_recv()
+        if sample is None and not self.events and until > time.monotonic():
+            self.alarm.set(until)
+            sample = channel.recv()
+        while sample is not None:
+            self._on_sample(sample)
+            sample = channel.try_recv()
+        while self.events:
+            self._on_alive_event(*self.events.popleft())
 
-    def _handle(self, kind: str, data: Any) -> None:
-        if kind == "cmd":
-            key, payload = data
-            rk = self.keys.parse_robot(key)
-            if rk is None or rk.robot_id not in self.engine.robots:
-                self.rejections.reject("unknown robot")
-                return
-            msg = self.rejections.decode(Command, payload, sender=rk.robot_id)
-            if msg is None:
-                return
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        key = str(sample.key_expr)
+        if key == self.keys.world_wake:
+            self.wakes += 1
+            return
+        rk = self.keys.parse_robot(key)
+        if rk is None or rk.robot_id not in self.engine.robots:
+            self.rejections.reject("unknown robot")
+            return
+        msg = self.rejections.decode(Command, sample.payload.to_bytes(), sender=rk.robot_id)
+        if msg is not None:
             self._on_command(msg)
-        elif kind == "alive":
-            key, present = data
-            parsed = self.keys.parse_alive(key)
-            if parsed is None:
-                return
-            role, ident = parsed
-            if role in ("agent", "logger"):
-                (self.present.add if present else self.present.discard)(key)
-            if role == "logger":
-                self.logger_seen = self.logger_seen or present
-            elif role == "agent" and ident.isdigit() and int(ident) in self.engine.robots:
-                rid = int(ident)
-                if present:
-                    self.agents_seen.add(rid)
-                elif self.engine.robots[rid].alive and not self.finished:
-                    self.engine.kill(rid)
-                    self.deaths.append({"robot": rid, "tick": self.engine.tick, "time_s": self.engine.time_s,
-                                        "pose": list(self.engine.robots[rid].pose)})  # fmt: skip
-                    print(f"world: robot {rid} lost its agent at t={self.engine.time_s:.2f} s; stopped", flush=True)
+
+    def _on_alive_event(self, key: str, present: bool) -> None:
+        parsed = self.keys.parse_alive(key)
+        if parsed is None:
+            return
+        role, ident = parsed
+        if role in ("agent", "logger"):
+            (self.present.add if present else self.present.discard)(key)
+        if role == "logger":
+            self.logger_seen = self.logger_seen or present
+        elif role == "agent" and ident.isdigit() and int(ident) in self.engine.robots:
+            rid = int(ident)
+            if present:
+                self.agents_seen.add(rid)
+            elif self.engine.robots[rid].alive and not self.finished:
+                self.engine.kill(rid)
+                self.deaths.append({"robot": rid, "tick": self.engine.tick, "time_s": self.engine.time_s,
+                                    "pose": list(self.engine.robots[rid].pose)})  # fmt: skip
+                print(f"world: robot {rid} lost its agent at t={self.engine.time_s:.2f} s; stopped", flush=True)
 
     def _on_command(self, msg: Command) -> None:
         eng = self.engine
@@ -230,7 +290,7 @@ class World:
             if self.mode == "realtime":
                 # Wait for this tick's time, handling commands meanwhile.
                 while now < tick_start and not self.stop.is_set():
-                    self._drain(tick_start - now)
+                    self._drain(until=tick_start)
                     now = time.monotonic()
                 lateness = now - tick_start
                 self.max_tick_lateness_s = max(self.max_tick_lateness_s, lateness)
@@ -245,16 +305,15 @@ class World:
                     waiting = [rid for rid in eng.alive_ids if not eng.robots[rid].answered]
                     if not waiting:
                         break
-                    left = deadline - time.monotonic()
-                    if left <= 0:
+                    if time.monotonic() >= deadline:
                         self.misses += len(waiting)
                         for rid in waiting:
                             eng.robots[rid].command = (0.0, 0.0)  # missed: stopped this tick
                         break
-                    self._drain(left)
+                    self._drain(until=deadline)
                 self.wait_s += time.perf_counter() - t_wait
             else:
-                self._drain(0.0)
+                self._drain(until=0.0)
             if self.mode == "realtime" or now >= next_status:
                 self._publish_status(status_pub, "running")
                 next_status = now + STATUS_PERIOD_S
@@ -273,6 +332,7 @@ class World:
                 "lockstep_misses": self.misses,
                 "late_answers": self.late_answers,
                 "late_ticks": self.late_ticks,
+                "wake_ups": self.wakes,  # deadlines, clock ticks, liveliness, stop: not commands
                 "max_tick_lateness_s": self.max_tick_lateness_s,
                 "deaths": self.deaths,
                 "leader_done": self.leader_done,
