@@ -115,6 +115,8 @@ class TargetEKF:
         self.width_m = positive("width_m", width_m)
         self._kf = _Filter(dim_x=5, dim_z=3)
         self._kf.R = np.diag([params.sigma_rho_m**2, params.sigma_beta_rad**2, params.sigma_phi_rad**2])
+        self._q_dt = math.nan
+        self._q = np.zeros((5, 5))
         self.initialized = False
 
     def reset(self) -> None:
@@ -134,17 +136,30 @@ class TargetEKF:
         phi_m = phi + 0.5 * w * dt
         sp = math.sin(phi_m)
         cp = math.cos(phi_m)
-        # Jacobian of predict_x with respect to the state.
-        j_pre = np.eye(5)
-        j_pre[0, 2:] = (-v * dt * cp, -dt * sp, -0.5 * v * dt * dt * cp)
-        j_pre[1, 2:] = (-v * dt * sp, dt * cp, -0.5 * v * dt * dt * sp)
-        j_pre[2, 4] = dt
-        rot = np.eye(5)
-        rot[:2, :2] = ((c, s), (-s, c))
-        kf.F = rot @ j_pre
-        p = self.params
-        kf.Q = np.diag([p.q_pos_m**2, p.q_pos_m**2, p.q_phi_rad**2, p.q_speed_mps**2, p.q_turn_rps**2]) * dt
+        # Jacobian of predict_x with respect to the state: the frame's rotation
+        # R(-dth) on (x, y) times the motion's Jacobian J, written out.
+        # J rows 0-1: d(x1, y1)/d(x, y, phi, v, w); J rows 2-4: phi += w dt, v, w.
+        j0 = (-v * dt * cp, -dt * sp, -0.5 * v * dt * dt * cp)
+        j1 = (-v * dt * sp, dt * cp, -0.5 * v * dt * dt * sp)
+        kf.F = np.array(
+            [
+                [c, s, c * j0[0] + s * j1[0], c * j0[1] + s * j1[1], c * j0[2] + s * j1[2]],
+                [-s, c, -s * j0[0] + c * j1[0], -s * j0[1] + c * j1[1], -s * j0[2] + c * j1[2]],
+                [0.0, 0.0, 1.0, 0.0, dt],
+                [0.0, 0.0, 0.0, 1.0, 0.0],
+                [0.0, 0.0, 0.0, 0.0, 1.0],
+            ]
+        )
+        kf.Q = self._process_noise(dt)
         kf.predict(u=(v_f, dth, dt))
+
+    def _process_noise(self, dt: float) -> np.ndarray:
+        """Q for a step of ``dt`` (the same every tick: built once per dt)."""
+        if dt != self._q_dt:
+            p = self.params
+            self._q = np.diag([p.q_pos_m**2, p.q_pos_m**2, p.q_phi_rad**2, p.q_speed_mps**2, p.q_turn_rps**2]) * dt
+            self._q_dt = dt
+        return self._q
 
     def update(self, reading: tuple[float, float, float] | None) -> None:
         """Eq. 19-21 with z = (rho_r, phi, beta); None only keeps the prediction."""

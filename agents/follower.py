@@ -81,6 +81,7 @@ class Follower:
         self._prev_choice = Choice.T0
         self._since_reading_s = math.inf
         self._raw: tuple[float, float, float] | None = None
+        self._predicted = False
         self.changing = False
 
     def set_offset(self, offset: Point) -> None:
@@ -89,6 +90,15 @@ class Follower:
         if new != self.offset:
             self.offset = new
             self.changing = True
+
+    def prepare(self) -> None:
+        """The EKF's prediction for the next tick (from the command just sent),
+        run now; ``step`` then only corrects. An agent calls it while it waits
+        for the next observation, which takes it off the tick's critical path.
+        The result is the same as letting ``step`` predict."""
+        if self.p.use_ekf and not self._predicted:
+            self.ekf.predict(self._last_cmd[0], self._last_cmd[1], self.p.dt_s)
+            self._predicted = True
 
     def step(self, reading: tuple[float, float, float] | None) -> Decision:
         """One tick. ``reading`` is the reference's (rho_r, phi, beta), or None."""
@@ -101,7 +111,8 @@ class Follower:
         else:
             self._since_reading_s += p.dt_s
         if p.use_ekf:
-            self.ekf.predict(self._last_cmd[0], self._last_cmd[1], p.dt_s)
+            self.prepare()
+            self._predicted = False
             self.ekf.update(reading)
         if self._since_reading_s > p.lost_after_s or self._raw is None:
             return self._stop(measured)

@@ -262,6 +262,7 @@ class Agent:
                 self.rejections.total,
             ).to_bytes()  # fmt: skip
         )
+        self.follower.prepare()  # the next tick's EKF prediction, before its observation comes
 
     def stats(self) -> dict[str, Any]:
         return {

@@ -50,7 +50,14 @@ class DecodeError(ValueError):
 # -- field checkers: each takes (name, value) and returns the clean value ------
 
 
+# Every check tests the common case first (a finite float, an int in range)
+# and builds a field name or an error only on the way to a rejection: these
+# run on every message of every tick.
+
+
 def _float(name: str, v: Any) -> float:
+    if type(v) is float and math.isfinite(v):
+        return v
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise DecodeError("wrong type", f"{name} must be a number, got {type(v).__name__}")
     f = float(v)
@@ -65,6 +72,8 @@ def _opt_float(name: str, v: Any) -> float | None:
 
 def _int_in(lo: int, hi: int) -> Callable[[str, Any], int]:
     def check(name: str, v: Any) -> int:
+        if type(v) is int and lo <= v <= hi:
+            return v
         if isinstance(v, bool) or not isinstance(v, int):
             raise DecodeError("wrong type", f"{name} must be an integer, got {type(v).__name__}")
         if not lo <= v <= hi:
@@ -86,7 +95,10 @@ def _floats(n: int, optional: bool = False) -> Callable[[str, Any], tuple[float,
             return None
         if not isinstance(v, (list, tuple)) or len(v) != n:
             raise DecodeError("wrong shape", f"{name} must be a list of {n} numbers")
-        return tuple(_float(f"{name}[{i}]", x) for i, x in enumerate(v))
+        for x in v:
+            if type(x) is not float or not math.isfinite(x):
+                return tuple(_float(f"{name}[{i}]", x) for i, x in enumerate(v))
+        return tuple(v)
 
     return check
 
@@ -103,7 +115,12 @@ def _records(*item_checks: Callable[[str, Any], Any]) -> Callable[[str, Any], tu
         for i, rec in enumerate(v):
             if not isinstance(rec, (list, tuple)) or len(rec) != n:
                 raise DecodeError("wrong shape", f"{name}[{i}] must be a list of {n}")
-            out.append(tuple(c(f"{name}[{i}]", x) for c, x in zip(item_checks, rec, strict=True)))
+            try:
+                out.append(tuple([c(name, x) for c, x in zip(item_checks, rec, strict=True)]))
+            except DecodeError:
+                for c, x in zip(item_checks, rec, strict=True):
+                    c(f"{name}[{i}]", x)  # the same rejection, naming the record
+                raise
         return tuple(out)
 
     return check
@@ -155,9 +172,14 @@ class Message:
         names = cls._names()
         if len(raw) != 2 + len(names):
             raise DecodeError("wrong length", f"{cls.__name__} has {len(names)} fields, got {len(raw) - 2}")
-        sender = _int_in(*cls.SENDERS)("sender", raw[2])
-        seq = _count("seq", raw[3])
-        tick = _count("tick", raw[4])
+        sender, seq, tick = raw[2], raw[3], raw[4]
+        lo, hi = cls.SENDERS
+        if type(sender) is not int or not lo <= sender <= hi:
+            _int_in(lo, hi)("sender", sender)
+        if type(seq) is not int or not 0 <= seq <= MAX_TICK:
+            _count("seq", seq)
+        if type(tick) is not int or not 0 <= tick <= MAX_TICK:
+            _count("tick", tick)
         values = [c(n, v) for c, n, v in zip(cls.CHECKS, names[3:], raw[5:], strict=True)]
         return cls(sender, seq, tick, *values)
 

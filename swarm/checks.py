@@ -11,6 +11,8 @@ import numpy as np
 
 def finite(name: str, value: object) -> float:
     """Return ``value`` as a float, rejecting non-numbers, NaN and inf."""
+    if type(value) is float and math.isfinite(value):
+        return value  # the common case, on every controller tick: checked first
     if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
         raise TypeError(f"{name} must be a real number, got {type(value).__name__} {value!r}")
     out = float(value)

@@ -217,8 +217,8 @@ class Logger:
             cols = rr.Points2D.columns(positions=values)
         elif kind == "arrow":
             cols = rr.Arrows2D.columns(origins=values[:, :2], vectors=values[:, 2:])
-        elif kind == "strip":
-            cols = rr.LineStrips2D.columns(strips=list(values))
+        elif kind == "strip":  # n x points x 2: one strip per row (an array takes Rerun's numpy path)
+            cols = rr.LineStrips2D.columns(strips=values)
         else:  # pragma: no cover - programming error
             raise ValueError(f"unknown column kind {kind!r}")
         self.rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=times)], columns=cols)
