@@ -13,6 +13,7 @@ on a loaded machine:
   formation code less often: the bare figure is the plain exchange).
 - full: ``swarm run scenarios/fig11_obstacles.toml`` in lockstep with the
   logger writing its recording; the rate is the world's loop (ticks / wall s).
+- full without the logger (``--no-logger``): what the recording costs.
 
     python bench/lockstep.py [--repeat 3] [--ticks 3000]
 """
@@ -127,12 +128,13 @@ def measure_bare(ticks: int) -> float:
     return float(out.strip().splitlines()[-1])
 
 
-def measure_full(duration_s: float) -> tuple[float, dict]:
+def measure_full(duration_s: float, logger: bool = True) -> tuple[float, dict]:
     with (
         tempfile.TemporaryDirectory() as tmp,
         Launch(
             ROOT / "scenarios" / "fig11_obstacles.toml",
             out=Path(tmp) / "run",
+            logger=logger,
             overrides={"run.duration_s": duration_s, "leader.waypoints": [[0.0, 0.0], [0.0, 400.0]]},
             progress=lambda _l: None,
         ) as launch,
@@ -158,16 +160,19 @@ def main() -> None:
         else:
             bare_logger(ep, run)
         return
-    bare, full = [], []
+    bare, full, quiet = [], [], []
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
     for i in range(args.repeat):
         bare.append(measure_bare(args.ticks))
         rate, summary = measure_full(args.ticks * 0.05)
         full.append(rate)
+        quiet.append(measure_full(args.ticks * 0.05, logger=False)[0])
         print(f"  round {i + 1}: bare {bare[-1]:7.0f} ticks/s   full (controller + logger) {full[-1]:7.0f} ticks/s "
-              f"({summary['ticks']} ticks, misses {summary['lockstep_misses']})", flush=True)  # fmt: skip
-    b, f = statistics.median(bare), statistics.median(full)
-    print(f"median: bare {b:.0f} ticks/s, full {f:.0f} ticks/s, full/bare {f / b:.2f}")
+              f"({summary['ticks']} ticks, misses {summary['lockstep_misses']})   "
+              f"without the logger {quiet[-1]:7.0f} ticks/s", flush=True)  # fmt: skip
+    b, f, q = statistics.median(bare), statistics.median(full), statistics.median(quiet)
+    print(f"median: bare {b:.0f} ticks/s, full {f:.0f} ticks/s (full/bare {f / b:.2f}), "
+          f"without the logger {q:.0f} ticks/s ({q / b:.2f})")  # fmt: skip
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 
