@@ -33,7 +33,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"router: {exc}", file=sys.stderr)
         return 2
     with sess_cm:
-        print(f"router listening on {', '.join(args.listen)}", flush=True)
+        where = ", ".join(args.listen) if args.listen else f"the endpoints of {args.config}"
+        print(f"router listening on {where}", flush=True)
         while not stop.wait(0.5):
             pass
     return 0

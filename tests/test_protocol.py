@@ -105,3 +105,13 @@ def test_bad_batches_are_counted_once_and_bad_items_each() -> None:
 def test_bad_parameters_name_themselves(kwargs: dict, name: str) -> None:
     with pytest.raises(ValueError, match=name):
         BatchPublisher(FakePub(), **kwargs)
+
+
+def test_the_shipped_router_configuration_loads() -> None:
+    from pathlib import Path
+
+    from protocol.session import make_config
+
+    conf = make_config("router", config_file=str(Path(__file__).resolve().parent.parent / "deploy" / "router.json5"))
+    assert '"router"' in conf.get_json("mode")
+    assert "tcp/0.0.0.0:7447" in conf.get_json("listen/endpoints")

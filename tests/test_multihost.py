@@ -1,0 +1,109 @@
+"""Agents on another host: a network namespace joined to this one by a veth
+pair, every process started on its own (``swarm router|world|agent|logger``)
+as a user spreading a run over machines would, through a standalone router.
+
+Needs root and iproute2 (``ip netns``); skipped with the reason otherwise.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+import pytest
+
+from swarm.launcher import free_port
+from tests.conftest import SCENARIOS
+
+FIG11 = SCENARIOS / "fig11_obstacles.toml"
+
+
+def _ip(*args: str) -> None:
+    subprocess.run(["ip", *args], check=True, capture_output=True, timeout=10)
+
+
+@pytest.fixture
+def robot_host() -> object:
+    """(namespace, router-side address, robot-side address), torn down after."""
+    if os.geteuid() != 0 or shutil.which("ip") is None:
+        pytest.skip("needs root and iproute2 to create a network namespace")
+    tag = uuid.uuid4().hex[:6]
+    ns, host_if, ns_if = f"swarm-{tag}", f"sw{tag}h", f"sw{tag}n"
+    subnet = 16 + int(tag[:2], 16) % 200  # 10.77.<subnet>.0/24, one per test run
+    host_ip, ns_ip = f"10.77.{subnet}.1", f"10.77.{subnet}.2"
+    try:
+        _ip("netns", "add", ns)
+    except (subprocess.CalledProcessError, OSError) as exc:
+        pytest.skip(f"cannot create a network namespace here: {exc}")
+    try:
+        _ip("link", "add", host_if, "type", "veth", "peer", "name", ns_if)
+        _ip("link", "set", ns_if, "netns", ns)
+        _ip("addr", "add", f"{host_ip}/24", "dev", host_if)
+        _ip("link", "set", host_if, "up")
+        _ip("netns", "exec", ns, "ip", "addr", "add", f"{ns_ip}/24", "dev", ns_if)
+        _ip("netns", "exec", ns, "ip", "link", "set", ns_if, "up")
+        _ip("netns", "exec", ns, "ip", "link", "set", "lo", "up")
+        yield ns, host_ip, ns_ip
+    finally:
+        subprocess.run(["ip", "link", "del", host_if], capture_output=True, timeout=10)
+        subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=10)
+
+
+def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tuple, tmp_path: Path) -> None:
+    ns, host_ip, _ns_ip = robot_host
+    router = f"tcp/{host_ip}:{free_port()}"
+    run = f"multihost-{uuid.uuid4().hex[:8]}"
+    scenario = tmp_path / "scenario.toml"
+    shutil.copy(FIG11, scenario)
+    py = [sys.executable, "-m"]
+    procs: dict[str, subprocess.Popen[bytes]] = {}
+
+    def start(name: str, argv: list[str]) -> None:
+        log = open(tmp_path / f"{name}.log", "wb")  # noqa: SIM115 - closed with the process
+        procs[name] = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+        log.close()
+
+    common = ["--scenario", str(scenario), "--run", run]
+    try:
+        start("router", [*py, "swarm.router", "--listen", router])
+        start("world", [*py, "world.process", *common, "--stats", str(tmp_path / "world.json"),
+                        "--mode", "client", "--connect", router, "--expect-logger"])  # fmt: skip
+        start("logger", [*py, "swarm.logger", *common, "--out", str(tmp_path / "recording.rrd"),
+                         "--stats", str(tmp_path / "logger.json"), "--connect", router])  # fmt: skip
+        for rid in (1, 2, 3):
+            start(f"agent-{rid}", ["ip", "netns", "exec", ns, *py, "agents.process", "--id", str(rid), *common,
+                                   "--stats", str(tmp_path / f"agent-{rid}.json"), "--connect", router])  # fmt: skip
+        assert procs["world"].wait(timeout=180) == 0, (tmp_path / "world.log").read_text()
+        for name in ("agent-1", "agent-2", "agent-3", "logger"):
+            assert procs[name].wait(timeout=10) == 0, (tmp_path / f"{name}.log").read_text()
+        world = json.loads((tmp_path / "world.json").read_text())
+        assert world["ticks"] == 1120 or world["leader_done"]
+        assert world["lockstep_misses"] == 0
+        assert world["collisions"] == 0
+        for rid in (1, 2, 3):  # triangle -> line before the obstacles -> triangle after
+            assert [e["formation"] for e in world["formation_events"] if e["robot"] == rid] == ["line", "triangle"]
+        for rid in (1, 2, 3):
+            agent = json.loads((tmp_path / f"agent-{rid}.json").read_text())
+            assert agent["answered"] == world["ticks"]
+        # The logger, on this host, recorded every tick of both followers in the other.
+        logger = json.loads((tmp_path / "logger.json").read_text())
+        assert logger["messages"]["telemetry"] == 2 * world["ticks"]
+        assert logger["messages"]["truth"] == world["ticks"]
+        assert (tmp_path / "recording.rrd").stat().st_size > 10_000
+    finally:
+        deadline = time.monotonic() + 5
+        for p in procs.values():
+            if p.poll() is None:
+                p.terminate()
+        for p in procs.values():
+            try:
+                p.wait(timeout=max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
