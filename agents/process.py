@@ -4,8 +4,10 @@
 
 A follower turns each observation into wheel speeds with the paper's
 controller (agents.follower) and obeys the formation codes its leader sends.
-The leader flies its scripted path, watches for obstacles and sends the
-formation code to every follower every tick over one-way links.
+The leader flies its scripted path, watches for obstacles and repeats the
+formation code to every follower over one-way links: every tick for
+``leader.code_burst_s`` after a change, then every ``leader.code_period_s``
+(agents.leader.CodeRepeats).
 
 The agent answers every observation it receives, even one its link layer
 drops (then without the reading), so that lockstep never waits on a drop.
