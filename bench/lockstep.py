@@ -10,7 +10,10 @@ on a loaded machine:
   and only counts. Same processes, keys and payload sizes as a run, with no
   physics, camera, controller, EKF or Rerun; every message is sent every
   tick, one put each (a run batches telemetry and truth and repeats the
-  formation code less often: the bare figure is the plain exchange).
+  formation code less often: the bare figure is the plain exchange). It
+  uses Zenoh's default configuration, transport included.
+- bare, low-latency: the same exchange over the transport every ``swarm``
+  process uses (protocol.session: Zenoh's low-latency unicast transport).
 - full: ``swarm run scenarios/fig11_obstacles.toml`` in lockstep with the
   logger writing its recording; the rate is the world's loop (ticks / wall s).
 - full without the logger (``--no-logger``): what the recording costs.
@@ -47,9 +50,9 @@ TEL = b"t" * 150
 TRUTH = b"r" * 160
 
 
-def bare_world(endpoint: str, run: str, ticks: int) -> None:
+def bare_world(endpoint: str, run: str, ticks: int, lowlatency: bool) -> None:
     k = Keys(run)
-    with zenoh.open(make_config("router", listen=[endpoint])) as s:
+    with zenoh.open(make_config("router", listen=[endpoint], lowlatency=lowlatency)) as s:
         q: queue.SimpleQueue[bytes] = queue.SimpleQueue()
         s.declare_subscriber(k.all_cmd, lambda smp: q.put(smp.payload.to_bytes()))
         pubs = [s.declare_publisher(k.obs(r)) for r in (1, 2, 3)]
@@ -76,9 +79,9 @@ def bare_world(endpoint: str, run: str, ticks: int) -> None:
         print(f"{rate:.1f}", flush=True)
 
 
-def bare_agent(endpoint: str, run: str, rid: int) -> None:
+def bare_agent(endpoint: str, run: str, rid: int, lowlatency: bool) -> None:
     k = Keys(run)
-    with zenoh.open(make_config("client", [endpoint])) as s:
+    with zenoh.open(make_config("client", [endpoint], lowlatency=lowlatency)) as s:
         q: queue.SimpleQueue[bytes] = queue.SimpleQueue()
         s.declare_subscriber(
             k.inbox(rid), lambda smp: q.put(smp.payload.to_bytes()), allowed_origin=zenoh.Locality.REMOTE
@@ -100,22 +103,23 @@ def bare_agent(endpoint: str, run: str, rid: int) -> None:
                 tel.put(TEL)
 
 
-def bare_logger(endpoint: str, run: str) -> None:
+def bare_logger(endpoint: str, run: str, lowlatency: bool) -> None:
     k = Keys(run)
-    with zenoh.open(make_config("client", [endpoint])) as s:
+    with zenoh.open(make_config("client", [endpoint], lowlatency=lowlatency)) as s:
         q: queue.SimpleQueue[str] = queue.SimpleQueue()
         s.declare_subscriber(k.everything, lambda smp: q.put(str(smp.key_expr)))
         while not q.get().endswith("/world/status"):
             pass
 
 
-def measure_bare(ticks: int) -> float:
+def measure_bare(ticks: int, lowlatency: bool = False) -> float:
     run = f"bench-{uuid.uuid4().hex[:8]}"
     ep = f"tcp/127.0.0.1:{free_port()}"
-    me = [sys.executable, __file__]
-    world = subprocess.Popen([*me, "--role", "world", ep, run, str(ticks)], stdout=subprocess.PIPE, text=True)
-    others = [subprocess.Popen([*me, "--role", "logger", ep, run])]
-    others += [subprocess.Popen([*me, "--role", "agent", ep, run, str(r)]) for r in (1, 2, 3)]
+    me = [sys.executable, __file__, "--role"]
+    ll = "lowlatency" if lowlatency else "default"
+    world = subprocess.Popen([*me, "world", ep, run, ll, str(ticks)], stdout=subprocess.PIPE, text=True)
+    others = [subprocess.Popen([*me, "logger", ep, run, ll])]
+    others += [subprocess.Popen([*me, "agent", ep, run, ll, str(r)]) for r in (1, 2, 3)]
     try:
         out, _ = world.communicate(timeout=600)
     finally:
@@ -152,27 +156,33 @@ def main() -> None:
     ap.add_argument("--role", nargs="+", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.role:
-        role, ep, run, *rest = args.role
+        role, ep, run, transport, *rest = args.role
+        ll = transport == "lowlatency"
         if role == "world":
-            bare_world(ep, run, int(rest[0]))
+            bare_world(ep, run, int(rest[0]), ll)
         elif role == "agent":
-            bare_agent(ep, run, int(rest[0]))
+            bare_agent(ep, run, int(rest[0]), ll)
         else:
-            bare_logger(ep, run)
+            bare_logger(ep, run, ll)
         return
-    bare, full, quiet = [], [], []
+    bare, bare_ll, full, quiet = [], [], [], []
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
     for i in range(args.repeat):
         bare.append(measure_bare(args.ticks))
+        bare_ll.append(measure_bare(args.ticks, lowlatency=True))
         rate, summary = measure_full(args.ticks * 0.05)
         full.append(rate)
         quiet.append(measure_full(args.ticks * 0.05, logger=False)[0])
-        print(f"  round {i + 1}: bare {bare[-1]:7.0f} ticks/s   full (controller + logger) {full[-1]:7.0f} ticks/s "
-              f"({summary['ticks']} ticks, misses {summary['lockstep_misses']})   "
-              f"without the logger {quiet[-1]:7.0f} ticks/s", flush=True)  # fmt: skip
-    b, f, q = statistics.median(bare), statistics.median(full), statistics.median(quiet)
-    print(f"median: bare {b:.0f} ticks/s, full {f:.0f} ticks/s (full/bare {f / b:.2f}), "
-          f"without the logger {q:.0f} ticks/s ({q / b:.2f})")  # fmt: skip
+        print(
+            f"  round {i + 1}: bare {bare[-1]:7.0f} ticks/s   bare low-latency {bare_ll[-1]:7.0f}   "
+            f"full (controller + logger) {full[-1]:7.0f} ticks/s ({summary['ticks']} ticks, "
+            f"misses {summary['lockstep_misses']})   without the logger {quiet[-1]:7.0f} ticks/s",
+            flush=True,
+        )
+    b, bl = statistics.median(bare), statistics.median(bare_ll)
+    f, q = statistics.median(full), statistics.median(quiet)
+    print(f"median: bare {b:.0f} ticks/s, bare low-latency {bl:.0f}, full {f:.0f} ticks/s (full/bare {f / b:.2f}, "
+          f"full/bare low-latency {f / bl:.2f}), without the logger {q:.0f} ticks/s ({q / b:.2f})")  # fmt: skip
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

@@ -31,7 +31,9 @@ import msgpack
 from protocol.keys import MAX_ROBOT_ID
 
 VERSION = 1
-MAX_PAYLOAD_BYTES = 64 * 1024
+# Every message of ours fits with room to spare (swarm.scenario bounds robots
+# and obstacles); protocol.session explains why links carry no more than ~40 KiB.
+MAX_PAYLOAD_BYTES = 32 * 1024
 MAX_ITEMS = 1024  # longest list in any message (robots, readings, obstacles)
 WORLD_ID = 0
 MAX_TICK = 2**53

@@ -25,6 +25,12 @@ from agents.lpsi import LpsiParams
 from protocol.keys import MAX_ROBOT_ID
 from world.camera import CameraParams
 
+# The world's ground truth lists every robot in one message, and the leader's
+# observation every obstacle in range: both must fit protocol.messages.MAX_PAYLOAD_BYTES
+# (tests/test_protocol.py encodes the largest ones).
+MAX_ROBOTS = 500
+MAX_OBSTACLES = 500
+
 
 class ScenarioError(ValueError):
     """A scenario that cannot run; the message names the key."""
@@ -299,8 +305,8 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
     _positive("run.lockstep_deadline_s", run["lockstep_deadline_s"])
     _positive("run.stale_after_s", run["stale_after_s"])
     n = run["robots"]
-    if not 2 <= n <= MAX_ROBOT_ID:
-        raise ScenarioError(f"run.robots must be in [2, {MAX_ROBOT_ID}], got {n!r}")
+    if not 2 <= n <= MAX_ROBOTS:
+        raise ScenarioError(f"run.robots must be in [2, {MAX_ROBOTS}], got {n!r}")
     robot = _table(raw.get("robot"), "robot", ROBOT_KEYS)
     for k in ("width_m", "diameter_m"):
         _positive(f"robot.{k}", robot[k])
@@ -369,6 +375,8 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
     obs_raw = raw.get("obstacles", [])
     if not isinstance(obs_raw, list):
         raise ScenarioError("obstacles must be an array of tables ([[obstacles]])")
+    if len(obs_raw) > MAX_OBSTACLES:
+        raise ScenarioError(f"at most {MAX_OBSTACLES} obstacles, got {len(obs_raw)}")
     for i, o in enumerate(obs_raw):
         t = _table(o, f"obstacles[{i}]", OBSTACLE_KEYS)
         obstacles.append(

@@ -21,7 +21,7 @@ import pytest
 import zenoh
 
 from protocol.keys import Keys
-from protocol.messages import Command
+from protocol.messages import MAX_PAYLOAD_BYTES, Command
 from protocol.session import make_config
 from swarm.launcher import KillAt, Launch, RunResult
 from tests.conftest import SCENARIOS, our_processes
@@ -148,6 +148,20 @@ def test_killed_follower_is_stopped_and_the_run_completes(swarm_run: Callable[..
     assert s["parts"]["world"]["final_poses"]["1"][1] > 9.0  # the leader flew on
 
 
+def _flood(sess: zenoh.Session, keys: list[str], payload: Callable[[int], bytes], n: int) -> None:
+    """Put ``payload(i)`` on every key, n times."""
+    pubs = [sess.declare_publisher(k, congestion_control=zenoh.CongestionControl.BLOCK) for k in keys]
+    # What is published before a subscriber matched is lost: wait for all.
+    deadline = time.monotonic() + 30
+    while not all(p.matching_status.matching for p in pubs):
+        unmatched = [k for k, p in zip(keys, pubs, strict=True) if not p.matching_status.matching]
+        assert time.monotonic() < deadline, unmatched
+        time.sleep(0.01)
+    for i in range(n):
+        for pub in pubs:
+            pub.put(payload(i))
+
+
 def test_random_bytes_on_every_key_kill_nothing(swarm_launch: Callable[..., Launch]) -> None:
     launch = swarm_launch(FIG11, mode="realtime", overrides={"run.duration_s": 4.0})
     assert launch.wait_until(lambda: launch.sim_time() >= 0.5, timeout_s=60)
@@ -160,24 +174,26 @@ def test_random_bytes_on_every_key_kill_nothing(swarm_launch: Callable[..., Laun
         Command(2, 1, 1, math.inf, 1.0, 0, False).to_bytes(),  # NaN/inf
         b"\x96\x02\x07\x02\x01\x01\xcb" + b"\x00" * 8,  # unknown version
         b"\xc1",  # invalid msgpack
-        b"\x00" * 70_000,  # oversized
+        b"\x00" * (MAX_PAYLOAD_BYTES + 1),  # oversized: reaches the decoders, which count it
     ]
-    with zenoh.open(make_config("client", [launch.endpoint])) as sess:
-        pubs = {k: sess.declare_publisher(k, congestion_control=zenoh.CongestionControl.BLOCK) for k in targets}
-        # What is published before a subscriber matched is lost: wait for all.
-        deadline = time.monotonic() + 30
-        while not all(p.matching_status.matching for p in pubs.values()):
-            assert time.monotonic() < deadline, [k for k, p in pubs.items() if not p.matching_status.matching]
-            time.sleep(0.01)
-        for i in range(n):
-            for pub in pubs.values():
-                payload = crafted[i] if i < len(crafted) else rng.bytes(int(rng.integers(0, 200)))
-                pub.put(payload)
-        # Close our session only after the run: closing drops what is still queued.
+    huge = b"\x00" * 70_000  # above the low-latency transport's 49,152-byte frame
+    # Our sessions stay open until the run ends: closing one drops what it still holds.
+    with (
+        zenoh.open(make_config("client", [launch.endpoint])) as ours,
+        zenoh.open(make_config("client", [launch.endpoint], lowlatency=False)) as plain,
+    ):
+        # From a default-transport client the router drops such frames on the way
+        # in: forwarded, one would close an agent's link and the world would
+        # take that robot for dead ...
+        _flood(plain, targets, lambda _i: huge, 2)
+        _flood(ours, targets, lambda i: crafted[i] if i < len(crafted) else rng.bytes(int(rng.integers(0, 200))), n)
+        # ... and from a low-latency client the router closes that client's link only.
+        _flood(ours, targets, lambda _i: huge, 1)
         res = launch.wait(timeout_s=120)
     s = res.summary
     assert res.exit_code == 0
     assert all(p["exit_code"] == 0 for p in s["processes"].values()), s["processes"]
+    assert s["deaths"] == [], s["deaths"]
     rej = {name: sum(v.values()) for name, v in s["rejected"].items()}
     # The world decodes commands (3 keys); each agent its inbox (4 keys) and the
     # status key; the logger truth, status and 3 telemetry keys.
@@ -186,6 +202,7 @@ def test_random_bytes_on_every_key_kill_nothing(swarm_launch: Callable[..., Laun
         assert rej[f"agent-{r}"] == 5 * n
     assert rej["logger"] == 5 * n
     assert s["rejected_total"] == 23 * n
+    assert s["rejected"]["world"]["oversized"] == 3
 
 
 def test_logger_sigkill_keeps_the_recording_up_to_the_kill(swarm_run: Callable[..., RunResult]) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import msgpack
 import pytest
 
@@ -110,8 +112,13 @@ def test_bad_parameters_name_themselves(kwargs: dict, name: str) -> None:
 def test_the_shipped_router_configuration_loads() -> None:
     from pathlib import Path
 
-    from protocol.session import make_config
+    from protocol.session import ROUTED_LIMIT_BYTES, make_config
 
     conf = make_config("router", config_file=str(Path(__file__).resolve().parent.parent / "deploy" / "router.json5"))
     assert '"router"' in conf.get_json("mode")
     assert "tcp/0.0.0.0:7447" in conf.get_json("listen/endpoints")
+    # The same transport and size filter as every process started without a file.
+    ours = make_config("router", listen=["tcp/127.0.0.1:7447"])
+    for key in ("transport/unicast/lowlatency", "transport/unicast/qos/enabled", "low_pass_filter"):
+        assert conf.get_json(key) == ours.get_json(key), key
+    assert json.loads(conf.get_json("low_pass_filter"))[0]["size_limit"] == ROUTED_LIMIT_BYTES
