@@ -100,6 +100,8 @@ class WorldEngine:
     formation_events: list[dict[str, object]] = field(init=False, default_factory=list)
     _touching: set[tuple[int, int]] = field(init=False, default_factory=set)
     _digest: hashlib._Hash = field(init=False)
+    # The state of the last tick stepped from, until record() takes its metrics.
+    _pending: dict[int, tuple[Pose, tuple[float, float], int]] | None = field(init=False, default=None)
 
     def __post_init__(self) -> None:
         sc = self.scenario
@@ -168,24 +170,19 @@ class WorldEngine:
         return from_body_frame(self.robots[slot.reference].pose, slot.offset[0], slot.offset[1])
 
     def step(self, now_s: float) -> None:
-        """Record the metrics of tick k, then integrate to tick k+1.
+        """Integrate tick k to tick k+1.
 
         ``now_s`` is the clock staleness is measured on (sim time in
-        lockstep, wall time in real time).
+        lockstep, wall time in real time). The metrics of tick k (formation
+        errors, contacts, the trajectory digest) come from a snapshot of its
+        state taken here and are computed by :meth:`record`: the world calls
+        it once tick k+1 is published, while the agents work, and ``step``
+        and ``summary`` call it too, so no tick is skipped and the figures do
+        not depend on when it runs.
         """
+        self.record()
+        self._pending = {rid: (r.pose, r.command, r.formation) for rid, r in self.robots.items()}
         sc = self.scenario
-        for rid in self.metrics:
-            r = self.robots[rid]
-            ref = self.robots[sc.formation_by_code(r.formation).slots[rid].reference]
-            tx, ty = self.true_target(rid)
-            ex, ey = tx - r.pose.x_m, ty - r.pose.y_m
-            along = ex * math.cos(ref.pose.theta_rad) + ey * math.sin(ref.pose.theta_rad)
-            turning = abs(ref.command[1] - ref.command[0]) / sc.width_m >= TURN_RATE_RPS
-            self.metrics[rid].add(math.hypot(ex, ey), along, turning)
-        self._contacts()
-        h = self._digest
-        for rid in sorted(self.robots):
-            h.update(struct.pack("<3d", *self.robots[rid].pose))
         width, dt = sc.width_m, sc.dt_s
         for r in self.robots.values():
             vl, vr = r.command
@@ -200,14 +197,34 @@ class WorldEngine:
             r.pose = _step_unchecked(x, y, th, vl, vr, width, dt)
         self.tick += 1
 
-    def _contacts(self) -> None:
+    def record(self) -> None:
+        """The metrics of the last tick stepped from, if not yet recorded."""
+        snap, self._pending = self._pending, None
+        if snap is None:
+            return
         sc = self.scenario
-        ids = sorted(self.robots)
+        for rid, metrics in self.metrics.items():
+            pose, _, formation = snap[rid]
+            slot = sc.formation_by_code(formation).slots[rid]
+            ref_pose, ref_command, _ = snap[slot.reference]
+            tx, ty = from_body_frame(ref_pose, slot.offset[0], slot.offset[1])
+            ex, ey = tx - pose.x_m, ty - pose.y_m
+            along = ex * math.cos(ref_pose.theta_rad) + ey * math.sin(ref_pose.theta_rad)
+            turning = abs(ref_command[1] - ref_command[0]) / sc.width_m >= TURN_RATE_RPS
+            metrics.add(math.hypot(ex, ey), along, turning)
+        self._contacts({rid: pose for rid, (pose, _, _) in snap.items()})
+        h = self._digest
+        for rid in sorted(snap):
+            h.update(struct.pack("<3d", *snap[rid][0]))
+
+    def _contacts(self, poses: dict[int, Pose]) -> None:
+        sc = self.scenario
+        ids = sorted(poses)
         touching: set[tuple[int, int]] = set()
         for i, a in enumerate(ids):
-            pa = self.robots[a].pose
+            pa = poses[a]
             for b in ids[i + 1 :]:
-                pb = self.robots[b].pose
+                pb = poses[b]
                 d = math.hypot(pa.x_m - pb.x_m, pa.y_m - pb.y_m)
                 self.min_distance_m = min(self.min_distance_m, d)
                 if d < sc.diameter_m:
@@ -221,9 +238,11 @@ class WorldEngine:
         self._touching = touching
 
     def digest(self) -> str:
+        self.record()
         return self._digest.hexdigest()
 
     def summary(self) -> dict[str, object]:
+        self.record()
         return {
             "ticks": self.tick,
             "sim_time_s": self.time_s,

@@ -298,6 +298,7 @@ class World:
                     self.late_ticks += 1
                 self.wall_s = now - start
             self._publish_tick(obs_pubs, truth_pub)
+            eng.record()  # the last tick's metrics, while the agents work on this one
             if self.mode == "lockstep":
                 t_wait = time.perf_counter()
                 deadline = time.monotonic() + sc.lockstep_deadline_s
