@@ -61,7 +61,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     try:
         launch = Launch(
             args.scenario, mode=args.mode, seed=args.seed, out=args.out, logger=not args.no_logger,
-            live=args.live, serve_web=args.serve_web, kills=kills,
+            live=args.live, serve_web=args.serve_web, web_ports=(args.grpc_port, args.web_port), kills=kills,
         )  # fmt: skip
     except (ScenarioError, ValueError) as exc:
         print(f"swarm run: {exc}", file=sys.stderr)
@@ -110,6 +110,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--live", metavar="URL", help="also stream to a Rerun viewer, e.g. rerun+http://127.0.0.1:9876/proxy"
     )
     run.add_argument("--serve-web", action="store_true", help="also serve the Rerun web viewer")
+    run.add_argument("--grpc-port", type=int, default=9876, help="--serve-web: the gRPC port (default 9876)")
+    run.add_argument("--web-port", type=int, default=9090, help="--serve-web: the web viewer's port (default 9090)")
     run.add_argument("--kill", action="append", default=[], metavar="PROC@SECONDS",
                      help="fault injection: SIGKILL a process (agent-N, logger) at that sim time")  # fmt: skip
     run.add_argument("--timeout", type=float, default=None, help="wall-clock limit in s")

@@ -145,6 +145,7 @@ class Launch:
         logger: bool = True,
         live: str | None = None,
         serve_web: bool = False,
+        web_ports: tuple[int, int] = (9876, 9090),
         kills: Sequence[KillAt] = (),
         progress: Callable[[str], None] | None = None,
         run_id: str | None = None,
@@ -164,6 +165,7 @@ class Launch:
         self.logger = logger
         self.live = live
         self.serve_web = serve_web
+        self.web_ports = web_ports  # (gRPC, web viewer), with serve_web
         self.kills = sorted(kills, key=lambda k: k.time_s)
         self.progress = progress or (lambda line: print(line, flush=True))
         self.python = python
@@ -220,7 +222,9 @@ class Launch:
                       "--mode", "router", "--listen", self.endpoint, *(["--expect-logger"] if self.logger else [])],
         }  # fmt: skip
         if self.logger:
-            extra = (["--live", self.live] if self.live else []) + (["--serve-web"] if self.serve_web else [])
+            extra = ["--live", self.live] if self.live else []
+            if self.serve_web:
+                extra += ["--serve-web", "--grpc-port", str(self.web_ports[0]), "--web-port", str(self.web_ports[1])]
             specs["logger"] = [*py, "swarm.logger", *common, "--out", str(self.run_dir / "recording.rrd"),
                                "--stats", str(stats / "logger.json"), "--connect", self.endpoint, *extra]  # fmt: skip
         for rid in self.sc.robots:
