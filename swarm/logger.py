@@ -44,9 +44,9 @@ import zenoh
 
 from protocol import session
 from protocol.keys import Keys
-from protocol.messages import Rejections, Status, Telemetry, Truth
+from protocol.messages import Rejections, Status, Telemetry, Truth, pack_batch
 from swarm import scenario as scenario_mod
-from swarm.proc import install_stop_handlers, role_inputs, write_json
+from swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
 from world.kinematics import Pose
 
 SEND_PERIOD_S = 0.25
@@ -54,6 +54,7 @@ FLUSH_PERIOD_S = 0.5
 TIMELINE = "sim_time"
 END_WAIT_S = 1.0  # after "done", for the followers' last telemetry
 HISTORY_TICKS = 400  # telemetry waits this long for its tick's truth
+END_OF_STREAM = pack_batch([])  # what protocol.messages.BatchPublisher.close sends
 _CIRCLE = np.stack([np.cos(np.linspace(0, 2 * np.pi, 25)), np.sin(np.linspace(0, 2 * np.pi, 25))], axis=1)
 
 
@@ -90,12 +91,14 @@ class Logger:
     columns every SEND_PERIOD_S with numpy (per send, not per tick)."""
 
     def __init__(self, sess: zenoh.Session, sc: scenario_mod.Scenario, run_id: str, rec: rr.RecordingStream,
-                 stop: threading.Event) -> None:  # fmt: skip
+                 stop: StopEvent) -> None:  # fmt: skip
         self.session = sess
         self.sc = sc
         self.keys = Keys(run_id)
         self.rec = rec
         self.stop = stop
+        self.wake = threading.Event()  # set by a stop, the run's status or a stream's end
+        stop.add_waker(self.wake.set)
         self.inbox: queue.SimpleQueue[tuple[str, bytes]] = queue.SimpleQueue()
         self.rejections = Rejections()
         self.truths: list[Truth] = []  # since the last send
@@ -111,7 +114,10 @@ class Logger:
         self.done = False
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
-        self.inbox.put((str(sample.key_expr), sample.payload.to_bytes()))
+        key, payload = str(sample.key_expr), sample.payload.to_bytes()
+        self.inbox.put((key, payload))
+        if key == self.keys.status or payload == END_OF_STREAM:
+            self.wake.set()  # the end of the run is handled at once, the rest per send
 
     def run(self) -> int:
         s, k = self.session, self.keys
@@ -127,14 +133,14 @@ class Logger:
             # After "done", each follower flushes its last telemetry and marks the
             # end of its stream: wait for those (bounded: a killed one never
             # will), then close the file.
+            # Messages are handled in one go per send, not as they come: the
+            # logger then wakes 4 times a second instead of at every batch,
+            # out of the way of the run's own processes.
             followers, end_by = set(self.sc.follower_ids), math.inf
             while not self.stop.is_set() and not (self.done and (self.ended >= followers or time.monotonic() > end_by)):
-                try:
-                    self._handle(*self.inbox.get(timeout=0.05))
-                    for _ in range(5000):  # drain what is there, bounded
-                        self._handle(*self.inbox.get_nowait())
-                except queue.Empty:
-                    pass
+                self.wake.wait(max(0.0, min(last_send + SEND_PERIOD_S, end_by) - time.monotonic()))
+                self.wake.clear()
+                self._drain()
                 now = time.monotonic()
                 if self.done and end_by == math.inf:
                     end_by = now + END_WAIT_S
@@ -144,17 +150,20 @@ class Logger:
                 if now - last_flush >= FLUSH_PERIOD_S:
                     self._flush(timeout_s=0.2)
                     last_flush = now
-            # Drain what already arrived, then close the file properly.
-            while True:
-                try:
-                    self._handle(*self.inbox.get_nowait())
-                except queue.Empty:
-                    break
+            # Handle what already arrived, then close the file properly.
+            self._drain()
             self._send(final=True)
             self._flush(timeout_s=1.0)
         finally:
             token.undeclare()
         return 0
+
+    def _drain(self) -> None:
+        while True:
+            try:
+                self._handle(*self.inbox.get_nowait())
+            except queue.Empty:
+                return
 
     def _guard(self, fn: Any, *args: Any, **kwargs: Any) -> None:
         try:
