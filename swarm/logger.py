@@ -130,12 +130,12 @@ class Logger:
         token = s.liveliness().declare_token(k.alive("logger", 0))
         last_send = last_flush = time.monotonic()
         try:
-            # After "done", each follower flushes its last telemetry and marks the
-            # end of its stream: wait for those (bounded: a killed one never
-            # will), then close the file.
             # Messages are handled in one go per send, not as they come: the
             # logger then wakes 4 times a second instead of at every batch,
-            # out of the way of the run's own processes.
+            # out of the way of the run's own processes. After "done", each
+            # follower flushes its last telemetry and marks the end of its
+            # stream: wait for those (bounded: a killed one never will), then
+            # close the file.
             followers, end_by = set(self.sc.follower_ids), math.inf
             while not self.stop.is_set() and not (self.done and (self.ended >= followers or time.monotonic() > end_by)):
                 self.wake.wait(max(0.0, min(last_send + SEND_PERIOD_S, end_by) - time.monotonic()))

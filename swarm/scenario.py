@@ -27,7 +27,7 @@ from world.camera import CameraParams
 
 # The world's ground truth lists every robot in one message, and the leader's
 # observation every obstacle in range: both must fit protocol.messages.MAX_PAYLOAD_BYTES
-# (tests/test_protocol.py encodes the largest ones).
+# (tests/test_messages.py encodes the largest ones).
 MAX_ROBOTS = 500
 MAX_OBSTACLES = 500
 
