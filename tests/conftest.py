@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -12,8 +13,8 @@ SCENARIOS = ROOT / "scenarios"
 OUR_MODULES = ("world.process", "agents.process", "swarm.logger", "swarm.router")
 
 
-def our_processes() -> list[tuple[int, str]]:
-    """Live processes running one of our roles (zombies excluded)."""
+def processes(match: Callable[[str], bool]) -> list[tuple[int, str]]:
+    """Live processes whose command line ``match`` accepts (zombies excluded)."""
     found = []
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit() or int(entry.name) == os.getpid():
@@ -23,17 +24,23 @@ def our_processes() -> list[tuple[int, str]]:
             state = (entry / "stat").read_text().split(") ", 1)[1][0]
         except OSError:
             continue
-        if state != "Z" and any(f"-m {m} " in cmd for m in OUR_MODULES):
+        if state != "Z" and match(cmd):
             found.append((int(entry.name), cmd.strip()))
     return found
 
 
+def our_processes() -> list[tuple[int, str]]:
+    """Live processes running one of our roles."""
+    return processes(lambda cmd: any(f"-m {m} " in cmd for m in OUR_MODULES))
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _no_process_left_behind(tmp_path_factory: pytest.TempPathFactory) -> object:
-    # Every run of the suite lives under its base temp folder (the run's scenario
-    # path is in each command line): runs of other sessions or users do not count.
+    # Every process the suite starts names a file under its base temp folder
+    # (a run's scenario, a viewer's output): runs of other sessions or users,
+    # and processes started before, do not count.
     base = str(tmp_path_factory.getbasetemp())
-    before = {pid for pid, _ in our_processes()}
+    before = {pid for pid, _ in processes(lambda cmd: base in cmd)}
     yield
-    left = [(pid, cmd) for pid, cmd in our_processes() if pid not in before and base in cmd]
+    left = [(pid, cmd) for pid, cmd in processes(lambda cmd: base in cmd) if pid not in before]
     assert not left, f"processes left behind by the suite: {left}"

@@ -7,7 +7,9 @@ receives to a file, which is then read back like the run's own recording.
 from __future__ import annotations
 
 import contextlib
+import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -45,18 +47,35 @@ def _wait_listening(port: int, timeout_s: float) -> None:
 
 @contextlib.contextmanager
 def _saving_viewer(args: list[str], out: Path) -> Iterator[subprocess.Popen[bytes]]:
-    """``rerun ARGS --save OUT``, stopped and reaped at the end."""
+    """``rerun ARGS --save OUT``, stopped and reaped at the end. ``rerun`` is a
+    Python launcher that starts the real binary as its child: the whole
+    process group is stopped, or the binary would outlive the test."""
     proc = subprocess.Popen([RERUN, *args, "--save", str(out)], stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL, start_new_session=True)  # fmt: skip
     try:
         yield proc
     finally:
-        proc.terminate()
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGTERM)
         try:
             proc.wait(timeout=10)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+        deadline = time.monotonic() + 10
+        while _group_alive(proc.pid):
+            if time.monotonic() > deadline:
+                os.killpg(proc.pid, signal.SIGKILL)
+                break
+            time.sleep(0.05)
+
+
+def _group_alive(pgid: int) -> bool:
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
 
 
 def _wait_rows(path: Path, entity: str, n: int, timeout_s: float) -> dict[str, int]:
