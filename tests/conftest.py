@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import shutil
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -11,6 +13,18 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = ROOT / "scenarios"
 OUR_MODULES = ("world.process", "agents.process", "swarm.logger", "swarm.router")
+RERUN = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+
+
+def rrd_rows(path: Path) -> dict[str, int]:
+    """Rows per entity path in a recording (an absent or empty file has none)."""
+    from rerun.chunk import RrdReader
+
+    rows: dict[str, int] = {}
+    if path.exists() and path.stat().st_size > 0:
+        for chunk in RrdReader(str(path)).stream():
+            rows[str(chunk.entity_path)] = rows.get(str(chunk.entity_path), 0) + chunk.num_rows
+    return rows
 
 
 def processes(match: Callable[[str], bool]) -> list[tuple[int, str]]:

@@ -7,7 +7,6 @@ import json
 import math
 import os
 import queue
-import shutil
 import signal
 import subprocess
 import sys
@@ -24,7 +23,7 @@ from protocol.keys import Keys
 from protocol.messages import MAX_PAYLOAD_BYTES, Command
 from protocol.session import make_config
 from swarm.launcher import KillAt, Launch, RunResult
-from tests.conftest import SCENARIOS, our_processes
+from tests.conftest import RERUN, SCENARIOS, our_processes, rrd_rows
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"
 TURN = SCENARIOS / "fig7_turn_vn_dynamic.toml"
@@ -67,15 +66,10 @@ def test_fig11_one_process_per_robot_triangle_line_triangle(fig11_run: RunResult
 
 
 def test_recording_verifies_and_reads_back(fig11_run: RunResult) -> None:
-    from rerun.chunk import RrdReader
-
     rrd = fig11_run.recording
-    rerun_bin = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
-    done = subprocess.run([rerun_bin, "rrd", "verify", str(rrd)], capture_output=True, text=True, timeout=120)
+    done = subprocess.run([RERUN, "rrd", "verify", str(rrd)], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stdout + done.stderr
-    rows: dict[str, int] = {}
-    for chunk in RrdReader(str(rrd)).stream():
-        rows[str(chunk.entity_path)] = rows.get(str(chunk.entity_path), 0) + chunk.num_rows
+    rows = rrd_rows(rrd)
     ticks = fig11_run.summary["ticks"]
     for r in (1, 2, 3):
         assert rows.get(f"/robots/r{r}/trajectory", 0) == ticks

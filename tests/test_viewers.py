@@ -8,31 +8,18 @@ from __future__ import annotations
 
 import contextlib
 import os
-import shutil
 import signal
 import socket
 import subprocess
-import sys
 import time
 import urllib.request
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from swarm.launcher import Launch, RunResult, free_port
-from tests.conftest import SCENARIOS
+from tests.conftest import RERUN, SCENARIOS, rrd_rows
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"
-RERUN = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
-
-
-def _rows(path: Path) -> dict[str, int]:
-    from rerun.chunk import RrdReader
-
-    rows: dict[str, int] = {}
-    if path.exists() and path.stat().st_size > 0:
-        for chunk in RrdReader(str(path)).stream():
-            rows[str(chunk.entity_path)] = rows.get(str(chunk.entity_path), 0) + chunk.num_rows
-    return rows
 
 
 def _wait_listening(port: int, timeout_s: float) -> None:
@@ -81,7 +68,7 @@ def _group_alive(pgid: int) -> bool:
 def _wait_rows(path: Path, entity: str, n: int, timeout_s: float) -> dict[str, int]:
     """The file's rows once ``entity`` has ``n`` (the viewer writes as it receives)."""
     deadline = time.monotonic() + timeout_s
-    while (rows := _rows(path)).get(entity, 0) < n and time.monotonic() < deadline:
+    while (rows := rrd_rows(path)).get(entity, 0) < n and time.monotonic() < deadline:
         time.sleep(0.2)
     return rows
 
@@ -95,7 +82,7 @@ def test_live_stream_carries_what_the_recording_has(tmp_path: Path, swarm_run: C
         assert res.exit_code == 0
         ticks = res.summary["ticks"]
         got = _wait_rows(live, "/robots/r3/ekf/target", ticks, timeout_s=20)
-    recorded = _rows(res.recording)
+    recorded = rrd_rows(res.recording)
     for entity in ("/robots/r1/trajectory", "/robots/r2/trajectory", "/robots/r3/trajectory",
                    "/robots/r2/ekf/target", "/robots/r3/ekf/target", "/robots/r2/fis/v_n"):  # fmt: skip
         assert recorded[entity] == ticks, entity
