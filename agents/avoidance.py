@@ -23,8 +23,8 @@ import math
 from enum import IntEnum
 from typing import NamedTuple
 
-from agents.geometry import Point, follower_in_leader_frame, target_point
-from swarm.checks import finite, positive
+from formation_swarm.agents.geometry import Point, follower_in_leader_frame, target_point
+from formation_swarm.checks import finite, positive
 
 
 class Zone(IntEnum):

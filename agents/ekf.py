@@ -23,9 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
 
-from agents.geometry import Point, leader_point, rotate
-from swarm.checks import finite, non_negative, positive
-from world.kinematics import body_twist, wrap_angle
+from formation_swarm.agents.geometry import Point, leader_point, rotate
+from formation_swarm.checks import finite, non_negative, positive
+from formation_swarm.world.kinematics import body_twist, wrap_angle
 
 
 @dataclass(frozen=True)

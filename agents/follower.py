@@ -17,13 +17,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from agents import fuzzy as fz
-from agents.avoidance import Choice, select_target
-from agents.ekf import EkfParams, TargetEKF
-from agents.geometry import Point, errors, leader_point, target_from_reading, target_point
-from agents.lpsi import LpsiParams
-from agents.lpsi import control as lpsi_control
-from swarm.checks import non_negative, positive
+from formation_swarm.agents import fuzzy as fz
+from formation_swarm.agents.avoidance import Choice, select_target
+from formation_swarm.agents.ekf import EkfParams, TargetEKF
+from formation_swarm.agents.geometry import Point, errors, leader_point, target_from_reading, target_point
+from formation_swarm.agents.lpsi import LpsiParams
+from formation_swarm.agents.lpsi import control as lpsi_control
+from formation_swarm.checks import non_negative, positive
 
 LAWS = ("fuzzy", "lpsi")
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-from agents.geometry import Point
-from swarm.checks import finite, positive
+from formation_swarm.agents.geometry import Point
+from formation_swarm.checks import finite, positive
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from swarm.checks import finite, positive
+from formation_swarm.checks import finite, positive
 
 # Table 1, rows Close / Enough / Far, columns alpha = Left / Center / Right.
 # "Left" means the follower's heading is too far left of the target, i.e. the

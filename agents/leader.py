@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from swarm.checks import non_negative, positive
+from formation_swarm.checks import non_negative, positive
 
 
 @dataclass

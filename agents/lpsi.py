@@ -31,9 +31,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from agents.geometry import Point
-from swarm.checks import finite, positive
-from world.kinematics import wrap_angle
+from formation_swarm.agents.geometry import Point
+from formation_swarm.checks import finite, positive
+from formation_swarm.world.kinematics import wrap_angle
 
 
 @dataclass(frozen=True)

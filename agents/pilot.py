@@ -11,8 +11,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from swarm.checks import positive, vector
-from world.kinematics import Pose, to_body_frame
+from formation_swarm.checks import positive, vector
+from formation_swarm.world.kinematics import Pose, to_body_frame
 
 
 @dataclass

@@ -34,16 +34,24 @@ from typing import Any
 
 import zenoh
 
-from agents.follower import Decision, Follower
-from agents.leader import CodeRepeats, FormationSwitch
-from agents.pilot import PathPilot
-from protocol import session
-from protocol.keys import Keys
-from protocol.links import Link, link_name
-from protocol.messages import BatchPublisher, Command, FormationCode, Observation, Rejections, Status, Telemetry
-from swarm import scenario as scenario_mod
-from swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
-from world.kinematics import Pose
+from formation_swarm import scenario as scenario_mod
+from formation_swarm.agents.follower import Decision, Follower
+from formation_swarm.agents.leader import CodeRepeats, FormationSwitch
+from formation_swarm.agents.pilot import PathPilot
+from formation_swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
+from formation_swarm.protocol import session
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.protocol.links import Link, link_name
+from formation_swarm.protocol.messages import (
+    BatchPublisher,
+    Command,
+    FormationCode,
+    Observation,
+    Rejections,
+    Status,
+    Telemetry,
+)
+from formation_swarm.world.kinematics import Pose
 
 STARTUP_TIMEOUT_S = 60.0
 WORLD_ID = 0

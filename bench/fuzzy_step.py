@@ -22,10 +22,10 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 import numpy as np  # noqa: E402
 
-from agents import fuzzy  # noqa: E402
-from agents.ekf import EkfParams, TargetEKF  # noqa: E402
-from agents.follower import Follower, FollowerParams  # noqa: E402
-from agents.geometry import Point  # noqa: E402
+from formation_swarm.agents import fuzzy  # noqa: E402
+from formation_swarm.agents.ekf import EkfParams, TargetEKF  # noqa: E402
+from formation_swarm.agents.follower import Follower, FollowerParams  # noqa: E402
+from formation_swarm.agents.geometry import Point  # noqa: E402
 
 
 def median_us(fn: Callable[[int], None], n: int, repeat: int) -> float:

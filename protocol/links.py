@@ -16,7 +16,7 @@ import hashlib
 import struct
 from dataclasses import dataclass
 
-from swarm.checks import probability
+from formation_swarm.checks import probability
 
 _SCALE = float(2**64)
 

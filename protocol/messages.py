@@ -28,7 +28,7 @@ from typing import Any, ClassVar, TypeVar
 
 import msgpack
 
-from protocol.keys import MAX_ROBOT_ID
+from formation_swarm.protocol.keys import MAX_ROBOT_ID
 
 VERSION = 1
 # Every message of ours fits with room to spare (swarm.scenario bounds robots

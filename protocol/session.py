@@ -34,7 +34,7 @@ from collections.abc import Sequence
 
 import zenoh
 
-from protocol.messages import MAX_PAYLOAD_BYTES
+from formation_swarm.protocol.messages import MAX_PAYLOAD_BYTES
 
 # Above our own limit, so an oversized payload still reaches the decoder and is
 # counted; below the low-latency transport's 49,152-byte frame, headers included.

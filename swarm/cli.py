@@ -8,9 +8,9 @@ from collections.abc import Sequence
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
-    from agents.follower import FollowerParams
-    from agents.fuzzy import SpeedMode
-    from swarm.sim import paper_turning_setup, run
+    from formation_swarm.agents.follower import FollowerParams
+    from formation_swarm.agents.fuzzy import SpeedMode
+    from formation_swarm.sim import paper_turning_setup, run
 
     mode = SpeedMode() if args.vn == "dynamic" else SpeedMode(float(args.vn))
     setup = paper_turning_setup(seed=args.seed, duration_s=args.duration, follower=FollowerParams(speed=mode))
@@ -46,9 +46,9 @@ def _vn(text: str) -> str:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from swarm.launcher import KillAt, Launch, print_result
-    from swarm.proc import interrupt_on_stop_signals
-    from swarm.scenario import ScenarioError
+    from formation_swarm.launcher import KillAt, Launch, print_result
+    from formation_swarm.proc import interrupt_on_stop_signals
+    from formation_swarm.scenario import ScenarioError
 
     kills = []
     for spec in args.kill:
@@ -81,13 +81,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 DELEGATED = {
-    "world": ("world.process", "the world process alone (router by default)"),
-    "agent": ("agents.process", "one robot's agent alone (client of a router)"),
-    "logger": ("swarm.logger", "the Rerun logger alone"),
-    "router": ("swarm.router", "a Zenoh router for agents on other machines"),
-    "sweep": ("swarm.sweep", "many lockstep runs: seeds x parameter values, in parallel, resumable"),
-    "report": ("swarm.report", "figures (PNG) and a markdown summary of a run folder"),
-    "results": ("swarm.results", "the baseline comparison table of docs/results.md"),
+    "world": ("formation_swarm.world.process", "the world process alone (router by default)"),
+    "agent": ("formation_swarm.agents.process", "one robot's agent alone (client of a router)"),
+    "logger": ("formation_swarm.logger", "the Rerun logger alone"),
+    "router": ("formation_swarm.router", "a Zenoh router for agents on other machines"),
+    "sweep": ("formation_swarm.sweep", "many lockstep runs: seeds x parameter values, in parallel, resumable"),
+    "report": ("formation_swarm.report", "figures (PNG) and a markdown summary of a run folder"),
+    "results": ("formation_swarm.results", "the baseline comparison table of docs/results.md"),
 }
 
 

@@ -32,11 +32,11 @@ from typing import Any, TextIO
 
 import zenoh
 
-from protocol.keys import Keys
-from protocol.messages import Rejections, Status
-from protocol.session import make_config
-from swarm import scenario as scenario_mod
-from swarm.proc import clean_json
+from formation_swarm import scenario as scenario_mod
+from formation_swarm.proc import clean_json
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.protocol.messages import Rejections, Status
+from formation_swarm.protocol.session import make_config
 
 STOP_GRACE_S = 2.0
 # One worker thread per Zenoh runtime in each child: five processes share this
@@ -215,21 +215,24 @@ class Launch:
         scenario_file.write_text(scenario_mod.dumps(self.sc.raw))
         self.port = free_port()
         common = ["--scenario", str(scenario_file), "--run", self.run_id]
-        py = [self.python, "-m"]
+
+        def py(module: str) -> list[str]:
+            return [self.python, "-m", f"formation_swarm.{module}"]
+
         stats = self.run_dir / "stats"
         specs = {
-            "world": [*py, "world.process", *common, "--clock", self.mode, "--stats", str(stats / "world.json"),
+            "world": [*py("world.process"), *common, "--clock", self.mode, "--stats", str(stats / "world.json"),
                       "--mode", "router", "--listen", self.endpoint, *(["--expect-logger"] if self.logger else [])],
         }  # fmt: skip
         if self.logger:
             extra = ["--live", self.live] if self.live else []
             if self.serve_web:
                 extra += ["--serve-web", "--grpc-port", str(self.web_ports[0]), "--web-port", str(self.web_ports[1])]
-            specs["logger"] = [*py, "swarm.logger", *common, "--out", str(self.run_dir / "recording.rrd"),
+            specs["logger"] = [*py("logger"), *common, "--out", str(self.run_dir / "recording.rrd"),
                                "--stats", str(stats / "logger.json"), "--connect", self.endpoint, *extra]  # fmt: skip
         for rid in self.sc.robots:
             agent_stats = str(stats / f"agent-{rid}.json")
-            specs[f"agent-{rid}"] = [*py, "agents.process", "--id", str(rid), *common,
+            specs[f"agent-{rid}"] = [*py("agents.process"), "--id", str(rid), *common,
                                      "--stats", agent_stats, "--connect", self.endpoint]  # fmt: skip
         self.started_at = time.monotonic()
         for name, argv in specs.items():

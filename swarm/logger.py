@@ -42,12 +42,12 @@ import rerun as rr
 import rerun.blueprint as rrb
 import zenoh
 
-from protocol import session
-from protocol.keys import Keys
-from protocol.messages import Rejections, Status, Telemetry, Truth, pack_batch
-from swarm import scenario as scenario_mod
-from swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
-from world.kinematics import Pose
+from formation_swarm import scenario as scenario_mod
+from formation_swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
+from formation_swarm.protocol import session
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.protocol.messages import Rejections, Status, Telemetry, Truth, pack_batch
+from formation_swarm.world.kinematics import Pose
 
 SEND_PERIOD_S = 0.25
 FLUSH_PERIOD_S = 0.5

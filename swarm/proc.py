@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     import zenoh
 
-    from swarm.scenario import Scenario
+    from formation_swarm.scenario import Scenario
 
 
 class StopEvent(threading.Event):
@@ -88,8 +88,8 @@ def role_inputs(args: argparse.Namespace, who: str) -> tuple[Scenario, zenoh.Ses
     printing why not (bad scenario, bad flags, no router)."""
     import zenoh
 
-    from protocol import session
-    from swarm import scenario as scenario_mod
+    from formation_swarm import scenario as scenario_mod
+    from formation_swarm.protocol import session
 
     try:
         sc = scenario_mod.load(args.scenario)

@@ -23,7 +23,7 @@ from typing import Any
 
 import pytest
 
-from swarm.launcher import Launch, RunResult
+from formation_swarm.launcher import Launch, RunResult
 
 
 @pytest.fixture

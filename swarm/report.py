@@ -101,7 +101,7 @@ def make_report(run_dir: str | Path, snapshots: int = 6) -> Path:
 
 
 def _obstacles(run_dir: Path) -> list[tuple[float, float, float]]:
-    from swarm import scenario as scenario_mod
+    from formation_swarm import scenario as scenario_mod
 
     try:
         sc = scenario_mod.load(run_dir / "scenario.toml")

@@ -18,8 +18,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from swarm.proc import interrupt_on_stop_signals
-from swarm.sweep import Job, Sweep, aggregate
+from formation_swarm.proc import interrupt_on_stop_signals
+from formation_swarm.sweep import Job, Sweep, aggregate
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / "scenarios" / "fig7_turn_vn_dynamic.toml"

@@ -14,8 +14,8 @@ import sys
 
 import zenoh
 
-from protocol import session
-from swarm.proc import install_stop_handlers
+from formation_swarm.proc import install_stop_handlers
+from formation_swarm.protocol import session
 
 
 def main(argv: list[str] | None = None) -> int:

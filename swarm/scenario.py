@@ -16,14 +16,14 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from agents.ekf import EkfParams
-from agents.follower import FollowerParams
-from agents.formation import Formation, Slot, line, wedge
-from agents.fuzzy import FuzzyParams, SpeedMode
-from agents.geometry import Point
-from agents.lpsi import LpsiParams
-from protocol.keys import MAX_ROBOT_ID
-from world.camera import CameraParams
+from formation_swarm.agents.ekf import EkfParams
+from formation_swarm.agents.follower import FollowerParams
+from formation_swarm.agents.formation import Formation, Slot, line, wedge
+from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode
+from formation_swarm.agents.geometry import Point
+from formation_swarm.agents.lpsi import LpsiParams
+from formation_swarm.protocol.keys import MAX_ROBOT_ID
+from formation_swarm.world.camera import CameraParams
 
 # The world's ground truth lists every robot in one message, and the leader's
 # observation every obstacle in range: both must fit protocol.messages.MAX_PAYLOAD_BYTES

@@ -13,13 +13,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from agents.follower import Follower, FollowerParams
-from agents.formation import Formation
-from agents.geometry import Point
-from agents.pilot import PathPilot
-from world import kinematics
-from world.camera import CameraParams, observe
-from world.kinematics import Pose, from_body_frame
+from formation_swarm.agents.follower import Follower, FollowerParams
+from formation_swarm.agents.formation import Formation
+from formation_swarm.agents.geometry import Point
+from formation_swarm.agents.pilot import PathPilot
+from formation_swarm.world import kinematics
+from formation_swarm.world.camera import CameraParams, observe
+from formation_swarm.world.kinematics import Pose, from_body_frame
 
 
 @dataclass(frozen=True)
@@ -122,7 +122,7 @@ PAPER_TURNING_PATH = ((0.0, 0.0), (0.0, 20.0), (20.0, 20.0), (20.0, 40.0))
 
 
 def paper_turning_setup(seed: int = 0, **overrides: object) -> ClosedLoopSetup:
-    from agents.formation import Slot
+    from formation_swarm.agents.formation import Slot
 
     form = Formation("two", {2: Slot(1, Point(-1.5, -1.5))})
     kwargs: dict[str, object] = {"waypoints": PAPER_TURNING_PATH, **overrides}

@@ -31,9 +31,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from swarm import scenario as scenario_mod
-from swarm.launcher import Launch, RunResult
-from swarm.proc import interrupt_on_stop_signals
+from formation_swarm import scenario as scenario_mod
+from formation_swarm.launcher import Launch, RunResult
+from formation_swarm.proc import interrupt_on_stop_signals
 
 # 97.5% quantile of Student's t for n - 1 degrees of freedom (n <= 31), then normal.
 _T975 = (

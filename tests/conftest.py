@@ -12,7 +12,12 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = ROOT / "scenarios"
-OUR_MODULES = ("world.process", "agents.process", "swarm.logger", "swarm.router")
+OUR_MODULES = (
+    "formation_swarm.world.process",
+    "formation_swarm.agents.process",
+    "formation_swarm.logger",
+    "formation_swarm.router",
+)
 RERUN = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
 
 

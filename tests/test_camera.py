@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from world.camera import CameraParams, observe, true_reading
-from world.kinematics import Pose
+from formation_swarm.world.camera import CameraParams, observe, true_reading
+from formation_swarm.world.kinematics import Pose
 
 
 def test_reading_of_a_robot_straight_ahead() -> None:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from swarm.sweep import Job, Sweep
+from formation_swarm.sweep import Job, Sweep
 from tests.conftest import SCENARIOS
 
 SEEDS = range(10)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from swarm.sim import paper_turning_setup, run
+from formation_swarm.sim import paper_turning_setup, run
 
 
 def test_follower_stays_near_its_target_through_the_turns() -> None:
@@ -31,8 +31,8 @@ def test_prepare_ahead_of_the_reading_gives_the_same_decisions() -> None:
     """An agent runs the EKF prediction while it waits (Follower.prepare):
     bit for bit what step() alone gives, readings lost or not, through a
     formation change."""
-    from agents.follower import Follower, FollowerParams
-    from agents.geometry import Point
+    from formation_swarm.agents.follower import Follower, FollowerParams
+    from formation_swarm.agents.geometry import Point
 
     rng = np.random.default_rng(3)
     readings = [

@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 import zenoh
 
-from protocol.keys import Keys
-from protocol.messages import MAX_PAYLOAD_BYTES, Command
-from protocol.session import make_config
-from swarm.launcher import KillAt, Launch, RunResult
+from formation_swarm.launcher import KillAt, Launch, RunResult
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.protocol.messages import MAX_PAYLOAD_BYTES, Command
+from formation_swarm.protocol.session import make_config
 from tests.conftest import RERUN, SCENARIOS, our_processes, rrd_rows
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"
@@ -276,7 +276,17 @@ def test_every_process_exits_within_2s_of_the_run_end(swarm_run: Callable[..., R
 @pytest.mark.parametrize("when", ["starting", "running"])
 def test_ctrl_c_on_swarm_run_leaves_no_process(tmp_path: Path, when: str) -> None:
     before = {pid for pid, _ in our_processes()}
-    cmd = [sys.executable, "-m", "swarm.cli", "run", str(FIG11), "--mode", "realtime", "--out", str(tmp_path / "r")]
+    cmd = [
+        sys.executable,
+        "-m",
+        "formation_swarm.cli",
+        "run",
+        str(FIG11),
+        "--mode",
+        "realtime",
+        "--out",
+        str(tmp_path / "r"),
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     lines: queue.SimpleQueue[str] = queue.SimpleQueue()
     reader = threading.Thread(target=lambda: [lines.put(line) for line in proc.stdout], daemon=True)  # type: ignore[union-attr]

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from agents.ekf import EkfParams, TargetEKF, _h_jacobian, _hx
-from agents.geometry import Point
-from swarm.sim import paper_turning_setup, run
+from formation_swarm.agents.ekf import EkfParams, TargetEKF, _h_jacobian, _hx
+from formation_swarm.agents.geometry import Point
+from formation_swarm.sim import paper_turning_setup, run
 
 
 def _numeric_jacobian(f: object, x: np.ndarray, eps: float = 1e-6) -> np.ndarray:

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from agents import fuzzy
-from agents.fuzzy import FuzzyParams, SpeedMode
+from formation_swarm.agents import fuzzy
+from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode
 
 simpful = pytest.importorskip("simpful")
 

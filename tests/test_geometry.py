@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from agents import geometry as g
-from agents.avoidance import Choice, Zone, select_target, zone_of
-from agents.formation import Formation, Slot, line, wedge
-from agents.geometry import Point
-from world.camera import true_reading
-from world.kinematics import Pose, from_body_frame, to_body_frame
+from formation_swarm.agents import geometry as g
+from formation_swarm.agents.avoidance import Choice, Zone, select_target, zone_of
+from formation_swarm.agents.formation import Formation, Slot, line, wedge
+from formation_swarm.agents.geometry import Point
+from formation_swarm.world.camera import true_reading
+from formation_swarm.world.kinematics import Pose, from_body_frame, to_body_frame
 
 
 def test_leader_straight_ahead() -> None:

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from world.kinematics import Pose, body_twist, from_body_frame, step, to_body_frame, wrap_angle
+from formation_swarm.world.kinematics import Pose, body_twist, from_body_frame, step, to_body_frame, wrap_angle
 
 
 def test_straight_line() -> None:

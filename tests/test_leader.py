@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from agents.leader import CodeRepeats, FormationSwitch
+from formation_swarm.agents.leader import CodeRepeats, FormationSwitch
 
 
 def test_switch_flies_line_near_obstacles_and_back_after_clear_time() -> None:

@@ -6,10 +6,10 @@ import math
 
 import pytest
 
-from agents.follower import FollowerParams
-from agents.geometry import Point
-from agents.lpsi import LpsiParams, control
-from swarm.sim import paper_turning_setup, run
+from formation_swarm.agents.follower import FollowerParams
+from formation_swarm.agents.geometry import Point
+from formation_swarm.agents.lpsi import LpsiParams, control
+from formation_swarm.sim import paper_turning_setup, run
 
 P = LpsiParams()
 

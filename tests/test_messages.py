@@ -7,8 +7,8 @@ import math
 import msgpack
 import pytest
 
-from protocol.keys import MAX_ROBOT_ID
-from protocol.messages import (
+from formation_swarm.protocol.keys import MAX_ROBOT_ID
+from formation_swarm.protocol.messages import (
     MAX_PAYLOAD_BYTES,
     VERSION,
     Command,
@@ -20,7 +20,7 @@ from protocol.messages import (
     Telemetry,
     Truth,
 )
-from swarm.scenario import MAX_OBSTACLES, MAX_ROBOTS
+from formation_swarm.scenario import MAX_OBSTACLES, MAX_ROBOTS
 
 EXAMPLES = [
     Observation(0, 7, 3, 0.15, (1.0, -2.0, 0.5), ((1, 2.0, 0.1, -0.2),), ()),

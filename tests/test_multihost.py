@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from swarm.launcher import free_port
+from formation_swarm.launcher import free_port
 from tests.conftest import SCENARIOS
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"
@@ -71,14 +71,15 @@ def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tupl
 
     common = ["--scenario", str(scenario), "--run", run]
     try:
-        start("router", [*py, "swarm.router", "--listen", router])
-        start("world", [*py, "world.process", *common, "--stats", str(tmp_path / "world.json"),
+        start("router", [*py, "formation_swarm.router", "--listen", router])
+        start("world", [*py, "formation_swarm.world.process", *common, "--stats", str(tmp_path / "world.json"),
                         "--mode", "client", "--connect", router, "--expect-logger"])  # fmt: skip
-        start("logger", [*py, "swarm.logger", *common, "--out", str(tmp_path / "recording.rrd"),
+        start("logger", [*py, "formation_swarm.logger", *common, "--out", str(tmp_path / "recording.rrd"),
                          "--stats", str(tmp_path / "logger.json"), "--connect", router])  # fmt: skip
         for rid in (1, 2, 3):
-            start(f"agent-{rid}", ["ip", "netns", "exec", ns, *py, "agents.process", "--id", str(rid), *common,
-                                   "--stats", str(tmp_path / f"agent-{rid}.json"), "--connect", router])  # fmt: skip
+            agent = [*py, "formation_swarm.agents.process", "--id", str(rid), *common]
+            start(f"agent-{rid}", ["ip", "netns", "exec", ns, *agent, "--stats", str(tmp_path / f"agent-{rid}.json"),
+                                   "--connect", router])  # fmt: skip
         assert procs["world"].wait(timeout=180) == 0, (tmp_path / "world.log").read_text()
         for name in ("agent-1", "agent-2", "agent-3", "logger"):
             assert procs[name].wait(timeout=10) == 0, (tmp_path / f"{name}.log").read_text()

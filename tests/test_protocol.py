@@ -7,7 +7,7 @@ import json
 import msgpack
 import pytest
 
-from protocol.messages import (
+from formation_swarm.protocol.messages import (
     MAX_BATCH_ITEMS,
     BatchPublisher,
     Command,
@@ -112,7 +112,7 @@ def test_bad_parameters_name_themselves(kwargs: dict, name: str) -> None:
 def test_the_shipped_router_configuration_loads() -> None:
     from pathlib import Path
 
-    from protocol.session import ROUTED_LIMIT_BYTES, make_config
+    from formation_swarm.protocol.session import ROUTED_LIMIT_BYTES, make_config
 
     conf = make_config("router", config_file=str(Path(__file__).resolve().parent.parent / "deploy" / "router.json5"))
     assert '"router"' in conf.get_json("mode")

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarm.launcher import RunResult
-from swarm.report import FIGURES, main, make_report
+from formation_swarm.launcher import RunResult
+from formation_swarm.report import FIGURES, main, make_report
 from tests.conftest import SCENARIOS
 
 

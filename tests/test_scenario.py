@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from swarm import scenario as sm
+from formation_swarm import scenario as sm
 from tests.conftest import SCENARIOS
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"

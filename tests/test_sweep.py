@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from swarm.sweep import Job, Sweep, aggregate, grid, parse_set
+from formation_swarm.sweep import Job, Sweep, aggregate, grid, parse_set
 from tests.conftest import SCENARIOS
 
 

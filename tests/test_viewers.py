@@ -16,7 +16,7 @@ import urllib.request
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from swarm.launcher import Launch, RunResult, free_port
+from formation_swarm.launcher import Launch, RunResult, free_port
 from tests.conftest import RERUN, SCENARIOS, rrd_rows
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"

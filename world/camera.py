@@ -16,8 +16,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from swarm.checks import non_negative, positive
-from world.kinematics import Pose, to_body_frame, wrap_angle
+from formation_swarm.checks import non_negative, positive
+from formation_swarm.world.kinematics import Pose, to_body_frame, wrap_angle
 
 
 class MarkerReading(NamedTuple):

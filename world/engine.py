@@ -14,12 +14,15 @@ import hashlib
 import math
 import struct
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from swarm.scenario import Scenario
-from world.camera import observe
-from world.kinematics import Pose, _step_unchecked, from_body_frame, to_body_frame
+from formation_swarm.world.camera import observe
+from formation_swarm.world.kinematics import Pose, _step_unchecked, from_body_frame, to_body_frame
+
+if TYPE_CHECKING:  # an annotation only: the world's physics does not import the application layer
+    from formation_swarm.scenario import Scenario
 
 # A reference turning at least this fast (from its wheel commands) is "in a turn"
 # for the metrics; the paper's path turns at 0.25 rad/s, pure pursuit on a

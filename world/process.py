@@ -34,13 +34,13 @@ from typing import Any
 
 import zenoh
 
-from protocol import session
-from protocol.keys import Keys
-from protocol.links import Link, link_name
-from protocol.messages import BatchPublisher, Command, Observation, Rejections, Status, Truth
-from swarm import scenario as scenario_mod
-from swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
-from world.engine import WorldEngine
+from formation_swarm import scenario as scenario_mod
+from formation_swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
+from formation_swarm.protocol import session
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.protocol.links import Link, link_name
+from formation_swarm.protocol.messages import BatchPublisher, Command, Observation, Rejections, Status, Truth
+from formation_swarm.world.engine import WorldEngine
 
 STARTUP_TIMEOUT_S = 60.0
 STATUS_PERIOD_S = 0.25
