@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/swarm run scenarios/fig11_obstacles.toml
+	$(BIN)/swarm run fig11_obstacles
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -1,6 +1,6 @@
 """One helper builds the zenoh.Config of every process from the same flags.
 
-    --mode client|peer|router   (default: client)
+    --zenoh-mode client|peer|router   (default: client)
     --connect ENDPOINT          (repeatable), e.g. tcp/127.0.0.1:7447
     --listen ENDPOINT           (repeatable)
     --config FILE               a Zenoh JSON5 configuration, applied first
@@ -51,7 +51,7 @@ SIZE_FILTER = {
 
 def add_arguments(parser: argparse.ArgumentParser, default_mode: str = "client") -> None:
     group = parser.add_argument_group("zenoh")
-    group.add_argument("--mode", choices=("client", "peer", "router"), default=default_mode)
+    group.add_argument("--zenoh-mode", choices=("client", "peer", "router"), default=default_mode)
     group.add_argument("--connect", action="append", default=[], metavar="ENDPOINT")
     group.add_argument("--listen", action="append", default=[], metavar="ENDPOINT")
     group.add_argument("--config", metavar="FILE", help="Zenoh JSON5 configuration file")
@@ -93,4 +93,4 @@ def make_config(
 
 
 def config_from_args(args: argparse.Namespace) -> zenoh.Config:
-    return make_config(args.mode, args.connect, args.listen, args.config)
+    return make_config(args.zenoh_mode, args.connect, args.listen, args.config)

@@ -48,19 +48,13 @@ def _vn(text: str) -> str:
 def _cmd_run(args: argparse.Namespace) -> int:
     from formation_swarm.launcher import KillAt, Launch, print_result
     from formation_swarm.proc import interrupt_on_stop_signals
-    from formation_swarm.scenario import ScenarioError
+    from formation_swarm.scenario import ScenarioError, parse_override
 
-    kills = []
-    for spec in args.kill:
-        who, _, when = spec.partition("@")
-        try:
-            kills.append(KillAt(who, float(when)))
-        except ValueError:
-            print(f"swarm run: --kill takes PROCESS@SECONDS (e.g. agent-3@20), got {spec!r}", file=sys.stderr)
-            return 2
     try:
+        kills = [KillAt.parse(spec) for spec in args.kill]
+        overrides = dict(parse_override(text) for text in args.set)
         launch = Launch(
-            args.scenario, mode=args.mode, seed=args.seed, out=args.out, logger=not args.no_logger,
+            args.scenario, mode=args.mode, seed=args.seed, out=args.out, overrides=overrides, logger=not args.no_logger,
             live=args.live, serve_web=args.serve_web, web_ports=(args.grpc_port, args.web_port), kills=kills,
         )  # fmt: skip
     except (ScenarioError, ValueError) as exc:
@@ -78,6 +72,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
         result = launch.wait(timeout_s=args.timeout)
     print_result(result)
     return result.exit_code
+
+
+def _cmd_scenarios(_args: argparse.Namespace) -> int:
+    from formation_swarm import scenario
+
+    known = scenario.shipped()
+    width = max(map(len, known))
+    for name, path in known.items():
+        print(f"{name:<{width}}  {scenario.description(path)}")
+    return 0
 
 
 DELEGATED = {
@@ -101,7 +105,7 @@ def build_parser() -> argparse.ArgumentParser:
     sim.set_defaults(func=_cmd_sim)
 
     run = sub.add_parser("run", help="run a scenario, every robot its own process (world, logger, agents)")
-    run.add_argument("scenario", help="scenario file (TOML), e.g. scenarios/fig11_obstacles.toml")
+    run.add_argument("scenario", help="a shipped scenario's name (see swarm scenarios) or a scenario file (TOML)")
     run.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     run.add_argument("--seed", type=int, default=None, help="overrides the scenario's seed")
     run.add_argument("--out", default=None, help="run folder (default runs/<run id>)")
@@ -114,8 +118,13 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--web-port", type=int, default=9090, help="--serve-web: the web viewer's port (default 9090)")
     run.add_argument("--kill", action="append", default=[], metavar="PROC@SECONDS",
                      help="fault injection: SIGKILL a process (agent-N, logger) at that sim time")  # fmt: skip
+    run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                     help="override a scenario key, e.g. leader.speed_mps=1.6 (repeatable)")  # fmt: skip
     run.add_argument("--timeout", type=float, default=None, help="wall-clock limit in s")
     run.set_defaults(func=_cmd_run)
+
+    scenarios = sub.add_parser("scenarios", help="list the shipped scenarios with their descriptions")
+    scenarios.set_defaults(func=_cmd_scenarios)
 
     for name, (_, text) in DELEGATED.items():
         sub.add_parser(name, help=text + f"; see swarm {name} --help")

@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import json
+import math
 import os
 import queue
 import shutil
@@ -130,6 +131,18 @@ class KillAt:
     who: str
     time_s: float
 
+    @classmethod
+    def parse(cls, text: str) -> KillAt:
+        """``"agent-3@20"`` -> KillAt("agent-3", 20.0)."""
+        who, sep, when = str(text).partition("@")
+        try:
+            time_s = float(when)
+        except ValueError:
+            time_s = math.nan
+        if not sep or not who or not math.isfinite(time_s) or time_s < 0:
+            raise ValueError(f"a kill is PROCESS@SECONDS with SECONDS >= 0 (e.g. agent-3@20), got {text!r}")
+        return cls(who, time_s)
+
 
 class Launch:
     """One run. Use as a context manager: leaving it always stops and reaps."""
@@ -146,14 +159,14 @@ class Launch:
         live: str | None = None,
         serve_web: bool = False,
         web_ports: tuple[int, int] = (9876, 9090),
-        kills: Sequence[KillAt] = (),
+        kills: Sequence[KillAt | str] = (),
         progress: Callable[[str], None] | None = None,
         run_id: str | None = None,
         python: str = sys.executable,
     ) -> None:
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be 'lockstep' or 'realtime', got {mode!r}")
-        self.scenario_path = Path(scenario_path)
+        self.scenario_path = scenario_mod.resolve(scenario_path)
         ov = dict(overrides or {})
         if seed is not None:
             ov["run.seed"] = seed
@@ -166,7 +179,7 @@ class Launch:
         self.live = live
         self.serve_web = serve_web
         self.web_ports = web_ports  # (gRPC, web viewer), with serve_web
-        self.kills = sorted(kills, key=lambda k: k.time_s)
+        self.kills = sorted((k if isinstance(k, KillAt) else KillAt.parse(k) for k in kills), key=lambda k: k.time_s)
         self.progress = progress or (lambda line: print(line, flush=True))
         self.python = python
         self.port = 0
@@ -177,8 +190,14 @@ class Launch:
         self.events: list[dict[str, Any]] = []
         self.started_at = 0.0
         for k in self.kills:
+            if k.who == "world":
+                raise ValueError(
+                    "cannot kill the world: it keeps the clock and ends the run; kill an agent or the logger"
+                )
             if k.who not in self._names():
-                raise ValueError(f"cannot kill {k.who!r}: processes are {self._names()}")
+                raise ValueError(f"cannot kill {k.who!r}: processes are {', '.join(self._names()[1:])}")
+            if k.time_s > self.sc.duration_s:
+                raise ValueError(f"cannot kill {k.who} at {k.time_s:g} s: the run lasts {self.sc.duration_s:g} s")
 
     def _names(self) -> list[str]:
         return ["world", *(["logger"] if self.logger else []), *(f"agent-{r}" for r in self.sc.robots)]
@@ -221,8 +240,8 @@ class Launch:
 
         stats = self.run_dir / "stats"
         specs = {
-            "world": [*py("world.process"), *common, "--clock", self.mode, "--stats", str(stats / "world.json"),
-                      "--mode", "router", "--listen", self.endpoint, *(["--expect-logger"] if self.logger else [])],
+            "world": [*py("world.process"), *common, "--mode", self.mode, "--stats", str(stats / "world.json"),
+                      "--zenoh-mode", "router", "--listen", self.endpoint, *["--expect-logger"] * self.logger],
         }  # fmt: skip
         if self.logger:
             extra = ["--live", self.live] if self.live else []

@@ -2,7 +2,7 @@
 
     swarm router --listen tcp/0.0.0.0:7447
 
-Runs until SIGINT/SIGTERM. Start the world with ``--mode client --connect``
+Runs until SIGINT/SIGTERM. Start the world with ``--zenoh-mode client --connect``
 to it (or let the world be the router, the default) and agents anywhere
 with ``--connect tcp/ROUTER_HOST:7447``.
 """

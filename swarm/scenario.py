@@ -1,14 +1,16 @@
 """Scenario files (TOML): robots, formations, the leader's path, obstacles,
 noise, controller parameters, link faults, seed, dt and duration.
 
+A scenario is named by a path to its file or by the name of a shipped one
+(``fig11_obstacles``: ``scenarios/*.toml``, installed with the package).
 Unknown keys are errors that name the key and suggest the closest valid one;
-invalid values are errors that name the key and the value. See
-``scenarios/*.toml`` for complete examples.
+invalid values are errors that name the key and the value.
 """
 
 from __future__ import annotations
 
 import difflib
+import importlib.resources
 import math
 import tomllib
 from collections.abc import Mapping
@@ -418,21 +420,70 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
     )
 
 
+def shipped() -> dict[str, Path]:
+    """The scenarios installed with the package, by name (file name without .toml)."""
+    folder = Path(str(importlib.resources.files("formation_swarm.scenarios")))
+    return {p.stem: p for p in sorted(folder.glob("*.toml"))}
+
+
+def description(path: Path) -> str:
+    """A scenario file's one-line description: its first comment line."""
+    for text in path.read_text().splitlines():
+        if text.startswith("#"):
+            return text.lstrip("# ").strip()
+        if text.strip():
+            break
+    return ""
+
+
+def resolve(spec: str | Path) -> Path:
+    """A scenario's file from a path or from the name of a shipped scenario."""
+    p = Path(spec)
+    if p.suffix == ".toml" or p.parent != Path(".") or p.exists():
+        if not p.is_file():
+            raise ScenarioError(f"scenario file not found: {p}")
+        return p
+    known = shipped()
+    if str(spec) in known:
+        return known[str(spec)]
+    close = difflib.get_close_matches(str(spec), list(known), n=1, cutoff=0.5)
+    hint = f"; did you mean {close[0]!r}?" if close else f"; shipped scenarios: {', '.join(known)}"
+    raise ScenarioError(f"no scenario file or shipped scenario named {str(spec)!r}" + hint)
+
+
 def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
-    """Read a scenario file; ``overrides`` maps dotted keys ("run.seed") to values."""
-    p = Path(path)
+    """Read a scenario (a file or a shipped scenario's name); ``overrides`` maps
+    dotted keys ("run.seed") to values, checked like the file's own."""
+    p = resolve(path)
     try:
         raw = tomllib.loads(p.read_text())
-    except FileNotFoundError:
-        raise ScenarioError(f"scenario file not found: {p}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{p}: not valid TOML: {exc}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ScenarioError(f"{p}: cannot read the scenario: {exc}") from None
     for dotted, value in (overrides or {}).items():
         raw = _deep_set(raw, tuple(dotted.split(".")), value)
     try:
         return from_dict(raw)
     except ScenarioError as exc:
         raise ScenarioError(f"{p}: {exc}") from None
+
+
+def parse_value(text: str) -> Any:
+    """A value given on the command line: TOML (numbers, booleans, quoted
+    strings, arrays), or else the text itself as a string."""
+    try:
+        return tomllib.loads(f"v = {text.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text.strip()
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """``"leader.speed_mps=1.6"`` -> ("leader.speed_mps", 1.6)."""
+    key, sep, value = text.partition("=")
+    if not sep or not key.strip() or not value.strip():
+        raise ScenarioError(f"--set takes KEY=VALUE (e.g. leader.speed_mps=1.6), got {text!r}")
+    return key.strip(), parse_value(value)
 
 
 def _deep_set(raw: Mapping[str, Any], path: tuple[str, ...], value: Any) -> dict[str, Any]:

@@ -24,7 +24,6 @@ import statistics
 import sys
 import threading
 import time
-import tomllib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
@@ -60,13 +59,7 @@ def parse_set(text: str) -> tuple[str, list[Any]]:
     key, sep, values = text.partition("=")
     if not sep or not key.strip() or not values.strip():
         raise ValueError(f"--set takes key=v1,v2,..., got {text!r}")
-    out = []
-    for raw in values.split(","):
-        raw = raw.strip()
-        try:
-            out.append(tomllib.loads(f"v = {raw}")["v"])
-        except tomllib.TOMLDecodeError:
-            out.append(raw)
+    out = [scenario_mod.parse_value(raw) for raw in values.split(",")]
     return key.strip(), out
 
 

@@ -73,7 +73,7 @@ def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tupl
     try:
         start("router", [*py, "formation_swarm.router", "--listen", router])
         start("world", [*py, "formation_swarm.world.process", *common, "--stats", str(tmp_path / "world.json"),
-                        "--mode", "client", "--connect", router, "--expect-logger"])  # fmt: skip
+                        "--zenoh-mode", "client", "--connect", router, "--expect-logger"])  # fmt: skip
         start("logger", [*py, "formation_swarm.logger", *common, "--out", str(tmp_path / "recording.rrd"),
                          "--stats", str(tmp_path / "logger.json"), "--connect", router])  # fmt: skip
         for rid in (1, 2, 3):

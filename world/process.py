@@ -1,9 +1,9 @@
 """The world process: clock, physics and sensors of one run over Zenoh.
 
-    swarm world --scenario S.toml --run RUN [--clock lockstep|realtime] [--seed N]
+    swarm world --scenario S.toml --run RUN [--mode lockstep|realtime] [--seed N]
                 [--stats FILE] [--expect-logger] [zenoh flags]
 
-By default it is also the run's Zenoh router (``--mode router --listen ...``):
+By default it is also the run's Zenoh router (``--zenoh-mode router --listen ...``):
 agents and the logger connect to it as clients.
 
 Lockstep: tick k is published to every live agent; tick k+1 starts when
@@ -353,7 +353,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument("--scenario", required=True)
     ap.add_argument("--run", required=True, help="run id: the first segment of every key")
-    ap.add_argument("--clock", choices=("lockstep", "realtime"), default="lockstep")
+    ap.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
     ap.add_argument("--seed", type=int, default=None, help="overrides the scenario's seed")
     ap.add_argument("--stats", help="write the world's metrics (JSON) here at the end")
     ap.add_argument("--expect-logger", action="store_true", help="wait for the logger before tick 0")
@@ -371,7 +371,7 @@ def main(argv: list[str] | None = None) -> int:
     sc, sess_cm = inputs
     seed = sc.seed if args.seed is None else args.seed
     with sess_cm as sess:
-        world = World(sess, sc, args.run, seed, args.clock, args.expect_logger, stop)
+        world = World(sess, sc, args.run, seed, args.mode, args.expect_logger, stop)
         code = world.run()
         wall = time.monotonic() - started
         stats = world.stats(wall)
