@@ -5,12 +5,14 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint bench results clean
+.PHONY: run test lint bench results docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[dev,bench]'
+	# setuptools prints a notice on every editable install of a mapped layout
+	# (folders named like the package could shadow it; none is named formation_swarm).
+	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/python -m pip install --quiet -e '.[dev,bench]'
 	touch $(STAMP)
 
 run: $(STAMP)
@@ -31,6 +33,10 @@ bench: $(STAMP)
 # The baseline table of docs/results.md (180 lockstep runs, resumable).
 results: $(STAMP)
 	$(BIN)/swarm results --seeds 10 --write docs/results.md --write README.md
+
+# Reference documents generated from the code (a test fails when one is stale).
+docs: $(STAMP)
+	$(BIN)/python -m formation_swarm.scenario_keys > docs/scenario.md
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -25,13 +25,24 @@ from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode
 from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.lpsi import LpsiParams
 from formation_swarm.protocol.keys import MAX_ROBOT_ID
+from formation_swarm.scenario_keys import (
+    CAMERA_KEYS,
+    CONTROLLER_KEYS,
+    EKF_KEYS,
+    FORMATION_KEYS,
+    LEADER_KEYS,
+    LINK_KEYS,
+    MAX_OBSTACLES,
+    NUM,
+    OBSTACLE_KEYS,
+    ROBOT_KEYS,
+    RUN_KEYS,
+    SLOT_KEYS,
+    TOP_KEYS,
+    Key,
+    type_name,
+)
 from formation_swarm.world.camera import CameraParams
-
-# The world's ground truth lists every robot in one message, and the leader's
-# observation every obstacle in range: both must fit protocol.messages.MAX_PAYLOAD_BYTES
-# (tests/test_messages.py encodes the largest ones).
-MAX_ROBOTS = 500
-MAX_OBSTACLES = 500
 
 
 class ScenarioError(ValueError):
@@ -110,74 +121,13 @@ class Scenario:
         return replace(self, seed=seed, raw=raw)
 
 
-# -- schema --------------------------------------------------------------------
-
-_NUM = (int, float)
-RUN_KEYS = {
-    "name": (str, "scenario"),
-    "seed": (int, 0),
-    "robots": (int, None),
-    "dt_s": (_NUM, 0.05),
-    "duration_s": (_NUM, None),
-    "lockstep_deadline_s": (_NUM, 2.0),
-    "stale_after_s": (_NUM, 0.5),
-}
-ROBOT_KEYS = {"width_m": (_NUM, 0.5), "marker_offset_m": (_NUM, 0.1), "diameter_m": (_NUM, 0.4)}
-CAMERA_KEYS = {
-    "fov_deg": (_NUM, 360.0),
-    "range_m": (_NUM, 10.0),
-    "sigma_rho_m": (_NUM, 0.05),
-    "sigma_phi_deg": (_NUM, 3.0),
-    "sigma_beta_deg": (_NUM, 1.5),
-}
-LEADER_KEYS = {
-    "id": (int, 1),
-    "speed_mps": (_NUM, 1.5),
-    "turn_rate_rps": (_NUM, 0.25),
-    "lookahead_m": (_NUM, 1.0),
-    "waypoints": (list, None),
-    "sensing_range_m": (_NUM, 6.0),
-    "formation": (str, None),
-    "avoid_formation": (str, ""),
-    "clear_after_s": (_NUM, 2.0),
-    "code_burst_s": (_NUM, 1.0),
-    "code_period_s": (_NUM, 0.5),
-}
-FORMATION_KEYS = {
-    "shape": (str, None),
-    "lateral_m": (_NUM, 1.5),
-    "back_m": (_NUM, 1.5),
-    "spacing_m": (_NUM, 1.5),
-    "slots": (dict, {}),
-}
-EKF_KEYS = {f.name: (_NUM, getattr(EkfParams(), f.name)) for f in EkfParams.__dataclass_fields__.values()}
-_FZ = FuzzyParams()
-CONTROLLER_KEYS: dict[str, tuple[Any, Any]] = {
-    "vn": ((str, int, float), "dynamic"),
-    "use_ekf": (bool, True),
-    "clearance_m": (_NUM, 1.0),
-    "lost_after_s": (_NUM, 1.0),
-    "gamma_deg": (_NUM, math.degrees(_FZ.gamma_rad)),
-    **{k: (_NUM, getattr(_FZ, k)) for k in ("d0_m", "dn_m", "d1_m", "dmax_m", "a_mps", "vn_min", "vm", "vn_max")},
-    "drho_rate_tol_mps": (_NUM, _FZ.drho_rate_tol_mps),
-    "ekf": (dict, {}),
-    "law": (str, "fuzzy"),
-    "lpsi_l_gain": (_NUM, 1.0),
-    "lpsi_psi_gain": (_NUM, 1.0),
-    "lpsi_d_m": (_NUM, 0.25),
-}
-OBSTACLE_KEYS = {"x_m": (_NUM, None), "y_m": (_NUM, None), "radius_m": (_NUM, None)}
-LINK_KEYS = {"obs_drop": (_NUM, 0.0), "cmd_drop": (_NUM, 0.0), "formation_drop": (_NUM, 0.0)}
-TOP_KEYS = ("run", "robot", "camera", "leader", "formations", "controller", "followers", "obstacles", "links")
-
-
 def _suggest(key: str, valid: list[str] | tuple[str, ...]) -> str:
     close = difflib.get_close_matches(key, list(valid), n=1, cutoff=0.5)
     return f"; did you mean {close[0]!r}?" if close else f"; valid keys: {', '.join(valid)}"
 
 
-def _table(raw: Any, where: str, schema: Mapping[str, tuple[Any, Any]]) -> dict[str, Any]:
-    """Check one table against its schema; fill defaults; reject unknown keys."""
+def _table(raw: Any, where: str, schema: Mapping[str, Key]) -> dict[str, Any]:
+    """Check one table against its schema (types and ranges); fill defaults; reject unknown keys."""
     if raw is None:
         raw = {}
     if not isinstance(raw, dict):
@@ -186,34 +136,21 @@ def _table(raw: Any, where: str, schema: Mapping[str, tuple[Any, Any]]) -> dict[
     for key, value in raw.items():
         if key not in schema:
             raise ScenarioError(f"unknown key {where}.{key}" + _suggest(key, tuple(schema)))
-        types, _ = schema[key]
-        if isinstance(value, bool) and types is not bool and bool not in (types if isinstance(types, tuple) else ()):
-            raise ScenarioError(f"{where}.{key} must be {_type_name(types)}, got {value!r}")
-        if not isinstance(value, types):
-            raise ScenarioError(f"{where}.{key} must be {_type_name(types)}, got {value!r}")
+        spec = schema[key]
+        types = spec.types if isinstance(spec.types, tuple) else (spec.types,)
+        if (isinstance(value, bool) and bool not in types) or not isinstance(value, types):
+            raise ScenarioError(f"{where}.{key} must be {type_name(spec.types)}, got {value!r}")
         if isinstance(value, float) and not math.isfinite(value):
             raise ScenarioError(f"{where}.{key} must be finite, got {value!r}")
+        if (why := spec.check_range(f"{where}.{key}", value)) is not None:
+            raise ScenarioError(why)
         out[key] = value
-    for key, (_, default) in schema.items():
+    for key, spec in schema.items():
         if key not in out:
-            if default is None:
+            if spec.required:
                 raise ScenarioError(f"missing key {where}.{key}")
-            out[key] = default
+            out[key] = spec.default
     return out
-
-
-def _type_name(types: Any) -> str:
-    if isinstance(types, tuple):
-        return " or ".join(sorted({t.__name__.replace("int", "number").replace("float", "number") for t in types}))
-    return {"list": "an array", "dict": "a table", "str": "a string", "bool": "true or false", "int": "an integer"}.get(
-        types.__name__, types.__name__
-    )
-
-
-def _positive(where: str, value: float) -> float:
-    if not value > 0:
-        raise ScenarioError(f"{where} must be > 0, got {value!r}")
-    return float(value)
 
 
 def _wrap(where: str, fn: Any, *args: Any, **kwargs: Any) -> Any:
@@ -239,9 +176,9 @@ def _formation(name: str, raw: Any, robots: tuple[int, ...]) -> Formation:
             sw = f"{where}.slots.{rid_text}"
             if not str(rid_text).isdigit():
                 raise ScenarioError(f"{sw}: slot keys are robot ids, got {rid_text!r}")
-            st = _table(slot, sw, {"reference": (int, None), "offset": (list, None)})
+            st = _table(slot, sw, SLOT_KEYS)
             off = st["offset"]
-            if len(off) != 2 or not all(isinstance(v, _NUM) and not isinstance(v, bool) for v in off):
+            if len(off) != 2 or not all(isinstance(v, NUM) and not isinstance(v, bool) for v in off):
                 raise ScenarioError(f"{sw}.offset must be [x_m, y_m], got {off!r}")
             slots[int(rid_text)] = Slot(st["reference"], Point(float(off[0]), float(off[1])))
         form = _wrap(where, Formation, name, slots)
@@ -302,16 +239,10 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         if key not in TOP_KEYS:
             raise ScenarioError(f"unknown section [{key}]" + _suggest(key, TOP_KEYS))
     run = _table(raw.get("run"), "run", RUN_KEYS)
-    dt = _positive("run.dt_s", run["dt_s"])
-    duration = _positive("run.duration_s", run["duration_s"])
-    _positive("run.lockstep_deadline_s", run["lockstep_deadline_s"])
-    _positive("run.stale_after_s", run["stale_after_s"])
+    dt = float(run["dt_s"])
+    duration = float(run["duration_s"])
     n = run["robots"]
-    if not 2 <= n <= MAX_ROBOTS:
-        raise ScenarioError(f"run.robots must be in [2, {MAX_ROBOTS}], got {n!r}")
     robot = _table(raw.get("robot"), "robot", ROBOT_KEYS)
-    for k in ("width_m", "diameter_m"):
-        _positive(f"robot.{k}", robot[k])
     cam = _table(raw.get("camera"), "camera", CAMERA_KEYS)
     camera = _wrap(
         "camera",
@@ -329,14 +260,10 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         raise ScenarioError(f"leader.id must be in [1, {MAX_ROBOT_ID - n + 1}], got {ld['id']!r}")
     wps = ld["waypoints"]
     if len(wps) < 2 or not all(
-        isinstance(p, list) and len(p) == 2 and all(isinstance(v, _NUM) and not isinstance(v, bool) for v in p)
+        isinstance(p, list) and len(p) == 2 and all(isinstance(v, NUM) and not isinstance(v, bool) for v in p)
         for p in wps
     ):
         raise ScenarioError(f"leader.waypoints must be at least 2 points [x_m, y_m], got {wps!r}")
-    for k in ("speed_mps", "turn_rate_rps", "lookahead_m", "sensing_range_m", "clear_after_s", "code_period_s"):
-        _positive(f"leader.{k}", ld[k])
-    if not ld["code_burst_s"] >= 0:
-        raise ScenarioError(f"leader.code_burst_s must be >= 0, got {ld['code_burst_s']!r}")
 
     forms_raw = raw.get("formations")
     if not isinstance(forms_raw, dict) or not forms_raw:
@@ -381,13 +308,8 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         raise ScenarioError(f"at most {MAX_OBSTACLES} obstacles, got {len(obs_raw)}")
     for i, o in enumerate(obs_raw):
         t = _table(o, f"obstacles[{i}]", OBSTACLE_KEYS)
-        obstacles.append(
-            Obstacle(float(t["x_m"]), float(t["y_m"]), _positive(f"obstacles[{i}].radius_m", t["radius_m"]))
-        )
+        obstacles.append(Obstacle(float(t["x_m"]), float(t["y_m"]), float(t["radius_m"])))
     lk = _table(raw.get("links"), "links", LINK_KEYS)
-    for k, v in lk.items():
-        if not 0.0 <= v <= 1.0:
-            raise ScenarioError(f"links.{k} must be a probability in [0, 1], got {v!r}")
     return Scenario(
         name=run["name"],
         seed=run["seed"],

@@ -20,7 +20,7 @@ from formation_swarm.protocol.messages import (
     Telemetry,
     Truth,
 )
-from formation_swarm.scenario import MAX_OBSTACLES, MAX_ROBOTS
+from formation_swarm.scenario_keys import MAX_OBSTACLES, MAX_ROBOTS
 
 EXAMPLES = [
     Observation(0, 7, 3, 0.15, (1.0, -2.0, 0.5), ((1, 2.0, 0.1, -0.2),), ()),

@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from formation_swarm import scenario as sm
-from tests.conftest import SCENARIOS
+from formation_swarm.scenario_keys import MAX_OBSTACLES, MAX_ROBOTS, markdown
+from tests.conftest import ROOT, SCENARIOS
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"
 
@@ -27,14 +28,20 @@ def test_every_shipped_scenario_loads(path: Path) -> None:
         ({"leader.sped_mps": 1.0}, "unknown key leader.sped_mps; did you mean 'speed_mps'?"),
         ({"controller.gama_deg": 1.0}, "unknown key controller.gama_deg; did you mean 'gamma_deg'?"),
         ({"linkz": {}}, "unknown section [linkz]; did you mean 'links'?"),
-        ({"links.obs_drop": 1.5}, "links.obs_drop must be a probability in [0, 1], got 1.5"),
+        ({"links.obs_drop": 1.5}, "links.obs_drop must be in [0, 1], got 1.5"),
         ({"run.dt_s": -0.05}, "run.dt_s must be > 0, got -0.05"),
         ({"run.dt_s": "fast"}, "run.dt_s must be"),
-        ({"run.robots": 1}, f"run.robots must be in [2, {sm.MAX_ROBOTS}], got 1"),
-        ({"run.robots": sm.MAX_ROBOTS + 1}, f"run.robots must be in [2, {sm.MAX_ROBOTS}]"),
-        ({"obstacles": [{"x_m": 0.0, "y_m": 0.0, "radius_m": 1.0}] * (sm.MAX_OBSTACLES + 1)},
-         f"at most {sm.MAX_OBSTACLES} obstacles, got {sm.MAX_OBSTACLES + 1}"),
+        ({"run.robots": 1}, f"run.robots must be in [2, {MAX_ROBOTS}], got 1"),
+        ({"run.robots": MAX_ROBOTS + 1}, f"run.robots must be in [2, {MAX_ROBOTS}]"),
+        ({"obstacles": [{"x_m": 0.0, "y_m": 0.0, "radius_m": 1.0}] * (MAX_OBSTACLES + 1)},
+         f"at most {MAX_OBSTACLES} obstacles, got {MAX_OBSTACLES + 1}"),
         ({"obstacles": [{"x_m": 0.0, "y_m": 0.0, "radius": 1.0}]}, "did you mean 'radius_m'?"),
+        ({"obstacles": [{"x_m": 0.0, "y_m": 0.0, "radius_m": 0.0}]}, "obstacles[0].radius_m must be > 0, got 0.0"),
+        ({"run.seed": -3}, "run.seed must be >= 0, got -3"),
+        ({"camera.fov_deg": 400.0}, "camera.fov_deg must be in (0, 360], got 400.0"),
+        ({"leader.code_burst_s": -1}, "leader.code_burst_s must be >= 0, got -1"),
+        ({"controller.ekf": {"q_pos": 1.0}}, "unknown key controller.ekf.q_pos; did you mean 'q_pos_m'?"),
+        ({"controller.use_ekf": 1}, "controller.use_ekf must be true or false, got 1"),
     ],
 )  # fmt: skip
 def test_bad_keys_and_values_name_the_key(overrides: dict, message: str) -> None:
@@ -51,3 +58,31 @@ def test_missing_file_and_bad_toml_are_clear(tmp_path: Path) -> None:
     bad.write_text("[run\nrobots = 3\n")
     with pytest.raises(sm.ScenarioError, match="not valid TOML"):
         sm.load(bad)
+
+
+def test_a_shipped_scenario_loads_by_name_and_a_near_miss_is_suggested() -> None:
+    assert set(sm.shipped()) == {p.stem for p in SCENARIOS.glob("*.toml")}
+    assert sm.load("fig11_obstacles").name == sm.load(FIG11).name == "fig11-obstacles"
+    with pytest.raises(sm.ScenarioError, match="named 'fig11'; did you mean 'fig11_obstacles'"):
+        sm.load("fig11")
+    assert all(sm.description(p) for p in sm.shipped().values())
+
+
+def test_command_line_values_parse_as_toml_or_text() -> None:
+    assert sm.parse_override("leader.speed_mps=1.6") == ("leader.speed_mps", 1.6)
+    assert sm.parse_override("leader.waypoints=[[0, 0], [0, 9.5]]") == ("leader.waypoints", [[0, 0], [0, 9.5]])
+    assert sm.parse_override("controller.vn = dynamic") == ("controller.vn", "dynamic")
+    with pytest.raises(sm.ScenarioError, match="KEY=VALUE"):
+        sm.parse_override("leader.speed_mps")
+
+
+def test_docs_scenario_md_is_generated_from_the_schema() -> None:
+    doc = (ROOT / "docs" / "scenario.md").read_text()
+    assert doc == markdown(), "docs/scenario.md is stale: run make docs"
+    # every key the loader accepts in a shipped scenario appears in the document
+    for path in SCENARIOS.glob("*.toml"):
+        for section, table in sm.load(path).raw.items():
+            keys = table.keys() if isinstance(table, dict) else {k for item in table for k in item}
+            for key in keys:
+                if section not in ("formations", "followers"):
+                    assert f"| `{key}` |" in doc, f"{section}.{key}"
