@@ -30,7 +30,8 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import zenoh
 
@@ -64,6 +65,7 @@ def make_config(
     config_file: str | None = None,
     connect_timeout_s: float = 30.0,
     lowlatency: bool = True,
+    settings: Mapping[str, Any] | None = None,
 ) -> zenoh.Config:
     """``lowlatency=False`` keeps Zenoh's default transport (the benchmark's bare
     exchange); it and the size filter are only set without a configuration file."""
@@ -89,6 +91,11 @@ def make_config(
         conf.insert_json5("connect/retry", '{"period_init_ms": 50, "period_max_ms": 500, "period_increase_factor": 2}')
     if listen:
         conf.insert_json5("listen/endpoints", json.dumps(list(listen)))
+    for path, value in (settings or {}).items():  # credentials and access rules (protocol.trust)
+        try:
+            conf.insert_json5(path, json.dumps(value))
+        except zenoh.ZError as exc:
+            raise ValueError(f"invalid Zenoh setting {path}: {exc}") from None
     return conf
 
 

@@ -1,0 +1,188 @@
+"""Who may say what: one identity per role, and the router's access rules.
+
+Every process of a run authenticates to the router with its own user name and
+password (Zenoh's usrpwd authentication), and the router holds access rules
+that deny everything not granted (``default_permission: deny``):
+
+    world     publishes observations, truth and run status; subscribes to commands
+    agent-N   publishes robot N's command and telemetry (the leader also the
+              formation codes); subscribes to robot N's inbox and the run status
+    logger    subscribes to the world's streams and the telemetry; publishes nothing
+    launcher  subscribes to the run status
+
+Each role may also hold its own liveliness token and watch the tokens it
+needs. A client without credentials cannot connect at all; one holding a
+role's credentials can only do what that role does. Receivers still check
+every message (sender against key, tick window, physical bounds): the rules
+stop strangers, the checks stop a role that misbehaves.
+
+Facts measured with eclipse-zenoh 1.10.2: a publisher's puts only leave a
+client once the router has told it of a matching subscriber, so every role
+may learn the run's subscriber declarations (egress ``declare_subscriber``
+on the whole run); rules apply only at the router that holds them.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import secrets
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from formation_swarm.protocol.keys import Keys, check_robot_id
+
+_USER = re.compile(r"^[a-z][a-z0-9-]{0,31}$")
+
+
+@dataclass(frozen=True)
+class Credential:
+    user: str
+    password: str
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.user, str) or not _USER.match(self.user):
+            raise ValueError(f"user must be 1-32 lowercase letters, digits or '-', got {self.user!r}")
+        if not isinstance(self.password, str) or len(self.password) < 16 or ":" in self.password:
+            raise ValueError("password must be at least 16 characters without ':'")
+
+    def __repr__(self) -> str:  # never print a password
+        return f"Credential(user={self.user!r}, password=***)"
+
+
+@dataclass(frozen=True)
+class Grants:
+    """What one identity may do, as key expressions."""
+
+    publish: tuple[str, ...] = ()
+    subscribe: tuple[str, ...] = ()
+    tokens: tuple[str, ...] = ()
+    watch: tuple[str, ...] = ()
+
+
+def agent_user(robot_id: int) -> str:
+    return f"agent-{check_robot_id(robot_id)}"
+
+
+def grants(run_id: str, robots: Sequence[int], leader_id: int) -> dict[str, Grants]:
+    """Every identity of a run and what it may do."""
+    k = Keys(run_id)
+    followers = [r for r in robots if r != leader_id]
+    out = {
+        "world": Grants(
+            publish=(*(k.obs(r) for r in robots), k.truth, k.status, k.world_wake),
+            subscribe=(k.all_cmd,),
+            tokens=(k.alive("world", 0),),
+            watch=(f"{k.prefix}/alive/*/*",),
+        ),
+        "logger": Grants(
+            subscribe=(k.world_all, k.all_telemetry),
+            tokens=(k.alive("logger", 0),),
+            watch=(k.alive("world", 0),),
+        ),
+        "launcher": Grants(subscribe=(k.status,), watch=(f"{k.prefix}/alive/*/*",)),
+    }
+    for rid in robots:
+        codes = tuple(k.formation(f) for f in followers) if rid == leader_id else ()
+        out[agent_user(rid)] = Grants(
+            publish=(k.cmd(rid), k.telemetry(rid), *codes),
+            subscribe=(k.inbox(rid), k.status),
+            tokens=(k.alive("agent", rid),),
+            watch=(k.alive("world", 0),),
+        )
+    return out
+
+
+def _rule(rule_id: str, flow: str, messages: list[str], keys: Iterable[str]) -> dict[str, Any]:
+    return {"id": rule_id, "permission": "allow", "flows": [flow], "messages": messages, "key_exprs": list(keys)}
+
+
+def access_control(run_id: str, robots: Sequence[int], leader_id: int) -> dict[str, Any]:
+    """The router's ``access_control`` section for one run: deny by default,
+    each identity granted exactly its role's keys."""
+    k = Keys(run_id)
+    rules: list[dict[str, Any]] = [
+        # Publishers only send once they know of a subscriber: everyone may learn the run's subscriptions.
+        _rule("learn-subscribers", "egress", ["declare_subscriber"], [k.everything]),
+    ]
+    subjects: list[dict[str, Any]] = []
+    policies: list[dict[str, Any]] = []
+    for user, g in grants(run_id, robots, leader_id).items():
+        own: list[dict[str, Any]] = []
+        if g.publish:
+            own.append(_rule(f"{user}-put", "ingress", ["put"], g.publish))
+        if g.subscribe:
+            own.append(_rule(f"{user}-sub", "ingress", ["declare_subscriber"], g.subscribe))
+            own.append(_rule(f"{user}-data", "egress", ["put"], g.subscribe))
+        if g.tokens:
+            own.append(_rule(f"{user}-token", "ingress", ["liveliness_token"], g.tokens))
+        if g.watch:
+            watching = ["declare_liveliness_subscriber", "liveliness_query"]
+            own.append(_rule(f"{user}-watch", "ingress", watching, g.watch))
+            own.append(_rule(f"{user}-seen", "egress", ["liveliness_token", "reply"], g.watch))
+        rules += own
+        subjects.append({"id": user, "usernames": [user]})
+        policies.append({"id": user, "rules": ["learn-subscribers", *(r["id"] for r in own)], "subjects": [user]})
+    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}
+
+
+def new_credentials(users: Iterable[str]) -> dict[str, Credential]:
+    """A fresh random password for each user (192 bits each)."""
+    return {u: Credential(u, secrets.token_urlsafe(24)) for u in users}
+
+
+def _write_private(path: Path, text: str) -> None:
+    """Create ``path`` readable by its owner only (0600), never visible with wider rights."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "w") as f:
+        f.write(text)
+    os.chmod(path, 0o600)
+
+
+def client_settings(cred: Credential) -> dict[str, Any]:
+    """Zenoh settings (path -> value) that make a session log in as ``cred``."""
+    return {"transport/auth/usrpwd": {"user": cred.user, "password": cred.password}}
+
+
+def router_settings(dictionary: Path, acl: dict[str, Any]) -> dict[str, Any]:
+    """Zenoh settings for the run's router: who may log in, and what each may do."""
+    return {"transport/auth/usrpwd": {"dictionary_file": str(dictionary)}, "access_control": acl}
+
+
+def write_run_secrets(folder: Path, run_id: str, robots: Sequence[int], leader_id: int) -> dict[str, Path]:
+    """Fresh credentials for every role of a run, in ``folder`` (0700, files 0600):
+    ``<user>.json`` for each client, ``router.json`` for the router (the world
+    of a local run), which points to the password dictionary. Returns the
+    settings file of each user and of "router"."""
+    folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+    os.chmod(folder, 0o700)
+    creds = new_credentials(grants(run_id, robots, leader_id))
+    dictionary = folder / "passwords.txt"
+    _write_private(dictionary, "".join(f"{c.user}:{c.password}\n" for c in creds.values()))
+    out: dict[str, Path] = {}
+    for user, cred in creds.items():
+        out[user] = folder / f"{user}.json"
+        _write_private(out[user], json.dumps(client_settings(cred)))
+    out["router"] = folder / "router.json"
+    router = router_settings(dictionary, access_control(run_id, robots, leader_id))
+    _write_private(out["router"], json.dumps(router))
+    return out
+
+
+def read_settings(path: str | Path) -> dict[str, Any]:
+    """A settings file written by ``write_run_secrets`` (or by hand): a JSON object
+    of Zenoh configuration paths and values. Refused when others may read it."""
+    p = Path(path)
+    try:
+        mode = p.stat().st_mode
+        data = json.loads(p.read_text())
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"cannot read the credentials file {p}: {exc}") from None
+    if mode & 0o077:
+        raise ValueError(f"{p} is readable by other users (mode {mode & 0o777:o}): chmod 600 {p}")
+    if not isinstance(data, dict) or not all(isinstance(key, str) for key in data):
+        raise ValueError(f"{p} must hold a JSON object of Zenoh settings")
+    return data

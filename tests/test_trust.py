@@ -1,0 +1,143 @@
+"""The router's walls: who may connect, publish and subscribe on a run's keys."""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+import threading
+import time
+import uuid
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from formation_swarm.launcher import free_port
+from formation_swarm.protocol import trust
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.protocol.session import make_config
+
+ROBOTS = (1, 2, 3)
+
+
+class Router:
+    """A run's router (as the world of a local run is), with its access rules."""
+
+    def __init__(self, tmp_path: Path) -> None:
+        self.run = f"trust-{uuid.uuid4().hex[:8]}"
+        self.keys = Keys(self.run)
+        self.files = trust.write_run_secrets(tmp_path / "secrets", self.run, ROBOTS, leader_id=1)
+        self.endpoint = f"tcp/127.0.0.1:{free_port()}"
+        conf = make_config("router", listen=[self.endpoint], settings=trust.read_settings(self.files["router"]))
+        self.session = zenoh.open(conf)
+        self.sessions: list[zenoh.Session] = [self.session]
+
+    def client(self, user: str | None, password: str | None = None) -> zenoh.Session:
+        settings = trust.read_settings(self.files[user]) if user and password is None else {}
+        if password is not None:
+            settings = trust.client_settings(trust.Credential(user or "nobody", password))
+        conf = make_config("client", [self.endpoint], connect_timeout_s=2.0, settings=settings)
+        s = zenoh.open(conf)
+        self.sessions.append(s)
+        return s
+
+    def close(self) -> None:
+        for s in reversed(self.sessions):
+            s.close()
+
+
+@pytest.fixture
+def router(tmp_path: Path) -> Iterator[Router]:
+    r = Router(tmp_path)
+    try:
+        yield r
+    finally:
+        r.close()
+
+
+def collect(session: zenoh.Session, key: str) -> tuple[list[str], threading.Event]:
+    got: list[str] = []
+    event = threading.Event()
+
+    def on(sample: zenoh.Sample) -> None:
+        got.append(str(sample.key_expr))
+        event.set()
+
+    session.declare_subscriber(key, on)
+    return got, event
+
+
+def wait_for(cond: Callable[[], bool], timeout_s: float = 5.0) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if cond():
+            return True
+        time.sleep(0.01)
+    return cond()
+
+
+def test_secrets_are_private_and_fresh(tmp_path: Path) -> None:
+    a = trust.write_run_secrets(tmp_path / "a", "r1", ROBOTS, 1)
+    b = trust.write_run_secrets(tmp_path / "b", "r1", ROBOTS, 1)
+    assert set(a) == {"world", "logger", "launcher", "agent-1", "agent-2", "agent-3", "router"}
+    assert stat.S_IMODE(os.stat(tmp_path / "a").st_mode) == 0o700
+    for path in [*a.values(), tmp_path / "a" / "passwords.txt"]:
+        assert stat.S_IMODE(os.stat(path).st_mode) == 0o600
+    assert json.loads(a["agent-2"].read_text()) != json.loads(b["agent-2"].read_text())
+    assert "password=***" in repr(trust.Credential("agent-2", "x" * 20))
+    os.chmod(a["logger"], 0o644)
+    with pytest.raises(ValueError, match="readable by other users"):
+        trust.read_settings(a["logger"])
+
+
+def test_no_credentials_or_a_wrong_password_cannot_connect(router: Router) -> None:
+    with pytest.raises(zenoh.ZError):
+        router.client(None)
+    with pytest.raises(zenoh.ZError):
+        router.client("agent-2", password="not-the-password-of-agent-2")
+
+
+def test_each_role_publishes_only_its_own_keys(router: Router) -> None:
+    k = router.keys
+    cmds, _ = collect(router.session, k.all_cmd)
+    codes, _ = collect(router.session, f"{k.prefix}/robot/*/formation")
+    agent2 = router.client("agent-2")
+    leader = router.client("agent-1")
+    # The refused puts go first; the allowed ones after them on the same link
+    # (in order), so once these arrived the others would have.
+    agent2.put(k.status, b"done")  # only the world may end a run
+    for s, key in [(agent2, k.cmd(3)), (agent2, k.formation(3)), (leader, k.formation(3)), (agent2, k.cmd(2))]:
+        s.declare_publisher(key).put(b"x")
+    assert wait_for(lambda: cmds == [k.cmd(2)] and codes == [k.formation(3)])
+    assert cmds == [k.cmd(2)]
+    assert codes == [k.formation(3)]
+
+
+def test_each_role_hears_only_what_it_needs(router: Router) -> None:
+    k = router.keys
+    agent2, logger = router.client("agent-2"), router.client("logger")
+    heard2, _ = collect(agent2, f"{k.prefix}/**")  # refused at the router: it only hears what its inbox gets
+    inbox2, _ = collect(agent2, k.inbox(2))
+    truth, _ = collect(logger, k.truth)
+    obs3_by_logger, _ = collect(logger, k.obs(3))  # refused: the logger does not read observations
+    pubs = {key: router.session.declare_publisher(key) for key in (k.obs(3), k.truth, k.obs(2))}
+    assert wait_for(lambda: pubs[k.obs(2)].matching_status.matching and pubs[k.truth].matching_status.matching)
+    assert not pubs[k.obs(3)].matching_status.matching  # nobody may read robot 3's observations
+    for pub in pubs.values():  # in this order on each link
+        pub.put(b"x")
+    assert wait_for(lambda: inbox2 == [k.obs(2)] and truth == [k.truth])
+    assert heard2 == [k.obs(2)]
+    assert obs3_by_logger == []
+
+
+def test_a_role_cannot_hold_another_robots_liveliness_token(router: Router) -> None:
+    k = router.keys
+    seen: list[str] = []
+    router.session.liveliness().declare_subscriber(f"{k.prefix}/alive/*/*", lambda s: seen.append(str(s.key_expr)))
+    agent2 = router.client("agent-2")
+    agent2.liveliness().declare_token(k.alive("agent", 3))
+    agent2.liveliness().declare_token(k.alive("agent", 2))
+    assert wait_for(lambda: k.alive("agent", 2) in seen)  # declared after the refused one, on the same link
+    assert set(seen) == {k.alive("agent", 2)}
