@@ -106,6 +106,14 @@ def _h_jacobian(state: np.ndarray, d: float) -> np.ndarray:
     )
 
 
+# Beyond these the filter has diverged: no camera sees a marker a kilometre
+# away, no robot of ours moves at 100 m/s, and a real run's covariance stays
+# far under 1e6 (its diagonal: m^2, rad^2, (m/s)^2, (rad/s)^2).
+MAX_POSITION_M = 1e3
+MAX_SPEED = 1e2  # m/s and rad/s
+MAX_COVARIANCE_TRACE = 1e6
+
+
 class TargetEKF:
     """Tracks one reference robot from marker readings and the own wheel speeds."""
 
@@ -118,9 +126,28 @@ class TargetEKF:
         self._q_dt = math.nan
         self._q = np.zeros((5, 5))
         self.initialized = False
+        self.resets = 0  # divergences: a state or covariance no longer finite and bounded
 
     def reset(self) -> None:
         self.initialized = False
+
+    def _check(self) -> None:
+        """After a step: a filter that diverged (a reading far outside the model,
+        numbers overflowing) starts again from the next reading instead of
+        raising or steering on garbage."""
+        x, y, phi, v, w = self._kf.x[:, 0].tolist()
+        trace = float(self._kf.P.trace())
+        # Written out (a tick's hot path); a nan fails every comparison.
+        if not (
+            0.0 <= trace < MAX_COVARIANCE_TRACE
+            and abs(x) < MAX_POSITION_M
+            and abs(y) < MAX_POSITION_M
+            and math.isfinite(phi)
+            and abs(v) < MAX_SPEED
+            and abs(w) < MAX_SPEED
+        ):
+            self.initialized = False
+            self.resets += 1
 
     def predict(self, v_left_mps: float, v_right_mps: float, dt_s: float) -> None:
         """Eq. 17-18 with the follower's own wheel speeds (eq. 8-9)."""
@@ -152,6 +179,7 @@ class TargetEKF:
         )
         kf.Q = self._process_noise(dt)
         kf.predict(u=(v_f, dth, dt))
+        self._check()
 
     def _process_noise(self, dt: float) -> np.ndarray:
         """Q for a step of ``dt`` (the same every tick: built once per dt)."""
@@ -175,8 +203,13 @@ class TargetEKF:
             return
         z = np.array([[rho], [beta], [phi]])
         d = self.marker_offset_m
-        self._kf.update(z, _h_jacobian, _hx, args=(d,), hx_args=(d,), residual=_residual)
-        self._kf.x[2, 0] = wrap_angle(self._kf.x[2, 0])
+        try:
+            self._kf.update(z, _h_jacobian, _hx, args=(d,), hx_args=(d,), residual=_residual)
+        except (ValueError, np.linalg.LinAlgError):  # a singular or non-finite innovation covariance
+            self._kf.x[0, 0] = math.inf  # counted and reset by _check
+        self._check()
+        if self.initialized:
+            self._kf.x[2, 0] = wrap_angle(self._kf.x[2, 0])
 
     def _initialize(self, rho: float, phi: float, beta: float) -> None:
         """Invert eq. 1 for the first reading; speed unknown (0 +- initial sigma)."""

@@ -114,8 +114,8 @@ class Follower:
             self.prepare()
             self._predicted = False
             self.ekf.update(reading)
-        if self._since_reading_s > p.lost_after_s or self._raw is None:
-            return self._stop(measured)
+        if self._since_reading_s > p.lost_after_s or self._raw is None or (p.use_ekf and not self.ekf.initialized):
+            return self._stop(measured)  # lost, never seen, or the EKF restarts (diverged)
 
         if p.use_ekf:
             leader, phi = self.ekf.leader()

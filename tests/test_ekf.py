@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from formation_swarm.agents.ekf import EkfParams, TargetEKF, _h_jacobian, _hx
+from formation_swarm.agents.follower import Follower, FollowerParams
 from formation_swarm.agents.geometry import Point
 from formation_swarm.sim import paper_turning_setup, run
 
@@ -116,3 +117,31 @@ def test_bad_parameters() -> None:
         EkfParams(sigma_rho_m=0.0)
     with pytest.raises(ValueError, match="width_m"):
         TargetEKF(EkfParams(), 0.1, -1.0)
+
+
+@pytest.mark.parametrize("rho_m", [1e200, 1e12, 1e6, 5e3])
+def test_a_reading_far_outside_the_model_resets_the_filter_instead_of_raising(rho_m: float) -> None:
+    """A wild reading (a spoofed or broken camera) must not crash the agent:
+    the filter that diverges on it is counted and restarts from the next
+    reading, exactly as a filter that never saw it would start."""
+    f = Follower(FollowerParams(), Point(-1.5, 0.0))
+    for _ in range(20):
+        f.step((2.0, 0.0, 0.1))
+    d = f.step((rho_m, 0.0, 0.1))
+    assert f.ekf.resets == 1
+    assert (d.left_mps, d.right_mps) == (0.0, 0.0)  # no estimate this tick: it stops
+    fresh = Follower(FollowerParams(), Point(-1.5, 0.0))
+    for _ in range(40):
+        d = f.step((2.0, 0.0, 0.1))
+        fresh.step((2.0, 0.0, 0.1))
+    assert f.ekf.initialized
+    np.testing.assert_allclose(f.ekf.state, fresh.ekf.state, atol=1e-9)
+    assert f.ekf.resets == 1
+
+
+def test_a_plausible_far_reading_does_not_reset_the_filter() -> None:
+    f = Follower(FollowerParams(), Point(-1.5, 0.0))
+    for _ in range(20):
+        f.step((2.0, 0.0, 0.1))
+    f.step((50.0, 0.0, 0.1))
+    assert f.ekf.resets == 0
