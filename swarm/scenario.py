@@ -89,6 +89,7 @@ class Scenario:
     robots: tuple[int, ...]
     width_m: float
     diameter_m: float
+    max_wheel_mps: float
     camera: CameraParams
     leader: LeaderSpec
     formations: Mapping[str, Formation]
@@ -232,6 +233,26 @@ def _follower_params(where: str, t: Mapping[str, Any], robot: Mapping[str, Any],
     )
 
 
+def _check_wheel_limit(
+    max_wheel: float, width: float, leader: Mapping[str, Any], followers: Mapping[int, FollowerParams]
+) -> None:
+    """Every controller's fastest wheel command within robot.max_wheel_mps: the
+    world would clamp it otherwise, and the run would not fly the controller."""
+    fastest = float(leader["speed_mps"]) + float(leader["turn_rate_rps"]) * width / 2.0  # eq. 8-9
+    if fastest > max_wheel:
+        raise ScenarioError(
+            f"the leader's wheels reach {fastest:g} m/s (leader.speed_mps + leader.turn_rate_rps * robot.width_m / 2),"
+            f" above robot.max_wheel_mps = {max_wheel:g}"
+        )
+    for rid, fp in followers.items():
+        vn = fp.speed.static_vn if fp.speed.static_vn is not None else fp.fuzzy.vn_max
+        if vn + fp.fuzzy.a_mps > max_wheel:
+            raise ScenarioError(
+                f"follower {rid}'s fuzzy controller commands up to {vn + fp.fuzzy.a_mps:g} m/s (V_N + a_mps),"
+                f" above robot.max_wheel_mps = {max_wheel:g}"
+            )
+
+
 def from_dict(raw: Mapping[str, Any]) -> Scenario:
     if not isinstance(raw, Mapping):
         raise ScenarioError(f"a scenario must be a table, got {type(raw).__name__}")
@@ -300,6 +321,8 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         where = f"followers.{rid}" if override else "controller"
         followers[rid] = _follower_params(where, _table(merged, where, CONTROLLER_KEYS), robot, dt)
 
+    _check_wheel_limit(float(robot["max_wheel_mps"]), float(robot["width_m"]), ld, followers)
+
     obstacles = []
     obs_raw = raw.get("obstacles", [])
     if not isinstance(obs_raw, list):
@@ -320,6 +343,7 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         robots=robots,
         width_m=float(robot["width_m"]),
         diameter_m=float(robot["diameter_m"]),
+        max_wheel_mps=float(robot["max_wheel_mps"]),
         camera=camera,
         leader=LeaderSpec(
             robot_id=ld["id"],

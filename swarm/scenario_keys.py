@@ -83,6 +83,12 @@ ROBOT_KEYS = {
     "width_m": positive("wheel base: the distance between the two wheels (eq. 7-10)", 0.5, "m"),
     "marker_offset_m": non_negative("how far behind the robot's centre its marker sits", 0.1, "m"),
     "diameter_m": positive("body diameter: two robots closer than this collide", 0.4, "m"),
+    "max_wheel_mps": positive(
+        "the fastest a wheel turns, either way: the world clamps every command to it, and every controller"
+        " of the scenario must stay within it",
+        3.0,
+        "m/s",
+    ),
 }
 CAMERA_KEYS = {
     "fov_deg": Key(NUM, 360.0, "field of view, centred on the heading", "deg", low=0.0, high=360.0, open_low=True),

@@ -100,6 +100,7 @@ class WorldEngine:
     collisions: int = field(init=False, default=0)
     obstacle_collisions: int = field(init=False, default=0)
     stale_stops: int = field(init=False, default=0)
+    clamped_commands: int = field(init=False, default=0)  # wheel speeds beyond robot.max_wheel_mps
     formation_events: list[dict[str, object]] = field(init=False, default_factory=list)
     _touching: set[tuple[int, int]] = field(init=False, default_factory=set)
     _digest: hashlib._Hash = field(init=False)
@@ -148,6 +149,11 @@ class WorldEngine:
 
     def set_command(self, rid: int, left_mps: float, right_mps: float, formation: int, now_s: float) -> None:
         r = self.robots[rid]
+        limit = self.scenario.max_wheel_mps
+        if not (-limit <= left_mps <= limit and -limit <= right_mps <= limit):
+            self.clamped_commands += 1  # the robot's motors cannot do more, whatever it is told
+            left_mps = min(max(left_mps, -limit), limit)
+            right_mps = min(max(right_mps, -limit), limit)
         r.command = (left_mps, right_mps)
         r.command_time_s = now_s
         if formation != r.formation and formation < len(self.scenario.formation_names):
@@ -255,6 +261,7 @@ class WorldEngine:
             "collisions": self.collisions,
             "obstacle_collisions": self.obstacle_collisions,
             "stale_stops": self.stale_stops,
+            "clamped_commands": self.clamped_commands,
             "formation_events": self.formation_events,
             "trajectory_digest": self.digest(),
             "final_poses": {str(rid): list(r.pose) for rid, r in self.robots.items()},
