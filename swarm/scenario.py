@@ -28,7 +28,7 @@ from formation_swarm.protocol.keys import MAX_ROBOT_ID
 from formation_swarm.world.camera import CameraParams
 
 # The world's ground truth lists every robot in one message, and the leader's
-# observation every obstacle in range: both must fit protocol.messages.MAX_PAYLOAD_BYTES
+# observation every obstacle in range: both must fit protocol.codec.MAX_PAYLOAD_BYTES
 # (tests/test_messages.py encodes the largest ones).
 MAX_ROBOTS = 500
 MAX_OBSTACLES = 500

@@ -37,9 +37,11 @@ import zenoh
 from formation_swarm import scenario as scenario_mod
 from formation_swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
 from formation_swarm.protocol import session
+from formation_swarm.protocol.batch import BatchPublisher
+from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.links import Link, link_name
-from formation_swarm.protocol.messages import BatchPublisher, Command, Observation, Rejections, Status, Truth
+from formation_swarm.protocol.messages import Command, Observation, Status, Truth
 from formation_swarm.world.engine import WorldEngine
 
 STARTUP_TIMEOUT_S = 60.0
