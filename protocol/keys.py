@@ -110,6 +110,11 @@ class Keys:
             raise ValueError(f"role must be one of {ROLES}, got {role!r}")
         return f"{self.prefix}/alive/{role}/{ident}"
 
+    @property
+    def alive_any(self) -> str:
+        """Every liveliness token of the run, whatever the role (the world watches these)."""
+        return f"{self.prefix}/alive/*/*"
+
     def alive_all(self, role: str) -> str:
         if role not in ROLES:
             raise ValueError(f"role must be one of {ROLES}, got {role!r}")

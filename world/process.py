@@ -149,7 +149,7 @@ class World:
         self.cmds = s.declare_subscriber(k.all_cmd, zenoh.handlers.FifoChannel(CMD_CAPACITY))
         self.alarm = Alarm(self._wake)
         self.stop.add_waker(self._wake)
-        s.liveliness().declare_subscriber(f"{k.prefix}/alive/*/*", self._on_alive, history=True)
+        s.liveliness().declare_subscriber(k.alive_any, self._on_alive, history=True)
         token = s.liveliness().declare_token(k.alive("world", 0))
         try:
             if not self._wait_ready(obs_pubs):
