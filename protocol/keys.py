@@ -13,6 +13,8 @@ All keys start with ``swarm/<run>`` so that runs never cross-talk::
 
 An agent reads its inbox ``swarm/<run>/robot/<id>/*`` with one subscriber so
 that the order in which observations and formation codes arrive is kept.
+docs/protocol.md says who publishes and who subscribes to each key
+(tests/test_protocol_doc.py checks its key table against this module).
 """
 
 from __future__ import annotations
