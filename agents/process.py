@@ -40,17 +40,11 @@ from formation_swarm.agents.leader import CodeRepeats, FormationSwitch
 from formation_swarm.agents.pilot import PathPilot
 from formation_swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
 from formation_swarm.protocol import session
+from formation_swarm.protocol.batch import BatchPublisher
+from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.links import Link, link_name
-from formation_swarm.protocol.messages import (
-    BatchPublisher,
-    Command,
-    FormationCode,
-    Observation,
-    Rejections,
-    Status,
-    Telemetry,
-)
+from formation_swarm.protocol.messages import Command, FormationCode, Observation, Status, Telemetry
 from formation_swarm.world.kinematics import Pose
 
 STARTUP_TIMEOUT_S = 60.0

@@ -13,6 +13,8 @@ All keys start with ``swarm/<run>`` so that runs never cross-talk::
 
 An agent reads its inbox ``swarm/<run>/robot/<id>/*`` with one subscriber so
 that the order in which observations and formation codes arrive is kept.
+docs/protocol.md says who publishes and who subscribes to each key
+(tests/test_protocol_doc.py checks its key table against this module).
 """
 
 from __future__ import annotations
@@ -109,6 +111,11 @@ class Keys:
         if role not in ROLES:
             raise ValueError(f"role must be one of {ROLES}, got {role!r}")
         return f"{self.prefix}/alive/{role}/{ident}"
+
+    @property
+    def alive_any(self) -> str:
+        """Every liveliness token of the run, whatever the role (the world watches these)."""
+        return f"{self.prefix}/alive/*/*"
 
     def alive_all(self, role: str) -> str:
         if role not in ROLES:

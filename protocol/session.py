@@ -20,7 +20,7 @@ bytes, measured with eclipse-zenoh 1.10.2) makes the receiver close the whole
 link. Forwarded by a router to an agent, one such message would cut the agent
 off and the world would take its robot for dead. So every node drops, on the
 way in, any message above ``ROUTED_LIMIT_BYTES`` (a Zenoh low-pass filter),
-and no message of ours comes near it (protocol.messages.MAX_PAYLOAD_BYTES).
+and no message of ours comes near it (protocol.codec.MAX_PAYLOAD_BYTES).
 
 A configuration file replaces all three defaults (scouting, transport,
 filter): deploy/router.json5 sets them for a standalone router.
@@ -35,7 +35,7 @@ from typing import Any
 
 import zenoh
 
-from formation_swarm.protocol.messages import MAX_PAYLOAD_BYTES
+from formation_swarm.protocol.codec import MAX_PAYLOAD_BYTES
 
 # Above our own limit, so an oversized payload still reaches the decoder and is
 # counted; below the low-latency transport's 49,152-byte frame, headers included.

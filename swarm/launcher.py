@@ -35,8 +35,9 @@ import zenoh
 
 from formation_swarm import scenario as scenario_mod
 from formation_swarm.proc import clean_json
+from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.protocol.messages import Rejections, Status
+from formation_swarm.protocol.messages import Status
 from formation_swarm.protocol.session import make_config
 
 STOP_GRACE_S = 2.0

@@ -45,8 +45,10 @@ import zenoh
 from formation_swarm import scenario as scenario_mod
 from formation_swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
 from formation_swarm.protocol import session
+from formation_swarm.protocol.batch import pack_batch
+from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.protocol.messages import Rejections, Status, Telemetry, Truth, pack_batch
+from formation_swarm.protocol.messages import Status, Telemetry, Truth
 from formation_swarm.world.kinematics import Pose
 
 SEND_PERIOD_S = 0.25
@@ -54,7 +56,7 @@ FLUSH_PERIOD_S = 0.5
 TIMELINE = "sim_time"
 END_WAIT_S = 1.0  # after "done", for the followers' last telemetry
 HISTORY_TICKS = 400  # telemetry waits this long for its tick's truth
-END_OF_STREAM = pack_batch([])  # what protocol.messages.BatchPublisher.close sends
+END_OF_STREAM = pack_batch([])  # what protocol.batch.BatchPublisher.close sends
 _CIRCLE = np.stack([np.cos(np.linspace(0, 2 * np.pi, 25)), np.sin(np.linspace(0, 2 * np.pi, 25))], axis=1)
 
 

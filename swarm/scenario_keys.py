@@ -16,7 +16,7 @@ from formation_swarm.agents.ekf import EkfParams
 from formation_swarm.agents.fuzzy import FuzzyParams
 
 # The world's ground truth lists every robot in one message, and the leader's
-# observation every obstacle in range: both must fit protocol.messages.MAX_PAYLOAD_BYTES
+# observation every obstacle in range: both must fit protocol.codec.MAX_PAYLOAD_BYTES
 # (tests/test_messages.py encodes the largest ones).
 MAX_ROBOTS = 500
 MAX_OBSTACLES = 500

@@ -20,8 +20,9 @@ import pytest
 import zenoh
 
 from formation_swarm.launcher import KillAt, Launch, RunResult
+from formation_swarm.protocol.codec import MAX_PAYLOAD_BYTES
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.protocol.messages import MAX_PAYLOAD_BYTES, Command
+from formation_swarm.protocol.messages import Command
 from formation_swarm.protocol.session import make_config
 from tests.conftest import RERUN, SCENARIOS, our_processes, rrd_rows
 

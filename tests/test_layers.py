@@ -21,6 +21,8 @@ PURE = (
     "formation_swarm.world.engine",
     "formation_swarm.protocol.keys",
     "formation_swarm.protocol.links",
+    "formation_swarm.protocol.codec",
+    "formation_swarm.protocol.batch",
     "formation_swarm.protocol.messages",
 )
 APPLICATION = ("formation_swarm.cli", "formation_swarm.launcher", "formation_swarm.scenario", "formation_swarm.proc")

@@ -7,19 +7,9 @@ import math
 import msgpack
 import pytest
 
+from formation_swarm.protocol.codec import MAX_PAYLOAD_BYTES, VERSION, DecodeError, Rejections
 from formation_swarm.protocol.keys import MAX_ROBOT_ID
-from formation_swarm.protocol.messages import (
-    MAX_PAYLOAD_BYTES,
-    VERSION,
-    Command,
-    DecodeError,
-    FormationCode,
-    Observation,
-    Rejections,
-    Status,
-    Telemetry,
-    Truth,
-)
+from formation_swarm.protocol.messages import Command, FormationCode, Observation, Status, Telemetry, Truth
 from formation_swarm.scenario_keys import MAX_OBSTACLES, MAX_ROBOTS
 
 EXAMPLES = [

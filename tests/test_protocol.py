@@ -7,14 +7,9 @@ import json
 import msgpack
 import pytest
 
-from formation_swarm.protocol.messages import (
-    MAX_BATCH_ITEMS,
-    BatchPublisher,
-    Command,
-    FormationCode,
-    Rejections,
-    pack_batch,
-)
+from formation_swarm.protocol.batch import BatchPublisher, pack_batch
+from formation_swarm.protocol.codec import MAX_BATCH_ITEMS, Rejections
+from formation_swarm.protocol.messages import Command, FormationCode
 
 
 class FakePub:

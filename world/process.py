@@ -37,9 +37,11 @@ import zenoh
 from formation_swarm import scenario as scenario_mod
 from formation_swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
 from formation_swarm.protocol import session
+from formation_swarm.protocol.batch import BatchPublisher
+from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.links import Link, link_name
-from formation_swarm.protocol.messages import BatchPublisher, Command, Observation, Rejections, Status, Truth
+from formation_swarm.protocol.messages import Command, Observation, Status, Truth
 from formation_swarm.world.engine import WorldEngine
 
 STARTUP_TIMEOUT_S = 60.0
@@ -147,7 +149,7 @@ class World:
         self.cmds = s.declare_subscriber(k.all_cmd, zenoh.handlers.FifoChannel(CMD_CAPACITY))
         self.alarm = Alarm(self._wake)
         self.stop.add_waker(self._wake)
-        s.liveliness().declare_subscriber(f"{k.prefix}/alive/*/*", self._on_alive, history=True)
+        s.liveliness().declare_subscriber(k.alive_any, self._on_alive, history=True)
         token = s.liveliness().declare_token(k.alive("world", 0))
         try:
             if not self._wait_ready(obs_pubs):

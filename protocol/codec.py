@@ -1,0 +1,259 @@
+"""The envelope every message shares, its validation, and decoding at a
+process boundary.
+
+A message is a msgpack array::
+
+    [tag, version, sender, seq, tick, field_1, field_2, ...]
+
+``sender`` is the robot id (0 for the world), ``seq`` the sender's sequence
+number, ``tick`` the simulation tick. :meth:`Message.from_bytes` validates
+everything (type, length, version, ranges, NaN/inf, size) and raises
+:class:`DecodeError` with a reason; processes call :meth:`Rejections.decode`,
+which counts the reason and returns None instead, so bad input never kills a
+process nor reaches its state. A batch (``[BATCH_TAG, version, [msg, ...]]``,
+see protocol.batch) is taken apart by :meth:`Rejections.decode_batch`.
+
+The message types are in protocol.messages; docs/protocol.md describes the
+wire for writers of agents in other languages.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from typing import Any, ClassVar, TypeVar
+
+import msgpack
+
+from formation_swarm.protocol.keys import MAX_ROBOT_ID
+
+VERSION = 1
+# Every message of ours fits with room to spare (swarm.scenario bounds robots
+# and obstacles); protocol.session explains why links carry no more than ~40 KiB.
+MAX_PAYLOAD_BYTES = 32 * 1024
+MAX_ITEMS = 1024  # longest list in any message (robots, readings, obstacles)
+WORLD_ID = 0
+MAX_TICK = 2**53
+BATCH_TAG = 100
+MAX_BATCH_ITEMS = 256
+
+
+class DecodeError(ValueError):
+    """A payload that is not a valid message; ``reason`` is short and countable."""
+
+    def __init__(self, reason: str, detail: str = "") -> None:
+        super().__init__(f"{reason}: {detail}" if detail else reason)
+        self.reason = reason
+
+
+# -- field checkers: each takes (name, value) and returns the clean value ------
+
+
+# Every check tests the common case first (a finite float, an int in range)
+# and builds a field name or an error only on the way to a rejection: these
+# run on every message of every tick.
+
+
+def number(name: str, v: Any) -> float:
+    if type(v) is float and math.isfinite(v):
+        return v
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise DecodeError("wrong type", f"{name} must be a number, got {type(v).__name__}")
+    f = float(v)
+    if not math.isfinite(f):
+        raise DecodeError("not finite", f"{name} is {f}")
+    return f
+
+
+def opt_number(name: str, v: Any) -> float | None:
+    return None if v is None else number(name, v)
+
+
+def int_in(lo: int, hi: int) -> Callable[[str, Any], int]:
+    def check(name: str, v: Any) -> int:
+        if type(v) is int and lo <= v <= hi:
+            return v
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise DecodeError("wrong type", f"{name} must be an integer, got {type(v).__name__}")
+        if not lo <= v <= hi:
+            raise DecodeError("out of range", f"{name}={v} not in [{lo}, {hi}]")
+        return v
+
+    return check
+
+
+def boolean(name: str, v: Any) -> bool:
+    if not isinstance(v, bool):
+        raise DecodeError("wrong type", f"{name} must be a boolean, got {type(v).__name__}")
+    return v
+
+
+def numbers(n: int, optional: bool = False) -> Callable[[str, Any], tuple[float, ...] | None]:
+    def check(name: str, v: Any) -> tuple[float, ...] | None:
+        if v is None and optional:
+            return None
+        if not isinstance(v, (list, tuple)) or len(v) != n:
+            raise DecodeError("wrong shape", f"{name} must be a list of {n} numbers")
+        for x in v:
+            if type(x) is not float or not math.isfinite(x):
+                return tuple(number(f"{name}[{i}]", x) for i, x in enumerate(v))
+        return tuple(v)
+
+    return check
+
+
+def records(*item_checks: Callable[[str, Any], Any]) -> Callable[[str, Any], tuple[tuple[Any, ...], ...]]:
+    n = len(item_checks)
+
+    def check(name: str, v: Any) -> tuple[tuple[Any, ...], ...]:
+        if not isinstance(v, (list, tuple)):
+            raise DecodeError("wrong type", f"{name} must be a list")
+        if len(v) > MAX_ITEMS:
+            raise DecodeError("too many items", f"{name} has {len(v)} > {MAX_ITEMS}")
+        out = []
+        for i, rec in enumerate(v):
+            if not isinstance(rec, (list, tuple)) or len(rec) != n:
+                raise DecodeError("wrong shape", f"{name}[{i}] must be a list of {n}")
+            try:
+                out.append(tuple([c(name, x) for c, x in zip(item_checks, rec, strict=True)]))
+            except DecodeError:
+                for c, x in zip(item_checks, rec, strict=True):
+                    c(f"{name}[{i}]", x)  # the same rejection, naming the record
+                raise
+        return tuple(out)
+
+    return check
+
+
+def one_of(*allowed: str) -> Callable[[str, Any], str]:
+    def check(name: str, v: Any) -> str:
+        if v not in allowed:
+            raise DecodeError("out of range", f"{name}={v!r} not one of {allowed}")
+        return v
+
+    return check
+
+
+robot_id = int_in(1, MAX_ROBOT_ID)
+count = int_in(0, MAX_TICK)
+formation_code = int_in(0, 255)
+
+T = TypeVar("T", bound="Message")
+
+
+@dataclass(frozen=True, slots=True)
+class Message:
+    """The header every message starts with; a subclass adds its fields, its
+    ``TAG``, one checker per field in ``CHECKS`` and the ``SENDERS`` range."""
+
+    sender: int
+    seq: int
+    tick: int
+
+    TAG: ClassVar[int] = -1
+    CHECKS: ClassVar[tuple[Callable[[str, Any], Any], ...]] = ()
+    SENDERS: ClassVar[tuple[int, int]] = (0, MAX_ROBOT_ID)
+
+    def to_bytes(self) -> bytes:
+        return msgpack.packb([self.TAG, VERSION, *[getattr(self, n) for n in self._names()]], use_bin_type=True)
+
+    @classmethod
+    def from_bytes(cls: type[T], payload: bytes) -> T:
+        if len(payload) > MAX_PAYLOAD_BYTES:
+            raise DecodeError("oversized", f"{len(payload)} bytes > {MAX_PAYLOAD_BYTES}")
+        try:
+            raw = msgpack.unpackb(payload, raw=False, strict_map_key=True, max_array_len=MAX_ITEMS * 8)
+        except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError) as exc:
+            raise DecodeError("not msgpack", type(exc).__name__) from None
+        if not isinstance(raw, list) or len(raw) < 5:
+            raise DecodeError("wrong type", "payload must be a msgpack list with a header")
+        if raw[0] != cls.TAG:
+            raise DecodeError("wrong message type", f"tag {raw[0]!r}, expected {cls.TAG} ({cls.__name__})")
+        if raw[1] != VERSION:
+            raise DecodeError("unknown version", f"{raw[1]!r}, expected {VERSION}")
+        names = cls._names()
+        if len(raw) != 2 + len(names):
+            raise DecodeError("wrong length", f"{cls.__name__} has {len(names)} fields, got {len(raw) - 2}")
+        sender, seq, tick = raw[2], raw[3], raw[4]
+        lo, hi = cls.SENDERS
+        if type(sender) is not int or not lo <= sender <= hi:
+            int_in(lo, hi)("sender", sender)
+        if type(seq) is not int or not 0 <= seq <= MAX_TICK:
+            count("seq", seq)
+        if type(tick) is not int or not 0 <= tick <= MAX_TICK:
+            count("tick", tick)
+        values = [c(n, v) for c, n, v in zip(cls.CHECKS, names[3:], raw[5:], strict=True)]
+        return cls(sender, seq, tick, *values)
+
+    @classmethod
+    def _names(cls) -> tuple[str, ...]:
+        cached = cls.__dict__.get("_NAMES")
+        if cached is None:
+            cached = tuple(f.name for f in fields(cls))
+            type.__setattr__(cls, "_NAMES", cached)
+        return cached
+
+
+def unpack_batch(payload: bytes) -> list[bytes]:
+    """The encoded messages of a batch; DecodeError if it is not one."""
+    if len(payload) > MAX_PAYLOAD_BYTES:
+        raise DecodeError("oversized", f"{len(payload)} bytes > {MAX_PAYLOAD_BYTES}")
+    try:
+        raw = msgpack.unpackb(payload, raw=False, max_array_len=MAX_BATCH_ITEMS, max_map_len=0)
+    except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError) as exc:
+        raise DecodeError("not msgpack", type(exc).__name__) from None
+    if not isinstance(raw, list) or len(raw) != 3:
+        raise DecodeError("wrong type", "a batch is a msgpack list [tag, version, items]")
+    if raw[0] != BATCH_TAG:
+        raise DecodeError("wrong message type", f"tag {raw[0]!r}, expected a batch ({BATCH_TAG})")
+    if raw[1] != VERSION:
+        raise DecodeError("unknown version", f"{raw[1]!r}, expected {VERSION}")
+    items = raw[2]
+    if not isinstance(items, list) or not all(isinstance(b, bytes) for b in items):
+        raise DecodeError("wrong type", "a batch's items must be a list of encoded messages")
+    return items
+
+
+class Rejections:
+    """Counts rejected payloads by reason; decoding at a process boundary."""
+
+    def __init__(self) -> None:
+        self.by_reason: Counter[str] = Counter()
+
+    @property
+    def total(self) -> int:
+        return sum(self.by_reason.values())
+
+    def reject(self, reason: str) -> None:
+        self.by_reason[reason] += 1
+
+    def decode(self, cls: type[T], payload: bytes, sender: int | None = None) -> T | None:
+        """The message, or None with the reason counted. ``sender``, when given,
+        is the id the key says the message comes from."""
+        try:
+            msg = cls.from_bytes(payload)
+        except DecodeError as exc:
+            self.by_reason[exc.reason] += 1
+            return None
+        if sender is not None and msg.sender != sender:
+            self.by_reason["sender mismatch"] += 1
+            return None
+        return msg
+
+    def decode_batch(self, cls: type[T], payload: bytes, sender: int | None = None) -> list[T] | None:
+        """The valid messages of a batch of ``cls`` ([] for the end-of-stream
+        batch), or None for a payload that is not a batch (one rejection
+        counted); each bad message inside counts as one rejection."""
+        try:
+            items = unpack_batch(payload)
+        except DecodeError as exc:
+            self.by_reason[exc.reason] += 1
+            return None
+        out = []
+        for item in items:
+            msg = self.decode(cls, item, sender)
+            if msg is not None:
+                out.append(msg)
+        return out
