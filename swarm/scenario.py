@@ -24,6 +24,7 @@ from formation_swarm.agents.formation import Formation, Slot, line, wedge
 from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode
 from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.lpsi import LpsiParams
+from formation_swarm.checks import SEED_MAX
 from formation_swarm.protocol.keys import MAX_ROBOT_ID
 from formation_swarm.world.camera import CameraParams
 
@@ -302,6 +303,8 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         if key not in TOP_KEYS:
             raise ScenarioError(f"unknown section [{key}]" + _suggest(key, TOP_KEYS))
     run = _table(raw.get("run"), "run", RUN_KEYS)
+    if not 0 <= run["seed"] <= SEED_MAX:
+        raise ScenarioError(f"run.seed must be in [0, 2**63 - 1], got {run['seed']!r}")
     dt = _positive("run.dt_s", run["dt_s"])
     duration = _positive("run.duration_s", run["duration_s"])
     _positive("run.lockstep_deadline_s", run["lockstep_deadline_s"])
