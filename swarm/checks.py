@@ -8,6 +8,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
+# A run's seed keys numpy's SeedSequence (non-negative integers only) and the
+# link layer's drop hash (packed as a signed 64-bit integer): both take this range.
+SEED_MAX = 2**63 - 1
+
 
 def finite(name: str, value: object) -> float:
     """Return ``value`` as a float, rejecting non-numbers, NaN and inf."""

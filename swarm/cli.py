@@ -1,10 +1,31 @@
-"""The ``swarm`` command."""
+"""swarm: an emulator of vision-based leader-follower formation control, where
+every robot is its own process and every exchange crosses Eclipse Zenoh.
+
+The robots fly the controller of "Modeling of vision based robot formation
+control using fuzzy logic controller and extended Kalman filter" (IJFIS 12(3),
+2012): a camera sees the marker of the robot ahead, an EKF smooths what it
+sees, and a two-stage fuzzy controller (FIS-2 sets the normal speed V_N, FIS-1
+the wheel speeds) drives a differential-drive robot.
+
+Start with:
+  swarm scenarios                   the shipped scenarios
+  swarm run fig11_obstacles         one run: world, logger and one process per robot
+  swarm report runs/<run id>        figures and a summary of that run
+  swarm COMMAND --help              what a command does, its flags, units and defaults
+"""
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Sequence
+
+from formation_swarm import __version__
+from formation_swarm.cliargs import USAGE_ERROR, Parser, make_folder, port, rerun_url, seconds, seed
+
+GRPC_PORT, WEB_PORT = 9876, 9090  # --serve-web's defaults: Rerun's own
+SIM_MAX_S = 3600.0  # the paper's path takes 40 s; the recorded arrays grow with the duration
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
@@ -14,6 +35,10 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
     mode = SpeedMode() if args.vn == "dynamic" else SpeedMode(float(args.vn))
     setup = paper_turning_setup(seed=args.seed, duration_s=args.duration, follower=FollowerParams(speed=mode))
+    if args.duration < setup.follower.dt_s:
+        print(f"swarm sim: argument --duration: must be at least one control step ({setup.follower.dt_s:g} s), "
+              f"got {args.duration:g}", file=sys.stderr)  # fmt: skip
+        return USAGE_ERROR
     print(
         f"paper two-robot turning run, one process: V_N {args.vn}, seed {args.seed}, "
         f"dt {setup.follower.dt_s} s, leader {setup.leader_speed_mps} m/s",
@@ -28,24 +53,36 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     return 0
 
 
-def _positive_float(text: str) -> float:
-    value = float(text)
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
-    return value
-
-
 def _vn(text: str) -> str:
     if text == "dynamic":
         return text
     try:
-        _positive_float(text)
-    except (ValueError, argparse.ArgumentTypeError):
-        raise argparse.ArgumentTypeError(f"must be 'dynamic' or a positive number, got {text!r}") from None
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be 'dynamic' or a speed > 0 in m/s, got {text!r}")
     return text
 
 
+def _run_flag_conflicts(args: argparse.Namespace) -> str | None:
+    """What the run's flags contradict each other on, or None."""
+    if args.no_logger and (args.live or args.serve_web):
+        return f"argument {'--live' if args.live else '--serve-web'}: the logger does the streaming; drop --no-logger"
+    for flag, value in (("--grpc-port", args.grpc_port), ("--web-port", args.web_port)):
+        if value is not None and not args.serve_web:
+            return f"argument {flag}: only used with --serve-web, got {flag} {value} alone"
+    if args.serve_web and (args.grpc_port or GRPC_PORT) == (args.web_port or WEB_PORT):
+        return f"arguments --grpc-port and --web-port: must differ, got {args.grpc_port or GRPC_PORT} for both"
+    return None
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
+    if conflict := _run_flag_conflicts(args):
+        print(f"swarm run: {conflict}", file=sys.stderr)
+        return USAGE_ERROR
+    import zenoh
+
     from formation_swarm.launcher import KillAt, Launch, print_result
     from formation_swarm.proc import interrupt_on_stop_signals
     from formation_swarm.scenario import ScenarioError, parse_override
@@ -55,11 +92,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         overrides = dict(parse_override(text) for text in args.set)
         launch = Launch(
             args.scenario, mode=args.mode, seed=args.seed, out=args.out, overrides=overrides, logger=not args.no_logger,
-            live=args.live, serve_web=args.serve_web, web_ports=(args.grpc_port, args.web_port), kills=kills,
+            live=args.live, serve_web=args.serve_web, kills=kills,
+            web_ports=(args.grpc_port or GRPC_PORT, args.web_port or WEB_PORT),
         )  # fmt: skip
+        make_folder("--out" if args.out else "run folder", launch.run_dir)  # last: nothing made for a bad input
     except (ScenarioError, ValueError) as exc:
         print(f"swarm run: {exc}", file=sys.stderr)
-        return 2
+        return USAGE_ERROR
     print(f"[swarm] run {launch.run_id}: {launch.sc.name}, {len(launch.sc.robots)} robots, {args.mode}, "
           f"seed {launch.sc.seed}, folder {launch.run_dir}", flush=True)  # fmt: skip
     interrupt_on_stop_signals()  # Ctrl-C and SIGTERM stop the run cleanly
@@ -68,6 +107,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print(f"[swarm] interrupted while starting; every process stopped; folder {launch.run_dir}", flush=True)
         return 130
+    except zenoh.ZError as exc:  # the world never listened (start() has reaped every process): its log says why
+        print(f"swarm run: cannot reach the world at {launch.endpoint}: {exc}; see {launch.run_dir / 'logs'}",
+              file=sys.stderr)  # fmt: skip
+        return 1
     with launch:
         result = launch.wait(timeout_s=args.timeout)
     print_result(result)
@@ -84,50 +127,109 @@ def _cmd_scenarios(_args: argparse.Namespace) -> int:
     return 0
 
 
+# Commands with their own parser in their own module: name -> (module, one-line summary).
 DELEGATED = {
-    "world": ("formation_swarm.world.process", "the world process alone (router by default)"),
-    "agent": ("formation_swarm.agents.process", "one robot's agent alone (client of a router)"),
-    "logger": ("formation_swarm.logger", "the Rerun logger alone"),
-    "router": ("formation_swarm.router", "a Zenoh router for agents on other machines"),
-    "sweep": ("formation_swarm.sweep", "many lockstep runs: seeds x parameter values, in parallel, resumable"),
-    "report": ("formation_swarm.report", "figures (PNG) and a markdown summary of a run folder"),
-    "results": ("formation_swarm.results", "the baseline comparison table of docs/results.md"),
+    "report": ("formation_swarm.report", "figures (PNG) and a markdown summary of a run's folder"),
+    "sweep": ("formation_swarm.sweep", "many lockstep runs of a scenario (seeds x parameter values), in parallel"),
+    "results": ("formation_swarm.results", "recompute the baseline comparison table of docs/results.md"),
+    "world": ("formation_swarm.world.process", "role: the world alone (physics, cameras, clock; a Zenoh router)"),
+    "agent": ("formation_swarm.agents.process", "role: one robot's agent alone, a client of a router"),
+    "logger": ("formation_swarm.logger", "role: the Rerun logger alone (to a file or a viewer)"),
+    "router": ("formation_swarm.router", "role: a Zenoh router for agents on other machines"),
 }
 
+RUN_EPILOG = """\
+exit codes: 0 the run ended normally; 1 the world failed, or a process failed
+before tick 0 (its log's last lines are printed); 2 a bad command line (one
+line on stderr, nothing started); 124 --timeout; 130 interrupted (Ctrl-C).
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="swarm", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True)
-    sim = sub.add_parser("sim", help="one-process closed loop of the paper's two-robot turning run")
-    sim.add_argument("--seed", type=int, default=0)
-    sim.add_argument("--duration", type=_positive_float, default=60.0, help="s (the path ends first)")
-    sim.add_argument("--vn", type=_vn, default="dynamic", help="'dynamic' (FIS-2) or a static V_N, e.g. 1.5")
-    sim.set_defaults(func=_cmd_sim)
+examples:
+  swarm run fig11_obstacles
+  swarm run fig7_turn_vn_dynamic --seed 3 --set controller.vn=1.5 --out runs/static
+  swarm run fig11_obstacles --mode realtime --serve-web     (then open http://127.0.0.1:9090)
+  swarm run scenarios/fig11_obstacles.toml --kill agent-3@20
+"""
 
-    run = sub.add_parser("run", help="run a scenario, every robot its own process (world, logger, agents)")
-    run.add_argument("scenario", help="a shipped scenario's name (see swarm scenarios) or a scenario file (TOML)")
-    run.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
-    run.add_argument("--seed", type=int, default=None, help="overrides the scenario's seed")
-    run.add_argument("--out", default=None, help="run folder (default runs/<run id>)")
-    run.add_argument("--no-logger", action="store_true", help="no Rerun recording")
-    run.add_argument(
-        "--live", metavar="URL", help="also stream to a Rerun viewer, e.g. rerun+http://127.0.0.1:9876/proxy"
+
+def _add_run(sub: argparse._SubParsersAction[Parser]) -> None:
+    run = sub.add_parser(
+        "run",
+        help="run a scenario, every robot its own process (world, logger, agents)",
+        description="Run one scenario on this machine: the world (physics, cameras, clock; also the Zenoh router), "
+        "a Rerun logger and one process per robot. Progress and the metrics go to the console; the run folder gets "
+        "the scenario as run, recording.rrd, summary.json and logs/.",
+        epilog=RUN_EPILOG,
     )
-    run.add_argument("--serve-web", action="store_true", help="also serve the Rerun web viewer")
-    run.add_argument("--grpc-port", type=int, default=9876, help="--serve-web: the gRPC port (default 9876)")
-    run.add_argument("--web-port", type=int, default=9090, help="--serve-web: the web viewer's port (default 9090)")
-    run.add_argument("--kill", action="append", default=[], metavar="PROC@SECONDS",
-                     help="fault injection: SIGKILL a process (agent-N, logger) at that sim time")  # fmt: skip
+    run.add_argument("scenario", help="a shipped scenario's name (see: swarm scenarios) or a scenario file (TOML)")
+    run.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
+                     help="lockstep: the world waits for every robot each tick, reproducible and as fast as the "
+                     "machine goes; realtime: the world steps on the wall clock (default: lockstep)")  # fmt: skip
+    run.add_argument("--seed", type=seed, default=None, metavar="N",
+                     help="seed of every random draw (camera noise, link drops), an integer in [0, 2**63 - 1] "
+                     "(default: the scenario's run.seed)")  # fmt: skip
+    run.add_argument("--out", default=None, metavar="DIR",
+                     help="the run folder, created if needed (default: runs/<run id>)")  # fmt: skip
     run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                     help="override a scenario key, e.g. leader.speed_mps=1.6 (repeatable)")  # fmt: skip
-    run.add_argument("--timeout", type=float, default=None, help="wall-clock limit in s")
-    run.set_defaults(func=_cmd_run)
+                     help="override one scenario key, e.g. leader.speed_mps=1.6 or controller.vn=dynamic "
+                     "(repeatable)")  # fmt: skip
+    run.add_argument("--kill", action="append", default=[], metavar="PROC@SECONDS",
+                     help="fault injection: SIGKILL a process (agent-N or logger) at that simulated time in s, "
+                     "e.g. agent-3@20 (repeatable)")  # fmt: skip
+    run.add_argument("--timeout", type=seconds(), default=None, metavar="SECONDS",
+                     help="stop the run after this much wall-clock time in s, with exit code 124 "
+                     "(default: no limit)")  # fmt: skip
+    run.add_argument("--no-logger", action="store_true",
+                     help="no logger process: no recording.rrd (so nothing for swarm report to draw), "
+                     "a little faster")  # fmt: skip
+    run.add_argument("--live", metavar="URL", type=rerun_url,
+                     help="also stream to a Rerun viewer already listening there, e.g. "
+                     "rerun+http://127.0.0.1:9876/proxy (start one with: rerun)")  # fmt: skip
+    run.add_argument("--serve-web", action="store_true",
+                     help="also serve the Rerun web viewer while the run lasts "
+                     "(best with --mode realtime)")  # fmt: skip
+    run.add_argument("--grpc-port", type=port, default=None, metavar="PORT",
+                     help=f"with --serve-web: the port the logger serves the data on "
+                     f"(default: {GRPC_PORT})")  # fmt: skip
+    run.add_argument("--web-port", type=port, default=None, metavar="PORT",
+                     help="with --serve-web: the port of the viewer's page, http://127.0.0.1:PORT "
+                     f"(default: {WEB_PORT})")  # fmt: skip
+    run.set_defaults(func=_cmd_run, parser=run)
 
-    scenarios = sub.add_parser("scenarios", help="list the shipped scenarios with their descriptions")
-    scenarios.set_defaults(func=_cmd_scenarios)
 
-    for name, (_, text) in DELEGATED.items():
-        sub.add_parser(name, help=text + f"; see swarm {name} --help")
+def _add_sim(sub: argparse._SubParsersAction[Parser]) -> None:
+    sim = sub.add_parser(
+        "sim",
+        help="the paper's two-robot turning run in one process, for quick controller checks",
+        description="The paper's two-robot turning run (Fig. 6-7) in one Python loop, no Zenoh: the leader drives "
+        "its path (straight, right turn, left turn), the follower flies the controller on a simulated camera. "
+        "Prints the follower's formation error.",
+    )
+    sim.add_argument("--vn", type=_vn, default="dynamic",
+                     help="the follower's normal speed V_N: 'dynamic' (FIS-2, the paper's two-stage controller) "
+                     "or a static value in m/s, e.g. 1.5 (default: dynamic)")  # fmt: skip
+    sim.add_argument("--seed", type=seed, default=0, metavar="N",
+                     help="seed of the camera noise, an integer in [0, 2**63 - 1] (default: 0)")  # fmt: skip
+    sim.add_argument("--duration", type=seconds(SIM_MAX_S), default=60.0, metavar="SECONDS",
+                     help=f"simulated time in s, at most {SIM_MAX_S:g}; the run ends earlier with the leader's path, "
+                     "after about 40 s (default: 60)")  # fmt: skip
+    sim.set_defaults(func=_cmd_sim, parser=sim)
+
+
+def build_parser() -> Parser:
+    parser = Parser(prog="swarm", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"formation-swarm {__version__}",
+                        help="print the version and exit")  # fmt: skip
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", title="commands")
+    scenarios = sub.add_parser("scenarios", help="list the shipped scenarios, each with its description",
+                               description="List the scenarios installed with the package, by the name that "
+                               "swarm run takes, each with the first comment line of its file.")  # fmt: skip
+    scenarios.set_defaults(func=_cmd_scenarios, parser=scenarios)
+    _add_run(sub)
+    for name in ("report", "sweep", "results"):
+        sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
+    _add_sim(sub)
+    for name in ("world", "agent", "logger", "router"):
+        sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
     return parser
 
 
@@ -137,7 +239,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         import importlib
 
         return int(importlib.import_module(DELEGATED[argv[0]][0]).main(argv[1:]))
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    if not argv:
+        parser.print_help()
+        return USAGE_ERROR
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:  # said by the command's parser, which knows its flags, rather than by swarm's
+        args.parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     try:
         return int(args.func(args))
     except KeyboardInterrupt:

@@ -7,20 +7,19 @@ them (a child also dies with the launcher: PR_SET_PDEATHSIG). The run folder
 holds the scenario as run, recording.rrd, summary.json and logs/.
 
 An agent or the logger that dies is reported in the summary and the run goes
-on (the world stops a robot whose agent is gone); a world that dies ends the run.
+on (the world stops a robot whose agent is gone); a world that dies ends the run,
+and so does any process that dies before tick 0 (the world waits for them all).
+A process that exits with an error is named on the console with its exit code
+and the last lines of its log (logs/<name>.log), and in the summary's events.
 """
 
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import json
 import math
-import os
 import queue
-import shutil
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -29,11 +28,13 @@ import uuid
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 import zenoh
 
 from formation_swarm import scenario as scenario_mod
+from formation_swarm.children import Child, describe_exit, free_port, log_tail
+from formation_swarm.console import print_result as print_result  # re-exported: the API of swarm run
 from formation_swarm.proc import clean_json
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
@@ -41,76 +42,7 @@ from formation_swarm.protocol.messages import Status
 from formation_swarm.protocol.session import make_config
 
 STOP_GRACE_S = 2.0
-# One worker thread per Zenoh runtime in each child: five processes share this
-# machine's cores, and fewer threads preempt each other less (measured ~+10%
-# lockstep ticks/s on 2 cores). A ZENOH_RUNTIME set by the user wins.
-CHILD_ZENOH_RUNTIME = (
-    "(app: (worker_threads: 1), acc: (worker_threads: 1), tx: (worker_threads: 1), "
-    "rx: (worker_threads: 1), net: (worker_threads: 1))"
-)
 END_GRACE_S = 3.0
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def _die_with_parent() -> None:  # pragma: no cover - runs in the child
-    """Linux: the child gets SIGTERM if the launcher dies, even by SIGKILL."""
-    with contextlib.suppress(OSError, AttributeError):
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-
-
-@dataclass
-class Child:
-    name: str
-    argv: list[str]
-    log_path: Path
-    proc: subprocess.Popen[bytes] | None = None
-    log: Any = None
-    stop_sent_at: float | None = None
-    exited_at: float | None = None
-    reported: bool = False
-
-    @property
-    def pid(self) -> int | None:
-        return None if self.proc is None else self.proc.pid
-
-    def start(self) -> None:
-        self.log = open(self.log_path, "wb")  # noqa: SIM115 - closed in close()
-        env = dict(os.environ)
-        env.setdefault("ZENOH_RUNTIME", CHILD_ZENOH_RUNTIME)
-        self.proc = subprocess.Popen(
-            self.argv,
-            env=env,
-            stdout=self.log,
-            stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
-            start_new_session=True,
-            preexec_fn=_die_with_parent,
-        )
-
-    def poll(self) -> int | None:
-        if self.proc is None:
-            return None
-        code = self.proc.poll()
-        if code is not None and self.exited_at is None:
-            self.exited_at = time.monotonic()
-        return code
-
-    def signal(self, sig: int) -> None:
-        if self.proc is not None and self.proc.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                self.proc.send_signal(sig)
-            if sig in (signal.SIGTERM, signal.SIGINT) and self.stop_sent_at is None:
-                self.stop_sent_at = time.monotonic()
-
-    def close(self) -> None:
-        if self.log is not None:
-            self.log.close()
-            self.log = None
 
 
 @dataclass
@@ -222,6 +154,7 @@ class Launch:
         try:
             self._start()
         except BaseException:
+            self._watch()  # a child that already failed (the world, say) explains itself
             self.stop(graceful_first=False)
             if self.run_dir.exists():
                 self._summary(130, interrupted=True, timed_out=False)
@@ -301,24 +234,47 @@ class Launch:
             self.children[k.who].signal(signal.SIGKILL)
             self.events.append({"event": "killed", "process": k.who, "sim_time_s": t})
             self.progress(f"[swarm] killed {k.who} at sim t={t:.2f} s (fault injection)")
-        for name, child in self.children.items():
+        for child in self.children.values():
             code = child.poll()
-            if code is not None and not child.reported and name != "world":
+            if code is not None and not child.reported:
                 child.reported = True
                 if code != 0 and child.stop_sent_at is None:
-                    self.events.append({"event": "exited", "process": name, "code": code, "sim_time_s": t})
-                    self.progress(f"[swarm] {name} exited with code {code} at sim t={t:.2f} s; see logs/{name}.log")
+                    self._exited(child, code, t)
+
+    def _exited(self, child: Child, code: int, t: float) -> None:
+        """A child that ended on its own, with an error: an event, and on the
+        console which one, how, and the last lines of its log."""
+        if any(e["event"] == "killed" and e["process"] == child.name for e in self.events):
+            self.events.append({"event": "exited", "process": child.name, "code": code, "sim_time_s": t})
+            return  # by fault injection, already said
+        tail = log_tail(child.log_path)
+        self.events.append({"event": "exited", "process": child.name, "code": code, "sim_time_s": t, "log_tail": tail})
+        when = "before the run started" if self.last_status is None else f"at sim t={t:.2f} s"
+        self.progress(f"[swarm] {child.name} {describe_exit(code)} {when}; the end of {child.log_path}:")
+        for line in tail or ["(the log is empty)"]:
+            self.progress(f"  | {line}")
+
+    def _failed_to_start(self) -> list[str]:
+        """The children that ended with an error before tick 0: the world waits
+        for every agent and the logger, so the run cannot start without them."""
+        if self.last_status is not None:
+            return []
+        return [c.name for c in self.children.values() if c.poll() not in (None, 0) and c.stop_sent_at is None]
 
     def wait(self, timeout_s: float | None = None) -> RunResult:
         """Run to the end (or timeout/Ctrl-C), stop everything, write the summary."""
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
-        interrupted = timed_out = False
+        interrupted = timed_out = start_failed = False
         last_line = 0.0
         world = self.children["world"]
         try:
             while world.poll() is None:
                 self._watch()
                 now = time.monotonic()
+                if failed := self._failed_to_start():
+                    start_failed = True
+                    self.progress(f"[swarm] the run cannot start without {', '.join(failed)}: stopping every process")
+                    break
                 if now - last_line >= 2.0 and self.last_status is not None:
                     st = self.last_status
                     pct = 100.0 * st.tick / max(1, st.total_ticks)
@@ -326,16 +282,16 @@ class Launch:
                     last_line = now
                 if deadline is not None and now > deadline:
                     timed_out = True
-                    self.progress(f"[swarm] timeout after {timeout_s:.0f} s: stopping the run")
+                    self.progress(f"[swarm] timeout after {timeout_s:g} s: stopping the run")
                     break
                 time.sleep(0.05)
         except KeyboardInterrupt:
             interrupted = True
             self.progress("[swarm] interrupted: stopping every process")
         self._watch()
-        self.stop(graceful_first=not (interrupted or timed_out))
+        self.stop(graceful_first=not (interrupted or timed_out or start_failed))
         world_code = world.proc.returncode if world.proc is not None else None
-        code = 130 if interrupted else (124 if timed_out else (0 if world_code == 0 else 1))
+        code = 130 if interrupted else (124 if timed_out else (0 if world_code == 0 and not start_failed else 1))
         summary = self._summary(code, interrupted, timed_out)
         return RunResult(self.run_dir, summary, code, self.pids())
 
@@ -443,22 +399,3 @@ def _sigint_ignored() -> Iterator[None]:
 def _slug(name: str) -> str:
     out = "".join(ch if ch.isalnum() or ch in "-_" else "-" for ch in name).strip("-")
     return out[:40] or "run"
-
-
-def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
-    s = res.summary
-    w = out.write
-    w(f"run {s['run_id']}: exit {res.exit_code}, {s.get('ticks')} ticks, sim {s.get('sim_time_s') or 0.0:.2f} s\n")
-    for rid, m in sorted(s.get("followers", {}).items()):
-        w(f"  follower R{rid}: formation error RMS {m.get('rms_m'):.3f} m, max {m.get('max_m'):.3f} m\n")
-    w(f"  min distance {s.get('min_distance_m'):.3f} m (diameter {s.get('robot_diameter_m')} m), "
-      f"collisions {s.get('collisions')}, obstacle collisions {s.get('obstacle_collisions')}\n")  # fmt: skip
-    w(f"  formation events: {[(e['robot'], e['formation'], round(e['time_s'], 2)) for e in s['formation_events']]}\n")
-    w(f"  lockstep misses {s.get('lockstep_misses')}, drops {s.get('drops_total')}, ")
-    w(f"rejected {s.get('rejected_total')}\n")
-    for ev in s.get("events", []):
-        w(f"  event: {ev}\n")
-    w(f"run folder: {res.run_dir}\n  summary: {res.run_dir / 'summary.json'}\n")
-    if s.get("recording"):
-        viewer = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
-        w(f"  recording: {res.recording}\n  open it:   {viewer} {res.recording}\n")

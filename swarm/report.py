@@ -1,7 +1,5 @@
 """Figures and a markdown summary of one run folder, in the spirit of the paper.
 
-    swarm report RUN_DIR [--snapshots 6]
-
 Reads RUN_DIR/recording.rrd (so the run needs its logger) and summary.json,
 and writes into RUN_DIR/report/:
 
@@ -14,7 +12,6 @@ and writes into RUN_DIR/report/:
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -26,7 +23,10 @@ from typing import Any
 
 import numpy as np
 
+from formation_swarm.cliargs import USAGE_ERROR, Parser, integer
+
 FIGURES = ("trajectories.png", "formation_error.png", "vn.png", "targets.png")
+MAX_SNAPSHOTS = 100
 
 
 class Series:
@@ -72,22 +72,36 @@ def robots_in(data: Mapping[str, Series]) -> list[int]:
 
 
 def make_report(run_dir: str | Path, snapshots: int = 6) -> Path:
-    """Writes RUN_DIR/report/ and returns it. Raises ValueError for a folder it cannot use."""
+    """Writes RUN_DIR/report/ and returns it. Raises ValueError for a folder it
+    cannot use (not a run folder, no recording, a run that ended before its
+    first tick) and OSError when it cannot write the report."""
+    run_dir = Path(run_dir)
+    if not 0 <= snapshots <= MAX_SNAPSHOTS:
+        raise ValueError(f"snapshots must be in [0, {MAX_SNAPSHOTS}], got {snapshots!r}")
+    summary_path, rrd = run_dir / "summary.json", run_dir / "recording.rrd"
+    if not run_dir.is_dir():
+        raise ValueError(f"{run_dir}: no such folder")
+    if not summary_path.is_file():
+        raise ValueError(f"{run_dir} is not a run folder: no summary.json")
+    try:
+        summary = json.loads(summary_path.read_text())
+    except ValueError as exc:
+        raise ValueError(f"{summary_path} is not valid JSON: {exc}") from None
+    if not isinstance(summary, dict):
+        raise ValueError(f"{summary_path} is not a run summary (a JSON object)")
+    if not rrd.is_file():
+        raise ValueError(f"{run_dir} has no recording.rrd: run it with its logger (without --no-logger)")
+    try:
+        data = read_recording(rrd)
+    except RuntimeError as exc:  # rerun's reader: a file cut before its first chunk, or not a recording
+        raise ValueError(f"cannot read {rrd}: {exc}") from None
+    robots = robots_in(data)
+    if not robots:
+        raise ValueError(f"{rrd} holds no robot poses: " + _ended_early(summary))
+    followers = [r for r in robots if f"/robots/r{r}/error/formation" in data]
     import matplotlib
 
     matplotlib.use("Agg")
-    run_dir = Path(run_dir)
-    summary_path, rrd = run_dir / "summary.json", run_dir / "recording.rrd"
-    if not summary_path.is_file():
-        raise ValueError(f"{run_dir} is not a run folder: no summary.json")
-    if not rrd.is_file():
-        raise ValueError(f"{run_dir} has no recording.rrd: run it with its logger (without --no-logger)")
-    summary = json.loads(summary_path.read_text())
-    data = read_recording(rrd)
-    robots = robots_in(data)
-    if not robots:
-        raise ValueError(f"{rrd} holds no robot poses")
-    followers = [r for r in robots if f"/robots/r{r}/error/formation" in data]
     out = run_dir / "report"
     out.mkdir(exist_ok=True)
     obstacles = _obstacles(run_dir)
@@ -98,6 +112,13 @@ def make_report(run_dir: str | Path, snapshots: int = 6) -> Path:
     _targets(out / "targets.png", data, followers)
     (out / "report.md").write_text(_markdown(summary, followers))
     return out
+
+
+def _ended_early(summary: Mapping[str, Any]) -> str:
+    """Why a run has nothing to draw, from its summary."""
+    if not summary.get("ticks"):
+        return f"the run ended before its first tick (exit code {summary.get('exit_code')}); see its logs/"
+    return "the logger recorded none (see logs/logger.log)"
 
 
 def _obstacles(run_dir: Path) -> list[tuple[float, float, float]]:
@@ -123,7 +144,7 @@ def _trajectories(path: Path, data: Mapping[str, Series], robots: list[int], fol
         ax.plot(s.v[:, 0], s.v[:, 1], lw=1.2, label=f"R{r}" + (" (leader)" if r not in followers else ""))
     leader = next(r for r in robots if r not in followers) if len(followers) < len(robots) else robots[0]
     t_end = poses[leader].t[-1] if len(poses[leader]) else 0.0
-    for k, ts in enumerate(np.linspace(0.0, t_end, max(2, snapshots))):
+    for k, ts in enumerate(np.linspace(0.0, t_end, snapshots)):  # from the start to the end
         pts = {r: s.v[min(np.searchsorted(s.t, ts), len(s) - 1)] for r, s in poses.items() if len(s)}
         xs = [pts[r][0] for r in sorted(pts)] + [pts[sorted(pts)[0]][0]]
         ys = [pts[r][1] for r in sorted(pts)] + [pts[sorted(pts)[0]][1]]
@@ -210,17 +231,17 @@ def _markdown(summary: Mapping[str, Any], followers: list[int]) -> str:
         "| max ahead of target, m | measured target RMS, m | EKF target RMS, m |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    errs = summary.get("parts", {}).get("logger", {}).get("target_errors", {})
+    errs = ((summary.get("parts") or {}).get("logger") or {}).get("target_errors") or {}
     for r in followers:
-        m = summary.get("followers", {}).get(str(r), {})
-        e = errs.get(str(r), {})
+        m = (summary.get("followers") or {}).get(str(r)) or {}
+        e = errs.get(str(r)) or {}
         lines.append(
             f"| R{r} | {f(m.get('rms_m'))} | {f(m.get('max_m'))} | {f(m.get('turn_rms_m'))} | "
             f"{f(m.get('straight_rms_m'))} | {f(m.get('turn_mean_lag_m'))} | {f(m.get('max_ahead_m'))} | "
             f"{f(e.get('measured_rms_m'))} | {f(e.get('ekf_rms_m'))} |"
         )
-    events = ", ".join(f"R{e['robot']} {e['formation']} at {e['time_s']:.2f} s" for e in summary.get(
-        "formation_events", [])) or "none"  # fmt: skip
+    events = ", ".join(f"R{e.get('robot')} {e.get('formation')} at {f(e.get('time_s'), '.2f')} s"
+                       for e in summary.get("formation_events") or []) or "none"  # fmt: skip
     lines += [
         "",
         f"Minimum distance between robots {f(summary.get('min_distance_m'))} m "
@@ -236,16 +257,25 @@ def _markdown(summary: Mapping[str, Any], followers: list[int]) -> str:
     return "\n".join(lines)
 
 
+def build_parser() -> Parser:
+    ap = Parser(prog="swarm report", description=__doc__,
+                epilog="example:\n  swarm run fig11_obstacles --out runs/fig11\n  swarm report runs/fig11")  # fmt: skip
+    ap.add_argument("run_dir", metavar="RUN_DIR", help="a run's folder, as swarm run printed it (runs/<run id>)")
+    ap.add_argument("--snapshots", type=integer(0, MAX_SNAPSHOTS), default=6, metavar="N",
+                    help="formation snapshots drawn on the trajectory figure, evenly spaced in time from the start "
+                    f"to the end, 0 to {MAX_SNAPSHOTS} (default: 6)")  # fmt: skip
+    return ap
+
+
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="swarm report", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    ap.add_argument("run_dir")
-    ap.add_argument("--snapshots", type=int, default=6, help="formation snapshots on the trajectory figure")
-    args = ap.parse_args(argv)
+    args = build_parser().parse_args(argv)
     try:
         out = make_report(args.run_dir, args.snapshots)
     except ValueError as exc:
         print(f"swarm report: {exc}", file=sys.stderr)
-        return 2
+        return USAGE_ERROR
+    except OSError as exc:
+        print(f"swarm report: cannot write the report into {args.run_dir}: {exc}", file=sys.stderr)
+        return USAGE_ERROR
     print(f"[report] {out}: {', '.join(FIGURES)}, report.md")
     return 0

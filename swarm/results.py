@@ -1,25 +1,24 @@
 """The baseline comparison: fuzzy static / fuzzy dynamic / l-psi, under
 observation drops and two camera-noise levels, on the paper's turning path.
 
-    swarm results [--seeds 10] [--jobs J] [--out sweeps/results] [--write docs/results.md ...]
-
-Runs the grid through ``swarm sweep`` (resumable: rerunning reuses finished
-runs), then prints a markdown table of the follower's RMS and max formation
-error (mean over seeds, with the 95% confidence half-width) and, with
-``--write``, replaces the table between the markers in that file.
+Runs the grid through swarm sweep (resumable: rerunning reuses finished runs),
+then prints a markdown table of the follower's RMS and max formation error
+(mean over seeds, with the 95% confidence half-width) and, with --write,
+replaces the table between the markers in that file.
 """
 
 from __future__ import annotations
 
-import argparse
+import os
 import re
 import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from formation_swarm.cliargs import USAGE_ERROR, Parser, integer, make_folder
 from formation_swarm.proc import interrupt_on_stop_signals
-from formation_swarm.sweep import Job, Sweep, aggregate
+from formation_swarm.sweep import MAX_JOBS, MAX_SEEDS, Job, Sweep, aggregate
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / "scenarios" / "fig7_turn_vn_dynamic.toml"
@@ -81,27 +80,54 @@ def table(rows: Sequence[Mapping[str, Any]], seeds: int) -> str:
     return "\n".join(lines)
 
 
-def write_into(path: Path, text: str) -> None:
-    doc = path.read_text()
+def check_markers(path: Path) -> None:
+    """Raise ValueError unless ``path`` is a file with the table's markers."""
+    try:
+        doc = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"--write {path}: cannot read it ({getattr(exc, 'strerror', None) or exc})") from None
     if BEGIN not in doc or END not in doc:
-        raise ValueError(f"{path} has no {BEGIN} ... {END} markers")
+        raise ValueError(f"--write {path}: has no {BEGIN} ... {END} markers")
+
+
+def write_into(path: Path, text: str) -> None:
+    check_markers(path)
+    doc = path.read_text()
     new = re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), lambda _m: f"{BEGIN}\n{text}\n{END}", doc, flags=re.S)
     path.write_text(new)
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="swarm results", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    ap.add_argument("--seeds", type=int, default=10)
-    ap.add_argument("--jobs", type=int, default=None)
-    ap.add_argument("--out", default="sweeps/results")
+def build_parser() -> Parser:
+    ap = Parser(prog="swarm results", description=__doc__,
+                epilog="example:\n  swarm results --seeds 10 --jobs 2 --write docs/results.md")  # fmt: skip
+    ap.add_argument("--seeds", type=integer(2, MAX_SEEDS), default=10, metavar="N",
+                    help=f"runs per cell of the table, seeds 0 to N-1, 2 to {MAX_SEEDS} (a confidence interval "
+                    f"needs two); {len(jobs([0]))} runs per seed (default: 10)")  # fmt: skip
+    ap.add_argument(
+        "--jobs",
+        type=integer(1, MAX_JOBS),
+        default=None,
+        metavar="J",
+        help=f"runs at once, 1 to {MAX_JOBS} (default: the number of cores, {os.cpu_count() or 1})",
+    )
+    ap.add_argument("--out", default="sweeps/results", metavar="DIR",
+                    help="the sweep folder, created if needed; finished runs there are reused "
+                    "(default: sweeps/results)")  # fmt: skip
     ap.add_argument("--write", metavar="MARKDOWN", action="append", default=[],
                     help="replace the table between the markers in this file (repeatable)")  # fmt: skip
-    args = ap.parse_args(argv)
-    if args.seeds < 2:
-        print("swarm results: --seeds must be >= 2 (confidence intervals)", file=sys.stderr)
-        return 2
-    sweep = Sweep(SCENARIO, jobs(range(args.seeds)), args.out, workers=args.jobs)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        for target in args.write:
+            check_markers(Path(target))  # before the runs, not after
+        sweep = Sweep(SCENARIO, jobs(range(args.seeds)), args.out, workers=args.jobs)
+        make_folder("--out", args.out)  # last: nothing made for a bad input
+    except ValueError as exc:
+        print(f"swarm results: {exc}", file=sys.stderr)
+        return USAGE_ERROR
     interrupt_on_stop_signals()
     try:
         rows = sweep.run()
@@ -114,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
             write_into(Path(target), text)
         except (OSError, ValueError) as exc:
             print(f"swarm results: {exc}", file=sys.stderr)
-            return 2
+            return 1
     failed = [r["run"] for r in rows if r.get("exit_code") != 0]
     if failed:
         print(f"swarm results: {len(failed)} runs failed: {', '.join(failed[:10])}", file=sys.stderr)

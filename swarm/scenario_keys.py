@@ -14,6 +14,7 @@ from typing import Any
 
 from formation_swarm.agents.ekf import EkfParams
 from formation_swarm.agents.fuzzy import FuzzyParams
+from formation_swarm.checks import SEED_MAX
 
 # The world's ground truth lists every robot in one message, and the leader's
 # observation every obstacle in range: both must fit protocol.codec.MAX_PAYLOAD_BYTES
@@ -42,11 +43,14 @@ class Key:
         return self.default is REQUIRED
 
     def range_text(self) -> str:
+        def num(v: float) -> str:
+            return "2**63 - 1" if v == SEED_MAX else str(v) if isinstance(v, int) else f"{v:g}"
+
         if self.low is None and self.high is None:
             return ""
         if self.high is None:
-            return f"{'>' if self.open_low else '>='} {self.low:g}"
-        return f"{'(' if self.open_low else '['}{self.low:g}, {self.high:g}]"
+            return f"{'>' if self.open_low else '>='} {num(self.low)}"
+        return f"{'(' if self.open_low else '['}{num(self.low)}, {num(self.high)}]"
 
     def check_range(self, where: str, value: Any) -> str | None:
         """Why ``value`` is out of range, or None."""
@@ -70,7 +74,7 @@ def non_negative(doc: str, default: Any = REQUIRED, unit: str = "") -> Key:
 
 RUN_KEYS = {
     "name": Key(str, "scenario", "the run's name: the start of its run id and folder"),
-    "seed": Key(int, 0, "seed of every random draw (camera noise, link drops); same seed, same lockstep run", low=0),
+    "seed": Key(int, 0, "seed of every random draw (camera noise, link drops)", low=0, high=SEED_MAX),
     "robots": Key(int, REQUIRED, "how many robots; ids run from leader.id upward", low=2, high=MAX_ROBOTS),
     "dt_s": positive("the tick: the world's integration step and the agents' control period", 0.05, "s"),
     "duration_s": positive("the run's length in sim time", unit="s"),

@@ -1,19 +1,15 @@
 """Many lockstep runs of one scenario: seeds x parameter values, in parallel.
 
-    swarm sweep SCENARIO.toml --seeds N [--seed-start S] [--set key=v1,v2 ...]
-                [--jobs J] [--out DIR] [--logger]
-
-Every combination of the ``--set`` values is run with each seed, as many runs
-at once as ``--jobs`` (default: the number of cores). Each run keeps its own
-folder under DIR/runs/; a run whose summary is already there is not run again,
-so an interrupted sweep resumes where it stopped. DIR/runs.csv holds one row
-of metrics per run and DIR/aggregate.csv, per combination, the mean, standard
+Every combination of the --set values is run with each seed, as many runs at
+once as --jobs (default: the number of cores). Each run keeps its own folder
+under DIR/runs/; a run whose summary is already there is not run again, so an
+interrupted sweep resumes where it stopped. DIR/runs.csv holds one row of
+metrics per run and DIR/aggregate.csv, per combination, the mean, standard
 deviation and 95% confidence interval (Student t) of every metric.
 """
 
 from __future__ import annotations
 
-import argparse
 import csv
 import hashlib
 import itertools
@@ -28,11 +24,17 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from formation_swarm import scenario as scenario_mod
-from formation_swarm.launcher import Launch, RunResult
+from formation_swarm.checks import SEED_MAX
+from formation_swarm.cliargs import USAGE_ERROR, Parser, integer, make_folder, seed
 from formation_swarm.proc import interrupt_on_stop_signals
+
+# The launcher and the scenario loader bring Zenoh, scipy and filterpy (1-2 s
+# of imports): they are imported where a sweep needs them, so that --help and
+# a bad flag answer at once.
+if TYPE_CHECKING:
+    from formation_swarm.launcher import Launch, RunResult
 
 # 97.5% quantile of Student's t for n - 1 degrees of freedom (n <= 31), then normal.
 _T975 = (
@@ -59,7 +61,9 @@ def parse_set(text: str) -> tuple[str, list[Any]]:
     key, sep, values = text.partition("=")
     if not sep or not key.strip() or not values.strip():
         raise ValueError(f"--set takes key=v1,v2,..., got {text!r}")
-    out = [scenario_mod.parse_value(raw) for raw in values.split(",")]
+    from formation_swarm.scenario import parse_value
+
+    out = [parse_value(raw) for raw in values.split(",")]
     return key.strip(), out
 
 
@@ -134,6 +138,8 @@ class Sweep:
                  logger: bool = False, progress: Callable[[str], None] = print,
                  run_timeout_s: float = 600.0) -> None:  # fmt: skip
         self.scenario = Path(scenario)
+        from formation_swarm import scenario as scenario_mod
+
         scenario_mod.load(self.scenario)  # a bad scenario fails here, not in every run
         for ov in {j.label: j.overrides for j in jobs}.values():
             scenario_mod.load(self.scenario, dict(ov))  # and so does a bad --set value
@@ -199,6 +205,8 @@ class Sweep:
         return [rows[j.name] for j in self.jobs if j.name in rows]
 
     def _one(self, job: Job, run_dir: Path) -> RunResult | None:
+        from formation_swarm.launcher import Launch
+
         if self._stop.is_set():
             return None
         with Launch(self.scenario, seed=job.seed, out=run_dir, overrides=dict(job.overrides), logger=self.logger,
@@ -252,35 +260,54 @@ def _slug(text: str) -> str:
     return out.strip("_")[:60]
 
 
-def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="swarm sweep", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    ap.add_argument("scenario")
-    ap.add_argument("--seeds", type=int, required=True, help="runs per combination")
-    ap.add_argument("--seed-start", type=int, default=0)
+MAX_SEEDS = 10_000  # runs per combination: each takes seconds to minutes
+MAX_JOBS = 256  # runs at once, each of several processes
+EPILOG = """\
+examples:
+  swarm sweep fig7_turn_vn_dynamic --seeds 20 --set controller.vn=1.5,2,dynamic
+  swarm sweep fig11_obstacles --seeds 10 --set links.obs_drop=0,0.1,0.3 --jobs 2 --out sweeps/drops
+"""
+
+
+def build_parser() -> Parser:
+    ap = Parser(prog="swarm sweep", description=__doc__, epilog=EPILOG)
+    ap.add_argument("scenario", help="a shipped scenario's name (see: swarm scenarios) or a scenario file (TOML)")
+    ap.add_argument("--seeds", type=integer(1, MAX_SEEDS), required=True, metavar="N",
+                    help=f"runs per combination, one per seed, 1 to {MAX_SEEDS} (required)")  # fmt: skip
+    ap.add_argument("--seed-start", type=seed, default=0, metavar="S",
+                    help="the first seed: the runs use seeds S to S+N-1 (default: 0)")  # fmt: skip
     ap.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2",
-                    help="scenario key and the values to sweep (repeatable: the grid is their product)")  # fmt: skip
-    ap.add_argument("--jobs", type=int, default=None, help="runs at once (default: the number of cores)")
-    ap.add_argument("--out", default=None, help="sweep folder (default sweeps/<scenario name>)")
-    ap.add_argument("--logger", action="store_true", help="record each run (needed for the EKF error metrics)")
+                    help="a scenario key and the values to sweep, e.g. controller.vn=1.5,dynamic (repeatable: "
+                    "the grid is every combination)")  # fmt: skip
+    ap.add_argument("--jobs", type=integer(1, MAX_JOBS), default=None, metavar="J",
+                    help=f"runs at once, 1 to {MAX_JOBS} (default: the number of cores, "
+                    f"{os.cpu_count() or 1})")  # fmt: skip
+    ap.add_argument("--out", default=None, metavar="DIR",
+                    help="the sweep folder, created if needed (default: sweeps/<scenario name>)")  # fmt: skip
+    ap.add_argument("--logger", action="store_true",
+                    help="record each run (recording.rrd): needed for the EKF target errors, slower")  # fmt: skip
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    if args.seeds < 1:
-        print("swarm sweep: --seeds must be >= 1", file=sys.stderr)
-        return 2
+    if args.seed_start + args.seeds - 1 > SEED_MAX:
+        print(f"swarm sweep: argument --seed-start: seeds S to S+N-1 must stay within 2**63 - 1, got S "
+              f"{args.seed_start} and N {args.seeds}", file=sys.stderr)  # fmt: skip
+        return USAGE_ERROR
     try:
         sets = [parse_set(s) for s in args.set]
+        from formation_swarm import scenario as scenario_mod
+
         sc = scenario_mod.load(args.scenario)
-        jobs = [Job(label, ov, seed) for label, ov in grid(sets)
-                for seed in range(args.seed_start, args.seed_start + args.seeds)]  # fmt: skip
+        jobs = [Job(label, ov, run_seed) for label, ov in grid(sets)
+                for run_seed in range(args.seed_start, args.seed_start + args.seeds)]  # fmt: skip
         out = Path(args.out) if args.out else Path("sweeps") / _slug(sc.name)
         sweep = Sweep(args.scenario, jobs, out, workers=args.jobs, logger=args.logger)
+        make_folder("--out" if args.out else "sweep folder", out)  # last: nothing made for a bad input
     except (ValueError, OSError) as exc:
         print(f"swarm sweep: {exc}", file=sys.stderr)
-        return 2
+        return USAGE_ERROR
     interrupt_on_stop_signals()  # both stop the runs in flight cleanly
     try:
         rows = sweep.run()

@@ -37,7 +37,7 @@ def test_every_shipped_scenario_loads(path: Path) -> None:
          f"at most {MAX_OBSTACLES} obstacles, got {MAX_OBSTACLES + 1}"),
         ({"obstacles": [{"x_m": 0.0, "y_m": 0.0, "radius": 1.0}]}, "did you mean 'radius_m'?"),
         ({"obstacles": [{"x_m": 0.0, "y_m": 0.0, "radius_m": 0.0}]}, "obstacles[0].radius_m must be > 0, got 0.0"),
-        ({"run.seed": -3}, "run.seed must be >= 0, got -3"),
+        ({"run.seed": -3}, "run.seed must be in [0, 2**63 - 1], got -3"),
         ({"camera.fov_deg": 400.0}, "camera.fov_deg must be in (0, 360], got 400.0"),
         ({"leader.code_burst_s": -1}, "leader.code_burst_s must be >= 0, got -1"),
         ({"controller.ekf": {"q_pos": 1.0}}, "unknown key controller.ekf.q_pos; did you mean 'q_pos_m'?"),

@@ -1,0 +1,289 @@
+"""The swarm command line with bad input: one line on stderr naming the flag
+and the value, exit code 2, no traceback and nothing started or created; a
+role that crashes is named with its exit code and the end of its log."""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import socket
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from importlib.metadata import version
+from pathlib import Path
+
+import pytest
+
+from formation_swarm import __version__, cli, report, results, sweep
+from formation_swarm.console import print_result
+from formation_swarm.launcher import RunResult, free_port
+
+SWARM = Path(sys.executable).parent / "swarm"
+COMMAND = [str(SWARM)] if SWARM.exists() else [sys.executable, "-m", "formation_swarm.cli"]
+MAX_SEED = str(2**63 - 1)
+LIVE = "rerun+http://127.0.0.1:9876/proxy"
+
+RUN = ["run", "fig11_obstacles"]
+SWEEP = ["sweep", "fig11_obstacles", "--seeds", "2"]
+SEED_RANGE = "must be an integer in [0, 2**63 - 1]"
+# id: (argv, a fragment of the one line on stderr); {tmp} is the test's folder, which holds a_file.
+REJECTED = {
+    "run: negative seed": ([*RUN, "--seed", "-3"], f"argument --seed: {SEED_RANGE}, got '-3'"),
+    "run: fractional seed": ([*RUN, "--seed", "1.5"], f"argument --seed: {SEED_RANGE}, got '1.5'"),
+    "run: seed past 2**63 - 1": ([*RUN, "--seed", str(2**63)], f"argument --seed: {SEED_RANGE}, got '{2**63}'"),
+    "run: seed in --set": ([*RUN, "--set", "run.seed=-3"], "run.seed must be in [0, 2**63 - 1], got -3"),
+    "run: kill the world": ([*RUN, "--kill", "world@5"], "cannot kill the world"),
+    "run: kill an unknown process": ([*RUN, "--kill", "agent-9@5"], "cannot kill 'agent-9'"),
+    "run: kill after the end": ([*RUN, "--kill", "agent-2@1e9"], "cannot kill agent-2 at 1e+09 s: the run lasts 56 s"),
+    "run: kill without a time": ([*RUN, "--kill", "agent-2"], "a kill is PROCESS@SECONDS"),
+    "run: zero timeout": ([*RUN, "--timeout", "0"], "argument --timeout: must be a number of seconds > 0, got '0'"),
+    "run: NaN timeout": ([*RUN, "--timeout", "nan"], "argument --timeout: must be a number of seconds > 0, got 'nan'"),
+    "run: --out is a file": ([*RUN, "--out", "{tmp}/a_file"], "--out {tmp}/a_file: is an existing file, not a folder"),
+    "run: --out under a file": (
+        [*RUN, "--out", "{tmp}/a_file/run"],
+        "--out {tmp}/a_file/run: cannot create a writable folder there (Not a directory)",
+    ),
+    "run: --out in /proc": ([*RUN, "--out", "/proc/x"], "--out /proc/x: cannot create a writable folder there"),
+    "run: port 0": ([*RUN, "--serve-web", "--grpc-port", "0"], "argument --grpc-port: must be in [1, 65535], got '0'"),
+    "run: port 70000": (
+        [*RUN, "--serve-web", "--web-port", "70000"],
+        "argument --web-port: must be in [1, 65535], got '70000'",
+    ),
+    "run: port without --serve-web": (
+        [*RUN, "--grpc-port", "9000"],
+        "argument --grpc-port: only used with --serve-web",
+    ),
+    "run: one port for two": (
+        [*RUN, "--serve-web", "--grpc-port", "9000", "--web-port", "9000"],
+        "arguments --grpc-port and --web-port: must differ, got 9000 for both",
+    ),
+    "run: --live without a logger": (
+        [*RUN, "--no-logger", "--live", LIVE],
+        "argument --live: the logger does the streaming; drop --no-logger",
+    ),
+    "run: --live not a viewer address": (
+        [*RUN, "--live", "127.0.0.1:9876"],
+        "argument --live: must be a viewer address like rerun+http://HOST:PORT/proxy, got '127.0.0.1:9876'",
+    ),
+    "run: unknown mode": ([*RUN, "--mode", "fast"], "argument --mode: invalid choice: 'fast'"),
+    "run: unknown scenario key": ([*RUN, "--set", "run.sede=1"], "unknown key run.sede; did you mean 'seed'?"),
+    "run: --set without a value": ([*RUN, "--set", "nonsense"], "--set takes KEY=VALUE"),
+    "run: unknown scenario": (
+        ["run", "fig11_obstacle"],
+        "no scenario file or shipped scenario named 'fig11_obstacle'; did you mean 'fig11_obstacles'?",
+    ),
+    "run: no scenario": (["run"], "the following arguments are required: scenario"),
+    "run: unknown flag": ([*RUN, "--bogus"], "unrecognized arguments: --bogus (see swarm run --help)"),
+    "unknown command": (["fly"], "argument COMMAND: invalid choice: 'fly'"),
+    "sweep: zero jobs": ([*SWEEP, "--jobs", "0"], "argument --jobs: must be in [1, 256], got '0'"),
+    "sweep: zero seeds": (
+        ["sweep", "fig11_obstacles", "--seeds", "0"],
+        "argument --seeds: must be in [1, 10000], got '0'",
+    ),
+    "sweep: negative first seed": ([*SWEEP, "--seed-start", "-1"], f"argument --seed-start: {SEED_RANGE}, got '-1'"),
+    "sweep: seeds past 2**63 - 1": ([*SWEEP, "--seed-start", MAX_SEED], "seeds S to S+N-1 must stay within 2**63 - 1"),
+    "sweep: --out is a file": (
+        [*SWEEP, "--out", "{tmp}/a_file"],
+        "--out {tmp}/a_file: is an existing file, not a folder",
+    ),
+    "sweep: bad --set value": (
+        [*SWEEP, "--set", "controller.vn=1.5,0"],
+        "controller.vn: static_vn must be > 0, got 0.0",
+    ),
+    "results: one seed": (["results", "--seeds", "1"], "argument --seeds: must be in [2, 10000], got '1'"),
+    "results: zero jobs": (["results", "--jobs", "0"], "argument --jobs: must be in [1, 256], got '0'"),
+    "results: --write a missing file": (
+        ["results", "--write", "{tmp}/missing.md"],
+        "--write {tmp}/missing.md: cannot read it (No such file or directory)",
+    ),
+    "results: --write a file without markers": (
+        ["results", "--write", "{tmp}/a_file"],
+        "--write {tmp}/a_file: has no <!-- results table: begin --> ... <!-- results table: end --> markers",
+    ),
+    "results: --out is a file": (["results", "--out", "{tmp}/a_file"], "--out {tmp}/a_file: is an existing file"),
+    "report: negative snapshots": (
+        ["report", "--snapshots", "-1", "{tmp}"],
+        "argument --snapshots: must be in [0, 100], got '-1'",
+    ),
+    "report: no such folder": (["report", "{tmp}/missing"], "{tmp}/missing: no such folder"),
+    "report: not a run folder": (["report", "{tmp}"], "{tmp} is not a run folder: no summary.json"),
+    "sim: negative seed": (["sim", "--seed", "-1"], f"argument --seed: {SEED_RANGE}, got '-1'"),
+    "sim: zero duration": (["sim", "--duration", "0"], "argument --duration: must be a number of seconds in (0, 3600]"),
+    "sim: duration under a step": (
+        ["sim", "--duration", "0.01"],
+        "argument --duration: must be at least one control step (0.05 s), got 0.01",
+    ),
+    "sim: infinite duration": (["sim", "--duration", "inf"], "argument --duration: must be a number of seconds"),
+    "sim: zero V_N": (["sim", "--vn", "0"], "argument --vn: must be 'dynamic' or a speed > 0 in m/s, got '0'"),
+}
+
+
+def swarm(argv: list[str], cwd: Path, timeout_s: float = 60.0) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*COMMAND, *argv], cwd=cwd, capture_output=True, text=True, timeout=timeout_s, check=False)
+
+
+def no_traceback(proc: subprocess.CompletedProcess[str]) -> bool:
+    """No traceback of swarm's own: a child's log quoted on the console is indented."""
+    return not any(line.startswith("Traceback") for line in (proc.stdout + proc.stderr).splitlines())
+
+
+def files(folder: Path) -> list[Path]:
+    return sorted(folder.rglob("*"))
+
+
+@dataclass
+class Outcome:
+    folder: Path
+    before: list[Path]
+    after: list[Path]
+    proc: subprocess.CompletedProcess[str]
+    elapsed_s: float
+
+
+@pytest.fixture(scope="module")
+def rejected(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Outcome]:
+    """Every case of REJECTED, each in its own folder; independent processes,
+    so four at a time (most of their time is Python importing numpy and filterpy)."""
+
+    def one(case: str) -> Outcome:
+        argv, _ = REJECTED[case]
+        folder = tmp_path_factory.mktemp("bad")
+        (folder / "a_file").write_text("not a folder\n")
+        before = files(folder)
+        started = time.monotonic()
+        proc = swarm([a.format(tmp=folder) for a in argv], cwd=folder)
+        return Outcome(folder, before, files(folder), proc, time.monotonic() - started)
+
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        return dict(zip(REJECTED, pool.map(one, REJECTED), strict=True))
+
+
+@pytest.mark.parametrize("case", list(REJECTED))
+def test_bad_input_is_one_line_exit_2_and_nothing_made(rejected: dict[str, Outcome], case: str) -> None:
+    argv, fragment = REJECTED[case]
+    res = rejected[case]
+    proc = res.proc
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stdout == ""
+    assert len(proc.stderr.splitlines()) == 1, proc.stderr
+    assert fragment.format(tmp=res.folder) in proc.stderr
+    command = argv[0] if argv[0] in (*cli.DELEGATED, "run", "sim", "scenarios") else None
+    assert proc.stderr.startswith(f"swarm {command}: " if command else "swarm: ")
+    assert "Traceback" not in proc.stdout + proc.stderr
+    assert res.after == res.before  # no run folder, no runs/, no sweeps/
+    assert res.elapsed_s < 20.0  # refused up front, not after a run
+
+
+def test_a_role_that_crashes_is_named_with_its_code_and_its_log(tmp_path: Path) -> None:
+    """The logger cannot serve the web viewer on a port already taken: it
+    exits with an error before tick 0; the run stops at once (the world would
+    wait for it) and says which process, its exit code and its log's end."""
+    with socket.socket() as taken:
+        taken.bind(("0.0.0.0", 0))
+        taken.listen()
+        web_port = taken.getsockname()[1]
+        started = time.monotonic()
+        argv = ["run", "fig6_turn_vn_2", "--serve-web", "--grpc-port", str(free_port()), "--web-port", str(web_port),
+                "--out", str(tmp_path / "run")]  # fmt: skip
+        proc = swarm(argv, cwd=tmp_path)
+        elapsed = time.monotonic() - started
+    out = proc.stdout
+    assert proc.returncode == 1, out + proc.stderr
+    assert elapsed < 30.0  # not the world's 60 s wait for a logger that is gone
+    log = tmp_path / "run" / "logs" / "logger.log"
+    assert f"logger exited with code 1 before the run started; the end of {log}:" in out
+    quoted = [line for line in out.splitlines() if line.startswith("  | ")]
+    assert any("Address already in use" in line for line in quoted), out
+    assert "the run cannot start without logger" in out
+    assert "no metrics: the run ended before its first tick" in out
+    assert no_traceback(proc), out + proc.stderr
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["exit_code"] == 1
+    exited = [e for e in summary["events"] if e["event"] == "exited" and e["process"] == "logger"]
+    assert [e["code"] for e in exited] == [1]
+    assert any("Address already in use" in line for line in exited[0]["log_tail"])
+
+    # ... and swarm report on that folder says the run ended early, in one line.
+    rep = swarm(["report", str(tmp_path / "run")], cwd=tmp_path)
+    assert rep.returncode == 2
+    assert len(rep.stderr.splitlines()) == 1
+    assert "ended before its first tick (exit code 1)" in rep.stderr
+    assert "Traceback" not in rep.stdout + rep.stderr
+
+
+def test_report_on_a_recording_it_cannot_read(tmp_path: Path) -> None:
+    (tmp_path / "summary.json").write_text(json.dumps({"run_id": "r", "ticks": None, "exit_code": 1}))
+    (tmp_path / "recording.rrd").write_bytes(b"")  # a logger killed before its first write
+    proc = swarm(["report", str(tmp_path)], cwd=tmp_path)
+    assert proc.returncode == 2
+    assert len(proc.stderr.splitlines()) == 1
+    assert f"cannot read {tmp_path / 'recording.rrd'}" in proc.stderr
+    assert "Traceback" not in proc.stdout + proc.stderr
+    (tmp_path / "summary.json").write_text("{not json")
+    proc = swarm(["report", str(tmp_path)], cwd=tmp_path)
+    assert proc.returncode == 2
+    assert "summary.json is not valid JSON" in proc.stderr
+
+
+def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: Path) -> None:
+    """A summary without ticks or metrics, with None and missing values."""
+    summary = {
+        "run_id": "r1", "ticks": None, "sim_time_s": None, "followers": None, "min_distance_m": None,
+        "formation_events": None, "events": [{"event": "exited", "process": "world", "code": 1, "sim_time_s": -1.0,
+                                              "log_tail": ["ValueError: boom"]}],
+        "recording": "recording.rrd",
+    }  # fmt: skip
+    out = io.StringIO()
+    print_result(RunResult(tmp_path, summary, 1), out)
+    text = out.getvalue()
+    assert "run r1: exit 1, no ticks, sim - s" in text
+    assert "no metrics: the run ended before its first tick" in text
+    assert "event: world exited with code 1 before the run started" in text
+    assert "open it" not in text  # no recording.rrd in the folder
+    out = io.StringIO()
+    ticked = {**summary, "ticks": 5, "followers": {"2": {"rms_m": None}}, "formation_events": [{"robot": 2}]}
+    print_result(RunResult(tmp_path, ticked, 1), out)
+    assert "follower R2: formation error RMS - m, max - m" in out.getvalue()
+    assert "formation changes: R2 None at - s" in out.getvalue()
+    md = report._markdown({**ticked, "parts": None}, [2])
+    assert "| R2 | - | - |" in md
+
+
+def test_version() -> None:
+    proc = swarm(["--version"], cwd=Path.cwd())
+    assert proc.returncode == 0
+    assert proc.stdout == f"formation-swarm {__version__}\n"
+    assert __version__ == version("formation-swarm")  # the package's and the installed metadata's
+
+
+def test_help_is_written_for_people() -> None:
+    proc = swarm(["--help"], cwd=Path.cwd())
+    assert proc.returncode == 0
+    assert proc.stdout.split("\n\n")[1].startswith("swarm: an emulator of vision-based leader-follower formation")
+    parsers = {"swarm": cli.build_parser(), "report": report.build_parser(), "sweep": sweep.build_parser(),
+               "results": results.build_parser()}  # fmt: skip
+    for sub in parsers["swarm"]._subparsers._group_actions[0].choices.values():  # type: ignore[union-attr]
+        if sub.add_help:  # the ones with their own parser here, not a module's
+            parsers[sub.prog] = sub
+    summaries = parsers["swarm"]._subparsers._group_actions[0]._choices_actions  # type: ignore[union-attr]
+    assert all(len(a.help or "") > 20 for a in summaries), [a.dest for a in summaries if len(a.help or "") <= 20]
+    for name, parser in parsers.items():
+        text = parser.format_help()
+        assert "``" not in text, name  # reST markup, which argparse prints as it is
+        if name != "swarm":
+            assert len(parser.description or "") > 80, name
+        for action in parser._actions:
+            if isinstance(action, (argparse._HelpAction, argparse._VersionAction, argparse._SubParsersAction)):
+                continue
+            assert len(action.help or "") > 20, (name, action.dest)
+
+
+def test_no_arguments_prints_the_help() -> None:
+    proc = swarm([], cwd=Path.cwd())
+    assert proc.returncode == 2
+    assert "swarm run fig11_obstacles" in proc.stdout
+    assert proc.stderr == ""
