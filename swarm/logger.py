@@ -1,11 +1,13 @@
 """The logger process: the run's key space streamed to Rerun (formation_swarm.recording).
 
     swarm logger --scenario S.toml --run RUN --out recording.rrd [--live URL] [--serve-web]
-                 [--stats FILE] --connect ENDPOINT
+                 [--stats FILE] [--peers-timeout S] --connect ENDPOINT
 
 It subscribes to the world's keys and to every follower's telemetry (not
 to observations, commands and formation codes: they would double the
-router's work for nothing) and ends when the world says "done".
+router's work for nothing), holds a liveliness token the world waits for,
+and watches the world's token: it gives up when the world has not appeared
+within ``--peers-timeout`` and ends when the world says "done" or leaves.
 
 Data is buffered and sent as columns every 0.25 s of wall time and the file
 is flushed every 0.5 s, so a logger killed with SIGKILL loses at most about
@@ -23,17 +25,18 @@ import queue
 import sys
 import threading
 import time
+from pathlib import Path
 from typing import Any
 
-import rerun as rr
 import zenoh
 
+from formation_swarm import role as role_mod
 from formation_swarm import scenario as scenario_mod
-from formation_swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
+from formation_swarm.proc import write_json
 from formation_swarm.protocol import session
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Rejections, Status, Telemetry, Truth, pack_batch
-from formation_swarm.recording import Recorder, blueprint
+from formation_swarm.recording import Recorder, open_recording
 
 SEND_PERIOD_S = 0.25
 FLUSH_PERIOD_S = 0.5
@@ -45,20 +48,33 @@ class Logger:
     """The process loop: messages are queued as they arrive and handed to the
     Recorder, which sends them as Rerun columns, every SEND_PERIOD_S."""
 
-    def __init__(self, sess: zenoh.Session, sc: scenario_mod.Scenario, run_id: str, recorder: Recorder,
-                 stop: StopEvent) -> None:  # fmt: skip
+    def __init__(
+        self,
+        sess: zenoh.Session,
+        sc: scenario_mod.Scenario,
+        run_id: str,
+        recorder: Recorder,
+        role: role_mod.Role,
+        where: str = "",
+    ) -> None:
         self.session = sess
         self.sc = sc
         self.keys = Keys(run_id)
         self.recorder = recorder
-        self.stop = stop
-        self.wake = threading.Event()  # set by a stop, the run's status or a stream's end
-        stop.add_waker(self.wake.set)
+        self.role = role
+        self.stop = role.stop
+        self.where = where  # the session's endpoints, for messages
+        self.wake = threading.Event()  # set by a stop, the run's status, a stream's end or the world's token
+        self.stop.add_waker(self.wake.set)
         self.inbox: queue.SimpleQueue[tuple[str, bytes]] = queue.SimpleQueue()
         self.rejections = Rejections()
         self.ended: set[int] = set()  # followers whose telemetry stream has ended
         self.counts = {"truth": 0, "telemetry": 0, "other": 0}
+        self.world_seen = False
+        self.world_gone = False
+        self.started = False  # the run's first status or truth has been handled
         self.done = False
+        self.end_note = "not started"  # why the loop ended, for the last report line
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         key, payload = str(sample.key_expr), sample.payload.to_bytes()
@@ -66,11 +82,19 @@ class Logger:
         if key == self.keys.status or payload == END_OF_STREAM:
             self.wake.set()  # the end of the run is handled at once, the rest per send
 
+    def _on_world_alive(self, sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:
+            self.world_seen = True
+        elif self.world_seen:
+            self.world_gone = True
+        self.wake.set()
+
     def run(self) -> int:
         s, k = self.session, self.keys
         self.recorder.log_static()
         s.declare_subscriber(k.world_all, self._on_sample)
         s.declare_subscriber(k.all_telemetry, self._on_sample)
+        s.liveliness().declare_subscriber(k.alive("world", 0), self._on_world_alive, history=True)
         gc.freeze()  # start-up objects (numpy, scipy, zenoh) leave the collector's scans
         token = s.liveliness().declare_token(k.alive("logger", 0))
         last_send = last_flush = time.monotonic()
@@ -80,9 +104,19 @@ class Logger:
             # out of the way of the run's own processes. After "done", each
             # follower flushes its last telemetry and marks the end of its
             # stream: wait for those (bounded: a killed one never will), then
-            # close the file.
+            # close the file. The world leaving ends it too: nothing more
+            # can come (the world is usually the router).
             followers, end_by = set(self.sc.follower_ids), math.inf
-            while not self.stop.is_set() and not (self.done and (self.ended >= followers or time.monotonic() > end_by)):
+            while (
+                not self.stop.is_set()
+                and not self.world_gone
+                and not (self.done and (self.ended >= followers or time.monotonic() > end_by))
+            ):
+                if not self.world_seen and self.role.left_s() <= 0:
+                    self.end_note = "gave up waiting for the world"
+                    return self.role.gave_up(
+                        f"no world of run {self.keys.run_id!r} ({self.where}); check --run and --connect"
+                    )
                 self.wake.wait(max(0.0, min(last_send + SEND_PERIOD_S, end_by) - time.monotonic()))
                 self.wake.clear()
                 self._drain()
@@ -101,7 +135,21 @@ class Logger:
             self.recorder.flush(timeout_s=1.0)
         finally:
             token.undeclare()
-        return 0
+        return self._exit_code()
+
+    def _exit_code(self) -> int:
+        if self.done:
+            self.end_note = "the world said done"
+            return role_mod.EXIT_OK
+        if self.stop.is_set():
+            self.end_note = self.role.stopped_by() + ("" if self.started else " before the run started")
+            return self.stop.exit_code
+        if not self.started:  # the world gives up when its peers do not all come
+            self.end_note = "the world left before the run started"
+            self.role.complain(f"the world of run {self.keys.run_id!r} left before the run started; see its output")
+            return role_mod.EXIT_NO_PEERS
+        self.end_note = "the world left"
+        return role_mod.EXIT_OK
 
     def _drain(self) -> None:
         while True:
@@ -116,6 +164,7 @@ class Logger:
             truths = self.rejections.decode_batch(Truth, payload) or []
             self.counts["truth"] += len(truths)
             self.recorder.add_truths(truths)
+            self._start()
         elif rk is not None and rk.kind == "telemetry":
             tels = self.rejections.decode_batch(Telemetry, payload, sender=rk.robot_id)
             if tels == []:
@@ -125,10 +174,16 @@ class Logger:
                 self.recorder.add_telemetry(tels)
         elif key == self.keys.status:
             st = self.rejections.decode(Status, payload)
-            if st is not None and st.state == "done":
-                self.done = True
+            if st is not None:
+                self._start()
+                self.done = self.done or st.state == "done"
         else:
             self.counts["other"] += 1
+
+    def _start(self) -> None:
+        if not self.started:
+            self.started = True
+            self.role.say(f"run {self.keys.run_id} started")
 
     def stats(self) -> dict[str, Any]:
         recorded = self.recorder.stats()
@@ -140,49 +195,98 @@ class Logger:
         }
 
 
+DESCRIPTION = """\
+Run the logger of one run by hand: it records the run to a Rerun file
+(and, if asked, streams it to a viewer): the robots' true poses and
+trajectories, each follower's measured, estimated and true target point,
+V_N, wheel speeds and errors, and the formation changes, on the run's sim
+time.
+
+It connects, as a client, to the world or to the run's router, waits for
+the world, and closes the recording when the world says the run is done or
+leaves. Start it before the world's first tick (the world waits for it
+with --expect-logger): what is sent before it is there is not recorded.
+
+It prints one line when its session is open, one when the run starts and
+one when it ends (why, and where the recording and its stats went)."""
+
+
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="swarm logger", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    ap.add_argument("--scenario", required=True)
-    ap.add_argument("--run", required=True)
-    ap.add_argument("--out", required=True, help="the .rrd file to write")
-    ap.add_argument("--live", metavar="URL", help="also stream to a viewer, e.g. rerun+http://127.0.0.1:9876/proxy")
-    ap.add_argument("--serve-web", action="store_true", help="also serve the web viewer (gRPC + web ports)")
-    ap.add_argument("--grpc-port", type=int, default=9876, help="--serve-web: the gRPC port (default 9876)")
-    ap.add_argument("--web-port", type=int, default=9090, help="--serve-web: the web viewer's port (default 9090)")
-    ap.add_argument("--stats", help="write the logger's counters (JSON) here at exit")
-    ap.add_argument("--nice", type=int, default=10, help="scheduling niceness increment (default 10; 0 keeps it)")
+    ap = argparse.ArgumentParser(
+        prog="swarm logger",
+        description=DESCRIPTION,
+        epilog=role_mod.EXIT_CODES_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ap.add_argument(
+        "--scenario",
+        required=True,
+        metavar="FILE|NAME",
+        help="the scenario: a TOML file or a shipped scenario's name; the same as the world's",
+    )
+    ap.add_argument("--run", required=True, metavar="ID", help="run id: the same as the world's")
+    ap.add_argument("--out", required=True, metavar="FILE", help="the Rerun recording to write (.rrd)")
+    ap.add_argument(
+        "--live", metavar="URL", help="also stream to a Rerun viewer, e.g. rerun+http://127.0.0.1:9876/proxy"
+    )
+    ap.add_argument("--serve-web", action="store_true", help="also serve the Rerun web viewer (see the two ports)")
+    ap.add_argument(
+        "--grpc-port", type=int, default=9876, metavar="PORT", help="--serve-web: the gRPC port (default 9876)"
+    )
+    ap.add_argument(
+        "--web-port", type=int, default=9090, metavar="PORT", help="--serve-web: the web viewer's port (default 9090)"
+    )
+    ap.add_argument("--stats", metavar="FILE", help="write the logger's counters here at exit (JSON)")
+    ap.add_argument(
+        "--nice",
+        type=int,
+        default=10,
+        metavar="N",
+        help="lower the logger's CPU priority by this much (default 10; 0 keeps it)",
+    )
+    role_mod.add_arguments(ap, waits_for="the world")
     session.add_arguments(ap, default_mode="client")
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    stop = install_stop_handlers()
+    role = role_mod.Role("logger", args.peers_timeout)
     if args.nice:
         # Off the lockstep critical path: yield the cores to the world and the
         # agents; the logger buffers and catches up in their slack.
         with contextlib.suppress(OSError):
             os.nice(args.nice)
-    inputs = role_inputs(args, "logger")
-    if inputs is None:
-        return 2
-    sc, sess_cm = inputs
+    sc = role.load(args)
+    if isinstance(sc, int):
+        return sc
+    try:  # before connecting: a recording that cannot be written fails at once
+        rec, web = open_recording(
+            args.run, Path(args.out), args.live, (args.grpc_port, args.web_port) if args.serve_web else None
+        )
+    except (OSError, RuntimeError) as exc:
+        role.complain(f"cannot record to {args.out}: {exc}")
+        return role_mod.EXIT_FAILED
+    if web:
+        role.say(f"web viewer on {web}")
+    sess_cm = role.connect(args)
+    if isinstance(sess_cm, int):
+        return sess_cm
+    where = role_mod.describe_session(args)
     with sess_cm as sess:
-        rec = rr.RecordingStream("formation-swarm", recording_id=args.run,
-                                 batcher_config=rr.ChunkBatcherConfig(flush_tick=0.1))  # fmt: skip
-        sinks: list[Any] = [rr.FileSink(args.out)]
-        if args.live:
-            sinks.append(rr.GrpcSink(args.live))
-        rec.set_sinks(*sinks, default_blueprint=blueprint())
-        if args.serve_web:
-            url = rr.serve_grpc(grpc_port=args.grpc_port, recording=rec, default_blueprint=blueprint())
-            rr.serve_web_viewer(web_port=args.web_port, connect_to=url, open_browser=False)
-            print(f"logger: web viewer on http://127.0.0.1:{args.web_port}, data at {url}", flush=True)
-        logger = Logger(sess, sc, args.run, Recorder(rec, sc), stop)
+        role.say(
+            f"{where}; run {args.run}: recording to {args.out}; waiting up to {role.peers_timeout_s:g} s for the world"
+        )
+        logger = Logger(sess, sc, args.run, Recorder(rec, sc), role, where)
         code = logger.run()
         write_json(args.stats, logger.stats())
     rec.flush(timeout_sec=2.0)
+    if code != role_mod.EXIT_NO_PEERS:
+        written = f"stats in {args.stats}" if args.stats else "no --stats: counters not written"
+        role.say(
+            f"run {args.run} ended ({logger.end_note}), exit code {code}, {logger.counts['truth']} ticks "
+            f"recorded in {args.out}; {written}"
+        )
     return code
 
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 import sys
 from collections import defaultdict
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -68,6 +69,29 @@ def blueprint() -> rrb.Blueprint:
         ),
         collapse_panels=True,
     )
+
+
+def open_recording(
+    run_id: str, out: Path, live: str | None = None, web_ports: tuple[int, int] | None = None
+) -> tuple[rr.RecordingStream, str | None]:
+    """A recording stream writing ``out`` (its folder created), also streaming to
+    the viewer at ``live`` and, with ``web_ports`` (gRPC, web), serving the web
+    viewer; and that viewer's address. Rerun raises RuntimeError for a sink it
+    cannot open."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    rec = rr.RecordingStream(
+        "formation-swarm", recording_id=run_id, batcher_config=rr.ChunkBatcherConfig(flush_tick=0.1)
+    )
+    sinks: list[Any] = [rr.FileSink(str(out))]
+    if live:
+        sinks.append(rr.GrpcSink(live))
+    rec.set_sinks(*sinks, default_blueprint=blueprint())
+    if web_ports is None:
+        return rec, None
+    grpc_port, web_port = web_ports
+    url = rr.serve_grpc(grpc_port=grpc_port, recording=rec, default_blueprint=blueprint())
+    rr.serve_web_viewer(web_port=web_port, connect_to=url, open_browser=False)
+    return rec, f"http://127.0.0.1:{web_port}, data at {url}"
 
 
 class Recorder:
