@@ -1,6 +1,7 @@
 """One robot's agent process: its brain on the run's Zenoh key space.
 
-    swarm agent --id N --scenario S.toml --run RUN [--seed N] [--stats FILE] --connect ENDPOINT
+    swarm agent --id N --scenario S.toml --run RUN [--seed N] [--stats FILE] [--peers-timeout S]
+                --connect ENDPOINT
 
 A follower turns each observation into wheel speeds with the paper's
 controller (agents.follower) and obeys the formation codes its leader sends.
@@ -11,8 +12,11 @@ formation code to every follower over one-way links: every tick for
 
 The agent answers every observation it receives, even one its link layer
 drops (then without the reading), so that lockstep never waits on a drop.
-It holds a liveliness token while it runs and exits when the world says the
-run is done, when the world's token disappears, or on SIGINT/SIGTERM.
+Before it announces itself (its liveliness token) it waits, up to
+``--peers-timeout``, for the world's token and for its command publisher to
+match (the leader: also every follower's formation subscriber), each such
+change waking the wait. It exits when the world says the run is done, when
+the world's token disappears, or on SIGINT/SIGTERM.
 
 Observations and formation codes reach the loop through a Zenoh FIFO
 channel, received on the loop's own thread: no Python callback thread and no
@@ -34,11 +38,12 @@ from typing import Any
 
 import zenoh
 
+from formation_swarm import role as role_mod
 from formation_swarm import scenario as scenario_mod
 from formation_swarm.agents.follower import Decision, Follower
 from formation_swarm.agents.leader import CodeRepeats, FormationSwitch
 from formation_swarm.agents.pilot import PathPilot
-from formation_swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
+from formation_swarm.proc import wait_for, write_json
 from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.codec import Rejections
@@ -47,7 +52,6 @@ from formation_swarm.protocol.links import Link, link_name
 from formation_swarm.protocol.messages import Command, FormationCode, Observation, Status, Telemetry
 from formation_swarm.world.kinematics import Pose
 
-STARTUP_TIMEOUT_S = 60.0
 WORLD_ID = 0
 # Lockstep holds at most a tick's observation and a few codes here; when full,
 # Zenoh waits for the loop (back-pressure) rather than dropping.
@@ -56,14 +60,16 @@ INBOX_CAPACITY = 1024
 
 class Agent:
     def __init__(self, sess: zenoh.Session, sc: scenario_mod.Scenario, rid: int, run_id: str, seed: int,
-                 stop: StopEvent) -> None:  # fmt: skip
+                 role: role_mod.Role, where: str = "") -> None:  # fmt: skip
         if rid not in sc.robots:
             raise ValueError(f"--id {rid} is not a robot of this scenario; robots are {list(sc.robots)}")
         self.session = sess
         self.sc = sc
         self.rid = rid
         self.keys = Keys(run_id)
-        self.stop = stop
+        self.role = role
+        self.stop = role.stop
+        self.where = where  # the session's endpoints, for messages
         self.is_leader = rid == sc.leader.robot_id
         self.rejections = Rejections()
         self.status_rejections = Rejections()  # counted on the status callback's thread
@@ -75,7 +81,10 @@ class Agent:
         self.formation_link = Link(link_name("formation", sc.leader.robot_id, rid), sc.links.formation_drop, seed)
         self.world_seen = False
         self.world_gone = False
+        self.peers_changed = threading.Event()  # a matching change, the world's token or a stop
+        self.started = False  # a message of the run has arrived
         self.done = False
+        self.end_note = "not started"  # why the loop ended, for the last report line
         self.answered = 0
         self.busy_s = 0.0  # time handling messages in the loop, summed
         self.formation_changes: list[dict[str, Any]] = []
@@ -102,6 +111,7 @@ class Agent:
     def _on_world_alive(self, sample: zenoh.Sample) -> None:
         if sample.kind == zenoh.SampleKind.PUT:
             self.world_seen = True
+            self.peers_changed.set()
         elif self.world_seen:
             self.world_gone = True
             self._close_inbox()
@@ -131,15 +141,9 @@ class Agent:
             if self.is_leader else {}
         )  # fmt: skip
         # Announce ourselves only once the world can hear our commands.
-        deadline = time.monotonic() + STARTUP_TIMEOUT_S
-        while not self.cmd_pub.matching_status.matching or (self.is_leader and not all(
-                p.matching_status.matching for p in self.form_pubs.values())):  # fmt: skip
-            if self.stop.wait(0.01):
-                return 130
-            if time.monotonic() > deadline:
-                print(f"agent {self.rid}: no world (or follower) matched within {STARTUP_TIMEOUT_S:.0f} s",
-                      file=sys.stderr)  # fmt: skip
-                return 2
+        code = self._wait_matched()
+        if code is not None:
+            return code
         gc.freeze()  # start-up objects (numpy, scipy, zenoh) leave the collector's scans
         token = s.liveliness().declare_token(k.alive("agent", self.rid))
         try:
@@ -147,6 +151,40 @@ class Agent:
         finally:
             self.tel_pub.close()  # the logger waits for this end-of-stream mark
             token.undeclare()
+
+    def _wait_matched(self) -> int | None:
+        """Until the world's token is seen and our command publisher matched and,
+        for the leader, every follower's formation subscriber matched us; each
+        change (or a stop) ends a wait. None when all are there, else the exit
+        code. The token is what proves the world: our own inbox subscriber
+        (robot/<id>/*) matches our command key too."""
+        changed = self.peers_changed
+        self.stop.add_waker(changed.set)
+        pubs = [self.cmd_pub, *self.form_pubs.values()]
+        listeners = [p.declare_matching_listener(lambda _status: changed.set()) for p in pubs]
+        try:
+            while True:
+                no_world = not (self.world_seen and self.cmd_pub.matching_status.matching)
+                no_followers = [f for f, p in self.form_pubs.items() if not p.matching_status.matching]
+                if not no_world and not no_followers:
+                    return None
+                if self.stop.is_set():
+                    self.end_note = f"{self.role.stopped_by()} before the run started"
+                    return self.stop.exit_code
+                if self.role.left_s() <= 0:
+                    missing = [f"no world of run {self.keys.run_id!r}"] if no_world else []
+                    if no_followers:
+                        missing.append(
+                            f"no agent for follower{'s' if len(no_followers) > 1 else ''} "
+                            f"{', '.join(map(str, no_followers))}"
+                        )
+                    self.end_note = "gave up waiting for its peers"
+                    return self.role.gave_up(f"{' and '.join(missing)} ({self.where}); check --run and --connect")
+                wait_for(changed, self.role.left_s())
+                changed.clear()
+        finally:
+            for listener in listeners:
+                listener.undeclare()
 
     def _loop(self) -> int:
         inbox = self.inbox
@@ -160,16 +198,27 @@ class Agent:
                 sample = channel.recv()
             except zenoh.ZError:
                 break  # closed by _close_inbox
+            if not self.started:
+                self.started = True
+                self.role.say(f"run {self.keys.run_id} started")
             t0 = time.perf_counter()
             self._on_message(str(sample.key_expr), sample.payload.to_bytes())
             self.busy_s += time.perf_counter() - t0
         return self._exit_code()
 
     def _exit_code(self) -> int:
-        if self.world_gone and not self.done and not self.stop.is_set():
-            print(f"agent {self.rid}: the world is gone; exiting", flush=True)
-            return 0
-        return 130 if self.stop.is_set() and not self.done else 0
+        if self.done:
+            self.end_note = "the world said done"
+            return role_mod.EXIT_OK
+        if self.stop.is_set():
+            self.end_note = self.role.stopped_by()
+            return self.stop.exit_code
+        if not self.started:  # the world gives up when its peers do not all come
+            self.end_note = "the world left before the run started"
+            self.role.complain(f"the world of run {self.keys.run_id!r} left before the run started; see its output")
+            return role_mod.EXIT_NO_PEERS
+        self.end_note = "the world left"
+        return role_mod.EXIT_OK
 
     def _on_message(self, key: str, payload: bytes) -> None:
         rk = self.keys.parse_robot(key)
@@ -288,35 +337,75 @@ def _opt(x: float) -> float | None:
     return None if x != x else x  # NaN -> None (the wire carries no NaN)
 
 
+DESCRIPTION = """\
+Run one robot's agent by hand: its controller, on the run's Zenoh key
+space. A follower turns the world's camera observations into wheel speeds
+with the paper's EKF and fuzzy controller and obeys its leader's formation
+codes; the leader flies the scenario's path and sends the codes.
+
+It connects, as a client, to the world or to the run's router, waits for
+the world (the leader also for its followers), answers every tick, and
+exits when the world says the run is done or leaves.
+
+It prints one line when its session is open, one when the run starts and
+one when it ends (why, and where its stats went)."""
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
-        prog="swarm agent", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog="swarm agent",
+        description=DESCRIPTION,
+        epilog=role_mod.EXIT_CODES_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    ap.add_argument("--id", type=int, required=True, help="robot id")
-    ap.add_argument("--scenario", required=True)
-    ap.add_argument("--run", required=True)
-    ap.add_argument("--seed", type=int, default=None, help="overrides the scenario's seed (link drops)")
-    ap.add_argument("--stats", help="write this agent's counters (JSON) here at exit")
+    ap.add_argument("--id", type=int, required=True, metavar="N", help="the robot id, one of the scenario's robots")
+    ap.add_argument(
+        "--scenario",
+        required=True,
+        metavar="FILE|NAME",
+        help="the scenario: a TOML file or a shipped scenario's name; the same as the world's",
+    )
+    ap.add_argument("--run", required=True, metavar="ID", help="run id: the same as the world's")
+    ap.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        metavar="N",
+        help="random seed of the link drops (default: the scenario's); the same as the world's",
+    )
+    ap.add_argument("--stats", metavar="FILE", help="write this agent's counters here at exit (JSON)")
+    role_mod.add_arguments(ap, waits_for="the world (and, for the leader, its followers)")
     session.add_arguments(ap, default_mode="client")
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    stop = install_stop_handlers()
-    inputs = role_inputs(args, "agent")
-    if inputs is None:
-        return 2
-    sc, sess_cm = inputs
+    role = role_mod.Role(f"agent {args.id}", args.peers_timeout)
+    sc = role.load(args)
+    if isinstance(sc, int):
+        return sc
+    if args.id not in sc.robots:
+        role.complain(f"--id {args.id} is not a robot of this scenario; its robots are {list(sc.robots)}")
+        return role_mod.EXIT_USAGE
+    sess_cm = role.connect(args)
+    if isinstance(sess_cm, int):
+        return sess_cm
     seed = sc.seed if args.seed is None else args.seed
+    where = role_mod.describe_session(args)
     with sess_cm as sess:
-        try:
-            agent = Agent(sess, sc, args.id, args.run, seed, stop)
-        except ValueError as exc:
-            print(f"agent: {exc}", file=sys.stderr)
-            return 2
+        agent = Agent(sess, sc, args.id, args.run, seed, role, where)
+        part = "leader" if agent.is_leader else f"follower of robot {agent.reference}"
+        waits = "the world and its followers" if agent.is_leader else "the world"
+        role.say(f"{where}; run {args.run}, {part}: waiting up to {role.peers_timeout_s:g} s for {waits}")
         code = agent.run()
         write_json(args.stats, agent.stats())
+        if code != role_mod.EXIT_NO_PEERS:
+            written = f"stats in {args.stats}" if args.stats else "no --stats: counters not written"
+            role.say(
+                f"run {args.run} ended ({agent.end_note}), exit code {code}, "
+                f"{agent.answered} observations answered; {written}"
+            )
     return code
 
 

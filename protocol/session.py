@@ -51,11 +51,34 @@ SIZE_FILTER = {
 
 
 def add_arguments(parser: argparse.ArgumentParser, default_mode: str = "client") -> None:
-    group = parser.add_argument_group("zenoh")
-    group.add_argument("--zenoh-mode", choices=("client", "peer", "router"), default=default_mode)
-    group.add_argument("--connect", action="append", default=[], metavar="ENDPOINT")
-    group.add_argument("--listen", action="append", default=[], metavar="ENDPOINT")
-    group.add_argument("--config", metavar="FILE", help="Zenoh JSON5 configuration file")
+    group = parser.add_argument_group("Zenoh session")
+    group.add_argument(
+        "--zenoh-mode",
+        choices=("client", "peer", "router"),
+        default=default_mode,
+        help=f"client: connect to a router (--connect); router: be one (--listen); peer: connect to "
+        f"and listen for other peers directly (default {default_mode})",
+    )
+    group.add_argument(
+        "--connect",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="a router to connect to, e.g. tcp/192.168.1.10:7447 (repeatable; a client needs one)",
+    )
+    group.add_argument(
+        "--listen",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="an endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)",
+    )
+    group.add_argument(
+        "--config",
+        metavar="FILE",
+        help="a Zenoh JSON5 configuration file; it replaces this program's defaults "
+        "(multicast scouting off, low-latency transport, 40 KiB size filter)",
+    )
 
 
 def make_config(
@@ -99,5 +122,5 @@ def make_config(
     return conf
 
 
-def config_from_args(args: argparse.Namespace) -> zenoh.Config:
-    return make_config(args.zenoh_mode, args.connect, args.listen, args.config)
+def config_from_args(args: argparse.Namespace, connect_timeout_s: float = 30.0) -> zenoh.Config:
+    return make_config(args.zenoh_mode, args.connect, args.listen, args.config, connect_timeout_s)

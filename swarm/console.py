@@ -12,6 +12,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
+from formation_swarm import summary as summary_mod
 from formation_swarm.children import describe_exit
 
 if TYPE_CHECKING:
@@ -41,6 +42,7 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
     ticks = s.get("ticks")
     w(f"run {s.get('run_id')}: exit {res.exit_code}, {ticks if ticks is not None else 'no'} ticks, "
       f"sim {_num(s.get('sim_time_s'), '.2f')} s\n")  # fmt: skip
+    w(f"  ended: {summary_mod.describe_end(s.get('end_reason'), s.get('ended_at_s'))}\n")
     if not ticks:
         w("  no metrics: the run ended before its first tick\n")
     else:

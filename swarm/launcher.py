@@ -16,7 +16,6 @@ and the last lines of its log (logs/<name>.log), and in the summary's events.
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 import queue
 import signal
@@ -33,9 +32,9 @@ from typing import Any
 import zenoh
 
 from formation_swarm import scenario as scenario_mod
+from formation_swarm import summary as summary_mod
 from formation_swarm.children import Child, describe_exit, free_port, log_tail
 from formation_swarm.console import print_result as print_result  # re-exported: the API of swarm run
-from formation_swarm.proc import clean_json
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Status
@@ -329,17 +328,20 @@ class Launch:
 
     # -- summary ------------------------------------------------------------------
     def _summary(self, code: int, interrupted: bool, timed_out: bool) -> dict[str, Any]:
-        stats_dir = self.run_dir / "stats"
-        parts: dict[str, Any] = {}
-        for p in sorted(stats_dir.glob("*.json")):
-            with contextlib.suppress(OSError, json.JSONDecodeError):
-                parts[p.stem] = json.loads(p.read_text())
+        parts = summary_mod.read_parts(self.run_dir / "stats")
         world = parts.get("world", {})
-        rejected = {name: part.get("rejected", {}) for name, part in parts.items() if part.get("rejected")}
-        links: dict[str, Any] = dict(world.get("cmd_links", {}))
-        for name, part in parts.items():
-            if name.startswith("agent-"):
-                links.update(part.get("links", {}))
+        world_proc = self.children["world"].proc if "world" in self.children else None
+        reached = world.get("sim_time_s")
+        if reached is None and self.last_status is not None:
+            reached = self.last_status.time_s
+        if interrupted:
+            reason = summary_mod.INTERRUPTED
+        elif timed_out:
+            reason = summary_mod.TIMED_OUT
+        elif world_proc is not None and world_proc.returncode == 0 and world.get("end_reason"):
+            reason, reached = world["end_reason"], world.get("ended_at_s")
+        else:
+            reason = summary_mod.ROLE_FAILED
         procs = {}
         for name, c in self.children.items():
             exit_after_stop = None
@@ -347,40 +349,21 @@ class Launch:
                 exit_after_stop = max(0.0, c.exited_at - c.stop_sent_at)
             procs[name] = {"pid": c.pid, "exit_code": None if c.proc is None else c.proc.returncode,
                            "exit_after_stop_s": exit_after_stop}  # fmt: skip
-        summary = {
-            "run_id": self.run_id,
-            "scenario": self.sc.name,
-            "mode": self.mode,
-            "seed": self.sc.seed,
-            "exit_code": code,
-            "interrupted": interrupted,
-            "timed_out": timed_out,
-            "ticks": world.get("ticks"),
-            "sim_time_s": world.get("sim_time_s"),
-            "ticks_per_s": world.get("ticks_per_s"),
-            "followers": world.get("followers", {}),
-            "min_distance_m": world.get("min_distance_m"),
-            "robot_diameter_m": world.get("robot_diameter_m"),
-            "collisions": world.get("collisions"),
-            "obstacle_collisions": world.get("obstacle_collisions"),
-            "lockstep_misses": world.get("lockstep_misses"),
-            "late_ticks": world.get("late_ticks"),
-            "max_tick_lateness_s": world.get("max_tick_lateness_s"),
-            "stale_stops": world.get("stale_stops"),
-            "formation_events": world.get("formation_events", []),
-            "deaths": world.get("deaths", []),
-            "messages": world.get("messages", {}),
-            "links": links,
-            "drops_total": sum(v.get("dropped", 0) for v in links.values()),
-            "rejected": rejected,
-            "rejected_total": sum(sum(r.values()) for r in rejected.values()),
-            "trajectory_digest": world.get("trajectory_digest"),
-            "events": self.events,
-            "processes": procs,
-            "recording": "recording.rrd" if self.logger else None,
-            "parts": parts,
-        }
-        (self.run_dir / "summary.json").write_text(json.dumps(clean_json(summary), indent=2, allow_nan=False))
+        summary = summary_mod.build(
+            run_id=self.run_id,
+            sc=self.sc,
+            mode=self.mode,
+            parts=parts,
+            exit_code=code,
+            end_reason=reason,
+            ended_at_s=reached,
+            interrupted=interrupted,
+            timed_out=timed_out,
+            processes=procs,
+            events=self.events,
+            recording="recording.rrd" if self.logger else None,
+        )
+        summary_mod.write(self.run_dir, summary)
         return summary
 
 

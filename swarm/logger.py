@@ -1,26 +1,17 @@
-"""The logger process: the run's key space streamed to Rerun.
+"""The logger process: the run's key space streamed to Rerun (formation_swarm.recording).
 
     swarm logger --scenario S.toml --run RUN --out recording.rrd [--live URL] [--serve-web]
-                 [--stats FILE] --connect ENDPOINT
+                 [--stats FILE] [--peers-timeout S] --connect ENDPOINT
 
-Timeline ``sim_time`` (the messages' sim time, never the wall clock).
-Entity paths mirror the key space::
-
-    world/obstacles                      static circles
-    robots/r<id>/pose, /heading          true position and heading (Truth)
-    robots/r<id>/trajectory              the same positions, shown with their past
-    robots/r<id>/target/true             the follower's true virtual target
-    robots/r<id>/target/measured         the target from the raw reading (eq. 1-2)
-    robots/r<id>/ekf/target, /ekf/cov    EKF estimate and its 2-sigma ellipse
-    robots/r<id>/error/formation         |follower - true target|, m
-    robots/r<id>/error/ekf, /error/measured   |estimate or reading - true target|, m
-    robots/r<id>/fis/rho, /fis/alpha, /fis/v_n, robots/r<id>/wheels/left, /wheels/right
-    robots/r<id>/formation               formation code flown; events: changes as text
-    robots/r<id>/links/obs_dropped, /links/formation_dropped
+It subscribes to the world's keys and to every follower's telemetry (not
+to observations, commands and formation codes: they would double the
+router's work for nothing), holds a liveliness token the world waits for,
+and watches the world's token: it gives up when the world has not appeared
+within ``--peers-timeout`` and ends when the world says "done" or leaves.
 
 Data is buffered and sent as columns every 0.25 s of wall time and the file
 is flushed every 0.5 s, so a logger killed with SIGKILL loses at most about
-the last second. Logging errors are counted, never fatal.
+the last second.
 """
 
 from __future__ import annotations
@@ -34,86 +25,58 @@ import queue
 import sys
 import threading
 import time
-from collections import defaultdict
+from pathlib import Path
 from typing import Any
 
-import numpy as np
-import rerun as rr
-import rerun.blueprint as rrb
 import zenoh
 
+from formation_swarm import role as role_mod
 from formation_swarm import scenario as scenario_mod
-from formation_swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
+from formation_swarm.proc import write_json
 from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import pack_batch
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Status, Telemetry, Truth
-from formation_swarm.world.kinematics import Pose
+from formation_swarm.recording import Recorder, open_recording
 
 SEND_PERIOD_S = 0.25
 FLUSH_PERIOD_S = 0.5
-TIMELINE = "sim_time"
 END_WAIT_S = 1.0  # after "done", for the followers' last telemetry
-HISTORY_TICKS = 400  # telemetry waits this long for its tick's truth
 END_OF_STREAM = pack_batch([])  # what protocol.batch.BatchPublisher.close sends
-_CIRCLE = np.stack([np.cos(np.linspace(0, 2 * np.pi, 25)), np.sin(np.linspace(0, 2 * np.pi, 25))], axis=1)
-
-
-def blueprint() -> rrb.Blueprint:
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Spatial2DView(
-                name="formation (Fig. 6a, 7a, 9-11)",
-                origin="/",
-                contents=["+ /world/**", "+ /robots/**"],
-                time_ranges=rrb.VisibleTimeRange(
-                    TIMELINE, start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.cursor_relative()
-                ),
-            ),
-            rrb.Vertical(
-                rrb.TimeSeriesView(
-                    name="formation error, m (Fig. 6b, 7b)", origin="/", contents=["+ /robots/*/error/formation"]
-                ),
-                rrb.TimeSeriesView(name="V_N (Fig. 8)", origin="/", contents=["+ /robots/*/fis/v_n"]),
-                rrb.TimeSeriesView(
-                    name="target error: raw vs EKF, m (Fig. 9-10)",
-                    origin="/",
-                    contents=["+ /robots/*/error/ekf", "+ /robots/*/error/measured"],
-                ),
-            ),  # fmt: skip
-            column_shares=[3, 2],
-        ),
-        collapse_panels=True,
-    )
 
 
 class Logger:
-    """Messages are kept as they arrive (cheap, per tick) and turned into Rerun
-    columns every SEND_PERIOD_S with numpy (per send, not per tick)."""
+    """The process loop: messages are queued as they arrive and handed to the
+    Recorder, which sends them as Rerun columns, every SEND_PERIOD_S."""
 
-    def __init__(self, sess: zenoh.Session, sc: scenario_mod.Scenario, run_id: str, rec: rr.RecordingStream,
-                 stop: StopEvent) -> None:  # fmt: skip
+    def __init__(
+        self,
+        sess: zenoh.Session,
+        sc: scenario_mod.Scenario,
+        run_id: str,
+        recorder: Recorder,
+        role: role_mod.Role,
+        where: str = "",
+    ) -> None:
         self.session = sess
         self.sc = sc
         self.keys = Keys(run_id)
-        self.rec = rec
-        self.stop = stop
-        self.wake = threading.Event()  # set by a stop, the run's status or a stream's end
-        stop.add_waker(self.wake.set)
+        self.recorder = recorder
+        self.role = role
+        self.stop = role.stop
+        self.where = where  # the session's endpoints, for messages
+        self.wake = threading.Event()  # set by a stop, the run's status, a stream's end or the world's token
+        self.stop.add_waker(self.wake.set)
         self.inbox: queue.SimpleQueue[tuple[str, bytes]] = queue.SimpleQueue()
         self.rejections = Rejections()
-        self.truths: list[Truth] = []  # since the last send
-        self.tels: list[Telemetry] = []  # waiting for their tick's truth
-        self.poses: dict[int, dict[int, Pose]] = {}  # tick -> robot -> pose, bounded history
-        self.targets: dict[int, dict[int, tuple[float, float]]] = {}
-        self.formation: dict[int, int] = {}
-        # Per follower: squared error of the measured and of the EKF target vs the true one.
-        self.target_errors: dict[int, dict[str, float]] = defaultdict(lambda: defaultdict(float))
         self.ended: set[int] = set()  # followers whose telemetry stream has ended
-        self.counts = {"truth": 0, "telemetry": 0, "other": 0, "log_errors": 0, "rows": 0, "unjoined": 0}
-        self.last_time_s = -1.0
+        self.counts = {"truth": 0, "telemetry": 0, "other": 0}
+        self.world_seen = False
+        self.world_gone = False
+        self.started = False  # the run's first status or truth has been handled
         self.done = False
+        self.end_note = "not started"  # why the loop ended, for the last report line
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         key, payload = str(sample.key_expr), sample.payload.to_bytes()
@@ -121,13 +84,19 @@ class Logger:
         if key == self.keys.status or payload == END_OF_STREAM:
             self.wake.set()  # the end of the run is handled at once, the rest per send
 
+    def _on_world_alive(self, sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:
+            self.world_seen = True
+        elif self.world_seen:
+            self.world_gone = True
+        self.wake.set()
+
     def run(self) -> int:
         s, k = self.session, self.keys
-        self._log_static()
-        # What it logs, not the whole key space: observations, commands and
-        # formation codes would double the router's work for nothing.
+        self.recorder.log_static()
         s.declare_subscriber(k.world_all, self._on_sample)
         s.declare_subscriber(k.all_telemetry, self._on_sample)
+        s.liveliness().declare_subscriber(k.alive("world", 0), self._on_world_alive, history=True)
         gc.freeze()  # start-up objects (numpy, scipy, zenoh) leave the collector's scans
         token = s.liveliness().declare_token(k.alive("logger", 0))
         last_send = last_flush = time.monotonic()
@@ -137,9 +106,19 @@ class Logger:
             # out of the way of the run's own processes. After "done", each
             # follower flushes its last telemetry and marks the end of its
             # stream: wait for those (bounded: a killed one never will), then
-            # close the file.
+            # close the file. The world leaving ends it too: nothing more
+            # can come (the world is usually the router).
             followers, end_by = set(self.sc.follower_ids), math.inf
-            while not self.stop.is_set() and not (self.done and (self.ended >= followers or time.monotonic() > end_by)):
+            while (
+                not self.stop.is_set()
+                and not self.world_gone
+                and not (self.done and (self.ended >= followers or time.monotonic() > end_by))
+            ):
+                if not self.world_seen and self.role.left_s() <= 0:
+                    self.end_note = "gave up waiting for the world"
+                    return self.role.gave_up(
+                        f"no world of run {self.keys.run_id!r} ({self.where}); check --run and --connect"
+                    )
                 self.wake.wait(max(0.0, min(last_send + SEND_PERIOD_S, end_by) - time.monotonic()))
                 self.wake.clear()
                 self._drain()
@@ -147,18 +126,32 @@ class Logger:
                 if self.done and end_by == math.inf:
                     end_by = now + END_WAIT_S
                 if now - last_send >= SEND_PERIOD_S:
-                    self._send()
+                    self.recorder.send()
                     last_send = now
                 if now - last_flush >= FLUSH_PERIOD_S:
-                    self._flush(timeout_s=0.2)
+                    self.recorder.flush(timeout_s=0.2)
                     last_flush = now
             # Handle what already arrived, then close the file properly.
             self._drain()
-            self._send(final=True)
-            self._flush(timeout_s=1.0)
+            self.recorder.send(final=True)
+            self.recorder.flush(timeout_s=1.0)
         finally:
             token.undeclare()
-        return 0
+        return self._exit_code()
+
+    def _exit_code(self) -> int:
+        if self.done:
+            self.end_note = "the world said done"
+            return role_mod.EXIT_OK
+        if self.stop.is_set():
+            self.end_note = self.role.stopped_by() + ("" if self.started else " before the run started")
+            return self.stop.exit_code
+        if not self.started:  # the world gives up when its peers do not all come
+            self.end_note = "the world left before the run started"
+            self.role.complain(f"the world of run {self.keys.run_id!r} left before the run started; see its output")
+            return role_mod.EXIT_NO_PEERS
+        self.end_note = "the world left"
+        return role_mod.EXIT_OK
 
     def _drain(self) -> None:
         while True:
@@ -167,246 +160,135 @@ class Logger:
             except queue.Empty:
                 return
 
-    def _guard(self, fn: Any, *args: Any, **kwargs: Any) -> None:
-        try:
-            fn(*args, **kwargs)
-        except Exception as exc:  # noqa: BLE001 - logging never takes the process down
-            self.counts["log_errors"] += 1
-            if self.counts["log_errors"] <= 3:
-                print(f"logger: rerun error ({type(exc).__name__}: {exc}); continuing", file=sys.stderr, flush=True)
-
-    def _flush(self, timeout_s: float) -> None:
-        self._guard(self.rec.flush, timeout_sec=timeout_s)
-
-    def _log_static(self) -> None:
-        sc = self.sc
-        if sc.obstacles:
-            self._guard(
-                self.rec.log, "world/obstacles",
-                rr.Ellipses2D(centers=[(o.x_m, o.y_m) for o in sc.obstacles],
-                              half_sizes=[(o.radius_m, o.radius_m) for o in sc.obstacles], colors=[200, 60, 60]),
-                static=True,
-            )  # fmt: skip
-        self._guard(self.rec.log, "world/path", rr.LineStrips2D([list(sc.leader.waypoints)], colors=[120, 120, 120]),
-                    static=True)  # fmt: skip
-        lines = [f"{name} (code {i}): " + ", ".join(
-            f"R{r} <- R{s.reference} at ({s.offset.x_m:+.2f}, {s.offset.y_m:+.2f}) m"
-            for r, s in sorted(f.slots.items())) for i, (name, f) in enumerate(sc.formations.items())]  # fmt: skip
-        self._guard(self.rec.log, "world/formations", rr.TextDocument("\n".join(lines)), static=True)
-
     def _handle(self, key: str, payload: bytes) -> None:
         rk = self.keys.parse_robot(key)
         if key == self.keys.truth:
             truths = self.rejections.decode_batch(Truth, payload) or []
             self.counts["truth"] += len(truths)
-            self.truths.extend(truths)
+            self.recorder.add_truths(truths)
+            self._start()
         elif rk is not None and rk.kind == "telemetry":
             tels = self.rejections.decode_batch(Telemetry, payload, sender=rk.robot_id)
             if tels == []:
                 self.ended.add(rk.robot_id)
             elif tels is not None:
                 self.counts["telemetry"] += len(tels)
-                self.tels.extend(tels)
+                self.recorder.add_telemetry(tels)
         elif key == self.keys.status:
             st = self.rejections.decode(Status, payload)
-            if st is not None and st.state == "done":
-                self.done = True
+            if st is not None:
+                self._start()
+                self.done = self.done or st.state == "done"
         else:
             self.counts["other"] += 1
 
-    def _send(self, final: bool = False) -> None:
-        self._guard(self._send_truth)
-        self._guard(self._send_telemetry, final)
-
-    def _columns(self, entity: str, kind: str, times: np.ndarray, values: Any) -> None:
-        """One entity's rows since the last send, as Rerun columns."""
-        if len(times) == 0:
-            return
-        if kind == "scalar":
-            cols = rr.Scalars.columns(scalars=values)
-        elif kind == "point":
-            cols = rr.Points2D.columns(positions=values)
-        elif kind == "arrow":
-            cols = rr.Arrows2D.columns(origins=values[:, :2], vectors=values[:, 2:])
-        elif kind == "strip":  # n x points x 2: one strip per row (an array takes Rerun's numpy path)
-            cols = rr.LineStrips2D.columns(strips=values)
-        else:  # pragma: no cover - programming error
-            raise ValueError(f"unknown column kind {kind!r}")
-        self.rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=times)], columns=cols)
-        self.counts["rows"] += len(times)
-
-    def _send_truth(self) -> None:
-        truths, self.truths = self.truths, []
-        robots: dict[int, list[tuple[float, float, float, float]]] = defaultdict(list)
-        targets: dict[int, list[tuple[float, float, float, float, float]]] = defaultdict(list)
-        for msg in truths:
-            t = msg.time_s
-            self.last_time_s = max(self.last_time_s, t)
-            poses = {rid: Pose(x, y, th) for rid, x, y, th, _alive in msg.robots}
-            self.poses[msg.tick] = poses
-            self.targets[msg.tick] = {rid: (x, y) for rid, x, y in msg.targets}
-            for rid, pose in poses.items():
-                robots[rid].append((t, *pose))
-            for rid, x, y in msg.targets:
-                if rid in poses:
-                    targets[rid].append((t, x, y, poses[rid].x_m, poses[rid].y_m))
-        for rid, rows in robots.items():
-            a = np.array(rows)
-            t, xy, th = a[:, 0], a[:, 1:3], a[:, 3]
-            base = f"robots/r{rid}"
-            self._columns(f"{base}/pose", "point", t, xy)
-            self._columns(f"{base}/trajectory", "point", t, xy)
-            self._columns(f"{base}/heading", "arrow", t, np.column_stack([xy, 0.4 * np.cos(th), 0.4 * np.sin(th)]))
-        for rid, rows in targets.items():
-            a = np.array(rows)
-            self._columns(f"robots/r{rid}/target/true", "point", a[:, 0], a[:, 1:3])
-            err = np.hypot(a[:, 1] - a[:, 3], a[:, 2] - a[:, 4])
-            self._columns(f"robots/r{rid}/error/formation", "scalar", a[:, 0], err)
-
-    def _send_telemetry(self, final: bool) -> None:
-        """Telemetry whose tick's truth has arrived, joined with it: the follower's
-        pose turns its body-frame points into world-frame ones."""
-        newest = max(self.poses, default=-1)
-        ready: dict[int, list[tuple[Telemetry, Pose, tuple[float, float] | None]]] = defaultdict(list)
-        waiting = []
-        for tel in self.tels:
-            pose = self.poses.get(tel.tick, {}).get(tel.sender)
-            if pose is not None:
-                ready[tel.sender].append((tel, pose, self.targets[tel.tick].get(tel.sender)))
-            elif tel.tick > newest - HISTORY_TICKS and not final:
-                waiting.append(tel)
-            else:
-                self.counts["unjoined"] += 1
-        self.tels = waiting
-        for old in [k for k in self.poses if k < newest - HISTORY_TICKS]:
-            del self.poses[old], self.targets[old]
-        for rid, rows in ready.items():
-            self._send_follower(rid, rows)
-
-    def _send_follower(self, rid: int, rows: list[tuple[Telemetry, Pose, tuple[float, float] | None]]) -> None:
-        nan = math.nan
-        base = f"robots/r{rid}"
-        for tel, _pose, _target in rows:
-            if self.formation.get(rid) != tel.formation:
-                self.formation[rid] = tel.formation
-                self._columns(f"{base}/formation", "scalar", np.array([tel.time_s]), np.array([float(tel.formation)]))
-                names = self.sc.formation_names
-                self._event(tel.time_s, f"R{rid} flies {names[tel.formation] if tel.formation < len(names) else '?'}")
-        a = np.array([
-            (tel.time_s, *pose, *(target or (nan, nan)), *(tel.measured or (nan, nan)), *(tel.estimate or (nan, nan)),
-             *(tel.target_cov or (nan, nan, nan)), _nan(tel.rho_m), _nan(tel.alpha_rad), _nan(tel.vn),
-             tel.left_mps, tel.right_mps, tel.obs_dropped, tel.formation_dropped)
-            for tel, pose, target in rows
-        ])  # fmt: skip
-        t, pose, target = a[:, 0], a[:, 1:4], a[:, 4:6]
-        measured, estimate = _to_world(pose, a[:, 6:8]), _to_world(pose, a[:, 8:10])
-        cov = a[:, 10:13]
-        scalars = ("fis/rho", "fis/alpha", "fis/v_n", "wheels/left", "wheels/right", "links/obs_dropped",
-                   "links/formation_dropped")  # fmt: skip
-        for col, name in enumerate(scalars, start=13):
-            ok = ~np.isnan(a[:, col])
-            self._columns(f"{base}/{name}", "scalar", t[ok], a[ok, col])
-        for name, pts in (("measured", measured), ("ekf", estimate)):
-            ok = ~np.isnan(pts[:, 0])
-            self._columns(f"{base}/target/measured" if name == "measured" else f"{base}/ekf/target", "point",
-                          t[ok], pts[ok])  # fmt: skip
-            ok &= ~np.isnan(target[:, 0])
-            err = np.hypot(*(pts[ok] - target[ok]).T)
-            self._columns(f"{base}/error/{name}", "scalar", t[ok], err)
-            acc = self.target_errors[rid]
-            acc[f"{name}_sum_sq_m2"] += float(np.sum(err**2))
-            acc[f"{name}_samples"] += int(err.size)
-        ok = ~np.isnan(estimate[:, 0]) & ~np.isnan(cov[:, 0])
-        if ok.any():
-            self._columns(f"{base}/ekf/cov", "strip", t[ok], _ellipses(pose[ok], estimate[ok], cov[ok]))
-
-    def _event(self, t: float, text: str) -> None:
-        self._guard(self.rec.set_time, TIMELINE, duration=t)
-        self._guard(self.rec.log, "events", rr.TextLog(text))
+    def _start(self) -> None:
+        if not self.started:
+            self.started = True
+            self.role.say(f"run {self.keys.run_id} started")
 
     def stats(self) -> dict[str, Any]:
+        recorded = self.recorder.stats()
         return {
-            "messages": dict(self.counts),
-            "last_sim_time_s": self.last_time_s,
-            "target_errors": {
-                str(rid): {
-                    f"{name}_rms_m": math.sqrt(acc[f"{name}_sum_sq_m2"] / acc[f"{name}_samples"])
-                    if acc[f"{name}_samples"]
-                    else None
-                    for name in ("measured", "ekf")
-                }
-                for rid, acc in sorted(self.target_errors.items())
-            },
+            "messages": {**self.counts, **self.recorder.counts},
+            "last_sim_time_s": recorded["last_sim_time_s"],
+            "target_errors": recorded["target_errors"],
             "rejected": dict(self.rejections.by_reason),
         }
 
 
-def _nan(x: float | None) -> float:
-    return math.nan if x is None else x
+DESCRIPTION = """\
+Run the logger of one run by hand: it records the run to a Rerun file
+(and, if asked, streams it to a viewer): the robots' true poses and
+trajectories, each follower's measured, estimated and true target point,
+V_N, wheel speeds and errors, and the formation changes, on the run's sim
+time.
 
+It connects, as a client, to the world or to the run's router, waits for
+the world, and closes the recording when the world says the run is done or
+leaves. Start it before the world's first tick (the world waits for it
+with --expect-logger): what is sent before it is there is not recorded.
 
-def _to_world(pose: np.ndarray, body: np.ndarray) -> np.ndarray:
-    """Body-frame points (x right, y ahead) of robots at ``pose`` (n x 3), world frame."""
-    s, c = np.sin(pose[:, 2]), np.cos(pose[:, 2])
-    x, y = body[:, 0], body[:, 1]
-    return np.column_stack([pose[:, 0] + x * s + y * c, pose[:, 1] - x * c + y * s])
-
-
-def _ellipses(pose: np.ndarray, center: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """2-sigma ellipses of follower-frame covariances (xx, xy, yy), as world-frame
-    polygons: n x 25 x 2."""
-    c = np.stack([np.stack([cov[:, 0], cov[:, 1]], -1), np.stack([cov[:, 1], cov[:, 2]], -1)], -2)
-    vals, vecs = np.linalg.eigh(c)  # n x 2, n x 2 x 2
-    body = np.einsum("kj,nj,nij->nki", _CIRCLE, 2.0 * np.sqrt(np.maximum(vals, 0.0)), vecs)
-    # Body-frame directions to world frame: x right -> (sin, -cos), y ahead -> (cos, sin).
-    s, co = np.sin(pose[:, 2])[:, None], np.cos(pose[:, 2])[:, None]
-    bx, by = body[..., 0], body[..., 1]
-    return np.stack([bx * s + by * co, -bx * co + by * s], -1) + center[:, None, :]
+It prints one line when its session is open, one when the run starts and
+one when it ends (why, and where the recording and its stats went)."""
 
 
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="swarm logger", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    ap.add_argument("--scenario", required=True)
-    ap.add_argument("--run", required=True)
-    ap.add_argument("--out", required=True, help="the .rrd file to write")
-    ap.add_argument("--live", metavar="URL", help="also stream to a viewer, e.g. rerun+http://127.0.0.1:9876/proxy")
-    ap.add_argument("--serve-web", action="store_true", help="also serve the web viewer (gRPC + web ports)")
-    ap.add_argument("--grpc-port", type=int, default=9876, help="--serve-web: the gRPC port (default 9876)")
-    ap.add_argument("--web-port", type=int, default=9090, help="--serve-web: the web viewer's port (default 9090)")
-    ap.add_argument("--stats", help="write the logger's counters (JSON) here at exit")
-    ap.add_argument("--nice", type=int, default=10, help="scheduling niceness increment (default 10; 0 keeps it)")
+    ap = argparse.ArgumentParser(
+        prog="swarm logger",
+        description=DESCRIPTION,
+        epilog=role_mod.EXIT_CODES_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ap.add_argument(
+        "--scenario",
+        required=True,
+        metavar="FILE|NAME",
+        help="the scenario: a TOML file or a shipped scenario's name; the same as the world's",
+    )
+    ap.add_argument("--run", required=True, metavar="ID", help="run id: the same as the world's")
+    ap.add_argument("--out", required=True, metavar="FILE", help="the Rerun recording to write (.rrd)")
+    ap.add_argument(
+        "--live", metavar="URL", help="also stream to a Rerun viewer, e.g. rerun+http://127.0.0.1:9876/proxy"
+    )
+    ap.add_argument("--serve-web", action="store_true", help="also serve the Rerun web viewer (see the two ports)")
+    ap.add_argument(
+        "--grpc-port", type=int, default=9876, metavar="PORT", help="--serve-web: the gRPC port (default 9876)"
+    )
+    ap.add_argument(
+        "--web-port", type=int, default=9090, metavar="PORT", help="--serve-web: the web viewer's port (default 9090)"
+    )
+    ap.add_argument("--stats", metavar="FILE", help="write the logger's counters here at exit (JSON)")
+    ap.add_argument(
+        "--nice",
+        type=int,
+        default=10,
+        metavar="N",
+        help="lower the logger's CPU priority by this much (default 10; 0 keeps it)",
+    )
+    role_mod.add_arguments(ap, waits_for="the world")
     session.add_arguments(ap, default_mode="client")
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    stop = install_stop_handlers()
+    role = role_mod.Role("logger", args.peers_timeout)
     if args.nice:
         # Off the lockstep critical path: yield the cores to the world and the
         # agents; the logger buffers and catches up in their slack.
         with contextlib.suppress(OSError):
             os.nice(args.nice)
-    inputs = role_inputs(args, "logger")
-    if inputs is None:
-        return 2
-    sc, sess_cm = inputs
+    sc = role.load(args)
+    if isinstance(sc, int):
+        return sc
+    try:  # before connecting: a recording that cannot be written fails at once
+        rec, web = open_recording(
+            args.run, Path(args.out), args.live, (args.grpc_port, args.web_port) if args.serve_web else None
+        )
+    except (OSError, RuntimeError) as exc:
+        role.complain(f"cannot record to {args.out}: {exc}")
+        return role_mod.EXIT_FAILED
+    if web:
+        role.say(f"web viewer on {web}")
+    sess_cm = role.connect(args)
+    if isinstance(sess_cm, int):
+        return sess_cm
+    where = role_mod.describe_session(args)
     with sess_cm as sess:
-        rec = rr.RecordingStream("formation-swarm", recording_id=args.run,
-                                 batcher_config=rr.ChunkBatcherConfig(flush_tick=0.1))  # fmt: skip
-        sinks: list[Any] = [rr.FileSink(args.out)]
-        if args.live:
-            sinks.append(rr.GrpcSink(args.live))
-        rec.set_sinks(*sinks, default_blueprint=blueprint())
-        if args.serve_web:
-            url = rr.serve_grpc(grpc_port=args.grpc_port, recording=rec, default_blueprint=blueprint())
-            rr.serve_web_viewer(web_port=args.web_port, connect_to=url, open_browser=False)
-            print(f"logger: web viewer on http://127.0.0.1:{args.web_port}, data at {url}", flush=True)
-        logger = Logger(sess, sc, args.run, rec, stop)
+        role.say(
+            f"{where}; run {args.run}: recording to {args.out}; waiting up to {role.peers_timeout_s:g} s for the world"
+        )
+        logger = Logger(sess, sc, args.run, Recorder(rec, sc), role, where)
         code = logger.run()
         write_json(args.stats, logger.stats())
     rec.flush(timeout_sec=2.0)
+    if code != role_mod.EXIT_NO_PEERS:
+        written = f"stats in {args.stats}" if args.stats else "no --stats: counters not written"
+        role.say(
+            f"run {args.run} ended ({logger.end_note}), exit code {code}, {logger.counts['truth']} ticks "
+            f"recorded in {args.out}; {written}"
+        )
     return code
 
 

@@ -2,20 +2,23 @@
 
 from __future__ import annotations
 
-import argparse
+import contextlib
 import json
 import math
 import signal
-import sys
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:
-    import zenoh
-
-    from formation_swarm.scenario import Scenario
+# CPython runs a signal handler on the main thread, between two bytecodes. A
+# signal that comes after the thread's last look and before it blocks on a
+# lock (threading.Event.wait) is handled only when that wait ends, so the main
+# thread never waits on an Event longer than this at a time (wait_for): that
+# rare race costs at most this much, and a set event still ends the wait at
+# once. (A Zenoh channel's recv looks for signals itself.)
+SIGNAL_CHECK_S = 0.1
 
 
 class StopEvent(threading.Event):
@@ -25,6 +28,12 @@ class StopEvent(threading.Event):
     def __init__(self) -> None:
         super().__init__()
         self._wakers: list[Callable[[], None]] = []
+        self.signum: int | None = None  # the signal that set it, if one did
+
+    @property
+    def exit_code(self) -> int:
+        """128 + the signal's number (130 SIGINT, 143 SIGTERM), as a shell reports it."""
+        return 128 + (self.signum or signal.SIGINT)
 
     def add_waker(self, waker: Callable[[], None]) -> None:
         self._wakers.append(waker)
@@ -38,15 +47,35 @@ class StopEvent(threading.Event):
 
 
 def install_stop_handlers() -> StopEvent:
-    """SIGINT and SIGTERM set an event that every loop checks."""
+    """SIGINT and SIGTERM set an event that every loop checks.
+
+    The handler sets it from a thread of its own: the handler runs on the
+    main thread, possibly while that thread holds the lock of one of the very
+    events the wakers set (inside its ``wait``), and those locks are not
+    reentrant."""
     stop = StopEvent()
 
-    def handler(_sig: int, _frame: object) -> None:
-        stop.set()
+    def handler(sig: int, _frame: object) -> None:
+        if stop.signum is None:
+            stop.signum = sig
+        with contextlib.suppress(RuntimeError):  # no new thread at interpreter exit: it is exiting anyway
+            threading.Thread(target=stop.set, name="stop-signal", daemon=True).start()
 
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
     return stop
+
+
+def wait_for(event: threading.Event, timeout_s: float | None = None) -> bool:
+    """``event.wait(timeout_s)`` for the main thread: in slices of at most
+    SIGNAL_CHECK_S, so that a stop signal is never left unhandled longer."""
+    end = math.inf if timeout_s is None else time.monotonic() + timeout_s
+    while not event.is_set():
+        left = end - time.monotonic()
+        if left <= 0:
+            return False
+        event.wait(min(left, SIGNAL_CHECK_S))
+    return True
 
 
 def interrupt_on_stop_signals() -> None:
@@ -81,24 +110,3 @@ def clean_json(o: Any) -> Any:
     if isinstance(o, (list, tuple)):
         return [clean_json(v) for v in o]
     return o
-
-
-def role_inputs(args: argparse.Namespace, who: str) -> tuple[Scenario, zenoh.Session] | None:
-    """A role's scenario and open Zenoh session from its flags, or None after
-    printing why not (bad scenario, bad flags, no router)."""
-    import zenoh
-
-    from formation_swarm import scenario as scenario_mod
-    from formation_swarm.protocol import session
-
-    try:
-        sc = scenario_mod.load(args.scenario)
-        conf = session.config_from_args(args)
-    except ValueError as exc:
-        print(f"{who}: {exc}", file=sys.stderr)
-        return None
-    try:
-        return sc, zenoh.open(conf)
-    except zenoh.ZError as exc:
-        print(f"{who}: cannot open the Zenoh session: {exc}", file=sys.stderr)
-        return None

@@ -2,42 +2,66 @@
 
     swarm router --listen tcp/0.0.0.0:7447
 
-Runs until SIGINT/SIGTERM. Start the world with ``--zenoh-mode client --connect``
-to it (or let the world be the router, the default) and agents anywhere
-with ``--connect tcp/ROUTER_HOST:7447``.
+A Python session in router mode (protocol.session builds its configuration,
+as for every role); it runs until SIGINT/SIGTERM. It has no run of its own:
+it prints a line when it listens and one when it stops.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
+import time
 
-import zenoh
-
-from formation_swarm.proc import install_stop_handlers
+from formation_swarm import role as role_mod
+from formation_swarm.proc import wait_for
 from formation_swarm.protocol import session
+
+DESCRIPTION = """\
+Run a Zenoh router, for runs spread over several machines: the world, the
+logger and the agents connect to it as clients (--zenoh-mode client
+--connect tcp/HOST:7447 for the world; --connect tcp/HOST:7447 for the
+others). Any number of runs can share it: their keys start with their run id.
+
+Without --listen or --config it listens on tcp/0.0.0.0:7447. It runs until
+SIGINT (Ctrl-C) or SIGTERM and prints one line when it listens and one when
+it stops."""
+DEFAULT_LISTEN = "tcp/0.0.0.0:7447"
+EXIT_CODES_HELP = """\
+exit codes:
+  0    stopped by SIGINT (Ctrl-C) or SIGTERM: its normal end
+  1    the Zenoh session could not be opened (e.g. the --listen port is taken)
+  2    bad flags"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="swarm router",
+        description=DESCRIPTION,
+        epilog=EXIT_CODES_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    session.add_arguments(ap, default_mode="router")
+    return ap
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="swarm router", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    session.add_arguments(ap, default_mode="router")
-    args = ap.parse_args(argv)
+    args = build_parser().parse_args(argv)
     if not args.listen and args.config is None:
-        args.listen = ["tcp/0.0.0.0:7447"]
-    stop = install_stop_handlers()
-    try:
-        conf = session.config_from_args(args)
-        sess_cm = zenoh.open(conf)
-    except (ValueError, zenoh.ZError) as exc:
-        print(f"router: {exc}", file=sys.stderr)
-        return 2
-    with sess_cm:
+        args.listen = [DEFAULT_LISTEN]
+    role = role_mod.Role("router", math.inf)
+    started = time.monotonic()
+    sess = role.connect(args)
+    if isinstance(sess, int):
+        # a router stopped while it opens has ended normally
+        return role_mod.EXIT_OK if role.stop.is_set() else sess
+    with sess:
         where = ", ".join(args.listen) if args.listen else f"the endpoints of {args.config}"
-        print(f"router listening on {where}", flush=True)
-        while not stop.wait(0.5):
-            pass
-    return 0
+        role.say(f"listening on {where}; stop it with Ctrl-C or SIGTERM")
+        wait_for(role.stop)
+    role.say(f"{role.stopped_by()} after {time.monotonic() - started:.0f} s")
+    return role_mod.EXIT_OK
 
 
 if __name__ == "__main__":

@@ -25,7 +25,14 @@ PURE = (
     "formation_swarm.protocol.batch",
     "formation_swarm.protocol.messages",
 )
-APPLICATION = ("formation_swarm.cli", "formation_swarm.launcher", "formation_swarm.scenario", "formation_swarm.proc")
+APPLICATION = (
+    "formation_swarm.cli",
+    "formation_swarm.launcher",
+    "formation_swarm.scenario",
+    "formation_swarm.proc",
+    "formation_swarm.role",
+    "formation_swarm.summary",
+)
 
 
 def loaded_after_import(modules: tuple[str, ...]) -> set[str]:

@@ -73,7 +73,8 @@ def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tupl
     try:
         start("router", [*py, "formation_swarm.router", "--listen", router])
         start("world", [*py, "formation_swarm.world.process", *common, "--stats", str(tmp_path / "world.json"),
-                        "--zenoh-mode", "client", "--connect", router, "--expect-logger"])  # fmt: skip
+                        "--zenoh-mode", "client", "--connect", router, "--expect-logger",
+                        "--out", str(tmp_path / "run")])  # fmt: skip
         start("logger", [*py, "formation_swarm.logger", *common, "--out", str(tmp_path / "recording.rrd"),
                          "--stats", str(tmp_path / "logger.json"), "--connect", router])  # fmt: skip
         for rid in (1, 2, 3):
@@ -97,6 +98,14 @@ def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tupl
         assert logger["messages"]["telemetry"] == 2 * world["ticks"]
         assert logger["messages"]["truth"] == world["ticks"]
         assert (tmp_path / "recording.rrd").stat().st_size > 10_000
+        # The world's summary says why the run ended; every process's last line says it ended.
+        summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+        assert summary["end_reason"] == ("leader_finished" if world["leader_done"] else "duration_reached")
+        assert summary["ticks"] == world["ticks"]
+        for name in ("world", "logger", "agent-1", "agent-2", "agent-3"):
+            last = (tmp_path / f"{name}.log").read_text().splitlines()[-1]
+            assert f"run {run} ended (" in last, (name, last)
+            assert "exit code 0" in last, (name, last)
     finally:
         deadline = time.monotonic() + 5
         for p in procs.values():

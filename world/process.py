@@ -1,10 +1,14 @@
 """The world process: clock, physics and sensors of one run over Zenoh.
 
     swarm world --scenario S.toml --run RUN [--mode lockstep|realtime] [--seed N]
-                [--stats FILE] [--expect-logger] [zenoh flags]
+                [--stats FILE] [--out DIR] [--expect-logger] [--peers-timeout S] [zenoh flags]
 
 By default it is also the run's Zenoh router (``--zenoh-mode router --listen ...``):
-agents and the logger connect to it as clients.
+agents and the logger connect to it as clients. Before tick 0 it waits, up
+to ``--peers-timeout``, for an agent per robot (and the logger): their
+liveliness tokens and the matching of every observation publisher, each
+change waking the loop. With ``--out`` it writes the run's summary.json
+(formation_swarm.summary, as ``swarm run`` does) from its own stats.
 
 Lockstep: tick k is published to every live agent; tick k+1 starts when
 every live agent has answered tick k, or when ``lockstep_deadline_s`` passes
@@ -26,16 +30,20 @@ import collections
 import contextlib
 import gc
 import math
+import os
 import sys
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import zenoh
 
+from formation_swarm import role as role_mod
 from formation_swarm import scenario as scenario_mod
-from formation_swarm.proc import StopEvent, install_stop_handlers, role_inputs, write_json
+from formation_swarm import summary as summary_mod
+from formation_swarm.proc import write_json
 from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.codec import Rejections
@@ -44,7 +52,6 @@ from formation_swarm.protocol.links import Link, link_name
 from formation_swarm.protocol.messages import Command, Observation, Status, Truth
 from formation_swarm.world.engine import WorldEngine
 
-STARTUP_TIMEOUT_S = 60.0
 STATUS_PERIOD_S = 0.25
 LINGER_S = 2.0  # after "done", at most this long for the others to leave
 # Lockstep holds at most one command per robot here; when full, Zenoh waits
@@ -101,14 +108,17 @@ class World:
         seed: int,
         mode: str,
         expect_logger: bool,
-        stop: StopEvent,
+        role: role_mod.Role,
+        where: str = "",
     ) -> None:
         self.session = sess
         self.sc = sc
         self.keys = Keys(run_id)
         self.mode = mode
         self.expect_logger = expect_logger
-        self.stop = stop
+        self.role = role
+        self.stop = role.stop
+        self.where = where  # the session's endpoints, for messages
         self.engine = WorldEngine(sc, seed)
         self.rejections = Rejections()
         self.seq = 0
@@ -125,6 +135,8 @@ class World:
         self.finished = False  # "done" sent: agents leaving now are not deaths
         self.deaths: list[dict[str, Any]] = []
         self.leader_done = False
+        self.end_reason = summary_mod.INTERRUPTED
+        self.ended_at_s: float | None = None  # sim time when the run ended; None if it never started
         self.wall_s = 0.0
         self.loop_wall_s = 0.0
         self.wait_s = 0.0  # lockstep: time waiting for the agents' answers
@@ -153,12 +165,24 @@ class World:
         token = s.liveliness().declare_token(k.alive("world", 0))
         try:
             if not self._wait_ready(obs_pubs):
-                return 2 if not self.stop.is_set() else 130
+                if self.stop.is_set():
+                    return self.stop.exit_code
+                self.end_reason = summary_mod.PEERS_TIMEOUT
+                return role_mod.EXIT_NO_PEERS
             self._publish_status(status_pub, "running")
+            sc = self.sc
+            self.role.say(
+                f"run {self.keys.run_id} started: {len(sc.robots)} agents"
+                f"{' and the logger' if self.expect_logger else ''} present; {self.mode}, "
+                f"up to {sc.ticks} ticks of {sc.dt_s:g} s"
+            )
             gc.freeze()  # start-up objects leave the collector's scans
             t0 = time.monotonic()
             code = self._loop(obs_pubs, truth_pub, status_pub)
             self.loop_wall_s = time.monotonic() - t0
+            self.ended_at_s = self.engine.time_s
+            if code == 0:
+                self.end_reason = summary_mod.LEADER_FINISHED if self.leader_done else summary_mod.DURATION_REACHED
             truth_pub.flush()  # before "done": the logger stops listening after it
             self._publish_status(status_pub, "done")
             self.finished = True
@@ -177,23 +201,39 @@ class World:
 
     def _wait_ready(self, obs_pubs: dict[int, zenoh.Publisher]) -> bool:
         """Every agent's token (declared after its subscribers and after its
-        command publisher matched us) and every observation publisher matched."""
-        deadline = time.monotonic() + STARTUP_TIMEOUT_S
+        command publisher matched us), every observation publisher matched and,
+        if expected, the logger's token; until the role's peers deadline. A
+        token or a matching change wakes the loop."""
         want = set(self.sc.robots)
-        while not self.stop.is_set():
-            self._drain(until=time.monotonic() + 0.05)  # matching status changes wake nobody: look again
-            matched = all(p.matching_status.matching for p in obs_pubs.values())
-            if self.agents_seen >= want and matched and (self.logger_seen or not self.expect_logger):
-                return True
-            if time.monotonic() > deadline:
-                missing = sorted(want - self.agents_seen)
-                print(
-                    f"world: gave up after {STARTUP_TIMEOUT_S:.0f} s waiting for agents {missing}"
-                    + ("" if self.logger_seen or not self.expect_logger else " and the logger"),
-                    file=sys.stderr,
-                )
-                return False
-        return False
+        listeners = [p.declare_matching_listener(lambda _status: self._wake()) for p in obs_pubs.values()]
+        try:
+            while not self.stop.is_set():
+                self._drain(until=0.0)
+                matched = all(p.matching_status.matching for p in obs_pubs.values())
+                if self.agents_seen >= want and matched and (self.logger_seen or not self.expect_logger):
+                    return True
+                if self.role.left_s() <= 0:
+                    self._give_up(want, obs_pubs)
+                    return False
+                self._drain(until=self.role.deadline)
+            return False
+        finally:
+            for listener in listeners:
+                listener.undeclare()
+
+    def _give_up(self, want: set[int], obs_pubs: dict[int, zenoh.Publisher]) -> None:
+        missing = []
+        if absent := sorted(want - self.agents_seen):
+            missing.append(f"no agent for robot{'s' if len(absent) > 1 else ''} {', '.join(map(str, absent))}")
+        if self.expect_logger and not self.logger_seen:
+            missing.append("no logger")
+        deaf = sorted(r for r, p in obs_pubs.items() if r in self.agents_seen and not p.matching_status.matching)
+        if deaf:
+            missing.append(f"agents {', '.join(map(str, deaf))} present but not subscribed to their observations")
+        self.role.gave_up(
+            f"{' and '.join(missing)} in run {self.keys.run_id!r} ({self.where}); "
+            "check --run and --connect of the missing processes"
+        )
 
     def _publish_status(self, pub: zenoh.Publisher, state: str) -> None:
         self.seq += 1
@@ -286,7 +326,7 @@ class World:
         next_status = start
         while eng.tick < sc.ticks and not self.leader_done:
             if self.stop.is_set():
-                return 130
+                return self.stop.exit_code
             tick_start = start + eng.tick * period
             now = time.monotonic()
             if self.mode == "realtime":
@@ -339,6 +379,8 @@ class World:
                 "max_tick_lateness_s": self.max_tick_lateness_s,
                 "deaths": self.deaths,
                 "leader_done": self.leader_done,
+                "end_reason": self.end_reason,
+                "ended_at_s": self.ended_at_s,
                 "messages": dict(self.counts),
                 "cmd_links": {
                     lk.name: {"received": lk.received, "dropped": lk.dropped} for lk in self.cmd_links.values()
@@ -349,37 +391,128 @@ class World:
         return out
 
 
+DESCRIPTION = """\
+Run the world of one run by hand: the clock, the robots' physics and their
+cameras. It waits for one agent per robot of the scenario (and for the
+logger, with --expect-logger), then ticks until the leader reaches its last
+waypoint or the scenario's duration runs out, and tells every process of
+the run that it is done.
+
+By default it is also the run's Zenoh router: start the agents and the
+logger with --connect to one of its --listen endpoints. Behind a router of
+your own, give it --zenoh-mode client --connect ROUTER.
+
+It prints one line when its session is open, one when the run starts and
+one when it ends (why, and where its stats and summary went)."""
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
-        prog="swarm world", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog="swarm world",
+        description=DESCRIPTION,
+        epilog=role_mod.EXIT_CODES_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    ap.add_argument("--scenario", required=True)
-    ap.add_argument("--run", required=True, help="run id: the first segment of every key")
-    ap.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep")
-    ap.add_argument("--seed", type=int, default=None, help="overrides the scenario's seed")
-    ap.add_argument("--stats", help="write the world's metrics (JSON) here at the end")
-    ap.add_argument("--expect-logger", action="store_true", help="wait for the logger before tick 0")
+    ap.add_argument(
+        "--scenario",
+        required=True,
+        metavar="FILE|NAME",
+        help="the scenario: a TOML file or a shipped scenario's name (see swarm scenarios)",
+    )
+    ap.add_argument(
+        "--run",
+        required=True,
+        metavar="ID",
+        help="run id: the same for every process of the run; every key starts with it",
+    )
+    ap.add_argument(
+        "--mode",
+        choices=("lockstep", "realtime"),
+        default="lockstep",
+        help="lockstep: each tick waits for every agent's answer; realtime: ticks follow the wall "
+        "clock, 1/dt per second (default lockstep)",
+    )
+    ap.add_argument(
+        "--seed",
+        type=int,
+        default=None,
+        metavar="N",
+        help="random seed of camera noise and link drops (default: the scenario's)",
+    )
+    ap.add_argument("--stats", metavar="FILE", help="write the world's metrics here at the end (JSON)")
+    ap.add_argument(
+        "--out",
+        metavar="DIR",
+        help="write the run's summary.json and the scenario as run (scenario.toml) into DIR, as swarm run does",
+    )
+    ap.add_argument("--expect-logger", action="store_true", help="also wait for the logger before the first tick")
+    role_mod.add_arguments(ap, waits_for="an agent per robot (and the logger)")
     session.add_arguments(ap, default_mode="router")
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    stop = install_stop_handlers()
+    role = role_mod.Role("world", args.peers_timeout)
     started = time.monotonic()
-    inputs = role_inputs(args, "world")
-    if inputs is None:
-        return 2
-    sc, sess_cm = inputs
-    seed = sc.seed if args.seed is None else args.seed
+    sc = role.load(args)
+    if isinstance(sc, int):
+        return sc
+    sess_cm = role.connect(args)
+    if isinstance(sess_cm, int):
+        return sess_cm
+    if args.seed is not None:
+        sc = sc.with_seed(args.seed)
+    run_dir = Path(args.out) if args.out else None
+    if run_dir is not None:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        (run_dir / "scenario.toml").write_text(scenario_mod.dumps(sc.raw))
+    where = role_mod.describe_session(args)
     with sess_cm as sess:
-        world = World(sess, sc, args.run, seed, args.mode, args.expect_logger, stop)
+        waits = f"agents {', '.join(map(str, sc.robots))}" + (" and the logger" if args.expect_logger else "")
+        role.say(f"{where}; run {args.run}: waiting up to {role.peers_timeout_s:g} s for {waits}")
+        world = World(sess, sc, args.run, sc.seed, args.mode, args.expect_logger, role, where)
         code = world.run()
-        wall = time.monotonic() - started
-        stats = world.stats(wall)
+        stats = world.stats(time.monotonic() - started)
         stats["exit_code"] = code
         write_json(args.stats, stats)
+        written = [f"stats in {args.stats}"] if args.stats else []
+        if run_dir is not None:
+            written.append(f"summary in {_write_summary(run_dir, args, sc, stats, code, world)}")
+        if code == role_mod.EXIT_NO_PEERS:
+            return code  # the line that gave up was the last word
+        why = summary_mod.describe_end(world.end_reason, world.ended_at_s)
+        if world.end_reason == summary_mod.INTERRUPTED:
+            at = "before the run started" if world.ended_at_s is None else f"at t={world.ended_at_s:.2f} s"
+            why = f"{role.stopped_by()} {at}"
+        role.say(
+            f"run {args.run} ended ({why}), "
+            f"exit code {code}, {world.engine.tick} ticks; "
+            + ("; ".join(written) or "nothing written (no --stats, no --out)")
+        )
     return code
+
+
+def _write_summary(
+    run_dir: Path, args: argparse.Namespace, sc: scenario_mod.Scenario, stats: dict[str, Any], code: int, world: World
+) -> Path:
+    """summary.json of a run whose processes were started by hand: the world's
+    own stats (the others' are in their --stats files)."""
+    summary = summary_mod.build(
+        run_id=args.run,
+        sc=sc,
+        mode=args.mode,
+        parts={"world": stats},
+        exit_code=code,
+        end_reason=world.end_reason,
+        ended_at_s=world.ended_at_s,
+        interrupted=world.end_reason == summary_mod.INTERRUPTED,
+        timed_out=False,
+        processes={"world": {"pid": os.getpid(), "exit_code": code, "exit_after_stop_s": None}},
+        events=[],
+        recording=None,
+    )
+    return summary_mod.write(run_dir, summary)
 
 
 if __name__ == "__main__":

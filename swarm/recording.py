@@ -1,0 +1,298 @@
+"""The logger's Rerun side: what a run's messages become in the recording.
+
+Timeline ``sim_time`` (the messages' sim time, never the wall clock).
+Entity paths mirror the key space::
+
+    world/obstacles                      static circles
+    robots/r<id>/pose, /heading          true position and heading (Truth)
+    robots/r<id>/trajectory              the same positions, shown with their past
+    robots/r<id>/target/true             the follower's true virtual target
+    robots/r<id>/target/measured         the target from the raw reading (eq. 1-2)
+    robots/r<id>/ekf/target, /ekf/cov    EKF estimate and its 2-sigma ellipse
+    robots/r<id>/error/formation         |follower - true target|, m
+    robots/r<id>/error/ekf, /error/measured   |estimate or reading - true target|, m
+    robots/r<id>/fis/rho, /fis/alpha, /fis/v_n, robots/r<id>/wheels/left, /wheels/right
+    robots/r<id>/formation               formation code flown; events: changes as text
+    robots/r<id>/links/obs_dropped, /links/formation_dropped
+
+Messages are kept as they arrive (cheap, per tick) and turned into Rerun
+columns with numpy when the process loop calls ``Recorder.send`` (per send,
+not per tick). Logging errors are counted, never fatal.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections import defaultdict
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from formation_swarm.world.kinematics import Pose
+
+if TYPE_CHECKING:
+    from formation_swarm.protocol.messages import Telemetry, Truth
+    from formation_swarm.scenario import Scenario
+
+TIMELINE = "sim_time"
+HISTORY_TICKS = 400  # telemetry waits this long for its tick's truth
+_CIRCLE = np.stack([np.cos(np.linspace(0, 2 * np.pi, 25)), np.sin(np.linspace(0, 2 * np.pi, 25))], axis=1)
+
+
+def blueprint() -> rrb.Blueprint:
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial2DView(
+                name="formation (Fig. 6a, 7a, 9-11)",
+                origin="/",
+                contents=["+ /world/**", "+ /robots/**"],
+                time_ranges=rrb.VisibleTimeRange(
+                    TIMELINE, start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.cursor_relative()
+                ),
+            ),
+            rrb.Vertical(
+                rrb.TimeSeriesView(
+                    name="formation error, m (Fig. 6b, 7b)", origin="/", contents=["+ /robots/*/error/formation"]
+                ),
+                rrb.TimeSeriesView(name="V_N (Fig. 8)", origin="/", contents=["+ /robots/*/fis/v_n"]),
+                rrb.TimeSeriesView(
+                    name="target error: raw vs EKF, m (Fig. 9-10)",
+                    origin="/",
+                    contents=["+ /robots/*/error/ekf", "+ /robots/*/error/measured"],
+                ),
+            ),  # fmt: skip
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+def open_recording(
+    run_id: str, out: Path, live: str | None = None, web_ports: tuple[int, int] | None = None
+) -> tuple[rr.RecordingStream, str | None]:
+    """A recording stream writing ``out`` (its folder created), also streaming to
+    the viewer at ``live`` and, with ``web_ports`` (gRPC, web), serving the web
+    viewer; and that viewer's address. Rerun raises RuntimeError for a sink it
+    cannot open."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    rec = rr.RecordingStream(
+        "formation-swarm", recording_id=run_id, batcher_config=rr.ChunkBatcherConfig(flush_tick=0.1)
+    )
+    sinks: list[Any] = [rr.FileSink(str(out))]
+    if live:
+        sinks.append(rr.GrpcSink(live))
+    rec.set_sinks(*sinks, default_blueprint=blueprint())
+    if web_ports is None:
+        return rec, None
+    grpc_port, web_port = web_ports
+    url = rr.serve_grpc(grpc_port=grpc_port, recording=rec, default_blueprint=blueprint())
+    rr.serve_web_viewer(web_port=web_port, connect_to=url, open_browser=False)
+    return rec, f"http://127.0.0.1:{web_port}, data at {url}"
+
+
+class Recorder:
+    """One run's recording: truth and telemetry messages in, Rerun columns out."""
+
+    def __init__(self, rec: rr.RecordingStream, sc: Scenario) -> None:
+        self.rec = rec
+        self.sc = sc
+        self.truths: list[Truth] = []  # since the last send
+        self.tels: list[Telemetry] = []  # waiting for their tick's truth
+        self.poses: dict[int, dict[int, Pose]] = {}  # tick -> robot -> pose, bounded history
+        self.targets: dict[int, dict[int, tuple[float, float]]] = {}
+        self.formation: dict[int, int] = {}
+        # Per follower: squared error of the measured and of the EKF target vs the true one.
+        self.target_errors: dict[int, dict[str, float]] = defaultdict(lambda: defaultdict(float))
+        self.counts = {"log_errors": 0, "rows": 0, "unjoined": 0}
+        self.last_time_s = -1.0
+
+    def add_truths(self, truths: list[Truth]) -> None:
+        self.truths.extend(truths)
+
+    def add_telemetry(self, tels: list[Telemetry]) -> None:
+        self.tels.extend(tels)
+
+    def guard(self, fn: Any, *args: Any, **kwargs: Any) -> None:
+        try:
+            fn(*args, **kwargs)
+        except Exception as exc:  # noqa: BLE001 - logging never takes the process down
+            self.counts["log_errors"] += 1
+            if self.counts["log_errors"] <= 3:
+                print(f"logger: rerun error ({type(exc).__name__}: {exc}); continuing", file=sys.stderr, flush=True)
+
+    def flush(self, timeout_s: float) -> None:
+        self.guard(self.rec.flush, timeout_sec=timeout_s)
+
+    def log_static(self) -> None:
+        """The obstacles, the leader's path and the formations, logged once as static data."""
+        sc = self.sc
+        if sc.obstacles:
+            circles = rr.Ellipses2D(
+                centers=[(o.x_m, o.y_m) for o in sc.obstacles],
+                half_sizes=[(o.radius_m, o.radius_m) for o in sc.obstacles],
+                colors=[200, 60, 60],
+            )
+            self.guard(self.rec.log, "world/obstacles", circles, static=True)
+        path = rr.LineStrips2D([list(sc.leader.waypoints)], colors=[120, 120, 120])
+        self.guard(self.rec.log, "world/path", path, static=True)
+        lines = [
+            f"{name} (code {i}): "
+            + ", ".join(
+                f"R{r} <- R{s.reference} at ({s.offset.x_m:+.2f}, {s.offset.y_m:+.2f}) m"
+                for r, s in sorted(f.slots.items())
+            )
+            for i, (name, f) in enumerate(sc.formations.items())
+        ]
+        self.guard(self.rec.log, "world/formations", rr.TextDocument("\n".join(lines)), static=True)
+
+    def send(self, final: bool = False) -> None:
+        self.guard(self._send_truth)
+        self.guard(self._send_telemetry, final)
+
+    def _columns(self, entity: str, kind: str, times: np.ndarray, values: Any) -> None:
+        """One entity's rows since the last send, as Rerun columns."""
+        if len(times) == 0:
+            return
+        if kind == "scalar":
+            cols = rr.Scalars.columns(scalars=values)
+        elif kind == "point":
+            cols = rr.Points2D.columns(positions=values)
+        elif kind == "arrow":
+            cols = rr.Arrows2D.columns(origins=values[:, :2], vectors=values[:, 2:])
+        elif kind == "strip":  # n x points x 2: one strip per row (an array takes Rerun's numpy path)
+            cols = rr.LineStrips2D.columns(strips=values)
+        else:  # pragma: no cover - programming error
+            raise ValueError(f"unknown column kind {kind!r}")
+        self.rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=times)], columns=cols)
+        self.counts["rows"] += len(times)
+
+    def _send_truth(self) -> None:
+        truths, self.truths = self.truths, []
+        robots: dict[int, list[tuple[float, float, float, float]]] = defaultdict(list)
+        targets: dict[int, list[tuple[float, float, float, float, float]]] = defaultdict(list)
+        for msg in truths:
+            t = msg.time_s
+            self.last_time_s = max(self.last_time_s, t)
+            poses = {rid: Pose(x, y, th) for rid, x, y, th, _alive in msg.robots}
+            self.poses[msg.tick] = poses
+            self.targets[msg.tick] = {rid: (x, y) for rid, x, y in msg.targets}
+            for rid, pose in poses.items():
+                robots[rid].append((t, *pose))
+            for rid, x, y in msg.targets:
+                if rid in poses:
+                    targets[rid].append((t, x, y, poses[rid].x_m, poses[rid].y_m))
+        for rid, rows in robots.items():
+            a = np.array(rows)
+            t, xy, th = a[:, 0], a[:, 1:3], a[:, 3]
+            base = f"robots/r{rid}"
+            self._columns(f"{base}/pose", "point", t, xy)
+            self._columns(f"{base}/trajectory", "point", t, xy)
+            self._columns(f"{base}/heading", "arrow", t, np.column_stack([xy, 0.4 * np.cos(th), 0.4 * np.sin(th)]))
+        for rid, rows in targets.items():
+            a = np.array(rows)
+            self._columns(f"robots/r{rid}/target/true", "point", a[:, 0], a[:, 1:3])
+            err = np.hypot(a[:, 1] - a[:, 3], a[:, 2] - a[:, 4])
+            self._columns(f"robots/r{rid}/error/formation", "scalar", a[:, 0], err)
+
+    def _send_telemetry(self, final: bool) -> None:
+        """Telemetry whose tick's truth has arrived, joined with it: the follower's
+        pose turns its body-frame points into world-frame ones."""
+        newest = max(self.poses, default=-1)
+        ready: dict[int, list[tuple[Telemetry, Pose, tuple[float, float] | None]]] = defaultdict(list)
+        waiting = []
+        for tel in self.tels:
+            pose = self.poses.get(tel.tick, {}).get(tel.sender)
+            if pose is not None:
+                ready[tel.sender].append((tel, pose, self.targets[tel.tick].get(tel.sender)))
+            elif tel.tick > newest - HISTORY_TICKS and not final:
+                waiting.append(tel)
+            else:
+                self.counts["unjoined"] += 1
+        self.tels = waiting
+        for old in [k for k in self.poses if k < newest - HISTORY_TICKS]:
+            del self.poses[old], self.targets[old]
+        for rid, rows in ready.items():
+            self._send_follower(rid, rows)
+
+    def _send_follower(self, rid: int, rows: list[tuple[Telemetry, Pose, tuple[float, float] | None]]) -> None:
+        nan = math.nan
+        base = f"robots/r{rid}"
+        for tel, _pose, _target in rows:
+            if self.formation.get(rid) != tel.formation:
+                self.formation[rid] = tel.formation
+                self._columns(f"{base}/formation", "scalar", np.array([tel.time_s]), np.array([float(tel.formation)]))
+                names = self.sc.formation_names
+                self._event(tel.time_s, f"R{rid} flies {names[tel.formation] if tel.formation < len(names) else '?'}")
+        a = np.array([
+            (tel.time_s, *pose, *(target or (nan, nan)), *(tel.measured or (nan, nan)), *(tel.estimate or (nan, nan)),
+             *(tel.target_cov or (nan, nan, nan)), _nan(tel.rho_m), _nan(tel.alpha_rad), _nan(tel.vn),
+             tel.left_mps, tel.right_mps, tel.obs_dropped, tel.formation_dropped)
+            for tel, pose, target in rows
+        ])  # fmt: skip
+        t, pose, target = a[:, 0], a[:, 1:4], a[:, 4:6]
+        measured, estimate = _to_world(pose, a[:, 6:8]), _to_world(pose, a[:, 8:10])
+        cov = a[:, 10:13]
+        scalars = ("fis/rho", "fis/alpha", "fis/v_n", "wheels/left", "wheels/right", "links/obs_dropped",
+                   "links/formation_dropped")  # fmt: skip
+        for col, name in enumerate(scalars, start=13):
+            ok = ~np.isnan(a[:, col])
+            self._columns(f"{base}/{name}", "scalar", t[ok], a[ok, col])
+        for name, pts in (("measured", measured), ("ekf", estimate)):
+            ok = ~np.isnan(pts[:, 0])
+            self._columns(f"{base}/target/measured" if name == "measured" else f"{base}/ekf/target", "point",
+                          t[ok], pts[ok])  # fmt: skip
+            ok &= ~np.isnan(target[:, 0])
+            err = np.hypot(*(pts[ok] - target[ok]).T)
+            self._columns(f"{base}/error/{name}", "scalar", t[ok], err)
+            acc = self.target_errors[rid]
+            acc[f"{name}_sum_sq_m2"] += float(np.sum(err**2))
+            acc[f"{name}_samples"] += int(err.size)
+        ok = ~np.isnan(estimate[:, 0]) & ~np.isnan(cov[:, 0])
+        if ok.any():
+            self._columns(f"{base}/ekf/cov", "strip", t[ok], _ellipses(pose[ok], estimate[ok], cov[ok]))
+
+    def _event(self, t: float, text: str) -> None:
+        self.guard(self.rec.set_time, TIMELINE, duration=t)
+        self.guard(self.rec.log, "events", rr.TextLog(text))
+
+    def stats(self) -> dict[str, Any]:
+        """``last_sim_time_s`` and the RMS of the measured and EKF targets vs the true ones, per follower."""
+        return {
+            "last_sim_time_s": self.last_time_s,
+            "target_errors": {
+                str(rid): {
+                    f"{name}_rms_m": math.sqrt(acc[f"{name}_sum_sq_m2"] / acc[f"{name}_samples"])
+                    if acc[f"{name}_samples"]
+                    else None
+                    for name in ("measured", "ekf")
+                }
+                for rid, acc in sorted(self.target_errors.items())
+            },
+        }
+
+
+def _nan(x: float | None) -> float:
+    return math.nan if x is None else x
+
+
+def _to_world(pose: np.ndarray, body: np.ndarray) -> np.ndarray:
+    """Body-frame points (x right, y ahead) of robots at ``pose`` (n x 3), world frame."""
+    s, c = np.sin(pose[:, 2]), np.cos(pose[:, 2])
+    x, y = body[:, 0], body[:, 1]
+    return np.column_stack([pose[:, 0] + x * s + y * c, pose[:, 1] - x * c + y * s])
+
+
+def _ellipses(pose: np.ndarray, center: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """2-sigma ellipses of follower-frame covariances (xx, xy, yy), as world-frame
+    polygons: n x 25 x 2."""
+    c = np.stack([np.stack([cov[:, 0], cov[:, 1]], -1), np.stack([cov[:, 1], cov[:, 2]], -1)], -2)
+    vals, vecs = np.linalg.eigh(c)  # n x 2, n x 2 x 2
+    body = np.einsum("kj,nj,nij->nki", _CIRCLE, 2.0 * np.sqrt(np.maximum(vals, 0.0)), vecs)
+    # Body-frame directions to world frame: x right -> (sin, -cos), y ahead -> (cos, sin).
+    s, co = np.sin(pose[:, 2])[:, None], np.cos(pose[:, 2])[:, None]
+    bx, by = body[..., 0], body[..., 1]
+    return np.stack([bx * s + by * co, -bx * co + by * s], -1) + center[:, None, :]

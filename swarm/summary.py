@@ -1,0 +1,164 @@
+"""A run's ``summary.json``: the one place that builds it, for ``swarm run``
+(the launcher, from every process's stats) and for ``swarm world --out``
+(the world alone, from its own).
+
+Besides the metrics it says which code made the run and why the run ended:
+
+``version``, ``git_commit``
+    ``formation_swarm.__version__``, and the commit checked out in the source
+    tree when the package runs from a git checkout (None otherwise).
+``end_reason``, ``ended_at_s``
+    one of ``END_REASONS`` and the sim time (s) the run had reached then,
+    None when it never started.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import formation_swarm
+from formation_swarm.proc import write_json
+
+if TYPE_CHECKING:
+    from formation_swarm.scenario import Scenario
+
+LEADER_FINISHED = "leader_finished"  # the leader reached its last waypoint
+DURATION_REACHED = "duration_reached"  # the scenario's duration_s ran out
+INTERRUPTED = "interrupted"  # SIGINT or SIGTERM
+TIMED_OUT = "timed_out"  # swarm run --timeout: the wall-clock limit
+PEERS_TIMEOUT = "peers_timeout"  # the world's peers did not appear within --peers-timeout
+ROLE_FAILED = "role_failed"  # the world exited with an error (see "events" and "processes")
+END_REASONS = (LEADER_FINISHED, DURATION_REACHED, INTERRUPTED, TIMED_OUT, PEERS_TIMEOUT, ROLE_FAILED)
+
+
+def describe_end(reason: str | None, ended_at_s: float | None) -> str:
+    """``end_reason`` in words, for a report line."""
+    at = "" if ended_at_s is None else f" at t={ended_at_s:.2f} s"
+    return {
+        LEADER_FINISHED: f"the leader reached its last waypoint{at}",
+        DURATION_REACHED: f"the scenario's duration was reached{at}",
+        INTERRUPTED: f"interrupted{at}",
+        TIMED_OUT: f"the wall-clock limit was reached{at}",
+        PEERS_TIMEOUT: "the peers did not appear in time",
+        ROLE_FAILED: f"a process failed{at}",
+    }.get(reason or "", f"unknown ({reason})")
+
+
+def git_commit(root: Path | None = None) -> str | None:
+    """The commit checked out at ``root`` (default: the folder holding the
+    package's source, so an installed copy has none), read from ``.git``
+    without running git; None when there is none or it cannot be read."""
+    if root is None:
+        root = Path(formation_swarm.__file__).resolve().parent.parent
+    with contextlib.suppress(OSError, ValueError, UnicodeDecodeError):
+        git = root / ".git"
+        if git.is_file():  # a worktree or submodule: "gitdir: PATH"
+            git = (root / git.read_text().split("gitdir:", 1)[1].strip()).resolve()
+        head = (git / "HEAD").read_text().strip()
+        if not head.startswith("ref:"):
+            return head if _is_sha(head) else None
+        ref = head[4:].strip()
+        common = git
+        if (git / "commondir").is_file():  # a worktree keeps its refs in the main repository
+            common = (git / (git / "commondir").read_text().strip()).resolve()
+        for d in (git, common):
+            if (d / ref).is_file():
+                sha = (d / ref).read_text().strip()
+                return sha if _is_sha(sha) else None
+        packed = common / "packed-refs"
+        if packed.is_file():
+            for line in packed.read_text().splitlines():
+                sha, _, name = line.partition(" ")
+                if name.strip() == ref and _is_sha(sha):
+                    return sha
+    return None
+
+
+def _is_sha(text: str) -> bool:
+    return re.fullmatch(r"[0-9a-f]{40}|[0-9a-f]{64}", text) is not None
+
+
+def read_parts(stats_dir: Path) -> dict[str, Any]:
+    """Every process's stats file in ``stats_dir`` (``world.json``, ``agent-2.json`` ...)
+    by process name; unreadable ones are left out."""
+    parts: dict[str, Any] = {}
+    for p in sorted(stats_dir.glob("*.json")):
+        with contextlib.suppress(OSError, json.JSONDecodeError):
+            parts[p.stem] = json.loads(p.read_text())
+    return parts
+
+
+def build(
+    *,
+    run_id: str,
+    sc: Scenario,
+    mode: str,
+    parts: Mapping[str, Any],
+    exit_code: int,
+    end_reason: str,
+    ended_at_s: float | None,
+    interrupted: bool,
+    timed_out: bool,
+    processes: Mapping[str, Any],
+    events: list[dict[str, Any]],
+    recording: str | None,
+) -> dict[str, Any]:
+    """The summary of one run from its processes' stats (``parts``: name -> stats;
+    the world's is ``parts["world"]``, and holds most of the metrics)."""
+    if end_reason not in END_REASONS:
+        raise ValueError(f"end_reason must be one of {END_REASONS}, got {end_reason!r}")
+    world = parts.get("world", {})
+    rejected = {name: part.get("rejected", {}) for name, part in parts.items() if part.get("rejected")}
+    links: dict[str, Any] = dict(world.get("cmd_links", {}))
+    for name, part in parts.items():
+        if name.startswith("agent-"):
+            links.update(part.get("links", {}))
+    return {
+        "run_id": run_id,
+        "scenario": sc.name,
+        "mode": mode,
+        "seed": sc.seed,
+        "version": formation_swarm.__version__,
+        "git_commit": git_commit(),
+        "exit_code": exit_code,
+        "end_reason": end_reason,
+        "ended_at_s": ended_at_s,
+        "interrupted": interrupted,
+        "timed_out": timed_out,
+        "ticks": world.get("ticks"),
+        "sim_time_s": world.get("sim_time_s"),
+        "ticks_per_s": world.get("ticks_per_s"),
+        "followers": world.get("followers", {}),
+        "min_distance_m": world.get("min_distance_m"),
+        "robot_diameter_m": world.get("robot_diameter_m"),
+        "collisions": world.get("collisions"),
+        "obstacle_collisions": world.get("obstacle_collisions"),
+        "lockstep_misses": world.get("lockstep_misses"),
+        "late_ticks": world.get("late_ticks"),
+        "max_tick_lateness_s": world.get("max_tick_lateness_s"),
+        "stale_stops": world.get("stale_stops"),
+        "formation_events": world.get("formation_events", []),
+        "deaths": world.get("deaths", []),
+        "messages": world.get("messages", {}),
+        "links": links,
+        "drops_total": sum(v.get("dropped", 0) for v in links.values()),
+        "rejected": rejected,
+        "rejected_total": sum(sum(r.values()) for r in rejected.values()),
+        "trajectory_digest": world.get("trajectory_digest"),
+        "events": events,
+        "processes": dict(processes),
+        "recording": recording,
+        "parts": dict(parts),
+    }
+
+
+def write(run_dir: Path, summary: Mapping[str, Any]) -> Path:
+    """``run_dir/summary.json``, written atomically; its path."""
+    path = Path(run_dir) / "summary.json"
+    write_json(str(path), dict(summary))
+    return path
