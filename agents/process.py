@@ -27,7 +27,6 @@ exchange: ~25% more ticks/s than callback + queue). What would end the loop
 
 from __future__ import annotations
 
-import argparse
 import collections
 import contextlib
 import gc
@@ -38,6 +37,7 @@ from typing import Any
 
 import zenoh
 
+from formation_swarm import cliargs
 from formation_swarm import role as role_mod
 from formation_swarm import scenario as scenario_mod
 from formation_swarm.agents.follower import Decision, Follower
@@ -351,12 +351,11 @@ It prints one line when its session is open, one when the run starts and
 one when it ends (why, and where its stats went)."""
 
 
-def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
+def build_parser() -> cliargs.Parser:
+    ap = cliargs.Parser(
         prog="swarm agent",
         description=DESCRIPTION,
         epilog=role_mod.EXIT_CODES_HELP,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     ap.add_argument("--id", type=int, required=True, metavar="N", help="the robot id, one of the scenario's robots")
     ap.add_argument(
@@ -368,7 +367,7 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--run", required=True, metavar="ID", help="run id: the same as the world's")
     ap.add_argument(
         "--seed",
-        type=int,
+        type=cliargs.seed,
         default=None,
         metavar="N",
         help="random seed of the link drops (default: the scenario's); the same as the world's",

@@ -85,7 +85,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     from formation_swarm.launcher import KillAt, Launch, print_result
     from formation_swarm.proc import interrupt_on_stop_signals
-    from formation_swarm.scenario import ScenarioError, parse_override
+    from formation_swarm.scenario import ScenarioError
+    from formation_swarm.scenario_files import parse_override
 
     try:
         kills = [KillAt.parse(spec) for spec in args.kill]
@@ -118,7 +119,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_scenarios(_args: argparse.Namespace) -> int:
-    from formation_swarm import scenario
+    from formation_swarm import scenario_files as scenario
 
     known = scenario.shipped()
     width = max(map(len, known))

@@ -32,6 +32,7 @@ from typing import Any
 import zenoh
 
 from formation_swarm import scenario as scenario_mod
+from formation_swarm import scenario_files
 from formation_swarm import summary as summary_mod
 from formation_swarm.children import Child, describe_exit, free_port, log_tail
 from formation_swarm.console import print_result as print_result  # re-exported: the API of swarm run
@@ -98,7 +99,7 @@ class Launch:
     ) -> None:
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be 'lockstep' or 'realtime', got {mode!r}")
-        self.scenario_path = scenario_mod.resolve(scenario_path)
+        self.scenario_path = scenario_files.resolve(scenario_path)
         ov = dict(overrides or {})
         if seed is not None:
             ov["run.seed"] = seed
@@ -164,7 +165,7 @@ class Launch:
         (self.run_dir / "logs").mkdir(exist_ok=True)
         (self.run_dir / "stats").mkdir(exist_ok=True)
         scenario_file = self.run_dir / "scenario.toml"
-        scenario_file.write_text(scenario_mod.dumps(self.sc.raw))
+        scenario_file.write_text(scenario_files.dumps(self.sc.raw))
         self.port = free_port()
         common = ["--scenario", str(scenario_file), "--run", self.run_id]
 

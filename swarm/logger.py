@@ -16,7 +16,6 @@ the last second.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import gc
 import math
@@ -30,6 +29,7 @@ from typing import Any
 
 import zenoh
 
+from formation_swarm import cliargs
 from formation_swarm import role as role_mod
 from formation_swarm import scenario as scenario_mod
 from formation_swarm.proc import write_json
@@ -213,12 +213,11 @@ It prints one line when its session is open, one when the run starts and
 one when it ends (why, and where the recording and its stats went)."""
 
 
-def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
+def build_parser() -> cliargs.Parser:
+    ap = cliargs.Parser(
         prog="swarm logger",
         description=DESCRIPTION,
         epilog=role_mod.EXIT_CODES_HELP,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     ap.add_argument(
         "--scenario",

@@ -9,11 +9,11 @@ it prints a line when it listens and one when it stops.
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import time
 
+from formation_swarm import cliargs
 from formation_swarm import role as role_mod
 from formation_swarm.proc import wait_for
 from formation_swarm.protocol import session
@@ -35,12 +35,11 @@ exit codes:
   2    bad flags"""
 
 
-def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
+def build_parser() -> cliargs.Parser:
+    ap = cliargs.Parser(
         prog="swarm router",
         description=DESCRIPTION,
         epilog=EXIT_CODES_HELP,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     session.add_arguments(ap, default_mode="router")
     return ap

@@ -10,7 +10,6 @@ invalid values are errors that name the key and the value.
 from __future__ import annotations
 
 import difflib
-import importlib.resources
 import math
 import tomllib
 from collections.abc import Mapping
@@ -25,6 +24,7 @@ from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode
 from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.lpsi import LpsiParams
 from formation_swarm.protocol.keys import MAX_ROBOT_ID
+from formation_swarm.scenario_files import deep_set, resolve
 from formation_swarm.scenario_keys import (
     CAMERA_KEYS,
     CONTROLLER_KEYS,
@@ -40,13 +40,10 @@ from formation_swarm.scenario_keys import (
     SLOT_KEYS,
     TOP_KEYS,
     Key,
+    ScenarioError,
     type_name,
 )
 from formation_swarm.world.camera import CameraParams
-
-
-class ScenarioError(ValueError):
-    """A scenario that cannot run; the message names the key."""
 
 
 @dataclass(frozen=True)
@@ -118,7 +115,7 @@ class Scenario:
         return int(round(self.duration_s / self.dt_s))
 
     def with_seed(self, seed: int) -> Scenario:
-        raw = _deep_set(self.raw, ("run", "seed"), seed)
+        raw = deep_set(self.raw, ("run", "seed"), seed)
         return replace(self, seed=seed, raw=raw)
 
 
@@ -366,37 +363,6 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
     )
 
 
-def shipped() -> dict[str, Path]:
-    """The scenarios installed with the package, by name (file name without .toml)."""
-    folder = Path(str(importlib.resources.files("formation_swarm.scenarios")))
-    return {p.stem: p for p in sorted(folder.glob("*.toml"))}
-
-
-def description(path: Path) -> str:
-    """A scenario file's one-line description: its first comment line."""
-    for text in path.read_text().splitlines():
-        if text.startswith("#"):
-            return text.lstrip("# ").strip()
-        if text.strip():
-            break
-    return ""
-
-
-def resolve(spec: str | Path) -> Path:
-    """A scenario's file from a path or from the name of a shipped scenario."""
-    p = Path(spec)
-    if p.suffix == ".toml" or p.parent != Path(".") or p.exists():
-        if not p.is_file():
-            raise ScenarioError(f"scenario file not found: {p}")
-        return p
-    known = shipped()
-    if str(spec) in known:
-        return known[str(spec)]
-    close = difflib.get_close_matches(str(spec), list(known), n=1, cutoff=0.5)
-    hint = f"; did you mean {close[0]!r}?" if close else f"; shipped scenarios: {', '.join(known)}"
-    raise ScenarioError(f"no scenario file or shipped scenario named {str(spec)!r}" + hint)
-
-
 def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
     """Read a scenario (a file or a shipped scenario's name); ``overrides`` maps
     dotted keys ("run.seed") to values, checked like the file's own."""
@@ -408,81 +374,8 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
     except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioError(f"{p}: cannot read the scenario: {exc}") from None
     for dotted, value in (overrides or {}).items():
-        raw = _deep_set(raw, tuple(dotted.split(".")), value)
+        raw = deep_set(raw, tuple(dotted.split(".")), value)
     try:
         return from_dict(raw)
     except ScenarioError as exc:
         raise ScenarioError(f"{p}: {exc}") from None
-
-
-def parse_value(text: str) -> Any:
-    """A value given on the command line: TOML (numbers, booleans, quoted
-    strings, arrays), or else the text itself as a string."""
-    try:
-        return tomllib.loads(f"v = {text.strip()}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text.strip()
-
-
-def parse_override(text: str) -> tuple[str, Any]:
-    """``"leader.speed_mps=1.6"`` -> ("leader.speed_mps", 1.6)."""
-    key, sep, value = text.partition("=")
-    if not sep or not key.strip() or not value.strip():
-        raise ScenarioError(f"--set takes KEY=VALUE (e.g. leader.speed_mps=1.6), got {text!r}")
-    return key.strip(), parse_value(value)
-
-
-def _deep_set(raw: Mapping[str, Any], path: tuple[str, ...], value: Any) -> dict[str, Any]:
-    out = dict(raw)
-    if len(path) == 1:
-        out[path[0]] = value
-        return out
-    inner = out.get(path[0], {})
-    if not isinstance(inner, Mapping):
-        raise ScenarioError(f"cannot set {'.'.join(path)}: {path[0]} is not a table")
-    out[path[0]] = _deep_set(inner, path[1:], value)
-    return out
-
-
-def dumps(raw: Mapping[str, Any]) -> str:
-    """The scenario as run, as TOML (the subset scenarios use)."""
-    lines: list[str] = []
-
-    def val(v: Any) -> str:
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, str):
-            return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-        if isinstance(v, (int, float)):
-            return repr(v)
-        if isinstance(v, list):
-            return "[" + ", ".join(val(x) for x in v) + "]"
-        if isinstance(v, dict):
-            return "{ " + ", ".join(f'"{k}" = {val(x)}' for k, x in v.items()) + " }"
-        raise TypeError(f"cannot write {type(v).__name__} to TOML")
-
-    def table(prefix: str, t: Mapping[str, Any]) -> None:
-        scalars = {k: v for k, v in t.items() if not isinstance(v, dict) and not _is_table_array(v)}
-        subs = {k: v for k, v in t.items() if isinstance(v, dict)}
-        arrays = {k: v for k, v in t.items() if _is_table_array(v)}
-        if prefix and (scalars or not subs):
-            lines.append(f"[{prefix}]")
-        for k, v in scalars.items():
-            lines.append(f'"{k}" = {val(v)}' if not k.isidentifier() else f"{k} = {val(v)}")
-        if scalars:
-            lines.append("")
-        for k, v in subs.items():
-            table(f"{prefix}.{k}" if prefix else k, v)
-        for k, v in arrays.items():
-            for item in v:
-                lines.append(f"[[{prefix + '.' if prefix else ''}{k}]]")
-                for ik, iv in item.items():
-                    lines.append(f"{ik} = {val(iv)}")
-                lines.append("")
-
-    table("", raw)
-    return "\n".join(lines)
-
-
-def _is_table_array(v: Any) -> bool:
-    return isinstance(v, list) and bool(v) and all(isinstance(x, dict) for x in v)

@@ -22,6 +22,11 @@ from formation_swarm.checks import SEED_MAX
 MAX_ROBOTS = 500
 MAX_OBSTACLES = 500
 
+
+class ScenarioError(ValueError):
+    """A scenario that cannot run; the message names the key."""
+
+
 REQUIRED = object()  # the default of a key that must be given
 NUM = (int, float)
 

@@ -61,7 +61,7 @@ def parse_set(text: str) -> tuple[str, list[Any]]:
     key, sep, values = text.partition("=")
     if not sep or not key.strip() or not values.strip():
         raise ValueError(f"--set takes key=v1,v2,..., got {text!r}")
-    from formation_swarm.scenario import parse_value
+    from formation_swarm.scenario_files import parse_value
 
     out = [parse_value(raw) for raw in values.split(",")]
     return key.strip(), out

@@ -25,6 +25,7 @@ from pathlib import Path
 import pytest
 
 from formation_swarm import scenario as scenario_mod
+from formation_swarm import scenario_files
 from formation_swarm.launcher import free_port
 from formation_swarm.protocol.links import uniform
 from tests import foreign_follower as foreign
@@ -50,9 +51,9 @@ def test_its_link_fault_draws_are_ours() -> None:
                 assert foreign.link_uniform(seed, link, seq) == uniform(seed, link, seq)
 
 
-@pytest.mark.parametrize("name", sorted(scenario_mod.shipped()))
+@pytest.mark.parametrize("name", sorted(scenario_files.shipped()))
 def test_its_formation_slots_are_ours(name: str) -> None:
-    path = scenario_mod.shipped()[name]
+    path = scenario_files.shipped()[name]
     sc = scenario_mod.load(path)
     theirs = foreign.formation_slots(tomllib.loads(path.read_text()))
     assert len(theirs) == len(sc.formation_names)
@@ -68,8 +69,8 @@ def _fly(tmp_path: Path, scenario_file: Path, foreign_ids: tuple[int, ...], over
     """World (router on a free loopback port), our leader (robot 1) and a foreign
     follower per id, in lockstep; every process reaped. The stats of each."""
     scenario = tmp_path / "scenario.toml"
-    sc = scenario_mod.load(scenario_file, dict(scenario_mod.parse_override(o) for o in overrides))
-    scenario.write_text(scenario_mod.dumps(sc.raw))
+    sc = scenario_mod.load(scenario_file, dict(scenario_files.parse_override(o) for o in overrides))
+    scenario.write_text(scenario_files.dumps(sc.raw))
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     common = ["--scenario", str(scenario), "--run", f"foreign-{uuid.uuid4().hex[:8]}"]
     procs: dict[str, subprocess.Popen[bytes]] = {}

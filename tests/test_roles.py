@@ -23,6 +23,7 @@ import pytest
 import formation_swarm
 from formation_swarm import role as role_mod
 from formation_swarm import scenario as scenario_mod
+from formation_swarm import scenario_files
 from formation_swarm import summary as summary_mod
 from formation_swarm.launcher import RunResult, free_port
 from tests.conftest import SCENARIOS
@@ -184,7 +185,7 @@ def _short_turn(path: Path) -> Path:
     """The turning scenario with a 4.5 m path: the leader finishes it at ~3 s
     of sim time, long before the duration (44 s)."""
     sc = scenario_mod.load(TURN, {"leader.waypoints": [[0.0, 0.0], [0.0, 4.5]]})
-    path.write_text(scenario_mod.dumps(sc.raw))
+    path.write_text(scenario_files.dumps(sc.raw))
     return path
 
 

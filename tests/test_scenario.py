@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from formation_swarm import scenario as sm
+from formation_swarm import scenario_files
 from formation_swarm.scenario_keys import MAX_OBSTACLES, MAX_ROBOTS, markdown
 from tests.conftest import ROOT, SCENARIOS
 
@@ -61,19 +62,22 @@ def test_missing_file_and_bad_toml_are_clear(tmp_path: Path) -> None:
 
 
 def test_a_shipped_scenario_loads_by_name_and_a_near_miss_is_suggested() -> None:
-    assert set(sm.shipped()) == {p.stem for p in SCENARIOS.glob("*.toml")}
+    assert set(scenario_files.shipped()) == {p.stem for p in SCENARIOS.glob("*.toml")}
     assert sm.load("fig11_obstacles").name == sm.load(FIG11).name == "fig11-obstacles"
     with pytest.raises(sm.ScenarioError, match="named 'fig11'; did you mean 'fig11_obstacles'"):
         sm.load("fig11")
-    assert all(sm.description(p) for p in sm.shipped().values())
+    assert all(scenario_files.description(p) for p in scenario_files.shipped().values())
 
 
 def test_command_line_values_parse_as_toml_or_text() -> None:
-    assert sm.parse_override("leader.speed_mps=1.6") == ("leader.speed_mps", 1.6)
-    assert sm.parse_override("leader.waypoints=[[0, 0], [0, 9.5]]") == ("leader.waypoints", [[0, 0], [0, 9.5]])
-    assert sm.parse_override("controller.vn = dynamic") == ("controller.vn", "dynamic")
+    assert scenario_files.parse_override("leader.speed_mps=1.6") == ("leader.speed_mps", 1.6)
+    assert scenario_files.parse_override("leader.waypoints=[[0, 0], [0, 9.5]]") == (
+        "leader.waypoints",
+        [[0, 0], [0, 9.5]],
+    )
+    assert scenario_files.parse_override("controller.vn = dynamic") == ("controller.vn", "dynamic")
     with pytest.raises(sm.ScenarioError, match="KEY=VALUE"):
-        sm.parse_override("leader.speed_mps")
+        scenario_files.parse_override("leader.speed_mps")
 
 
 def test_docs_scenario_md_is_generated_from_the_schema() -> None:

@@ -40,6 +40,7 @@ from typing import Any
 
 import zenoh
 
+from formation_swarm import cliargs, scenario_files
 from formation_swarm import role as role_mod
 from formation_swarm import scenario as scenario_mod
 from formation_swarm import summary as summary_mod
@@ -406,12 +407,11 @@ It prints one line when its session is open, one when the run starts and
 one when it ends (why, and where its stats and summary went)."""
 
 
-def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(
+def build_parser() -> cliargs.Parser:
+    ap = cliargs.Parser(
         prog="swarm world",
         description=DESCRIPTION,
         epilog=role_mod.EXIT_CODES_HELP,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     ap.add_argument(
         "--scenario",
@@ -434,7 +434,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ap.add_argument(
         "--seed",
-        type=int,
+        type=cliargs.seed,
         default=None,
         metavar="N",
         help="random seed of camera noise and link drops (default: the scenario's)",
@@ -466,7 +466,7 @@ def main(argv: list[str] | None = None) -> int:
     run_dir = Path(args.out) if args.out else None
     if run_dir is not None:
         run_dir.mkdir(parents=True, exist_ok=True)
-        (run_dir / "scenario.toml").write_text(scenario_mod.dumps(sc.raw))
+        (run_dir / "scenario.toml").write_text(scenario_files.dumps(sc.raw))
     where = role_mod.describe_session(args)
     with sess_cm as sess:
         waits = f"agents {', '.join(map(str, sc.robots))}" + (" and the logger" if args.expect_logger else "")
