@@ -41,6 +41,7 @@ from formation_swarm import cliargs
 from formation_swarm import role as role_mod
 from formation_swarm import scenario as scenario_mod
 from formation_swarm.agents.follower import Decision, Follower
+from formation_swarm.agents.inbox import InboxChecks
 from formation_swarm.agents.leader import CodeRepeats, FormationSwitch
 from formation_swarm.agents.pilot import PathPilot
 from formation_swarm.proc import wait_for, write_json
@@ -56,6 +57,8 @@ WORLD_ID = 0
 # Lockstep holds at most a tick's observation and a few codes here; when full,
 # Zenoh waits for the loop (back-pressure) rather than dropping.
 INBOX_CAPACITY = 1024
+PENDING_CODES = 64  # formation codes waiting for their tick
+DUPLICATE_QUERY_S = 1.0  # how long the start-up check for another agent of the same robot waits
 
 
 class Agent:
@@ -88,7 +91,10 @@ class Agent:
         self.answered = 0
         self.busy_s = 0.0  # time handling messages in the loop, summed
         self.formation_changes: list[dict[str, Any]] = []
-        self.pending_codes: collections.deque[FormationCode] = collections.deque(maxlen=64)
+        self.pending_codes: collections.deque[FormationCode] = collections.deque(maxlen=PENDING_CODES)
+        self.checks = InboxChecks(sc.robots, sc.camera.range_m, sc.camera.sigma_rho_m, sc.leader.sensing_range_m,
+                                  sc.dt_s)  # fmt: skip
+        self.superseded = 0  # observations skipped because a newer one was already there
         if self.is_leader:
             ld = sc.leader
             self.pilot = PathPilot(ld.waypoints, ld.speed_mps, sc.width_m, ld.lookahead_m, ld.turn_rate_rps)
@@ -144,6 +150,13 @@ class Agent:
         code = self._wait_matched()
         if code is not None:
             return code
+        if self._already_flying():
+            self.end_note = "another agent flies this robot"
+            self.role.complain(
+                f"robot {self.rid} already has an agent in run {self.keys.run_id!r} ({self.where}); "
+                "two agents would both drive it: not starting"
+            )
+            return role_mod.EXIT_DUPLICATE
         gc.freeze()  # start-up objects (numpy, scipy, zenoh) leave the collector's scans
         token = s.liveliness().declare_token(k.alive("agent", self.rid))
         try:
@@ -186,6 +199,12 @@ class Agent:
             for listener in listeners:
                 listener.undeclare()
 
+    def _already_flying(self) -> bool:
+        """Whether another process holds this robot's liveliness token (asked of
+        the router, bounded: DUPLICATE_QUERY_S)."""
+        replies = self.session.liveliness().get(self.keys.alive("agent", self.rid), timeout=DUPLICATE_QUERY_S)
+        return any(reply.ok is not None for reply in replies)
+
     def _loop(self) -> int:
         inbox = self.inbox
         if inbox is None:  # closed before we got here
@@ -202,7 +221,17 @@ class Agent:
                 self.started = True
                 self.role.say(f"run {self.keys.run_id} started")
             t0 = time.perf_counter()
-            self._on_message(str(sample.key_expr), sample.payload.to_bytes())
+            # Everything that has arrived: codes in order, and only the newest
+            # observation is answered (after a stall, the older ones are stale).
+            newest = None
+            while sample is not None:
+                obs = self._on_message(str(sample.key_expr), sample.payload.to_bytes())
+                if obs is not None:
+                    self.superseded += newest is not None
+                    newest = obs
+                sample = channel.try_recv()
+            if newest is not None:
+                self._on_observation(*newest)
             self.busy_s += time.perf_counter() - t0
         return self._exit_code()
 
@@ -220,21 +249,30 @@ class Agent:
         self.end_note = "the world left"
         return role_mod.EXIT_OK
 
-    def _on_message(self, key: str, payload: bytes) -> None:
+    def _on_message(self, key: str, payload: bytes) -> tuple[Observation, bool] | None:
+        """Take a formation code; return an observation (and whether the link
+        delivered it) for the loop to answer. Anything else is counted and dropped."""
         rk = self.keys.parse_robot(key)
         if rk is None or rk.robot_id != self.rid:
             self.rejections.reject("unknown key")
-            return
+            return None
         if rk.kind == "obs":
             msg = self.rejections.decode(Observation, payload, sender=WORLD_ID)
             if msg is not None:
-                self._on_observation(msg, self.obs_link.accept(msg.seq))
+                if (why := self.checks.observation(msg)) is not None:
+                    self.rejections.reject(why)
+                    return None
+                return msg, self.obs_link.accept(msg.seq)
         elif rk.kind == "formation" and not self.is_leader:
             fc = self.rejections.decode(FormationCode, payload, sender=self.sc.leader.robot_id)
-            if fc is not None and self.formation_link.accept(fc.seq):
-                self._accept_formation(fc)
+            if fc is not None:
+                if (why := self.checks.code(fc)) is not None:
+                    self.rejections.reject(why)
+                elif self.formation_link.accept(fc.seq):
+                    self._accept_formation(fc)
         else:
             self.rejections.reject("unexpected key")
+        return None
 
     def _accept_formation(self, fc: FormationCode) -> None:
         if fc.code >= len(self.sc.formation_names):
@@ -279,8 +317,15 @@ class Agent:
         # or after our own observation k (the world publishes them one by one), so it
         # is applied from tick k + 1 on: never earlier, and in lockstep never later,
         # since the world publishes k + 1 only after the leader's answer to k.
-        while self.pending_codes and self.pending_codes[0].tick < obs.tick:
-            self._apply_formation(self.pending_codes.popleft())
+        # Codes are taken in the order of their ticks, so one stamped far ahead
+        # cannot hold back the others.
+        if self.pending_codes and min(c.tick for c in self.pending_codes) < obs.tick:
+            due = sorted((c for c in self.pending_codes if c.tick < obs.tick), key=lambda c: (c.tick, c.seq))
+            self.pending_codes = collections.deque(
+                (c for c in self.pending_codes if c.tick >= obs.tick), maxlen=PENDING_CODES
+            )
+            for fc in due:
+                self._apply_formation(fc)
         reading = None
         if delivered:
             for rid, rho, phi, beta in obs.readings:
@@ -322,6 +367,8 @@ class Agent:
             "robot": self.rid,
             "role": "leader" if self.is_leader else "follower",
             "answered": self.answered,
+            "superseded": self.superseded,
+            "ekf_resets": 0 if self.is_leader else self.follower.ekf.resets,
             "busy_s": self.busy_s,
             "formation": self.sc.formation_names[self.code],
             "formation_changes": self.formation_changes,

@@ -35,6 +35,7 @@ from typing import Any
 
 import zenoh
 
+from formation_swarm.protocol import trust
 from formation_swarm.protocol.codec import MAX_PAYLOAD_BYTES
 
 # Above our own limit, so an oversized payload still reaches the decoder and is
@@ -72,6 +73,13 @@ def add_arguments(parser: argparse.ArgumentParser, default_mode: str = "client")
         default=[],
         metavar="ENDPOINT",
         help="an endpoint to listen on, e.g. tcp/0.0.0.0:7447 (repeatable)",
+    )
+    group.add_argument(
+        "--auth",
+        metavar="FILE",
+        help="this process's credentials (a router's: the password list and access rules), a JSON file "
+        "of Zenoh settings readable by its owner only; swarm run writes one per process, swarm secure "
+        "writes them for several machines (default: no authentication)",
     )
     group.add_argument(
         "--config",
@@ -123,4 +131,5 @@ def make_config(
 
 
 def config_from_args(args: argparse.Namespace, connect_timeout_s: float = 30.0) -> zenoh.Config:
-    return make_config(args.zenoh_mode, args.connect, args.listen, args.config, connect_timeout_s)
+    settings = trust.read_settings(args.auth) if args.auth else None
+    return make_config(args.zenoh_mode, args.connect, args.listen, args.config, connect_timeout_s, settings=settings)

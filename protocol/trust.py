@@ -91,7 +91,7 @@ def grants(run_id: str, robots: Sequence[int], leader_id: int) -> dict[str, Gran
             publish=(k.cmd(rid), k.telemetry(rid), *codes),
             subscribe=(k.inbox(rid), k.status),
             tokens=(k.alive("agent", rid),),
-            watch=(k.alive("world", 0),),
+            watch=(k.alive("world", 0), k.alive("agent", rid)),  # its own: is another agent flying it?
         )
     return out
 

@@ -43,6 +43,8 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
     w(f"run {s.get('run_id')}: exit {res.exit_code}, {ticks if ticks is not None else 'no'} ticks, "
       f"sim {_num(s.get('sim_time_s'), '.2f')} s\n")  # fmt: skip
     w(f"  ended: {summary_mod.describe_end(s.get('end_reason'), s.get('ended_at_s'))}\n")
+    if s.get("failure"):
+        w(f"  failed: {s['failure']}\n")
     if not ticks:
         w("  no metrics: the run ended before its first tick\n")
     else:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import math
 import queue
+import shutil
 import signal
 import subprocess
 import sys
@@ -36,12 +37,14 @@ from formation_swarm import scenario_files
 from formation_swarm import summary as summary_mod
 from formation_swarm.children import Child, describe_exit, free_port, log_tail
 from formation_swarm.console import print_result as print_result  # re-exported: the API of swarm run
+from formation_swarm.protocol import trust
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Status
 from formation_swarm.protocol.session import make_config
 
 STOP_GRACE_S = 2.0
+SECRETS = "secrets"  # the run's credentials (folder 0700, files 0600), deleted when the run ends
 END_GRACE_S = 3.0
 
 
@@ -96,6 +99,7 @@ class Launch:
         progress: Callable[[str], None] | None = None,
         run_id: str | None = None,
         python: str = sys.executable,
+        auth: bool = True,
     ) -> None:
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be 'lockstep' or 'realtime', got {mode!r}")
@@ -115,6 +119,7 @@ class Launch:
         self.kills = sorted((k if isinstance(k, KillAt) else KillAt.parse(k) for k in kills), key=lambda k: k.time_s)
         self.progress = progress or (lambda line: print(line, flush=True))
         self.python = python
+        self.auth = auth  # every process logs in with its own fresh credentials; the world enforces the rules
         self.port = 0
         self.children: dict[str, Child] = {}
         self.session: zenoh.Session | None = None
@@ -168,6 +173,14 @@ class Launch:
         scenario_file.write_text(scenario_files.dumps(self.sc.raw))
         self.port = free_port()
         common = ["--scenario", str(scenario_file), "--run", self.run_id]
+        secrets = (
+            trust.write_run_secrets(self.run_dir / SECRETS, self.run_id, self.sc.robots, self.sc.leader.robot_id)
+            if self.auth
+            else {}
+        )
+
+        def auth(user: str) -> list[str]:
+            return ["--auth", str(secrets[user])] if secrets else []
 
         def py(module: str) -> list[str]:
             return [self.python, "-m", f"formation_swarm.{module}"]
@@ -175,24 +188,28 @@ class Launch:
         stats = self.run_dir / "stats"
         specs = {
             "world": [*py("world.process"), *common, "--mode", self.mode, "--stats", str(stats / "world.json"),
-                      "--zenoh-mode", "router", "--listen", self.endpoint, *["--expect-logger"] * self.logger],
+                      "--zenoh-mode", "router", "--listen", self.endpoint, *["--expect-logger"] * self.logger,
+                      *auth("router")],
         }  # fmt: skip
         if self.logger:
             extra = ["--live", self.live] if self.live else []
             if self.serve_web:
                 extra += ["--serve-web", "--grpc-port", str(self.web_ports[0]), "--web-port", str(self.web_ports[1])]
             specs["logger"] = [*py("logger"), *common, "--out", str(self.run_dir / "recording.rrd"),
-                               "--stats", str(stats / "logger.json"), "--connect", self.endpoint, *extra]  # fmt: skip
+                               "--stats", str(stats / "logger.json"), "--connect", self.endpoint, *extra,
+                               *auth("logger")]  # fmt: skip
         for rid in self.sc.robots:
             agent_stats = str(stats / f"agent-{rid}.json")
             specs[f"agent-{rid}"] = [*py("agents.process"), "--id", str(rid), *common,
-                                     "--stats", agent_stats, "--connect", self.endpoint]  # fmt: skip
+                                     "--stats", agent_stats, "--connect", self.endpoint,
+                                     *auth(trust.agent_user(rid))]  # fmt: skip
         self.started_at = time.monotonic()
         for name, argv in specs.items():
             child = Child(name, argv, self.run_dir / "logs" / f"{name}.log")
             self.children[name] = child
             child.start()
-        conf = make_config("client", [self.endpoint], connect_timeout_s=30.0)
+        settings = trust.read_settings(secrets["launcher"]) if secrets else None
+        conf = make_config("client", [self.endpoint], connect_timeout_s=30.0, settings=settings)
         self.session = zenoh.open(conf)
         self.session.declare_subscriber(Keys(self.run_id).status, lambda s: self.status_q.put(s.payload.to_bytes()))
 
@@ -292,6 +309,10 @@ class Launch:
         self.stop(graceful_first=not (interrupted or timed_out or start_failed))
         world_code = world.proc.returncode if world.proc is not None else None
         code = 130 if interrupted else (124 if timed_out else (0 if world_code == 0 and not start_failed else 1))
+        world_stats = summary_mod.read_parts(self.run_dir / "stats").get("world", {})
+        if code == 0 and (lost := summary_mod.robots_lost(world_stats, self.sc)):
+            self.progress(f"[swarm] the run failed: {lost}")
+            code = 1  # it ran to its end, but not as a formation: not a success
         summary = self._summary(code, interrupted, timed_out)
         return RunResult(self.run_dir, summary, code, self.pids())
 
@@ -321,6 +342,8 @@ class Launch:
         if self.session is not None:
             self.session.close()
             self.session = None
+        # Every process that held a password is gone: they are of no use now.
+        shutil.rmtree(self.run_dir / SECRETS, ignore_errors=True)
 
     def _wait_exit(self, seconds: float) -> None:
         deadline = time.monotonic() + seconds

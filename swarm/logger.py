@@ -35,14 +35,17 @@ from formation_swarm import scenario as scenario_mod
 from formation_swarm.proc import write_json
 from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import pack_batch
-from formation_swarm.protocol.codec import Rejections
+from formation_swarm.protocol.codec import WORLD_ID, Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Status, Telemetry, Truth
 from formation_swarm.recording import Recorder, open_recording
 
 SEND_PERIOD_S = 0.25
 FLUSH_PERIOD_S = 0.5
-END_WAIT_S = 1.0  # after "done", for the followers' last telemetry
+END_WAIT_S = 1.0
+# How far past the world's last ground truth a message may be stamped (truth
+# and telemetry travel in separate batches: telemetry can come first).
+TICKS_AHEAD = 100  # after "done", for the followers' last telemetry
 END_OF_STREAM = pack_batch([])  # what protocol.batch.BatchPublisher.close sends
 
 
@@ -76,6 +79,7 @@ class Logger:
         self.world_gone = False
         self.started = False  # the run's first status or truth has been handled
         self.done = False
+        self.last_tick: dict[int, int] = {}  # per sender (WORLD_ID: truth), the last tick taken
         self.end_note = "not started"  # why the loop ended, for the last report line
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
@@ -163,7 +167,7 @@ class Logger:
     def _handle(self, key: str, payload: bytes) -> None:
         rk = self.keys.parse_robot(key)
         if key == self.keys.truth:
-            truths = self.rejections.decode_batch(Truth, payload) or []
+            truths = [t for t in self.rejections.decode_batch(Truth, payload, sender=WORLD_ID) or [] if self._fresh(t)]
             self.counts["truth"] += len(truths)
             self.recorder.add_truths(truths)
             self._start()
@@ -172,15 +176,31 @@ class Logger:
             if tels == []:
                 self.ended.add(rk.robot_id)
             elif tels is not None:
+                tels = [t for t in tels if self._fresh(t)]
                 self.counts["telemetry"] += len(tels)
                 self.recorder.add_telemetry(tels)
         elif key == self.keys.status:
-            st = self.rejections.decode(Status, payload)
+            st = self.rejections.decode(Status, payload, sender=WORLD_ID)
             if st is not None:
                 self._start()
                 self.done = self.done or st.state == "done"
         else:
             self.counts["other"] += 1
+
+    def _fresh(self, msg: Truth | Telemetry) -> bool:
+        """Newer than the sender's last message and not far past the world's
+        last tick (one with a huge tick would push every real tick out of the
+        recorder's history); counts what is refused."""
+        last = self.last_tick.get(msg.sender, -1)
+        if msg.tick <= last:
+            self.rejections.reject("replayed or reordered")
+            return False
+        world = self.last_tick.get(WORLD_ID)  # None until the first truth (a logger may join late)
+        if world is not None and msg.tick > world + TICKS_AHEAD:
+            self.rejections.reject("tick ahead of the world")
+            return False
+        self.last_tick[msg.sender] = msg.tick
+        return True
 
     def _start(self) -> None:
         if not self.started:

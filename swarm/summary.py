@@ -93,6 +93,18 @@ def read_parts(stats_dir: Path) -> dict[str, Any]:
     return parts
 
 
+def robots_lost(world: Mapping[str, Any], sc: Scenario) -> str | None:
+    """Why a run that ran to its end still failed: its leader lost its agent
+    (the formation could not fly its path), or every follower did. None if not."""
+    deaths = {d.get("robot"): d for d in world.get("deaths", [])}
+    leader = sc.leader.robot_id
+    if leader in deaths:
+        return f"the leader (robot {leader}) lost its agent at t={deaths[leader].get('time_s', 0.0):.2f} s"
+    if sc.follower_ids and all(rid in deaths for rid in sc.follower_ids):
+        return f"every follower ({', '.join(map(str, sc.follower_ids))}) lost its agent"
+    return None
+
+
 def build(
     *,
     run_id: str,
@@ -113,6 +125,7 @@ def build(
     if end_reason not in END_REASONS:
         raise ValueError(f"end_reason must be one of {END_REASONS}, got {end_reason!r}")
     world = parts.get("world", {})
+    failure = robots_lost(world, sc)
     rejected = {name: part.get("rejected", {}) for name, part in parts.items() if part.get("rejected")}
     links: dict[str, Any] = dict(world.get("cmd_links", {}))
     for name, part in parts.items():
@@ -127,6 +140,7 @@ def build(
         "git_commit": git_commit(),
         "exit_code": exit_code,
         "end_reason": end_reason,
+        "failure": failure,
         "ended_at_s": ended_at_s,
         "interrupted": interrupted,
         "timed_out": timed_out,

@@ -126,6 +126,9 @@ class World:
         self.events: collections.deque[tuple[str, bool]] = collections.deque()  # liveliness, from its callback
         self.wakes = 0
         self.cmd_links = {rid: Link(link_name("cmd", rid, 0), sc.links.cmd_drop, seed) for rid in sc.robots}
+        # Per robot, the last command taken: (seq, tick). A command must be newer on both.
+        self.last_cmd: dict[int, tuple[int, int]] = {rid: (-1, -1) for rid in sc.robots}
+        self.wheel_limit = sc.max_wheel_mps * (1.0 + 1e-9)
         self.misses = 0
         self.late_answers = 0
         self.late_ticks = 0
@@ -290,6 +293,22 @@ class World:
         eng = self.engine
         r = eng.robots[msg.sender]
         self.counts["cmd_received"] += 1
+        # A command answers an observation the world published: never a tick to
+        # come, never one older than (or the same message as) the last taken.
+        last_seq, last_tick = self.last_cmd[msg.sender]
+        if msg.tick > eng.tick:
+            self.rejections.reject("tick ahead of the world")
+            return
+        if msg.seq <= last_seq or msg.tick < last_tick:
+            self.rejections.reject("replayed or reordered")
+            return
+        if not (abs(msg.left_mps) <= self.wheel_limit and abs(msg.right_mps) <= self.wheel_limit):
+            self.rejections.reject("wheel speed out of bounds")
+            return
+        if msg.formation >= len(self.sc.formation_names):
+            self.rejections.reject("unknown formation")
+            return
+        self.last_cmd[msg.sender] = (msg.seq, msg.tick)
         if self.mode == "lockstep" and msg.tick != eng.tick:
             self.late_answers += 1
             return

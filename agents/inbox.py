@@ -1,0 +1,72 @@
+"""What an agent accepts of what reaches its inbox, beyond a message's schema.
+
+The decoder (protocol.codec) proves a message well formed and the key proves
+who claims to have sent it; these checks make sure it could be true:
+
+- an observation is newer than the last one taken (a replayed or reordered one
+  is dropped), and every reading in it is one the camera could make: a robot
+  of the run, a distance within the camera's range plus its noise, angles
+  wrapped to [-pi, pi]; obstacles within the leader's sensing range;
+- a formation code is newer than the last one taken from the leader, and not
+  stamped far past the agent's own clock (such a code would otherwise wait in
+  the queue, or hold back the real ones).
+
+Each check returns the reason of a rejection (counted by the agent) or None.
+No Zenoh here: the agent process feeds it decoded messages.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+from formation_swarm.protocol.messages import FormationCode, Observation
+
+# Beyond the camera's range a reading is noise: allow 8 sigma of it (a false
+# rejection about once in 1e15 readings) and nothing more.
+RHO_SIGMAS = 8.0
+ANGLE_LIMIT_RAD = math.pi + 1e-9
+# How far past the agent's own last observation a code may be stamped: the
+# leader may be ahead of a slow follower in real time (ticks of 5 s of sim).
+CODE_AHEAD_S = 5.0
+
+
+class InboxChecks:
+    def __init__(
+        self,
+        robots: Iterable[int],
+        camera_range_m: float,
+        sigma_rho_m: float,
+        sensing_range_m: float,
+        dt_s: float,
+    ) -> None:
+        self.robots = frozenset(robots)
+        self.max_rho_m = camera_range_m + RHO_SIGMAS * sigma_rho_m
+        self.sensing_range_m = sensing_range_m
+        self.code_ahead_ticks = max(2, math.ceil(CODE_AHEAD_S / dt_s))
+        self.last_tick = -1  # of the last observation taken
+        self.last_code_seq = -1
+
+    def observation(self, obs: Observation) -> str | None:
+        if obs.tick <= self.last_tick:
+            return "replayed or reordered"
+        for rid, rho, phi, beta in obs.readings:
+            if rid not in self.robots:
+                return "unknown robot"
+            if not (0.0 <= rho <= self.max_rho_m and abs(phi) <= ANGLE_LIMIT_RAD and abs(beta) <= ANGLE_LIMIT_RAD):
+                return "reading out of bounds"
+        for dist, bearing, radius in obs.obstacles:
+            if not (radius > 0.0 and dist >= 0.0 and dist - radius <= self.sensing_range_m + 1e-9):
+                return "obstacle out of bounds"
+            if abs(bearing) > ANGLE_LIMIT_RAD:
+                return "obstacle out of bounds"
+        self.last_tick = obs.tick
+        return None
+
+    def code(self, fc: FormationCode) -> str | None:
+        if fc.seq <= self.last_code_seq:
+            return "replayed or reordered"
+        if fc.tick > self.last_tick + self.code_ahead_ticks:
+            return "tick ahead of the world"
+        self.last_code_seq = fc.seq
+        return None
