@@ -229,7 +229,10 @@ class Agent:
                 if obs is not None:
                     self.superseded += newest is not None
                     newest = obs
-                sample = channel.try_recv()
+                try:
+                    sample = channel.try_recv()
+                except zenoh.ZError:
+                    sample = None  # closed by _close_inbox: answer what we have, then recv ends the loop
             if newest is not None:
                 self._on_observation(*newest)
             self.busy_s += time.perf_counter() - t0

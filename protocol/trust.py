@@ -152,14 +152,18 @@ def router_settings(dictionary: Path, acl: dict[str, Any]) -> dict[str, Any]:
     return {"transport/auth/usrpwd": {"dictionary_file": str(dictionary)}, "access_control": acl}
 
 
-def write_run_secrets(folder: Path, run_id: str, robots: Sequence[int], leader_id: int) -> dict[str, Path]:
+def write_run_secrets(
+    folder: Path, run_id: str, robots: Sequence[int], leader_id: int, world_is_router: bool = True
+) -> dict[str, Path]:
     """Fresh credentials for every role of a run, in ``folder`` (0700, files 0600):
-    ``<user>.json`` for each client, ``router.json`` for the router (the world
-    of a local run), which points to the password dictionary. Returns the
-    settings file of each user and of "router"."""
+    ``<user>.json`` for each client, ``router.json`` for the router, which
+    points to the password dictionary. When the world is the router (a local
+    run) it logs in as nobody, so no "world" login exists to be stolen.
+    Returns the settings file of each user and of "router"."""
     folder.mkdir(mode=0o700, parents=True, exist_ok=True)
     os.chmod(folder, 0o700)
-    creds = new_credentials(grants(run_id, robots, leader_id))
+    users = [u for u in grants(run_id, robots, leader_id) if not (world_is_router and u == "world")]
+    creds = new_credentials(users)
     dictionary = folder / "passwords.txt"
     _write_private(dictionary, "".join(f"{c.user}:{c.password}\n" for c in creds.values()))
     out: dict[str, Path] = {}

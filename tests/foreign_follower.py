@@ -239,6 +239,7 @@ class Agent:
         self.code = list(sc["formations"]).index(sc["leader"]["formation"])
         self.reference, self.offset = self.slots[self.code][rid]
         robot = sc.get("robot", {})
+        self.max_wheel = float(robot.get("max_wheel_mps", 3.0))
         self.law = Pursuit(sc["run"].get("dt_s", 0.05), robot.get("width_m", 0.5), robot.get("marker_offset_m", 0.1))
         self.pending: list[tuple[int, int]] = []  # (tick, code), in arrival order
         self.seq = 0
@@ -274,6 +275,7 @@ class Agent:
             reading = next(((rho, phi, beta) for i, rho, phi, beta in readings if i == self.reference), None)
         self.stats["no_reading"] += reading is None
         left, right = self.law.step(pose, reading, self.offset)
+        left, right = (max(-self.max_wheel, min(self.max_wheel, v)) for v in (left, right))  # beyond: rejected
         self.seq += 1
         self.stats["answered"] += 1
         return command(self.rid, self.seq, tick, left, right, self.code)

@@ -282,6 +282,9 @@ def test_the_rejection_reasons_are_the_code_s() -> None:
     ours = set(re.findall(r'DecodeError\("([^"]+)"', src)) | set(re.findall(r'by_reason\["([^"]+)"\]', src))
     for mod in ("formation_swarm.agents.process", "formation_swarm.world.process", "formation_swarm.logger"):
         ours |= set(re.findall(r'\.reject\("([^"]+)"\)', inspect.getsource(importlib.import_module(mod))))
+    ours |= set(
+        re.findall(r'return "([^"]+)"', inspect.getsource(importlib.import_module("formation_swarm.agents.inbox")))
+    )
     assert documented == ours
 
 

@@ -81,7 +81,8 @@ def wait_for(cond: Callable[[], bool], timeout_s: float = 5.0) -> bool:
 def test_secrets_are_private_and_fresh(tmp_path: Path) -> None:
     a = trust.write_run_secrets(tmp_path / "a", "r1", ROBOTS, 1)
     b = trust.write_run_secrets(tmp_path / "b", "r1", ROBOTS, 1)
-    assert set(a) == {"world", "logger", "launcher", "agent-1", "agent-2", "agent-3", "router"}
+    assert set(a) == {"logger", "launcher", "agent-1", "agent-2", "agent-3", "router"}  # the world is the router
+    assert "world" in trust.write_run_secrets(tmp_path / "c", "r1", ROBOTS, 1, world_is_router=False)
     assert stat.S_IMODE(os.stat(tmp_path / "a").st_mode) == 0o700
     for path in [*a.values(), tmp_path / "a" / "passwords.txt"]:
         assert stat.S_IMODE(os.stat(path).st_mode) == 0o600

@@ -293,20 +293,21 @@ class World:
         eng = self.engine
         r = eng.robots[msg.sender]
         self.counts["cmd_received"] += 1
-        # A command answers an observation the world published: never a tick to
-        # come, never one older than (or the same message as) the last taken.
+        # What no robot can do first, then what no honest agent sends: a command
+        # answers an observation the world published, so never a tick to come,
+        # never one older than (or the same message as) the last one taken.
+        if not (abs(msg.left_mps) <= self.wheel_limit and abs(msg.right_mps) <= self.wheel_limit):
+            self.rejections.reject("wheel speed out of bounds")
+            return
+        if msg.formation >= len(self.sc.formation_names):
+            self.rejections.reject("unknown formation")
+            return
         last_seq, last_tick = self.last_cmd[msg.sender]
         if msg.tick > eng.tick:
             self.rejections.reject("tick ahead of the world")
             return
         if msg.seq <= last_seq or msg.tick < last_tick:
             self.rejections.reject("replayed or reordered")
-            return
-        if not (abs(msg.left_mps) <= self.wheel_limit and abs(msg.right_mps) <= self.wheel_limit):
-            self.rejections.reject("wheel speed out of bounds")
-            return
-        if msg.formation >= len(self.sc.formation_names):
-            self.rejections.reject("unknown formation")
             return
         self.last_cmd[msg.sender] = (msg.seq, msg.tick)
         if self.mode == "lockstep" and msg.tick != eng.tick:

@@ -1,0 +1,218 @@
+"""Attacks on a live run, by a rogue Zenoh client on the run's own endpoint.
+
+Two walls: the run's router (the world) refuses whoever has no credentials,
+and what a role's credentials do not allow; every receiver refuses what could
+not be true. Each test checks the run's outcome: no process dies, a lockstep
+run keeps the digest of a clean run with the same seed, and what the
+receivers refused is counted by reason.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+import zenoh
+
+from formation_swarm.launcher import Launch, RunResult
+from formation_swarm.protocol import trust
+from formation_swarm.protocol.batch import pack_batch
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.protocol.messages import Command, FormationCode, Observation, Status, Telemetry, Truth
+from formation_swarm.protocol.session import make_config
+
+pytestmark = pytest.mark.slow
+
+FIG11 = "fig11_obstacles"
+HUGE_SEQ = 2**53  # newer than anything real
+FAR_TICK = 2**53
+LINE = 1  # fig11's formation codes: triangle 0, line 1
+
+
+def rogue(launch: Launch, user: str | None) -> zenoh.Session:
+    """A client on the run's endpoint, with a role's credentials (or none)."""
+    settings = trust.read_settings(launch.run_dir / "secrets" / f"{user}.json") if user else None
+    return zenoh.open(make_config("client", [launch.endpoint], connect_timeout_s=3.0, settings=settings))
+
+
+def put_all(sess: zenoh.Session, messages: list[tuple[str, bytes]], rounds: int) -> None:
+    """Each (key, payload) ``rounds`` times, with the publishers declared first
+    (a put made before the router knows of them may be lost: that would hide a
+    hole, not show a wall)."""
+    pubs = {key: sess.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK) for key, _ in messages}
+    deadline = time.monotonic() + 10.0
+    while not all(p.matching_status.matching for p in pubs.values()) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    for _ in range(rounds):
+        for key, payload in messages:
+            pubs[key].put(payload)
+
+
+def attacks(k: Keys, tick: int) -> list[tuple[str, bytes]]:
+    """What the issue's attacker did: absurd and plausible commands for robot 3,
+    the leader's "done", codes stamped 2**53, fake observations, a fake end of
+    run, fake truth and telemetry far in the future."""
+    fake_reading = ((1, 0.9, 0.0, 0.0),)  # the leader "0.9 m ahead"
+    return [
+        (k.cmd(3), Command(3, HUGE_SEQ, tick, 1e308, 1e308, 0, False).to_bytes()),
+        (k.cmd(3), Command(3, HUGE_SEQ + 1, tick, 1.0, 2.0, 0, False).to_bytes()),
+        (k.cmd(1), Command(1, HUGE_SEQ, tick, 1.5, 1.5, 0, True).to_bytes()),
+        (k.formation(2), FormationCode(1, HUGE_SEQ, FAR_TICK, LINE).to_bytes()),
+        (k.formation(3), FormationCode(1, HUGE_SEQ, FAR_TICK, LINE).to_bytes()),
+        (k.obs(2), Observation(0, HUGE_SEQ, tick + 1, 0.0, (0.0, 0.0, 0.0), fake_reading, ()).to_bytes()),
+        (k.obs(3), Observation(0, HUGE_SEQ, tick + 1, 0.0, (0.0, 0.0, 0.0), ((2, 1e200, 0.0, 0.0),), ()).to_bytes()),
+        (k.status, Status(0, HUGE_SEQ, tick, 0.0, "done", 1).to_bytes()),
+        (k.truth, pack_batch([Truth(0, HUGE_SEQ, FAR_TICK, 0.0, ((1, 0.0, 0.0, 0.0, True),), ()).to_bytes()])),
+        (k.telemetry(2), pack_batch([_telemetry(FAR_TICK)])),
+    ]
+
+
+def _telemetry(tick: int) -> bytes:
+    return Telemetry(
+        2, HUGE_SEQ, tick, 0.0, reference=1, formation=0, measured=None, estimate=None, target_cov=None, rho_m=None,
+        alpha_rad=None, vn=None, left_mps=0.0, right_mps=0.0, steering_to=0, changing=False, obs_dropped=0,
+        formation_dropped=0, rejected=0,
+    ).to_bytes()  # fmt: skip
+
+
+def run_under_attack(swarm_launch: Callable[..., Launch], user: str | None, mode: str, **kwargs: Any) -> RunResult:
+    launch = swarm_launch(FIG11, mode=mode, **kwargs)
+    assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
+    with rogue(launch, user) as sess:
+        put_all(sess, attacks(Keys(launch.run_id), tick=int(launch.sim_time() / 0.05) + 1), rounds=20)
+        return launch.wait(timeout_s=240)
+
+
+def assert_unharmed(res: RunResult) -> None:
+    s = res.summary
+    assert res.exit_code == 0, s.get("events")
+    assert s["deaths"] == []
+    assert all(p["exit_code"] == 0 for p in s["processes"].values()), s["processes"]
+    changes = sorted((e["robot"], e["formation"]) for e in s["formation_events"])
+    assert changes == sorted((r, f) for r in (1, 2, 3) for f in ("line", "triangle")), changes
+
+
+@pytest.fixture(scope="module")
+def clean_digest(tmp_path_factory: pytest.TempPathFactory) -> str:
+    with Launch(FIG11, out=tmp_path_factory.mktemp("clean") / "run", logger=False, progress=lambda _l: None) as run:
+        res = run.wait(timeout_s=240)
+    assert res.exit_code == 0
+    return str(res.summary["trajectory_digest"])
+
+
+def test_a_client_without_credentials_is_refused_by_the_router(swarm_launch: Callable[..., Launch]) -> None:
+    launch = swarm_launch(FIG11, logger=False)
+    assert launch.wait_until(lambda: launch.sim_time() >= 0.0, timeout_s=60)
+    with pytest.raises(zenoh.ZError, match="Unable to connect"):
+        rogue(launch, None)
+    wrong = {"transport/auth/usrpwd": {"user": "agent-3", "password": "a-password-that-is-not-it"}}
+    with pytest.raises(zenoh.ZError, match="Unable to connect"):
+        zenoh.open(make_config("client", [launch.endpoint], connect_timeout_s=3.0, settings=wrong))
+    res = launch.wait(timeout_s=240)
+    assert res.exit_code == 0
+    assert not (launch.run_dir / "secrets").exists()  # the run's passwords are gone with it
+
+
+def test_the_loggers_credentials_cannot_drive_end_or_fake_anything(
+    swarm_launch: Callable[..., Launch], clean_digest: str
+) -> None:
+    """The logger's login may only listen: every attack is refused at the router,
+    so no receiver even sees one, and the lockstep run is bit-identical."""
+    res = run_under_attack(swarm_launch, "logger", "lockstep", logger=False)
+    assert_unharmed(res)
+    s = res.summary
+    assert s["ticks"] == 1061
+    assert s["end_reason"] == "leader_finished"
+    assert s["trajectory_digest"] == clean_digest
+    assert s["rejected_total"] == 0, s["rejected"]  # nothing got through to be rejected
+
+
+def test_the_loggers_credentials_in_real_time(swarm_launch: Callable[..., Launch]) -> None:
+    res = run_under_attack(swarm_launch, "logger", "realtime", logger=False, overrides={"run.duration_s": 6.0})
+    s = res.summary
+    assert res.exit_code == 0
+    assert s["deaths"] == []
+    assert s["end_reason"] == "duration_reached"
+    assert s["ticks"] == 120
+    assert s["rejected_total"] == 0, s["rejected"]
+
+
+def test_a_robots_own_credentials_cannot_send_what_could_not_be_true(
+    swarm_launch: Callable[..., Launch], clean_digest: str
+) -> None:
+    """Agent 3's login may put robot 3's commands: an absurd one, or one for a
+    tick to come, is refused by the world and counted; the run is unchanged."""
+    launch = swarm_launch(FIG11, logger=False)
+    assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
+    tick = int(launch.sim_time() / 0.05)
+    k = Keys(launch.run_id)
+    with rogue(launch, "agent-3") as sess:
+        put_all(sess, [
+            (k.cmd(3), Command(3, HUGE_SEQ, tick, 1e308, -1e308, 0, False).to_bytes()),
+            (k.cmd(3), Command(3, HUGE_SEQ, FAR_TICK, 1.0, 1.0, 0, False).to_bytes()),
+            (k.cmd(3), Command(3, HUGE_SEQ, tick, 1.0, 1.0, 200, False).to_bytes()),
+        ], rounds=5)  # fmt: skip
+        res = launch.wait(timeout_s=240)
+    assert_unharmed(res)
+    s = res.summary
+    assert s["trajectory_digest"] == clean_digest
+    assert s["rejected"]["world"] == {
+        "wheel speed out of bounds": 5, "tick ahead of the world": 5, "unknown formation": 5
+    }  # fmt: skip
+
+
+def test_without_the_router_the_receivers_still_refuse_what_could_not_be_true(
+    swarm_launch: Callable[..., Launch], clean_digest: str
+) -> None:
+    """With authentication off (anyone may connect), the receivers' checks
+    alone: absurd values, replays and far-future ticks are counted, none is
+    taken, and the lockstep run stays bit-identical. (Plausible forgeries need
+    the router's wall: that is what the tests above show.)"""
+    launch = swarm_launch(FIG11, auth=False)
+    assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
+    tick = int(launch.sim_time() / 0.05)
+    k = Keys(launch.run_id)
+    with rogue(launch, None) as sess:
+        put_all(sess, [
+            (k.cmd(3), Command(3, HUGE_SEQ, tick, 1e308, 1e308, 0, False).to_bytes()),
+            (k.cmd(2), Command(2, HUGE_SEQ, FAR_TICK, 1.0, 1.0, 0, False).to_bytes()),
+            (k.formation(2), FormationCode(1, HUGE_SEQ, FAR_TICK, LINE).to_bytes()),
+            (k.obs(3), Observation(0, HUGE_SEQ, 0, 0.0, (0.0, 0.0, 0.0), (), ()).to_bytes()),  # a replay of tick 0
+            (k.obs(2), Observation(0, HUGE_SEQ, FAR_TICK, 0.0, (0.0, 0.0, 0.0), ((1, 1e200, 0, 0),), ()).to_bytes()),
+            (k.truth, pack_batch([Truth(0, HUGE_SEQ, FAR_TICK, 0.0, ((1, 0.0, 0.0, 0.0, True),), ()).to_bytes()])),
+            (k.telemetry(2), pack_batch([_telemetry(FAR_TICK)])),
+        ], rounds=4)  # fmt: skip
+        res = launch.wait(timeout_s=240)
+    assert_unharmed(res)
+    s = res.summary
+    assert s["trajectory_digest"] == clean_digest
+    rejected = s["rejected"]
+    assert rejected["world"] == {"wheel speed out of bounds": 4, "tick ahead of the world": 4}
+    # agent 2's inbox (robot/2/*) also hears the forged cmd and telemetry of robot 2: not its to take
+    assert rejected["agent-2"] == {"tick ahead of the world": 4, "reading out of bounds": 4, "unexpected key": 8}
+    assert rejected["agent-3"] == {"replayed or reordered": 4, "unexpected key": 4}  # and robot 3's forged cmd
+    assert rejected["logger"] == {"tick ahead of the world": 8}
+    assert s["parts"]["logger"]["messages"]["truth"] == 1061  # the fake one never entered the recording
+
+
+def test_a_second_agent_for_a_flying_robot_is_refused(swarm_launch: Callable[..., Launch], tmp_path: Path) -> None:
+    launch = swarm_launch(FIG11, logger=False, overrides={"run.duration_s": 600.0,
+                                                          "leader.waypoints": [[0.0, 0.0], [0.0, 1000.0]]})  # fmt: skip
+    assert launch.wait_until(lambda: launch.sim_time() >= 1.0, timeout_s=60)
+    argv = [sys.executable, "-m", "formation_swarm.agents.process", "--id", "2", "--scenario",
+            str(launch.run_dir / "scenario.toml"), "--run", launch.run_id, "--connect", launch.endpoint,
+            "--auth", str(launch.run_dir / "secrets" / "agent-2.json"), "--peers-timeout", "20"]  # fmt: skip
+    try:
+        second = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+        assert second.returncode == 4, second.stderr
+        assert "robot 2 already has an agent in run" in second.stderr
+        assert "Traceback" not in second.stderr
+        assert launch.sim_time() > 1.0
+        assert launch.children["agent-2"].poll() is None
+    finally:
+        launch.stop(graceful_first=False)
