@@ -36,6 +36,8 @@ from typing import Any
 from formation_swarm.protocol.keys import Keys, check_robot_id
 
 _USER = re.compile(r"^[a-z][a-z0-9-]{0,31}$")
+PASSWORDS = "passwords.txt"  # the router's list of user:password, one per line
+CA, CERTIFICATE, PRIVATE_KEY = "ca.pem", "router.pem", "router.key"
 
 
 @dataclass(frozen=True)
@@ -142,37 +144,67 @@ def _write_private(path: Path, text: str) -> None:
     os.chmod(path, 0o600)
 
 
-def client_settings(cred: Credential) -> dict[str, Any]:
-    """Zenoh settings (path -> value) that make a session log in as ``cred``."""
-    return {"transport/auth/usrpwd": {"user": cred.user, "password": cred.password}}
+@dataclass(frozen=True)
+class Tls:
+    """TLS for links that leave the machine: the CA every client checks the
+    router's certificate against, and the router's certificate and key.
+    Endpoints are then ``tls/HOST:PORT``; the certificate must name HOST."""
+
+    ca: Path
+    certificate: Path
+    private_key: Path
 
 
-def router_settings(dictionary: Path, acl: dict[str, Any]) -> dict[str, Any]:
-    """Zenoh settings for the run's router: who may log in, and what each may do."""
-    return {"transport/auth/usrpwd": {"dictionary_file": str(dictionary)}, "access_control": acl}
+def client_settings(cred: Credential, ca: str | None = None) -> dict[str, Any]:
+    """Zenoh settings (path -> value) that make a session log in as ``cred``
+    (and, with ``ca``, accept only a router certified by it)."""
+    out: dict[str, Any] = {"transport/auth/usrpwd": {"user": cred.user, "password": cred.password}}
+    if ca:
+        out["transport/link/tls/root_ca_certificate"] = ca
+    return out
+
+
+def router_settings(dictionary: str, acl: dict[str, Any], tls: tuple[str, str] | None = None) -> dict[str, Any]:
+    """Zenoh settings for the run's router: who may log in, and what each may do
+    (and, with ``tls`` = (certificate, key), its TLS identity)."""
+    out: dict[str, Any] = {"transport/auth/usrpwd": {"dictionary_file": dictionary}, "access_control": acl}
+    if tls:
+        out["transport/link/tls/listen_certificate"], out["transport/link/tls/listen_private_key"] = tls
+    return out
 
 
 def write_run_secrets(
-    folder: Path, run_id: str, robots: Sequence[int], leader_id: int, world_is_router: bool = True
+    folder: Path,
+    run_id: str,
+    robots: Sequence[int],
+    leader_id: int,
+    world_is_router: bool = True,
+    tls: Tls | None = None,
 ) -> dict[str, Path]:
     """Fresh credentials for every role of a run, in ``folder`` (0700, files 0600):
     ``<user>.json`` for each client, ``router.json`` for the router, which
-    points to the password dictionary. When the world is the router (a local
-    run) it logs in as nobody, so no "world" login exists to be stolen.
+    names the password list beside it. When the world is the router (a local
+    run) it logs in as nobody, so no "world" login exists to be stolen. With
+    ``tls``, the CA, the router's certificate and key are copied in too. Files
+    name each other relative to the folder, so it can be copied as a whole.
     Returns the settings file of each user and of "router"."""
     folder.mkdir(mode=0o700, parents=True, exist_ok=True)
     os.chmod(folder, 0o700)
     users = [u for u in grants(run_id, robots, leader_id) if not (world_is_router and u == "world")]
     creds = new_credentials(users)
-    dictionary = folder / "passwords.txt"
-    _write_private(dictionary, "".join(f"{c.user}:{c.password}\n" for c in creds.values()))
+    _write_private(folder / PASSWORDS, "".join(f"{c.user}:{c.password}\n" for c in creds.values()))
+    if tls is not None:
+        for name, src in ((CA, tls.ca), (CERTIFICATE, tls.certificate), (PRIVATE_KEY, tls.private_key)):
+            _write_private(folder / name, Path(src).read_text())
     out: dict[str, Path] = {}
     for user, cred in creds.items():
         out[user] = folder / f"{user}.json"
-        _write_private(out[user], json.dumps(client_settings(cred)))
+        _write_private(out[user], json.dumps(client_settings(cred, CA if tls else None), indent=1))
     out["router"] = folder / "router.json"
-    router = router_settings(dictionary, access_control(run_id, robots, leader_id))
-    _write_private(out["router"], json.dumps(router))
+    router = router_settings(
+        PASSWORDS, access_control(run_id, robots, leader_id), (CERTIFICATE, PRIVATE_KEY) if tls else None
+    )
+    _write_private(out["router"], json.dumps(router, indent=1))
     return out
 
 
@@ -189,4 +221,19 @@ def read_settings(path: str | Path) -> dict[str, Any]:
         raise ValueError(f"{p} is readable by other users (mode {mode & 0o777:o}): chmod 600 {p}")
     if not isinstance(data, dict) or not all(isinstance(key, str) for key in data):
         raise ValueError(f"{p} must hold a JSON object of Zenoh settings")
+    return _resolve_files(data, p.parent)
+
+
+# Settings that name a file: a relative name is taken from the settings file's folder.
+_FILE_SETTINGS = ("dictionary_file", "root_ca_certificate", "listen_certificate", "listen_private_key")
+
+
+def _resolve_files(data: Any, folder: Path) -> Any:
+    if isinstance(data, dict):
+        out = {}
+        for key, value in data.items():
+            if isinstance(value, str) and key.rsplit("/", 1)[-1] in _FILE_SETTINGS and not Path(value).is_absolute():
+                value = str(folder / value)
+            out[key] = _resolve_files(value, folder)
+        return out
     return data

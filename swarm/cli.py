@@ -137,6 +137,7 @@ DELEGATED = {
     "agent": ("formation_swarm.agents.process", "role: one robot's agent alone, a client of a router"),
     "logger": ("formation_swarm.logger", "role: the Rerun logger alone (to a file or a viewer)"),
     "router": ("formation_swarm.router", "role: a Zenoh router for agents on other machines"),
+    "secure": ("formation_swarm.secure", "credentials and access rules for a run spread over machines"),
 }
 
 RUN_EPILOG = """\
@@ -229,7 +230,7 @@ def build_parser() -> Parser:
     for name in ("report", "sweep", "results"):
         sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
     _add_sim(sub)
-    for name in ("world", "agent", "logger", "router"):
+    for name in ("world", "agent", "logger", "router", "secure"):
         sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
     return parser
 

@@ -19,7 +19,7 @@ from typing import Any
 import pytest
 import zenoh
 
-from formation_swarm.launcher import Launch, RunResult
+from formation_swarm.launcher import Launch, RunResult, free_port
 from formation_swarm.protocol import trust
 from formation_swarm.protocol.batch import pack_batch
 from formation_swarm.protocol.keys import Keys
@@ -216,3 +216,40 @@ def test_a_second_agent_for_a_flying_robot_is_refused(swarm_launch: Callable[...
         assert launch.children["agent-2"].poll() is None
     finally:
         launch.stop(graceful_first=False)
+
+
+def test_the_deploy_router_refuses_strangers_and_keeps_each_role_to_its_keys(tmp_path: Path) -> None:
+    """deploy/router.json5 with the rules of swarm secure, as deploy/README.md
+    starts it: no login, no connection; a robot's login drives that robot only."""
+    run = "deploy-check"
+    secure = tmp_path / "secure"
+    made = subprocess.run([sys.executable, "-m", "formation_swarm.cli", "secure", FIG11, "--run", run, "--out",
+                           str(secure)], capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+    assert made.returncode == 0, made.stderr
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    config = Path(__file__).resolve().parent.parent / "deploy" / "router.json5"
+    router = subprocess.Popen([sys.executable, "-m", "formation_swarm.router", "--config", str(config),
+                               "--listen", endpoint, "--auth", str(secure / "router.json")],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
+    try:
+        assert router.stdout is not None
+        assert "listening on" in router.stdout.readline()
+
+        def client(user: str | None) -> zenoh.Session:
+            settings = trust.read_settings(secure / f"{user}.json") if user else None
+            return zenoh.open(make_config("client", [endpoint], connect_timeout_s=3.0, settings=settings))
+
+        with pytest.raises(zenoh.ZError, match="Unable to connect"):
+            client(None)
+        k = Keys(run)
+        got: list[str] = []
+        with client("world") as world, client("agent-2") as agent:
+            world.declare_subscriber(k.all_cmd, lambda s: got.append(str(s.key_expr)))
+            put_all(agent, [(k.cmd(3), b"forged"), (k.cmd(2), b"own")], rounds=1)
+            deadline = time.monotonic() + 10
+            while got != [k.cmd(2)] and time.monotonic() < deadline:  # the refused ones were sent first
+                time.sleep(0.01)
+        assert got == [k.cmd(2)]
+    finally:
+        router.terminate()
+        router.wait(timeout=10)
