@@ -9,6 +9,8 @@ receivers refused is counted by reason.
 
 from __future__ import annotations
 
+import os
+import signal
 import subprocess
 import sys
 import time
@@ -253,3 +255,45 @@ def test_the_deploy_router_refuses_strangers_and_keeps_each_role_to_its_keys(tmp
     finally:
         router.terminate()
         router.wait(timeout=10)
+
+
+def test_a_world_that_dies_takes_no_one_with_it_silently(swarm_launch: Callable[..., Launch]) -> None:
+    """The world (the run's router) is killed: the logger closes its recording
+    and every agent leaves on its own, and swarm run fails, saying why."""
+    launch = swarm_launch(FIG11, mode="realtime", overrides={"run.duration_s": 30.0})
+    assert launch.wait_until(lambda: launch.sim_time() >= 1.0, timeout_s=60)
+    os.kill(launch.pids()["world"], signal.SIGKILL)
+    res = launch.wait(timeout_s=60)
+    assert res.exit_code == 1
+    assert res.summary["end_reason"] == "role_failed"
+    for name in ("logger", "agent-1", "agent-2", "agent-3"):
+        child = launch.children[name]
+        assert child.proc is not None
+        assert child.proc.returncode == 0, name
+        assert child.stop_sent_at is None, f"{name} had to be stopped"  # it left by itself
+    assert "ended (the world left)" in (launch.run_dir / "logs" / "logger.log").read_text()
+    assert res.recording.stat().st_size > 1000
+
+
+def test_a_run_that_loses_every_follower_fails(swarm_run: Callable[..., RunResult]) -> None:
+    res = swarm_run(FIG11, logger=False, kills=["agent-2@5", "agent-3@5"])
+    assert res.exit_code == 1
+    assert sorted(d["robot"] for d in res.summary["deaths"]) == [2, 3]
+    assert res.summary["failure"] == "every follower (2, 3) lost its agent"
+
+
+def test_after_a_freeze_an_agent_answers_only_the_newest_observation(swarm_launch: Callable[..., Launch]) -> None:
+    launch = swarm_launch(FIG11, mode="realtime", logger=False, overrides={"run.duration_s": 6.0})
+    assert launch.wait_until(lambda: launch.sim_time() >= 1.0, timeout_s=60)
+    pid = launch.pids()["agent-2"]
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        frozen_at = launch.sim_time()
+        assert launch.wait_until(lambda: launch.sim_time() >= frozen_at + 1.5, timeout_s=30)  # 30 ticks go by
+    finally:
+        os.kill(pid, signal.SIGCONT)
+    res = launch.wait(timeout_s=60)
+    agent = res.summary["parts"]["agent-2"]
+    assert agent["superseded"] >= 20  # the stale ones were skipped, not answered late
+    assert agent["answered"] + agent["superseded"] <= res.summary["ticks"]
+    assert res.summary["deaths"] == []
