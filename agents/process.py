@@ -239,18 +239,8 @@ class Agent:
         return self._exit_code()
 
     def _exit_code(self) -> int:
-        if self.done:
-            self.end_note = "the world said done"
-            return role_mod.EXIT_OK
-        if self.stop.is_set():
-            self.end_note = self.role.stopped_by()
-            return self.stop.exit_code
-        if not self.started:  # the world gives up when its peers do not all come
-            self.end_note = "the world left before the run started"
-            self.role.complain(f"the world of run {self.keys.run_id!r} left before the run started; see its output")
-            return role_mod.EXIT_NO_PEERS
-        self.end_note = "the world left"
-        return role_mod.EXIT_OK
+        code, self.end_note = self.role.follower_end(self.keys.run_id, self.done, self.started)
+        return code
 
     def _on_message(self, key: str, payload: bytes) -> tuple[Observation, bool] | None:
         """Take a formation code; return an observation (and whether the link

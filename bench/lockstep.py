@@ -17,6 +17,8 @@ on a loaded machine:
 - full: ``swarm run scenarios/fig11_obstacles.toml`` in lockstep with the
   logger writing its recording; the rate is the world's loop (ticks / wall s).
 - full without the logger (``--no-logger``): what the recording costs.
+- full without authentication (every process a stranger, the router without
+  access rules): what the logins and the router's rules cost.
 
     python bench/lockstep.py [--repeat 3] [--ticks 3000]
 """
@@ -132,13 +134,14 @@ def measure_bare(ticks: int, lowlatency: bool = False) -> float:
     return float(out.strip().splitlines()[-1])
 
 
-def measure_full(duration_s: float, logger: bool = True) -> tuple[float, dict]:
+def measure_full(duration_s: float, logger: bool = True, auth: bool = True) -> tuple[float, dict]:
     with (
         tempfile.TemporaryDirectory() as tmp,
         Launch(
             ROOT / "scenarios" / "fig11_obstacles.toml",
             out=Path(tmp) / "run",
             logger=logger,
+            auth=auth,
             overrides={"run.duration_s": duration_s, "leader.waypoints": [[0.0, 0.0], [0.0, 400.0]]},
             progress=lambda _l: None,
         ) as launch,
@@ -165,7 +168,7 @@ def main() -> None:
         else:
             bare_logger(ep, run, ll)
         return
-    bare, bare_ll, full, quiet = [], [], [], []
+    bare, bare_ll, full, quiet, open_ = [], [], [], [], []
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
     for i in range(args.repeat):
         bare.append(measure_bare(args.ticks))
@@ -173,16 +176,19 @@ def main() -> None:
         rate, summary = measure_full(args.ticks * 0.05)
         full.append(rate)
         quiet.append(measure_full(args.ticks * 0.05, logger=False)[0])
+        open_.append(measure_full(args.ticks * 0.05, auth=False)[0])
         print(
             f"  round {i + 1}: bare {bare[-1]:7.0f} ticks/s   bare low-latency {bare_ll[-1]:7.0f}   "
             f"full (controller + logger) {full[-1]:7.0f} ticks/s ({summary['ticks']} ticks, "
-            f"misses {summary['lockstep_misses']})   without the logger {quiet[-1]:7.0f} ticks/s",
+            f"misses {summary['lockstep_misses']})   without the logger {quiet[-1]:7.0f} ticks/s   "
+            f"without authentication {open_[-1]:7.0f} ticks/s",
             flush=True,
         )
     b, bl = statistics.median(bare), statistics.median(bare_ll)
-    f, q = statistics.median(full), statistics.median(quiet)
+    f, q, o = statistics.median(full), statistics.median(quiet), statistics.median(open_)
     print(f"median: bare {b:.0f} ticks/s, bare low-latency {bl:.0f}, full {f:.0f} ticks/s (full/bare {f / b:.2f}, "
-          f"full/bare low-latency {f / bl:.2f}), without the logger {q:.0f} ticks/s ({q / b:.2f})")  # fmt: skip
+          f"full/bare low-latency {f / bl:.2f}), without the logger {q:.0f} ticks/s ({q / b:.2f}), "
+          f"without authentication {o:.0f} ticks/s ({o / b:.2f})")  # fmt: skip
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

@@ -144,18 +144,8 @@ class Logger:
         return self._exit_code()
 
     def _exit_code(self) -> int:
-        if self.done:
-            self.end_note = "the world said done"
-            return role_mod.EXIT_OK
-        if self.stop.is_set():
-            self.end_note = self.role.stopped_by() + ("" if self.started else " before the run started")
-            return self.stop.exit_code
-        if not self.started:  # the world gives up when its peers do not all come
-            self.end_note = "the world left before the run started"
-            self.role.complain(f"the world of run {self.keys.run_id!r} left before the run started; see its output")
-            return role_mod.EXIT_NO_PEERS
-        self.end_note = "the world left"
-        return role_mod.EXIT_OK
+        code, self.end_note = self.role.follower_end(self.keys.run_id, self.done, self.started)
+        return code
 
     def _drain(self) -> None:
         while True:

@@ -159,6 +159,19 @@ class Role:
         """ "stopped by SIGTERM", for a report line."""
         return f"stopped by {signal.Signals(self.stop.signum).name}" if self.stop.signum else "stopped"
 
+    def follower_end(self, run_id: str, done: bool, started: bool) -> tuple[int, str]:
+        """The exit code and end note of a process that follows the world (an
+        agent, the logger) once its loop ends: the world said done, a stop
+        signal came, or the world left (before the run started: it gave up)."""
+        if done:
+            return EXIT_OK, "the world said done"
+        if self.stop.is_set():
+            return self.stop.exit_code, self.stopped_by() + ("" if started else " before the run started")
+        if not started:
+            self.complain(f"the world of run {run_id!r} left before the run started; see its output")
+            return EXIT_NO_PEERS, "the world left before the run started"
+        return EXIT_OK, "the world left"
+
     def left_s(self) -> float:
         return self.deadline - time.monotonic()
 
