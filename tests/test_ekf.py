@@ -116,3 +116,34 @@ def test_bad_parameters() -> None:
         EkfParams(sigma_rho_m=0.0)
     with pytest.raises(ValueError, match="width_m"):
         TargetEKF(EkfParams(), 0.1, -1.0)
+
+
+@pytest.mark.parametrize(
+    ("state", "index", "shift"),
+    [
+        # The reference right behind the follower: bearing beta near +pi (eq. 1).
+        ([0.05, -2.0, 0.3, 0.0, 0.0], 2, 0.08),
+        # The reference facing the follower: relative orientation phi near +pi.
+        ([0.5, 2.0, math.pi - 0.01, 0.0, 0.0], 1, 0.04),
+    ],
+    ids=["beta", "phi"],
+)
+def test_a_reading_across_plus_minus_pi_corrects_like_any_other(state: list[float], index: int, shift: float) -> None:
+    """Angle residuals wrap (eq. 19-21): a reading a little past +pi, written as
+    -pi + something by the camera, moves the estimate a little, exactly as the
+    same reading written past +pi does."""
+    predicted = _hx(np.array(state).reshape(5, 1), 0.1)[:, 0]  # (rho, beta, phi) the state predicts
+    rho, beta, phi = predicted
+    reading = [rho, phi, beta]  # the filter takes (rho, phi, beta)
+    reading[index] += shift  # past +pi ...
+    wrapped = list(reading)
+    wrapped[index] -= 2 * math.pi  # ... as the camera reports it: just above -pi
+    assert wrapped[index] < -math.pi + 0.1
+    a, b = _filter_at(state), _filter_at(state)
+    a.update(tuple(wrapped))
+    b.update(tuple(reading))
+    np.testing.assert_allclose(a.state, b.state, atol=1e-12)
+    # A small correction: the position moves by centimetres, phi by less than the shift.
+    moved = np.hypot(*(a.state[:2] - np.array(state[:2])))
+    assert moved < 0.1, moved
+    assert abs((a.state[2] - state[2] + math.pi) % (2 * math.pi) - math.pi) < shift
