@@ -115,7 +115,7 @@ def test_turn_and_straight_rms_split_the_samples() -> None:
 def test_contacts_count_once_per_touch_and_the_closest_distance() -> None:
     eng = WorldEngine(FIG11, 0)
     d = FIG11.diameter_m
-    leader = eng.robots[1].pose
+    eng.robots[1].pose = leader = Pose(7.0, 3.0, 0.5)  # away from the axes
     eng.robots[2].pose = Pose(leader.x_m + 0.9 * d, leader.y_m, leader.theta_rad)  # touching R1
     _drive(eng, 3, {})  # standing still: one contact, not three
     s = eng.summary()
@@ -134,7 +134,10 @@ def test_contacts_count_once_per_touch_and_the_closest_distance() -> None:
 def test_an_obstacle_contact_is_counted_apart() -> None:
     eng = WorldEngine(FIG11, 0)
     ob = FIG11.obstacles[0]
-    eng.robots[3].pose = Pose(ob.x_m + ob.radius_m + 0.4 * FIG11.diameter_m, ob.y_m, 0.0)
+    eng.robots[3].pose = Pose(ob.x_m + ob.radius_m + 0.6 * FIG11.diameter_m, ob.y_m, 0.0)  # clear of it
+    _drive(eng, 2, {})
+    assert eng.summary()["obstacle_collisions"] == 0
+    eng.robots[3].pose = Pose(ob.x_m + ob.radius_m + 0.4 * FIG11.diameter_m, ob.y_m, 0.0)  # touching
     _drive(eng, 2, {})
     s = eng.summary()
     assert s["obstacle_collisions"] == 1
@@ -166,3 +169,114 @@ def test_a_formation_event_per_robot_and_change() -> None:
     eng.set_command(3, 0.0, 0.0, len(FIG11.formation_names), eng.time_s)  # no such formation: ignored
     assert eng.formation_events == [{"tick": 1, "time_s": FIG11.dt_s, "robot": 2, "formation": "line"}]
     assert eng.robots[3].formation == FIG11.code_of("triangle")
+
+
+OFF_AXES = """
+[run]
+robots = 3
+duration_s = 10.0
+[leader]
+waypoints = [[10.0, 20.0], [13.0, 24.0]]
+formation = "wedge"
+sensing_range_m = 5.0
+[formations.wedge]
+shape = "wedge"
+lateral_m = 1.5
+back_m = 1.5
+[[obstacles]]
+x_m = 30.0
+y_m = 20.0
+radius_m = 1.0
+[[obstacles]]
+x_m = 30.8
+y_m = 20.0
+radius_m = 0.5
+"""
+
+
+@pytest.fixture
+def off_axes(tmp_path: object) -> WorldEngine:
+    path = tmp_path / "off_axes.toml"  # type: ignore[operator]
+    path.write_text(OFF_AXES)
+    return WorldEngine(scenario_mod.load(path), 0)
+
+
+def test_robots_start_on_their_slots_heading_along_the_first_leg(off_axes: WorldEngine) -> None:
+    heading = math.atan2(4.0, 3.0)
+    lead = off_axes.robots[1].pose
+    assert lead == pytest.approx((10.0, 20.0, heading), abs=1e-12)
+    for rid in (2, 3):
+        pose = off_axes.robots[rid].pose
+        assert pose.theta_rad == pytest.approx(heading, abs=1e-12)
+        assert off_axes.true_target(rid) == pytest.approx(pose[:2], abs=1e-12)  # on its target
+    assert from_body_frame(lead, -1.5, -1.5) == pytest.approx(off_axes.robots[2].pose[:2], abs=1e-12)
+    # On their targets, R3's slot (3, 0) from R2 included: no error; then R3 0.6 m behind its target.
+    _drive(off_axes, 1, {})
+    r3 = off_axes.robots[3].pose
+    off_axes.robots[3].pose = Pose(*from_body_frame(r3, 0.0, -0.6), r3.theta_rad)
+    _drive(off_axes, 1, {})
+    s = off_axes.summary()["followers"]
+    assert s["2"]["max_m"] == pytest.approx(0.0, abs=1e-12)
+    assert s["3"]["max_m"] == pytest.approx(0.6, abs=1e-12)
+    assert s["3"]["max_lag_m"] == pytest.approx(0.6, abs=1e-12)
+
+
+def test_the_leader_senses_obstacles_within_its_range_of_their_edge(off_axes: WorldEngine) -> None:
+    sc = off_axes.scenario
+    lead = off_axes.robots[1]
+    for edge_gap, seen in ((sc.leader.sensing_range_m - 0.01, True), (sc.leader.sensing_range_m + 0.01, False)):
+        lead.pose = Pose(30.0 - 1.0 - edge_gap, 20.0, 0.0)  # facing the first obstacle
+        _, readings, obstacles = off_axes.observation(1)
+        assert readings == []  # the leader has no camera
+        assert bool(obstacles) is seen
+    lead.pose = Pose(26.0, 20.0, 0.0)
+    _, _, obstacles = off_axes.observation(1)
+    assert obstacles == [pytest.approx((4.0, 0.0, 1.0)), pytest.approx((4.8, 0.0, 0.5))]  # dead ahead
+    _, readings, obstacles = off_axes.observation(2)
+    assert obstacles == []  # followers sense no obstacle
+    assert [r[0] for r in readings] == [3]  # the leader, moved 16 m away, is out of camera range
+
+
+def test_two_obstacles_touched_at_once_are_two_contacts(off_axes: WorldEngine) -> None:
+    off_axes.robots[3].pose = Pose(30.4, 20.0, 0.0)  # inside both
+    off_axes.robots[2].pose = Pose(35.0, 25.0, 0.0)
+    off_axes.robots[1].pose = Pose(-5.0, 0.0, 0.0)
+    _drive(off_axes, 2, {})
+    s = off_axes.summary()
+    assert (s["obstacle_collisions"], s["collisions"]) == (2, 0)
+    assert s["min_distance_m"] == pytest.approx(math.hypot(4.6, 5.0))
+
+
+def test_a_killed_robot_stops_for_good() -> None:
+    eng = WorldEngine(TURN, 0)
+    eng.kill(2)
+    pose = eng.robots[2].pose
+    _drive(eng, 5, {1: (1.0, 1.0), 2: (1.0, 1.0)})
+    assert eng.robots[2].pose == pose
+    assert eng.alive_ids == [1]
+    s = eng.summary()
+    assert s["dead_robots"] == [2]
+    assert s["final_poses"]["1"][1] > pose.y_m  # the other one flew on
+
+
+def test_a_stale_reversing_command_is_counted_too() -> None:
+    eng = WorldEngine(TURN, 0)
+    eng.set_command(1, -0.5, 0.2, 0, 0.0)
+    eng.step(1.0)
+    assert eng.stale_stops == 1
+
+
+def test_follower_metrics_from_samples() -> None:
+    from formation_swarm.world.engine import FollowerMetrics
+
+    m = FollowerMetrics()
+    m.add(3.0, 2.0, turning=True)
+    m.add(4.0, -0.5, turning=True)
+    m.add(1.0)  # along the heading: 0 unless given
+    d = m.as_dict()
+    assert d == pytest.approx({"rms_m": math.sqrt(26 / 3), "max_m": 4.0, "samples": 3, "turn_rms_m": math.sqrt(12.5),
+                               "straight_rms_m": 1.0, "turn_max_m": 4.0, "turn_samples": 2, "turn_mean_lag_m": 0.75,
+                               "max_lag_m": 2.0, "max_ahead_m": 0.5})  # fmt: skip
+    empty = FollowerMetrics().as_dict()
+    assert (empty["max_m"], empty["turn_max_m"], empty["max_lag_m"], empty["max_ahead_m"]) == (0.0, 0.0, 0.0, 0.0)
+    assert all(math.isnan(empty[k]) for k in ("rms_m", "turn_rms_m", "straight_rms_m", "turn_mean_lag_m"))

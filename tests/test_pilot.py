@@ -77,3 +77,49 @@ def test_bad_parameters_name_themselves(kwargs: dict, name: str) -> None:
     args = {"waypoints": ((0.0, 0.0), (0.0, 1.0)), "speed_mps": 1.0, "width_m": 0.5, **kwargs}
     with pytest.raises(ValueError, match=name):
         PathPilot(**args)
+
+
+def test_the_goal_is_the_look_ahead_point_on_a_segment_away_from_the_origin() -> None:
+    # A 1 m leg from (5, 3) going north, look-ahead 0.5 m; the robot 0.2 m east of it, 0.3 m along.
+    pilot = PathPilot(((5.0, 3.0), (5.0, 4.0), (5.0, 9.0)), speed_mps=1.0, width_m=0.5, lookahead_m=0.5,
+                      max_turn_rate_rps=10.0)  # fmt: skip
+    left, right = pilot.step(Pose(5.2, 3.3, NORTH))
+    # Goal (5, 3.8): body frame x = -0.2 (left), y = 0.5; curvature 2 * 0.2 / 0.29.
+    omega = 2.0 * 0.2 / (0.2**2 + 0.5**2)
+    assert (left, right) == pytest.approx((1.0 - 0.25 * omega, 1.0 + 0.25 * omega), abs=1e-12)
+
+
+def test_the_projection_on_a_leg_along_x_away_from_the_origin() -> None:
+    # A 1 m leg from (5, 3) going east, look-ahead 0.5 m; the robot 0.3 m along it, 0.2 m north of it.
+    pilot = PathPilot(((5.0, 3.0), (6.0, 3.0), (9.0, 3.0)), speed_mps=1.0, width_m=0.5, lookahead_m=0.5,
+                      max_turn_rate_rps=10.0)  # fmt: skip
+    left, right = pilot.step(Pose(5.3, 3.2, 0.0))
+    # Goal (5.8, 3): body frame x = 0.2 (right), y = 0.5.
+    omega = -2.0 * 0.2 / (0.2**2 + 0.5**2)
+    assert (left, right) == pytest.approx((1.0 - 0.25 * omega, 1.0 + 0.25 * omega), abs=1e-12)
+
+
+def test_a_repeated_waypoint_is_flown_through() -> None:
+    pilot = PathPilot(((0.0, 0.0), (0.0, 5.0), (0.0, 5.0)), speed_mps=1.0, width_m=0.5)
+    pose = Pose(0.0, 0.0, NORTH)
+    for _ in range(200):
+        left, right = pilot.step(pose)
+        if pilot.finished:
+            break
+        pose = step(pose, left, right, 0.5, 0.05)
+    assert pilot.finished
+    assert pose.y_m == pytest.approx(4.5, abs=0.1)  # stops half a look-ahead before the end
+
+
+def test_it_stops_only_near_the_end_of_the_last_leg() -> None:
+    # The path comes back next to an earlier corner: passing that corner is not the end.
+    pilot = PathPilot(((0.0, 0.0), (0.0, 10.0), (4.0, 10.0), (0.3, 10.2)), speed_mps=1.0, width_m=0.5)
+    pilot.step(Pose(0.0, 9.5, NORTH))  # the corner is within the look-ahead: on to the second leg
+    assert pilot.step(Pose(0.0, 9.9, NORTH)) != (0.0, 0.0)
+    assert not pilot.finished
+
+
+def test_the_stop_distance_is_half_the_look_ahead() -> None:
+    path = ((0.0, 0.0), (0.0, 10.0))
+    assert PathPilot(path, 1.0, 0.5, lookahead_m=2.0).step(Pose(0.0, 8.9, NORTH)) != (0.0, 0.0)
+    assert PathPilot(path, 1.0, 0.5, lookahead_m=2.0).step(Pose(0.0, 9.1, NORTH)) == (0.0, 0.0)

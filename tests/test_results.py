@@ -96,9 +96,10 @@ def test_write_into_replaces_only_between_the_markers(tmp_path: Path) -> None:
     doc.write_text(f"before\n{results.BEGIN}\nold\n{results.END}\nafter\n")
     results.write_into(doc, "new table")
     assert doc.read_text() == f"before\n{results.BEGIN}\nnew table\n{results.END}\nafter\n"
-    (tmp_path / "none.md").write_text("no markers")
-    with pytest.raises(ValueError, match="markers"):
-        results.write_into(tmp_path / "none.md", "x")
+    for text in ("no markers", f"only {results.BEGIN}", f"only {results.END}"):
+        (tmp_path / "none.md").write_text(text)
+        with pytest.raises(ValueError, match="markers"):
+            results.write_into(tmp_path / "none.md", "x")
 
 
 def test_failed_runs_and_runs_with_lockstep_misses_are_unfit() -> None:
@@ -134,3 +135,31 @@ def test_results_refuses_to_write_a_table_with_a_missed_tick(
     _FakeSweep.rows = _rows([1.0, 2.0])
     assert results.main(["--seeds", "2", "--out", str(tmp_path), "--write", str(doc)]) == 0
     assert "1.50 ±" in doc.read_text()
+
+
+def test_beyond_31_runs_the_interval_uses_the_normal_quantile() -> None:
+    values = [math.cos(1.3 * i) for i in range(40)]
+    for n in (32, 40):
+        (agg,) = [a for a in aggregate(_rows(values[:n])) if a["metric"] == "r2_rms_m"]
+        half = (agg["ci95_high"] - agg["ci95_low"]) / 2
+        assert half == pytest.approx(1.96 * statistics.stdev(values[:n]) / math.sqrt(n), rel=1e-12)
+
+
+def test_one_run_has_no_spread_and_no_interval() -> None:
+    (agg,) = [a for a in aggregate(_rows([4.0])) if a["metric"] == "r2_rms_m"]
+    assert (agg["n"], agg["mean"], agg["std"]) == (1, 4.0, 0.0)
+    assert math.isnan(agg["ci95_high"])
+
+
+def test_a_metric_is_aggregated_over_the_runs_that_have_it() -> None:
+    rows = _rows([1.0, 2.0, 3.0])
+    rows[0]["r2_formations_changes"] = 2  # only the first run has it
+    rows[0]["note"] = "n/a"  # a column with no number at all, before one with numbers
+    rows[0]["r3_rms_m"] = None
+    rows[1]["r3_rms_m"] = 5.0
+    rows[2]["r3_rms_m"] = 7.0
+    agg = {a["metric"]: a for a in aggregate(rows)}
+    assert agg["r2_formations_changes"]["n"] == 1
+    assert (agg["r3_rms_m"]["n"], agg["r3_rms_m"]["mean"]) == (2, 6.0)
+    assert (agg["r2_rms_m"]["n"], agg["r2_max_m"]["n"]) == (3, 3)
+    assert "note" not in agg
