@@ -4,7 +4,8 @@ observation drops and two camera-noise levels, on the paper's turning path.
 Runs the grid through swarm sweep (resumable: rerunning reuses finished runs),
 then prints a markdown table of the follower's RMS and max formation error
 (mean over seeds, with the 95% confidence half-width) and, with --write,
-replaces the table between the markers in that file.
+replaces the table between the markers in that file. A run that
+failed or missed a lockstep tick keeps the table from being written.
 """
 
 from __future__ import annotations
@@ -80,6 +81,19 @@ def table(rows: Sequence[Mapping[str, Any]], seeds: int) -> str:
     return "\n".join(lines)
 
 
+def unfit_runs(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The runs that may not enter the table, each with the reason: a run that
+    failed, and a lockstep run that missed a tick (the world stopped a robot for
+    want of its answer: neither the controller's figure nor reproducible)."""
+    out = []
+    for r in rows:
+        if r.get("exit_code") != 0:
+            out.append(f"{r.get('run')}: exit code {r.get('exit_code')}")
+        elif r.get("lockstep_misses") != 0:
+            out.append(f"{r.get('run')}: {r.get('lockstep_misses')} lockstep misses")
+    return out
+
+
 def check_markers(path: Path) -> None:
     """Raise ValueError unless ``path`` is a file with the table's markers."""
     try:
@@ -133,6 +147,12 @@ def main(argv: list[str] | None = None) -> int:
         rows = sweep.run()
     except KeyboardInterrupt:
         return 130
+    unfit = unfit_runs(rows)
+    if unfit:
+        # A failed run is run again by the next sweep; one with misses is kept, so it must be deleted.
+        print(f"swarm results: {len(unfit)} runs cannot enter the table; delete their folders under "
+              f"{Path(args.out) / 'runs'} and run again:\n  " + "\n  ".join(unfit[:10]), file=sys.stderr)  # fmt: skip
+        return 1
     text = table(rows, args.seeds)
     print(text)
     for target in args.write:
@@ -141,8 +161,4 @@ def main(argv: list[str] | None = None) -> int:
         except (OSError, ValueError) as exc:
             print(f"swarm results: {exc}", file=sys.stderr)
             return 1
-    failed = [r["run"] for r in rows if r.get("exit_code") != 0]
-    if failed:
-        print(f"swarm results: {len(failed)} runs failed: {', '.join(failed[:10])}", file=sys.stderr)
-        return 1
     return 0

@@ -25,6 +25,7 @@ from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Command
 from formation_swarm.protocol.session import make_config
 from tests.conftest import RERUN, SCENARIOS, our_processes, rrd_rows
+from tests.replica import replay
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"
 TURN = SCENARIOS / "fig7_turn_vn_dynamic.toml"
@@ -105,6 +106,46 @@ def test_same_seed_same_digest_other_seed_differs(swarm_run: Callable[..., RunRe
     assert a["lockstep_misses"] == b["lockstep_misses"] == 0
     assert a["trajectory_digest"] == b["trajectory_digest"]
     assert a["trajectory_digest"] != c["trajectory_digest"]
+
+
+def test_runs_with_observation_and_formation_code_drops_are_reproducible(swarm_run: Callable[..., RunResult]) -> None:
+    """Whether a message drops is decided on its link's own sequence number, which
+    nothing timed by the wall clock (the world's status messages) may advance."""
+    lossy = {"links.obs_drop": 0.3, "links.formation_drop": 0.3}
+    a = swarm_run(FIG11, seed=3, logger=False, overrides=lossy).summary
+    with _cpu_hogs():  # another timing: status messages fall on other ticks
+        b = swarm_run(FIG11, seed=3, logger=False, overrides=lossy).summary
+    clean = swarm_run(FIG11, seed=3, logger=False).summary
+    assert a["lockstep_misses"] == b["lockstep_misses"] == 0
+    assert a["trajectory_digest"] == b["trajectory_digest"]
+    obs = {k: v for k, v in a["links"].items() if k.startswith("obs:")}
+    assert obs == {k: v for k, v in b["links"].items() if k.startswith("obs:")}  # the same drops, link by link
+    # (A formation code the leader sends as the run ends may arrive or not: its counts are not compared.)
+    dropped = {k: v["dropped"] for k, v in a["links"].items() if k.startswith(("obs:", "formation:")) and v["dropped"]}
+    assert len(dropped) == 5, a["links"]  # 3 observation links and 2 formation links all lost messages
+    assert a["trajectory_digest"] != clean["trajectory_digest"]
+
+
+@pytest.mark.parametrize(
+    ("scenario", "overrides"),
+    [(TURN, {}), (FIG11, {"links.obs_drop": 0.2, "links.formation_drop": 0.3, "links.cmd_drop": 0.1})],
+    ids=["turn", "fig11-drops"],
+)
+def test_a_lockstep_run_is_its_one_process_replica(
+    swarm_run: Callable[..., RunResult], scenario: Path, overrides: dict
+) -> None:
+    """The processes add nothing to a lockstep run's figures: tests/replica.py,
+    which tests/test_published.py and mutation testing use, is the same run."""
+    real = swarm_run(scenario, seed=4, logger=False, overrides=overrides).summary
+    again = replay(scenario, 4, overrides)
+    assert real["lockstep_misses"] == 0
+    assert real["ticks"] == again["ticks"]
+    assert real["trajectory_digest"] == again["trajectory_digest"]
+    for rid, m in real["followers"].items():
+        assert m["rms_m"] == again["followers"][rid]["rms_m"]
+    # (Within one tick, the world lists formation events in the order the answers came.)
+    by_tick = sorted(real["formation_events"], key=lambda e: (e["tick"], e["robot"]))
+    assert by_tick == sorted(again["formation_events"], key=lambda e: (e["tick"], e["robot"]))
 
 
 def test_formation_changes_through_30_percent_drops(swarm_run: Callable[..., RunResult]) -> None:

@@ -145,3 +145,104 @@ def test_a_plausible_far_reading_does_not_reset_the_filter() -> None:
         f.step((2.0, 0.0, 0.1))
     f.step((50.0, 0.0, 0.1))
     assert f.ekf.resets == 0
+
+
+@pytest.mark.parametrize(
+    ("state", "index", "shift"),
+    [
+        # The reference right behind the follower: bearing beta near +pi (eq. 1).
+        ([0.05, -2.0, 0.3, 0.0, 0.0], 2, 0.08),
+        # The reference facing the follower: relative orientation phi near +pi.
+        ([0.5, 2.0, math.pi - 0.01, 0.0, 0.0], 1, 0.04),
+    ],
+    ids=["beta", "phi"],
+)
+def test_a_reading_across_plus_minus_pi_corrects_like_any_other(state: list[float], index: int, shift: float) -> None:
+    """Angle residuals wrap (eq. 19-21): a reading a little past +pi, written as
+    -pi + something by the camera, moves the estimate a little, exactly as the
+    same reading written past +pi does."""
+    predicted = _hx(np.array(state).reshape(5, 1), 0.1)[:, 0]  # (rho, beta, phi) the state predicts
+    rho, beta, phi = predicted
+    reading = [rho, phi, beta]  # the filter takes (rho, phi, beta)
+    reading[index] += shift  # past +pi ...
+    wrapped = list(reading)
+    wrapped[index] -= 2 * math.pi  # ... as the camera reports it: just above -pi
+    assert wrapped[index] < -math.pi + 0.1
+    a, b = _filter_at(state), _filter_at(state)
+    a.update(tuple(wrapped))
+    b.update(tuple(reading))
+    np.testing.assert_allclose(a.state, b.state, atol=1e-12)
+    # A small correction: the position moves by centimetres, phi by less than the shift.
+    moved = np.hypot(*(a.state[:2] - np.array(state[:2])))
+    assert moved < 0.1, moved
+    assert abs((a.state[2] - state[2] + math.pi) % (2 * math.pi) - math.pi) < shift
+
+
+def test_parameters_are_frozen_and_checked() -> None:
+    import dataclasses
+
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        EkfParams().q_pos_m = 1.0  # type: ignore[misc]
+    for name in ("q_pos_m", "q_phi_rad", "q_speed_mps", "q_turn_rps"):
+        with pytest.raises(ValueError, match=name):
+            EkfParams(**{name: -0.1})
+    for name in ("initial_speed_sigma_mps", "initial_turn_sigma_rps", "sigma_phi_rad", "sigma_beta_rad"):
+        with pytest.raises(ValueError, match=name):
+            EkfParams(**{name: 0.0})
+
+
+def test_first_reading_sets_the_state_and_a_first_order_covariance() -> None:
+    """Eq. 1 inverted; its covariance from a numeric Jacobian of geometry.leader_point."""
+    from formation_swarm.agents.geometry import leader_point
+
+    p = EkfParams(initial_speed_sigma_mps=0.7, initial_turn_sigma_rps=0.3)
+    ekf = TargetEKF(p, marker_offset_m=0.1, width_m=0.5)
+    rho, phi, beta = 2.5, 0.4, 0.6
+    ekf.update((rho, phi, beta))
+    assert ekf.state == pytest.approx([*leader_point(rho, phi, beta, 0.1), phi, 0.0, 0.0], abs=1e-12)
+    eps = 1e-6
+    cols = []
+    for d_rho, d_beta in ((eps, 0.0), (0.0, eps)):
+        hi = leader_point(rho + d_rho, phi, beta + d_beta, 0.1)
+        lo = leader_point(rho - d_rho, phi, beta - d_beta, 0.1)
+        cols.append([(hi[0] - lo[0]) / (2 * eps), (hi[1] - lo[1]) / (2 * eps)])
+    j = np.array(cols).T
+    want = j @ np.diag([p.sigma_rho_m**2, p.sigma_beta_rad**2]) @ j.T + np.eye(2) * (0.1 * p.sigma_phi_rad) ** 2
+    cov = ekf.covariance
+    np.testing.assert_allclose(cov[:2, :2], want, rtol=1e-6)
+    assert np.diag(cov)[2:] == pytest.approx([p.sigma_phi_rad**2, 0.7**2, 0.3**2], rel=1e-12)
+    assert np.count_nonzero(cov[2:, :]) == 3  # no correlation at the start
+
+
+def test_process_noise_grows_with_the_step() -> None:
+    p = EkfParams(q_pos_m=0.1, q_phi_rad=0.2, q_speed_mps=0.3, q_turn_rps=0.4)
+    ekf = TargetEKF(p, marker_offset_m=0.1, width_m=0.5)
+    ekf.update((2.0, 0.0, 0.0))
+    for dt in (0.05, 0.1, 0.05):
+        ekf.predict(0.0, 0.0, dt)
+        assert np.diag(ekf._kf.Q) == pytest.approx(np.array([0.01, 0.01, 0.04, 0.09, 0.16]) * dt, rel=1e-12)
+
+
+def test_target_covariance_is_first_order_in_the_whole_state() -> None:
+    ekf = _filter_at([0.7, 2.1, 0.4, 1.2, 0.1])
+    ekf._kf.P = np.array([[0.3, 0.1, 0.05, 0.02, 0.01]] * 5) * 0 + np.diag([0.04, 0.09, 0.01, 0.25, 0.16])
+    ekf._kf.P[0, 4] = ekf._kf.P[4, 0] = 0.02
+    ekf._kf.P[1, 3] = ekf._kf.P[3, 1] = -0.03
+    off = Point(-1.5, -1.0)
+    eps = 1e-6
+    base = ekf._kf.x.copy()
+    cols = []
+    for i in range(5):
+        pts = []
+        for s in (1, -1):
+            ekf._kf.x = base.copy()
+            ekf._kf.x[i, 0] += s * eps
+            pts.append(np.array(ekf.target(off)[0]))
+        cols.append((pts[0] - pts[1]) / (2 * eps))
+    ekf._kf.x = base
+    j = np.array(cols).T
+    point, cov = ekf.target(off)
+    np.testing.assert_allclose(cov, j @ ekf._kf.P @ j.T, rtol=1e-6, atol=1e-12)
+    x, y, phi = base[:3, 0]
+    assert point == pytest.approx((x + off.x_m * math.cos(phi) - off.y_m * math.sin(phi),
+                                   y + off.x_m * math.sin(phi) + off.y_m * math.cos(phi)), abs=1e-12)  # fmt: skip

@@ -216,3 +216,38 @@ def test_non_number_input_is_a_type_error() -> None:
         fuzzy.control("0.1", 1.0, 0.0, 0.05, P, SpeedMode())  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="static_vn"):
         SpeedMode(-1.0)
+
+
+def test_parameters_are_frozen_and_ordered() -> None:
+    import dataclasses
+
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        FuzzyParams().a_mps = 1.0  # type: ignore[misc]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        SpeedMode().static_vn = 1.0  # type: ignore[misc]
+    # The breakpoints' order is strict where the sets need a width, loose where they may touch.
+    FuzzyParams(d1_m=0.5)  # dn = d1: Enough is a triangle's top, allowed
+    FuzzyParams(vm=1.5, vn_max=1.5)  # one V_N for all three levels, allowed
+    for kwargs, name in (({"dn_m": 0.1}, "dn_m"), ({"dmax_m": 1.0}, "dmax_m"), ({"d1_m": 0.4}, "d1_m"),
+                         ({"vm": 1.4}, "vm"), ({"vn_max": 1.6}, "vn_max")):  # fmt: skip
+        with pytest.raises(ValueError, match=name):
+            FuzzyParams(**kwargs)
+    assert SpeedMode().dynamic
+    assert not SpeedMode(static_vn=1.5).dynamic
+
+
+def test_a_rule_whose_strength_ties_its_other_input_still_fires_once() -> None:
+    """min(mu_drho, mu_rho) with the two equal: the rule counts its strength once."""
+    p = P
+    rho = 0.5 * (p.d0_m + p.dn_m)  # Close 0.5, Enough 0.5
+    rate = 0.5 * p.drho_rate_tol_mps  # Positive 0.5, Zero 0.5
+    # Positive/Close -> Middle, Positive/Enough -> High, Zero/* -> Middle: all at 0.5.
+    assert fuzzy.fis2(rate, rho, p) == pytest.approx((3 * p.vm + p.vn_max) / 4, abs=1e-12)
+    assert fuzzy.fis2(-rate, rho, p) == pytest.approx((p.vn_min * 2 + p.vm * 2) / 4, abs=1e-12)
+
+
+def test_dynamic_vn_takes_the_rate_of_change_of_rho() -> None:
+    """FIS-2's input is drho / dt (m/s), not drho (m): 0.01 m in 0.02 s is 0.5 m/s."""
+    vn, _ = fuzzy.control(0.0, 1.0, 0.01, 0.02, P, SpeedMode())
+    assert vn == pytest.approx(fuzzy.fis2(0.5, 1.0, P), abs=1e-12)
+    assert vn == pytest.approx(P.vn_max, abs=1e-12)  # Positive (saturated) and Enough: High

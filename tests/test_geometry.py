@@ -156,3 +156,62 @@ def test_bad_formations(slots: dict, match: str) -> None:
 def test_bad_input_names_the_parameter(call: object, name: str) -> None:
     with pytest.raises(ValueError, match=name):
         call()  # type: ignore[operator]
+
+
+def test_zone_and_choice_numbers_are_the_papers_and_the_wires() -> None:
+    """Zones I-III (eq. 11-12); the choice is sent as Telemetry.steering_to (0-3)."""
+    assert [int(z) for z in Zone] == [1, 2, 3]
+    assert [int(c) for c in Choice] == [0, 1, 2, 3]
+
+
+@pytest.mark.parametrize(
+    ("follower_in_leader", "zone"),
+    [((0.0, 1.0), Zone.II), ((1.0, 0.0), Zone.III), ((-1.0, 0.0), Zone.III), ((0.0, 0.0), Zone.III)],
+)
+def test_zone_boundaries_go_where_the_strict_inequalities_leave_them(follower_in_leader: tuple, zone: Zone) -> None:
+    # The leader at the origin facing +y of the follower frame: P_xy = -P_r.
+    px, py = follower_in_leader
+    assert zone_of(Point(-px, -py), 0.0) is zone
+
+
+def test_eq13_zone_iii_tie_goes_behind() -> None:
+    # T0 and T3 equally far from the follower: "T0 nearer" is strict, so T3.
+    sel = select_target(Point(0.0, 2.0), 0.0, Point(0.0, -1.0), clearance_m=1.0)
+    assert (sel.zone, sel.choice) == (Zone.III, Choice.T3)
+    sel = select_target(Point(0.0, 2.0), 0.0, Point(0.0, -1.1), clearance_m=1.0)
+    assert sel.choice is Choice.T0
+
+
+@pytest.mark.parametrize(("leader", "name"), [((math.nan, 1.0), "leader.x_m"), ((1.0, math.inf), "leader.y_m")])
+def test_eq13_bad_leader_names_the_coordinate(leader: tuple, name: str) -> None:
+    with pytest.raises(ValueError, match=name):
+        select_target(Point(*leader), 0.0, Point(0.0, -1.0), 1.0)
+
+
+def test_formation_edge_cases() -> None:
+    import dataclasses
+
+    from formation_swarm.agents.formation import from_slot_positions
+
+    assert line(2, 1.0).slots == {2: Slot(1, Point(0.0, -1.0))}
+    assert wedge(2, 1.0, 1.0).slots == {2: Slot(1, Point(-1.0, -1.0))}
+    assert line(3, 1.5).robots == [1, 2, 3]
+    flipped = Formation("f", {1: Slot(2, Point(0.0, -1.0))})  # robot 1 may follow robot 2
+    assert flipped.leader == 2
+    assert from_slot_positions("p", {4: Point(0, 0), 9: Point(1, -1)}).slots == {9: Slot(4, Point(1.0, -1.0))}
+    with pytest.raises(ValueError, match="at least 2"):
+        from_slot_positions("p", {1: Point(0, 0)})
+    with pytest.raises(ValueError, match="several leaders"):
+        Formation("f", {2: Slot(1, Point(0, -1)), 4: Slot(3, Point(0, -1))})
+    with pytest.raises(ValueError, match="robot id"):
+        Formation("f", {True: Slot(2, Point(0, -1))})
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        line(2, 1.0).name = "x"  # type: ignore[misc]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        Slot(1, Point(0, 0)).reference = 2  # type: ignore[misc]
+
+
+def test_rho_sign_by_default_takes_the_reference_along_the_followers_heading() -> None:
+    # Behind-left of the follower, slightly behind: "ahead of the target" along phi = 0.
+    assert g.errors(Point(-1.0, -0.2), None).rho_m < 0.0
+    assert g.errors(Point(-1.0, -0.2), None, phi_rad=1.0).rho_m > 0.0

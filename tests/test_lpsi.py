@@ -58,3 +58,22 @@ def test_bad_law_and_bad_input() -> None:
         FollowerParams(law="pid")
     with pytest.raises(ValueError, match="v_ref_mps"):
         control(Point(0.0, 2.0), 0.0, math.nan, 0.0, Point(0.0, -1.5), 0.5, P)
+
+
+def test_turning_splits_the_wheels_by_half_the_width_each() -> None:
+    """A pure turn of the controlled point: v = 0 and w from B, wheels v -+ w L / 2."""
+    # The reference 0.5 m right of where it should be: the follower must turn right.
+    p = LpsiParams(max_wheel_mps=100.0)
+    left, right = control(Point(0.5, 2.0), 0.0, 0.0, 0.0, Point(0.0, -2.0), 0.5, p)
+    assert left > right
+    left2, right2 = control(Point(0.5, 2.0), 0.0, 0.0, 0.0, Point(0.0, -2.0), 1.0, p)
+    assert left2 + right2 == pytest.approx(left + right, abs=1e-12)  # the same v ...
+    assert left2 - right2 == pytest.approx(2 * (left - right), abs=1e-12)  # ... twice the track, twice the split
+
+
+def test_defaults_and_frozen() -> None:
+    import dataclasses
+
+    assert (P.l_gain, P.psi_gain, P.d_m, P.max_wheel_mps) == (1.0, 1.0, 0.25, 2.5)  # as docs/results.md states
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        P.d_m = 1.0  # type: ignore[misc]

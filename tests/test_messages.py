@@ -112,3 +112,94 @@ def test_the_largest_messages_a_scenario_allows_fit() -> None:
         payload = msg.to_bytes()
         assert len(payload) <= MAX_PAYLOAD_BYTES, (type(msg).__name__, len(payload))
         assert type(msg).from_bytes(payload) == msg
+
+
+def test_the_wire_format_is_pinned() -> None:
+    """[tag, version, sender, seq, tick, fields...]: a change is a protocol change."""
+    assert msgpack.unpackb(CMD.to_bytes()) == [2, 1, 2, 9, 3, 0.4, -0.1, 1, False]
+    tags = {cls.__name__: cls.TAG for cls in (Observation, Command, FormationCode, Telemetry, Truth, Status)}
+    assert tags == {"Observation": 1, "Command": 2, "FormationCode": 3, "Telemetry": 4, "Truth": 5, "Status": 6}
+    assert VERSION == 1
+
+
+@pytest.mark.parametrize("version", [0, 2])
+def test_any_other_version_is_rejected(version: int) -> None:
+    with pytest.raises(DecodeError, match=f"unknown version: {version}, expected 1"):
+        Command.from_bytes(msgpack.packb([2, version, *_raw(CMD)[2:]]))
+
+
+@pytest.mark.parametrize("tag", [1, 3])
+def test_a_tag_on_either_side_is_the_wrong_type(tag: int) -> None:
+    with pytest.raises(DecodeError, match=f"tag {tag}, expected 2"):
+        Command.from_bytes(msgpack.packb([tag, *_raw(CMD)[1:]]))
+
+
+def test_header_bounds_are_inclusive() -> None:
+    from formation_swarm.protocol.messages import MAX_TICK
+
+    for seq, tick in ((0, 0), (MAX_TICK, MAX_TICK)):
+        assert Command.from_bytes(Command(MAX_ROBOT_ID, seq, tick, 0.0, 0.0, 255, False).to_bytes()).tick == tick
+        assert Command.from_bytes(Command(1, seq, tick, 0.0, 0.0, 0, False).to_bytes()).seq == seq
+    for i, bad in ((3, -1), (3, MAX_TICK + 1), (4, -1), (4, MAX_TICK + 1), (2, 0), (2, MAX_ROBOT_ID + 1)):
+        raw = _raw(CMD)
+        raw[i] = bad
+        with pytest.raises(DecodeError, match="out of range"):
+            Command.from_bytes(msgpack.packb(raw))
+    for i, name in ((2, "sender"), (3, "seq"), (4, "tick")):
+        raw = _raw(CMD)
+        raw[i] = 2.0
+        with pytest.raises(DecodeError, match=f"wrong type: {name} must be an integer"):
+            Command.from_bytes(msgpack.packb(raw))
+    assert Observation.from_bytes(EXAMPLES[0].to_bytes()).sender == 0  # the world is 0, and only the world
+    with pytest.raises(DecodeError, match="sender=1 not in"):
+        Observation.from_bytes(Observation(1, 1, 1, 0.0, (0.0, 0.0, 0.0), (), ()).to_bytes())
+    with pytest.raises(DecodeError, match="sender=0 not in"):
+        FormationCode.from_bytes(FormationCode(0, 1, 1, 0).to_bytes())
+
+
+def test_field_ranges_are_inclusive_and_named() -> None:
+    ok = Telemetry(2, 1, 1, 0.0, 1, 0, None, None, None, None, None, None, 0.0, 0.0, 3, False, 0, 0, 0)
+    assert Telemetry.from_bytes(ok.to_bytes()).steering_to == 3
+    raw = _raw(ok)
+    raw[16] = 4
+    with pytest.raises(DecodeError, match="steering_to=4 not in"):
+        Telemetry.from_bytes(msgpack.packb(raw))
+
+
+def test_a_payload_of_exactly_the_limit_is_decoded() -> None:
+    pad = MAX_PAYLOAD_BYTES - len(CMD.to_bytes())
+    payload = CMD.to_bytes() + b"\x00" * pad  # the limit, then extra data: rejected for that, not for size
+    with pytest.raises(DecodeError) as info:
+        Command.from_bytes(payload)
+    assert info.value.reason == "not msgpack"
+    with pytest.raises(DecodeError, match="wrong length: Command has 7 fields, got 6"):
+        Command.from_bytes(msgpack.packb(_raw(CMD)[:-1]))
+
+
+def test_numbers_in_lists_may_be_integers_and_are_floats_after() -> None:
+    obs = Observation.from_bytes(msgpack.packb([1, 1, 0, 1, 1, 0.0, [1, 2, 3.5], [[2, 1, 0, 0.5]], []]))
+    assert obs.pose == (1.0, 2.0, 3.5)
+    assert all(type(v) is float for v in obs.pose)
+    assert obs.readings == ((2, 1.0, 0.0, 0.5),)
+    with pytest.raises(DecodeError, match="not finite"):
+        Observation.from_bytes(msgpack.packb([1, 1, 0, 1, 1, 0.0, [1.0, math.inf, 3.5], [], []]))
+    with pytest.raises(DecodeError, match="wrong shape"):
+        Observation.from_bytes(msgpack.packb([1, 1, 0, 1, 1, 0.0, [1.0, 2.0, 3.5], [[2, 1.0, 0.0, 0.5, 9.0]], []]))
+
+
+def test_messages_carry_no_instance_dict() -> None:
+    for msg in EXAMPLES:  # slots: small, and no stray attribute
+        assert not hasattr(msg, "__dict__"), type(msg).__name__
+
+
+def test_a_list_of_only_non_finite_numbers_is_rejected() -> None:
+    with pytest.raises(DecodeError, match="not finite"):
+        Observation.from_bytes(msgpack.packb([1, 1, 0, 1, 1, 0.0, [math.inf, math.nan, math.inf], [], []]))
+    obs = Observation.from_bytes(msgpack.packb([1, 1, 0, 1, 1, 0.0, [1, 2, 3], [], []]))
+    assert all(type(v) is float for v in obs.pose)
+
+
+def test_the_payload_limit_and_who_sends_telemetry() -> None:
+    assert MAX_PAYLOAD_BYTES == 32 * 1024  # under the routed size filter of protocol.session (~40 KiB)
+    tel = Telemetry(1, 1, 1, 0.0, 2, 0, None, None, None, None, None, None, 0.0, 0.0, 0, False, 0, 0, 0)
+    assert Telemetry.from_bytes(tel.to_bytes()).sender == 1  # robot 1 may follow (when another robot leads)

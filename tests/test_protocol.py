@@ -117,3 +117,43 @@ def test_the_shipped_router_configuration_loads() -> None:
     for key in ("transport/unicast/lowlatency", "transport/unicast/qos/enabled", "low_pass_filter"):
         assert conf.get_json(key) == ours.get_json(key), key
     assert json.loads(conf.get_json("low_pass_filter"))[0]["size_limit"] == ROUTED_LIMIT_BYTES
+
+
+def test_batch_size_is_counted_again_after_each_flush() -> None:
+    pub, clock = FakePub(), FakeClock()
+    msgs = _codes(20)
+    size = len(msgs[0])
+    bp = BatchPublisher(pub, window_s=10.0, max_bytes=3 * size, clock=clock)
+    for m in msgs[:7]:
+        bp.put(m)
+    # The first leaves at once; then three fit exactly, the fourth starts a new batch.
+    assert [len(msgpack.unpackb(p)[2]) for p in pub.payloads] == [1, 3]
+    assert (len(bp.items), bp.size) == (3, 3 * size)
+    bp.flush()
+    assert (bp.items, bp.size) == ([], 0)
+
+
+def test_half_the_payload_limit_is_the_largest_batch() -> None:
+    from formation_swarm.protocol.messages import MAX_PAYLOAD_BYTES
+
+    BatchPublisher(FakePub(), max_bytes=MAX_PAYLOAD_BYTES // 2)
+    with pytest.raises(ValueError, match="max_bytes"):
+        BatchPublisher(FakePub(), max_bytes=MAX_PAYLOAD_BYTES // 2 + 1)
+
+
+def test_a_batch_with_a_map_or_a_wrong_tag_is_refused() -> None:
+    rej = Rejections()
+    assert rej.decode_batch(FormationCode, msgpack.packb([99, 1, []])) is None
+    assert rej.decode_batch(FormationCode, msgpack.packb([101, 1, []])) is None
+    assert rej.decode_batch(FormationCode, msgpack.packb([100, 1, [{"a": 1}]])) is None
+    assert rej.decode_batch(FormationCode, msgpack.packb([100, 1])) is None
+    assert rej.by_reason == {"wrong message type": 2, "not msgpack": 1, "wrong type": 1}
+    from formation_swarm.protocol.codec import DecodeError
+    from formation_swarm.protocol.codec import unpack_batch as _unpack_batch
+
+    with pytest.raises(DecodeError, match=r"tag 99, expected a batch \(100\)"):
+        _unpack_batch(msgpack.packb([99, 1, []]))
+    with pytest.raises(DecodeError, match="unknown version: 7, expected 1"):
+        _unpack_batch(msgpack.packb([100, 7, []]))
+    with pytest.raises(DecodeError, match="oversized"):
+        _unpack_batch(b"\x00" * 70_000)

@@ -122,7 +122,10 @@ class World:
         self.where = where  # the session's endpoints, for messages
         self.engine = WorldEngine(sc, seed)
         self.rejections = Rejections()
-        self.seq = 0
+        # A sequence per stream (each robot's observations, truth, status): the number
+        # an observation's link drop is decided on must not depend on how many status
+        # messages the wall clock sent before it.
+        self.seqs: collections.Counter[str] = collections.Counter()
         self.events: collections.deque[tuple[str, bool]] = collections.deque()  # liveliness, from its callback
         self.wakes = 0
         self.cmd_links = {rid: Link(link_name("cmd", rid, 0), sc.links.cmd_drop, seed) for rid in sc.robots}
@@ -239,9 +242,13 @@ class World:
             "check --run and --connect of the missing processes"
         )
 
+    def _next_seq(self, stream: str) -> int:
+        self.seqs[stream] += 1
+        return self.seqs[stream]
+
     def _publish_status(self, pub: zenoh.Publisher, state: str) -> None:
-        self.seq += 1
-        pub.put(Status(0, self.seq, self.engine.tick, self.engine.time_s, state, self.sc.ticks).to_bytes())
+        seq = self._next_seq("status")
+        pub.put(Status(0, seq, self.engine.tick, self.engine.time_s, state, self.sc.ticks).to_bytes())
 
     def _drain(self, until: float) -> None:
         """Handle what has arrived; if nothing has, wait for it until ``until``
@@ -329,13 +336,12 @@ class World:
         for rid in eng.alive_ids:
             eng.robots[rid].answered = False
             pose, readings, obstacles = eng.observation(rid)
-            self.seq += 1
-            obs_pubs[rid].put(Observation(0, self.seq, tick, t, pose, tuple(readings), tuple(obstacles)).to_bytes())
+            seq = self._next_seq(link_name("obs", 0, rid))
+            obs_pubs[rid].put(Observation(0, seq, tick, t, pose, tuple(readings), tuple(obstacles)).to_bytes())
             self.counts["obs_sent"] += 1
         robots = tuple((rid, *r.pose, r.alive) for rid, r in eng.robots.items())
         targets = tuple((rid, *eng.true_target(rid)) for rid in self.sc.follower_ids)
-        self.seq += 1
-        truth_pub.put(Truth(0, self.seq, tick, t, robots, targets).to_bytes())
+        truth_pub.put(Truth(0, self._next_seq("truth"), tick, t, robots, targets).to_bytes())
         self.counts["truth_sent"] += 1
 
     def _loop(

@@ -1,0 +1,125 @@
+"""The leader's pilot: pure pursuit along the waypoints at the cruise speed."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from formation_swarm.agents.pilot import PathPilot
+from formation_swarm.sim import PAPER_TURNING_PATH
+from formation_swarm.world.kinematics import Pose, step
+
+NORTH = math.pi / 2
+
+
+def test_on_a_straight_path_both_wheels_run_at_the_cruise_speed() -> None:
+    pilot = PathPilot(((0.0, 0.0), (0.0, 50.0)), speed_mps=1.5, width_m=0.5)
+    assert pilot.step(Pose(0.0, 10.0, NORTH)) == (1.5, 1.5)
+
+
+def test_a_path_to_the_right_turns_right_at_the_curvature_or_the_largest_rate() -> None:
+    # Off the path by 0.5 m to its left: the goal 1 m ahead on the path is at (0.5, ~1) in the body frame.
+    pilot = PathPilot(((0.0, 0.0), (0.0, 50.0)), speed_mps=1.0, width_m=0.5, lookahead_m=1.0, max_turn_rate_rps=2.0)
+    left, right = pilot.step(Pose(-0.5, 10.0, NORTH))
+    # Goal (0, 11): body frame x = 0.5 right, y = 1 ahead; curvature -2 x / d^2 = -0.8 1/m.
+    omega = 1.0 * -2.0 * 0.5 / (0.5**2 + 1.0**2)
+    assert left == pytest.approx(1.0 - 0.5 * omega * 0.5)
+    assert right == pytest.approx(1.0 + 0.5 * omega * 0.5)
+    assert left > right  # a faster left wheel turns right
+    slow = PathPilot(((0.0, 0.0), (0.0, 50.0)), speed_mps=1.0, width_m=0.5, max_turn_rate_rps=0.25)
+    left, right = slow.step(Pose(-0.5, 10.0, NORTH))
+    assert (right - left) / 0.5 == pytest.approx(-0.25)  # clipped to the largest turn rate
+
+
+def test_it_stops_at_the_end_and_stays_stopped() -> None:
+    pilot = PathPilot(((0.0, 0.0), (0.0, 10.0)), speed_mps=1.5, width_m=0.5, lookahead_m=1.0)
+    assert pilot.step(Pose(0.0, 9.4, NORTH)) == (1.5, 1.5)  # 0.6 m from the end: still going
+    assert not pilot.finished
+    assert pilot.step(Pose(0.0, 9.6, NORTH)) == (0.0, 0.0)  # within half the look-ahead
+    assert pilot.finished
+    assert pilot.step(Pose(0.0, 0.0, NORTH)) == (0.0, 0.0)
+
+
+def test_it_flies_the_paper_path_within_a_few_centimetres_on_the_straights() -> None:
+    pilot = PathPilot(PAPER_TURNING_PATH, speed_mps=1.5, width_m=0.5, max_turn_rate_rps=0.25)
+    pose = Pose(0.0, 0.0, NORTH)
+    track = []
+    for _ in range(2000):
+        left, right = pilot.step(pose)
+        if pilot.finished:
+            break
+        pose = step(pose, left, right, 0.5, 0.05)
+        track.append(pose)
+    assert pilot.finished
+    assert math.hypot(pose.x_m - 20.0, pose.y_m - 40.0) < 0.5  # at the last waypoint
+    # Path length 60 m at 1.5 m/s: 40 s; 44.95 s measured, the wide turns at 0.25 rad/s.
+    assert 44.0 < len(track) * 0.05 < 46.0
+    first_leg = [p for p in track if p.y_m < 15.0]
+    assert max(abs(p.x_m) for p in first_leg) < 0.05
+    assert max(abs(p.theta_rad - NORTH) for p in first_leg) < 1e-9  # straight north until the first turn
+    # It passes by each corner (measured: 0.08 m and 0.53 m from them).
+    for cx, cy in PAPER_TURNING_PATH[1:3]:
+        assert min(math.hypot(p.x_m - cx, p.y_m - cy) for p in track) < 0.6
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"waypoints": ((0.0, 0.0),)}, "waypoints"),
+        ({"waypoints": ((0.0, 0.0), (1.0, math.nan))}, r"waypoints\[1\]"),
+        ({"speed_mps": 0.0}, "speed_mps"),
+        ({"lookahead_m": -1.0}, "lookahead_m"),
+        ({"max_turn_rate_rps": 0.0}, "max_turn_rate_rps"),
+    ],
+)
+def test_bad_parameters_name_themselves(kwargs: dict, name: str) -> None:
+    args = {"waypoints": ((0.0, 0.0), (0.0, 1.0)), "speed_mps": 1.0, "width_m": 0.5, **kwargs}
+    with pytest.raises(ValueError, match=name):
+        PathPilot(**args)
+
+
+def test_the_goal_is_the_look_ahead_point_on_a_segment_away_from_the_origin() -> None:
+    # A 1 m leg from (5, 3) going north, look-ahead 0.5 m; the robot 0.2 m east of it, 0.3 m along.
+    pilot = PathPilot(((5.0, 3.0), (5.0, 4.0), (5.0, 9.0)), speed_mps=1.0, width_m=0.5, lookahead_m=0.5,
+                      max_turn_rate_rps=10.0)  # fmt: skip
+    left, right = pilot.step(Pose(5.2, 3.3, NORTH))
+    # Goal (5, 3.8): body frame x = -0.2 (left), y = 0.5; curvature 2 * 0.2 / 0.29.
+    omega = 2.0 * 0.2 / (0.2**2 + 0.5**2)
+    assert (left, right) == pytest.approx((1.0 - 0.25 * omega, 1.0 + 0.25 * omega), abs=1e-12)
+
+
+def test_the_projection_on_a_leg_along_x_away_from_the_origin() -> None:
+    # A 1 m leg from (5, 3) going east, look-ahead 0.5 m; the robot 0.3 m along it, 0.2 m north of it.
+    pilot = PathPilot(((5.0, 3.0), (6.0, 3.0), (9.0, 3.0)), speed_mps=1.0, width_m=0.5, lookahead_m=0.5,
+                      max_turn_rate_rps=10.0)  # fmt: skip
+    left, right = pilot.step(Pose(5.3, 3.2, 0.0))
+    # Goal (5.8, 3): body frame x = 0.2 (right), y = 0.5.
+    omega = -2.0 * 0.2 / (0.2**2 + 0.5**2)
+    assert (left, right) == pytest.approx((1.0 - 0.25 * omega, 1.0 + 0.25 * omega), abs=1e-12)
+
+
+def test_a_repeated_waypoint_is_flown_through() -> None:
+    pilot = PathPilot(((0.0, 0.0), (0.0, 5.0), (0.0, 5.0)), speed_mps=1.0, width_m=0.5)
+    pose = Pose(0.0, 0.0, NORTH)
+    for _ in range(200):
+        left, right = pilot.step(pose)
+        if pilot.finished:
+            break
+        pose = step(pose, left, right, 0.5, 0.05)
+    assert pilot.finished
+    assert pose.y_m == pytest.approx(4.5, abs=0.1)  # stops half a look-ahead before the end
+
+
+def test_it_stops_only_near_the_end_of_the_last_leg() -> None:
+    # The path comes back next to an earlier corner: passing that corner is not the end.
+    pilot = PathPilot(((0.0, 0.0), (0.0, 10.0), (4.0, 10.0), (0.3, 10.2)), speed_mps=1.0, width_m=0.5)
+    pilot.step(Pose(0.0, 9.5, NORTH))  # the corner is within the look-ahead: on to the second leg
+    assert pilot.step(Pose(0.0, 9.9, NORTH)) != (0.0, 0.0)
+    assert not pilot.finished
+
+
+def test_the_stop_distance_is_half_the_look_ahead() -> None:
+    path = ((0.0, 0.0), (0.0, 10.0))
+    assert PathPilot(path, 1.0, 0.5, lookahead_m=2.0).step(Pose(0.0, 8.9, NORTH)) != (0.0, 0.0)
+    assert PathPilot(path, 1.0, 0.5, lookahead_m=2.0).step(Pose(0.0, 9.1, NORTH)) == (0.0, 0.0)
