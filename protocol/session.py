@@ -105,9 +105,16 @@ def make_config(
     for ep in (*connect, *listen):
         if not isinstance(ep, str) or "/" not in ep:
             raise ValueError(f"endpoint must look like tcp/HOST:PORT, got {ep!r}")
+        port = ep.split("#", 1)[0].rpartition(":")[2]
+        if ep.split("/", 1)[0] in ("tcp", "tls", "udp", "quic") and not (port.isdigit() and 0 < int(port) < 65536):
+            raise ValueError(f"endpoint {ep!r}: the port must be a number in [1, 65535]")
     if mode == "client" and not connect and config_file is None:
         raise ValueError("a client needs --connect ENDPOINT (scouting is off)")
-    conf = zenoh.Config.from_file(config_file) if config_file else zenoh.Config()
+    try:
+        conf = zenoh.Config.from_file(config_file) if config_file else zenoh.Config()
+    except zenoh.ZError as exc:
+        reason = str(exc).split(" at /", 1)[0]  # Zenoh appends the Rust source location
+        raise ValueError(f"--config {config_file}: not a Zenoh configuration Zenoh accepts: {reason}") from None
     conf.insert_json5("mode", json.dumps(mode))
     if config_file is None:
         conf.insert_json5("scouting/multicast/enabled", "false")

@@ -20,6 +20,7 @@ import argparse
 import math
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from formation_swarm import __version__
 from formation_swarm.cliargs import USAGE_ERROR, Parser, make_folder, port, rerun_url, seconds, seed
@@ -96,6 +97,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
             live=args.live, serve_web=args.serve_web, kills=kills,
             web_ports=(args.grpc_port or GRPC_PORT, args.web_port or WEB_PORT),
         )  # fmt: skip
+        if args.out is not None and not args.out.strip():
+            raise ValueError("--out '': an empty name")
+        if args.out is not None and (Path(args.out) / "summary.json").exists():
+            raise ValueError(f"--out {args.out}: already holds a run (summary.json); give a new folder")
         make_folder("--out" if args.out else "run folder", launch.run_dir)  # last: nothing made for a bad input
     except (ScenarioError, ValueError) as exc:
         print(f"swarm run: {exc}", file=sys.stderr)

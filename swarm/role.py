@@ -53,6 +53,7 @@ exit codes:
   130  stopped by SIGINT (Ctrl-C)
   143  stopped by SIGTERM"""
 DEFAULT_PEERS_TIMEOUT_S = 60.0
+MAX_PEERS_TIMEOUT_S = 1e6  # 11 days: beyond, a deadline overflows the clock's timestamps
 # Zenoh's own connect timeout is set this much past ours, so that ours, which
 # names what is missing, is the one that fires.
 CONNECT_MARGIN_S = 2.0
@@ -63,8 +64,8 @@ def _seconds(text: str) -> float:
         value = float(text)
     except ValueError:
         value = math.nan
-    if not (value > 0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"must be a number of seconds > 0, got {text!r}")
+    if not (0 < value <= MAX_PEERS_TIMEOUT_S):
+        raise argparse.ArgumentTypeError(f"must be a number of seconds in (0, {MAX_PEERS_TIMEOUT_S:g}], got {text!r}")
     return value
 
 
@@ -205,7 +206,10 @@ class Role:
             sess = open_session(conf, self.stop, self.deadline)
         except TimeoutError:
             where = ", ".join(args.connect) or f"the endpoints of {args.config}"
-            return self.gave_up(f"no router answered at {where}; check --connect and that the router runs")
+            return self.gave_up(
+                f"no router answered at {where}; check --connect, that the router runs, and --auth "
+                "(a router with logins refuses a process without its own)"
+            )
         except zenoh.ZError as exc:
             self.complain(f"cannot open the Zenoh session: {exc}")
             return EXIT_FAILED

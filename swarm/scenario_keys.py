@@ -93,8 +93,8 @@ ROBOT_KEYS = {
     "marker_offset_m": non_negative("how far behind the robot's centre its marker sits", 0.1, "m"),
     "diameter_m": positive("body diameter: two robots closer than this collide", 0.4, "m"),
     "max_wheel_mps": positive(
-        "the fastest a wheel turns, either way: the world clamps every command to it, and every controller"
-        " of the scenario must stay within it",
+        "the fastest a wheel turns, either way: the world refuses a command beyond it (and clamps what it"
+        " executes), and every controller of the scenario must stay within it",
         3.0,
         "m/s",
     ),
@@ -122,15 +122,22 @@ LEADER_KEYS = {
     "code_period_s": positive("otherwise it repeats its current code this often", 0.5, "s"),
 }
 FORMATION_KEYS = {
-    "shape": Key(str, REQUIRED, "'wedge' (each follower behind and beside the previous robot), 'line' or 'custom'"),
-    "lateral_m": positive("wedge: sideways offset of each follower from its reference", 1.5, "m"),
-    "back_m": positive("wedge: how far behind its reference each follower flies", 1.5, "m"),
+    "shape": Key(str, REQUIRED, "'wedge' (a V behind the leader), 'line' (single file) or 'custom'"),
+    "lateral_m": positive(
+        "wedge: followers fly in ranks r = 1, 2, ... (two per rank, the 1st, 3rd, ... on the left), each rank"
+        " r * lateral_m to the side of the leader's track",
+        1.5,
+        "m",
+    ),
+    "back_m": positive(
+        "wedge: and r * back_m behind the leader; each follower steers on the robot before it", 1.5, "m"
+    ),
     "spacing_m": positive("line: distance between consecutive robots", 1.5, "m"),
     "slots": Key(dict, {}, "custom: per follower id, { reference = ID, offset = [x_m, y_m] } in the reference's frame"),
 }
 SLOT_KEYS = {
     "reference": Key(int, REQUIRED, "the robot this follower follows"),
-    "offset": Key(list, REQUIRED, "[x_m, y_m] of the virtual target in the reference's frame (x ahead, y left)", "m"),
+    "offset": Key(list, REQUIRED, "[x_m, y_m] of the virtual target in the reference's frame (x right, y ahead)", "m"),
 }
 
 _EKF_DOCS = {

@@ -297,3 +297,27 @@ def test_after_a_freeze_an_agent_answers_only_the_newest_observation(swarm_launc
     assert agent["superseded"] >= 20  # the stale ones were skipped, not answered late
     assert agent["answered"] + agent["superseded"] <= res.summary["ticks"]
     assert res.summary["deaths"] == []
+
+
+def test_the_deploy_router_without_rules_forwards_nothing() -> None:
+    """deploy/router.json5 started without --auth: it runs, but denies every message."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    config = Path(__file__).resolve().parent.parent / "deploy" / "router.json5"
+    argv = [sys.executable, "-m", "formation_swarm.router", "--config", str(config), "--listen", endpoint]
+    router = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert router.stdout is not None
+        assert "listening on" in router.stdout.readline()
+        k = Keys("open-check")
+        got: list[str] = []
+        conf = make_config("client", [endpoint], connect_timeout_s=3.0)
+        with zenoh.open(conf) as listener, zenoh.open(conf) as talker:
+            listener.declare_subscriber(k.everything, lambda s: got.append(str(s.key_expr)))
+            pub = talker.declare_publisher(k.cmd(1))
+            pub.put(b"x")
+            time.sleep(0.5)  # nothing must arrive: a wait for an absence has no condition to wait on
+            assert not pub.matching_status.matching  # the router told it of no subscriber
+        assert got == []
+    finally:
+        router.terminate()
+        router.wait(timeout=10)

@@ -37,6 +37,12 @@ REJECTED = {
     "run: seed past 2**63 - 1": ([*RUN, "--seed", str(2**63)], f"argument --seed: {SEED_RANGE}, got '{2**63}'"),
     "run: seed in --set": ([*RUN, "--set", "run.seed=-3"], "run.seed must be in [0, 2**63 - 1], got -3"),
     "run: kill the world": ([*RUN, "--kill", "world@5"], "cannot kill the world"),
+    "run: --out empty": ([*RUN, "--out", ""], "--out '': an empty name"),
+    "run: --out holds a run": ([*RUN, "--out", "{tmp}/old_run"], "already holds a run (summary.json)"),
+    "world: --peers-timeout past the clock": (
+        ["world", "--scenario", "fig11_obstacles", "--run", "x", "--peers-timeout", "1e12"],
+        "argument --peers-timeout: must be a number of seconds in (0, 1e+06], got '1e12'",
+    ),
     "run: kill an unknown process": ([*RUN, "--kill", "agent-9@5"], "cannot kill 'agent-9'"),
     "run: kill after the end": ([*RUN, "--kill", "agent-2@1e9"], "cannot kill agent-2 at 1e+09 s: the run lasts 56 s"),
     "run: kill without a time": ([*RUN, "--kill", "agent-2"], "a kill is PROCESS@SECONDS"),
@@ -153,6 +159,8 @@ def rejected(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Outcome]:
         argv, _ = REJECTED[case]
         folder = tmp_path_factory.mktemp("bad")
         (folder / "a_file").write_text("not a folder\n")
+        (folder / "old_run").mkdir()
+        (folder / "old_run" / "summary.json").write_text("{}\n")
         before = files(folder)
         started = time.monotonic()
         proc = swarm([a.format(tmp=folder) for a in argv], cwd=folder)
@@ -287,3 +295,20 @@ def test_no_arguments_prints_the_help() -> None:
     assert proc.returncode == 2
     assert "swarm run fig11_obstacles" in proc.stdout
     assert proc.stderr == ""
+
+
+@pytest.mark.parametrize(
+    ("flags", "fragment"),
+    [
+        (["--config", "{tmp}/missing.json5"], "--config {tmp}/missing.json5: not a Zenoh configuration Zenoh accepts"),
+        (["--listen", "tcp/127.0.0.1:99999"], "the port must be a number in [1, 65535]"),
+    ],
+)  # fmt: skip
+def test_a_role_with_a_bad_zenoh_flag_says_so_in_one_line(tmp_path: Path, flags: list[str], fragment: str) -> None:
+    argv = ["world", "--scenario", "fig11_obstacles", "--run", "x", *(f.format(tmp=tmp_path) for f in flags)]
+    proc = swarm(argv, cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    (line,) = proc.stderr.splitlines()
+    assert line.startswith("world: ")
+    assert fragment.format(tmp=tmp_path) in line
+    assert no_traceback(proc)
