@@ -99,7 +99,11 @@ MODULES = (
         (T + "test_keys.py", T + "test_protocol.py", T + "test_messages.py", T + "test_role_inputs.py"),
     ),
     Module("protocol/links.py", (T + "test_links.py",)),
+    Module("protocol/codec.py", (T + "test_messages.py", T + "test_protocol.py", T + "test_role_inputs.py")),
     Module("protocol/messages.py", (T + "test_messages.py", T + "test_protocol.py", T + "test_role_inputs.py")),
+    Module("protocol/batch.py", (T + "test_protocol.py", T + "test_messages.py")),
+    Module("protocol/trust.py", (T + "test_trust.py",)),
+    Module("agents/inbox.py", (T + "test_inbox.py", T + "test_role_inputs.py")),
     Module(
         "swarm/sweep.py",
         (T + "test_results.py", T + "test_sweep.py::test_aggregate_mean_std_and_t_interval"),

@@ -1,0 +1,78 @@
+"""An agent's checks beyond the schema (agents/inbox.py), message by message."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from formation_swarm.agents.inbox import InboxChecks
+from formation_swarm.protocol.messages import FormationCode, Observation
+
+RANGE_M, SIGMA_M, SENSING_M, DT_S = 10.0, 0.05, 6.0, 0.05
+
+
+def checks() -> InboxChecks:
+    return InboxChecks((1, 2, 3), RANGE_M, SIGMA_M, SENSING_M, DT_S)
+
+
+def obs(tick: int, readings: tuple = ((1, 2.0, 0.1, 0.2),), obstacles: tuple = ()) -> Observation:
+    return Observation(0, tick + 1, tick, tick * DT_S, (0.0, 0.0, 0.0), readings, obstacles)
+
+
+def test_observations_must_be_newer_than_the_last_taken() -> None:
+    c = checks()
+    assert c.observation(obs(5)) is None
+    assert c.observation(obs(5)) == "replayed or reordered"
+    assert c.observation(obs(4)) == "replayed or reordered"
+    assert c.observation(obs(7)) is None  # a gap is fine: the agent may have missed some
+    assert c.last_tick == 7
+
+
+@pytest.mark.parametrize(
+    ("reading", "why"),
+    [
+        ((1, RANGE_M + 8 * SIGMA_M, 0.0, 0.0), None),  # the farthest the noise can reach
+        ((1, RANGE_M + 8 * SIGMA_M + 1e-6, 0.0, 0.0), "reading out of bounds"),
+        ((1, -1e-9, 0.0, 0.0), "reading out of bounds"),
+        ((1, 0.0, 0.0, 0.0), None),
+        ((1, 2.0, math.pi, -math.pi), None),
+        ((1, 2.0, math.pi + 1e-6, 0.0), "reading out of bounds"),
+        ((1, 2.0, 0.0, -math.pi - 1e-6), "reading out of bounds"),
+        ((1, 1e200, 0.0, 0.0), "reading out of bounds"),
+        ((4, 2.0, 0.0, 0.0), "unknown robot"),
+    ],
+)
+def test_a_reading_the_camera_cannot_make_is_refused(reading: tuple, why: str | None) -> None:
+    c = checks()
+    assert c.observation(obs(1, (reading,))) == why
+    assert c.last_tick == (1 if why is None else -1)  # a refused observation moves nothing
+
+
+@pytest.mark.parametrize(
+    ("obstacle", "why"),
+    [
+        ((SENSING_M + 1.0, 0.3, 1.0), None),  # its edge at the sensing range
+        ((SENSING_M + 1.0 + 1e-6, 0.3, 1.0), "obstacle out of bounds"),
+        ((0.5, 0.0, 1.0), None),  # inside it (a collision): still a true reading
+        ((-0.1, 0.0, 1.0), "obstacle out of bounds"),
+        ((2.0, 0.0, 0.0), "obstacle out of bounds"),
+        ((2.0, math.pi + 1e-6, 1.0), "obstacle out of bounds"),
+        ((2.0, -math.pi - 1e-6, 1.0), "obstacle out of bounds"),
+    ],
+)
+def test_an_obstacle_the_leader_cannot_sense_is_refused(obstacle: tuple, why: str | None) -> None:
+    assert checks().observation(obs(1, (), (obstacle,))) == why
+
+
+def test_codes_must_be_newer_and_not_far_ahead_of_the_agents_clock() -> None:
+    c = checks()
+    ahead = math.ceil(5.0 / DT_S)  # CODE_AHEAD_S of ticks
+    assert c.code(FormationCode(1, 10, 0, 1)) is None
+    assert c.code(FormationCode(1, 10, 1, 1)) == "replayed or reordered"
+    assert c.code(FormationCode(1, 9, 1, 1)) == "replayed or reordered"
+    assert c.observation(obs(20)) is None
+    assert c.code(FormationCode(1, 11, 20 + ahead, 1)) is None
+    assert c.code(FormationCode(1, 12, 20 + ahead + 1, 1)) == "tick ahead of the world"
+    assert c.code(FormationCode(1, 13, 2**53, 1)) == "tick ahead of the world"
+    assert c.last_code_seq == 11  # refused codes move nothing
