@@ -57,12 +57,23 @@ def test_a_reading_the_camera_cannot_make_is_refused(reading: tuple, why: str | 
         ((0.5, 0.0, 1.0), None),  # inside it (a collision): still a true reading
         ((-0.1, 0.0, 1.0), "obstacle out of bounds"),
         ((2.0, 0.0, 0.0), "obstacle out of bounds"),
+        ((2.0, 0.0, -1.0), "obstacle out of bounds"),
+        ((0.0, 0.0, 0.5), None),  # touching it
         ((2.0, math.pi + 1e-6, 1.0), "obstacle out of bounds"),
         ((2.0, -math.pi - 1e-6, 1.0), "obstacle out of bounds"),
     ],
 )
 def test_an_obstacle_the_leader_cannot_sense_is_refused(obstacle: tuple, why: str | None) -> None:
     assert checks().observation(obs(1, (), (obstacle,))) == why
+
+
+def test_the_leaders_first_code_is_taken_and_a_coarse_tick_still_allows_two_ahead() -> None:
+    c = checks()
+    assert c.code(FormationCode(1, 1, 0, 1)) is None  # a leader's first message has seq 1
+    slow = InboxChecks((1, 2), RANGE_M, SIGMA_M, SENSING_M, dt_s=10.0)  # 5 s is half a tick
+    assert slow.code_ahead_ticks == 2  # the leader may be up to two ticks ahead of a follower's clock
+    assert slow.code(FormationCode(1, 1, 1, 1)) is None  # no observation yet (tick -1): tick 1 is two ahead
+    assert slow.code(FormationCode(1, 2, 2, 1)) == "tick ahead of the world"
 
 
 def test_codes_must_be_newer_and_not_far_ahead_of_the_agents_clock() -> None:
