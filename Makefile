@@ -37,6 +37,7 @@ results: $(STAMP)
 # Reference documents generated from the code (a test fails when one is stale).
 docs: $(STAMP)
 	$(BIN)/python -m formation_swarm.scenario_keys > docs/scenario.md
+	$(BIN)/python -m formation_swarm.faults docs/faults.md
 
 # Mutation testing of the pure modules against their fast tests (tools/mutate.py):
 # a fixed sample of 120 mutants per module (about 25 minutes here), resumable

@@ -94,7 +94,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         overrides = dict(parse_override(text) for text in args.set)
         launch = Launch(
             args.scenario, mode=args.mode, seed=args.seed, out=args.out, overrides=overrides, logger=not args.no_logger,
-            live=args.live, serve_web=args.serve_web, kills=kills,
+            live=args.live, serve_web=args.serve_web, kills=kills, faults=args.fault,
             web_ports=(args.grpc_port or GRPC_PORT, args.web_port or WEB_PORT),
         )  # fmt: skip
         if args.out is not None and not args.out.strip():
@@ -154,7 +154,9 @@ examples:
   swarm run fig11_obstacles
   swarm run fig7_turn_vn_dynamic --seed 3 --set controller.vn=1.5 --out runs/static
   swarm run fig11_obstacles --mode realtime --serve-web     (then open http://127.0.0.1:9090)
-  swarm run scenarios/fig11_obstacles.toml --kill agent-3@20
+  swarm run fig11_obstacles --fault "kill agent-3@20s"
+  swarm run fig11_obstacles --fault "restart agent-2@20s after=1s" --fault "drop obs:3@10s for=5s p=0.5"
+  (every fault kind: docs/faults.md)
 """
 
 
@@ -179,9 +181,13 @@ def _add_run(sub: argparse._SubParsersAction[Parser]) -> None:
     run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="override one scenario key, e.g. leader.speed_mps=1.6 or controller.vn=dynamic "
                      "(repeatable)")  # fmt: skip
+    run.add_argument("--fault", action="append", default=[], metavar="'KIND TARGET@TIME ...'",
+                     help="schedule a fault, e.g. 'kill agent-3@20s', 'freeze agent-2@10s for=3s', "
+                     "'partition 2,3@12s for=15s', 'wheel_noise *@0s sigma_mps=0.1' (repeatable; added to the "
+                     "scenario's [[faults]]; every kind: docs/faults.md)")  # fmt: skip
     run.add_argument("--kill", action="append", default=[], metavar="PROC@SECONDS",
-                     help="fault injection: SIGKILL a process (agent-N or logger) at that simulated time in s, "
-                     "e.g. agent-3@20 (repeatable)")  # fmt: skip
+                     help="the same as --fault 'kill PROC@SECONDS': SIGKILL agent-N or the logger at that "
+                     "simulated time (repeatable)")  # fmt: skip
     run.add_argument("--timeout", type=seconds(), default=None, metavar="SECONDS",
                      help="stop the run after this much wall-clock time in s, with exit code 124 "
                      "(default: no limit)")  # fmt: skip

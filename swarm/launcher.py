@@ -25,7 +25,7 @@ import sys
 import threading
 import time
 import uuid
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -37,6 +37,7 @@ from formation_swarm import scenario_files
 from formation_swarm import summary as summary_mod
 from formation_swarm.children import Child, describe_exit, free_port, log_tail
 from formation_swarm.console import print_result as print_result  # re-exported: the API of swarm run
+from formation_swarm.faults import Fault
 from formation_swarm.protocol import trust
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
@@ -62,7 +63,7 @@ class RunResult:
 
 @dataclass
 class KillAt:
-    """Fault injection: SIGKILL ``who`` ("agent-3", "logger") at sim time ``time_s``."""
+    """``--kill agent-3@20``: the same as the fault ``kill agent-3@20s``."""
 
     who: str
     time_s: float
@@ -72,12 +73,23 @@ class KillAt:
         """``"agent-3@20"`` -> KillAt("agent-3", 20.0)."""
         who, sep, when = str(text).partition("@")
         try:
-            time_s = float(when)
+            time_s = float(when.removesuffix("s"))
         except ValueError:
             time_s = math.nan
         if not sep or not who or not math.isfinite(time_s) or time_s < 0:
             raise ValueError(f"a kill is PROCESS@SECONDS with SECONDS >= 0 (e.g. agent-3@20), got {text!r}")
         return cls(who, time_s)
+
+    def fault(self) -> Fault:
+        return Fault.make("kill", self.who, self.time_s)
+
+
+def _as_fault(value: Fault | KillAt | str | Mapping[str, Any], kill: bool) -> Fault:
+    if isinstance(value, KillAt):
+        return value.fault()
+    if kill and isinstance(value, str):
+        return KillAt.parse(value).fault()
+    return Fault.coerce(value)
 
 
 class Launch:
@@ -96,6 +108,7 @@ class Launch:
         serve_web: bool = False,
         web_ports: tuple[int, int] = (9876, 9090),
         kills: Sequence[KillAt | str] = (),
+        faults: Sequence[Fault | str | Mapping[str, Any]] = (),
         progress: Callable[[str], None] | None = None,
         run_id: str | None = None,
         python: str = sys.executable,
@@ -107,7 +120,8 @@ class Launch:
         ov = dict(overrides or {})
         if seed is not None:
             ov["run.seed"] = seed
-        self.sc = scenario_mod.load(self.scenario_path, ov)
+        extra = [_as_fault(k, kill=True) for k in kills] + [_as_fault(f, kill=False) for f in faults]
+        self.sc = scenario_mod.load(self.scenario_path, ov, extra)
         self.mode = mode
         self.run_id = run_id or f"{_slug(self.sc.name)}-{uuid.uuid4().hex[:8]}"
         Keys(self.run_id)  # validates
@@ -116,7 +130,6 @@ class Launch:
         self.live = live
         self.serve_web = serve_web
         self.web_ports = web_ports  # (gRPC, web viewer), with serve_web
-        self.kills = sorted((k if isinstance(k, KillAt) else KillAt.parse(k) for k in kills), key=lambda k: k.time_s)
         self.progress = progress or (lambda line: print(line, flush=True))
         self.python = python
         self.auth = auth  # every process logs in with its own fresh credentials; the world enforces the rules
@@ -127,15 +140,10 @@ class Launch:
         self.last_status: Status | None = None
         self.events: list[dict[str, Any]] = []
         self.started_at = 0.0
-        for k in self.kills:
-            if k.who == "world":
-                raise ValueError(
-                    "cannot kill the world: it keeps the clock and ends the run; kill an agent or the logger"
-                )
-            if k.who not in self._names():
-                raise ValueError(f"cannot kill {k.who!r}: processes are {', '.join(self._names()[1:])}")
-            if k.time_s > self.sc.duration_s:
-                raise ValueError(f"cannot kill {k.who} at {k.time_s:g} s: the run lasts {self.sc.duration_s:g} s")
+        for f in self.sc.faults:
+            if f.process is not None and f.process not in self._names():
+                raise ValueError(f"cannot {f.kind} {f.process!r}: processes are {', '.join(self._names()[1:])}")
+        self.kills = [KillAt(f.target, f.at_s) for f in self.sc.faults if f.kind == "kill"]
 
     def _names(self) -> list[str]:
         return ["world", *(["logger"] if self.logger else []), *(f"agent-{r}" for r in self.sc.robots)]

@@ -4,13 +4,14 @@ Fixtures:
 
 ``swarm_run``
     ``swarm_run(scenario, mode="lockstep", seed=None, overrides=None,
-    logger=True, kills=(), timeout_s=300) -> RunResult``: runs a scenario (a
+    logger=True, faults=(), kills=(), timeout_s=300) -> RunResult``: runs a scenario (a
     shipped scenario's name, e.g. ``"fig11_obstacles"``, or a TOML file) as
     real processes (world, logger, one agent per robot) with a unique run id
     and its own loopback port, in the test's tmp_path; returns the summary and
-    the run folder. ``kills`` takes ``KillAt`` objects or strings such as
-    ``"agent-3@20"`` (SIGKILL agent 3 at sim time 20 s), checked before any
-    process starts. Every process is reaped when the test ends, pass or fail.
+    the run folder. ``faults`` takes strings such as ``"kill agent-3@20s"`` or
+    ``"drop obs:2@10s for=5s p=0.3"``, ``Fault`` objects or tables (the
+    grammar of ``[[faults]]``, docs/faults.md); ``kills`` takes ``"agent-3@20"``.
+    Both are checked before any process starts. Every process is reaped when the test ends, pass or fail.
 
 ``swarm_launch``
     ``swarm_launch(scenario, **kwargs) -> Launch``: the same, started but not

@@ -12,7 +12,7 @@ from __future__ import annotations
 import difflib
 import math
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -23,6 +23,7 @@ from formation_swarm.agents.formation import Formation, Slot, line, wedge
 from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode
 from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.lpsi import LpsiParams
+from formation_swarm.faults import Fault, check_against, parse_all
 from formation_swarm.protocol.keys import MAX_ROBOT_ID
 from formation_swarm.scenario_files import deep_set, resolve
 from formation_swarm.scenario_keys import (
@@ -94,6 +95,7 @@ class Scenario:
     obstacles: tuple[Obstacle, ...]
     links: LinkFaults
     raw: Mapping[str, Any] = field(repr=False, compare=False)
+    faults: tuple[Fault, ...] = ()  # the fault schedule, by start time (formation_swarm.faults)
 
     @property
     def formation_names(self) -> tuple[str, ...]:
@@ -330,6 +332,14 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         t = _table(o, f"obstacles[{i}]", OBSTACLE_KEYS)
         obstacles.append(Obstacle(float(t["x_m"]), float(t["y_m"]), float(t["radius_m"])))
     lk = _table(raw.get("links"), "links", LINK_KEYS)
+    faults_raw = raw.get("faults", [])
+    if not isinstance(faults_raw, list):
+        raise ScenarioError("faults must be an array ([[faults]] tables or strings such as 'kill agent-3@20s')")
+    try:
+        faults = parse_all(faults_raw)
+        check_against(faults, robots, ld["id"], duration, dt)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
     return Scenario(
         name=run["name"],
         seed=run["seed"],
@@ -360,12 +370,16 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         obstacles=tuple(obstacles),
         links=LinkFaults(**{k: float(v) for k, v in lk.items()}),
         raw=raw,
+        faults=faults,
     )
 
 
-def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
+def load(
+    path: str | Path, overrides: Mapping[str, Any] | None = None, faults: Sequence[Fault | str | Mapping[str, Any]] = ()
+) -> Scenario:
     """Read a scenario (a file or a shipped scenario's name); ``overrides`` maps
-    dotted keys ("run.seed") to values, checked like the file's own."""
+    dotted keys ("run.seed") to values, checked like the file's own; ``faults``
+    are added to the file's [[faults]] (as tables, so the scenario as run holds them)."""
     p = resolve(path)
     try:
         raw = tomllib.loads(p.read_text())
@@ -375,6 +389,13 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
         raise ScenarioError(f"{p}: cannot read the scenario: {exc}") from None
     for dotted, value in (overrides or {}).items():
         raw = deep_set(raw, tuple(dotted.split(".")), value)
+    if faults:
+        try:
+            extra = [f.to_table() for f in parse_all(faults, "fault")]
+        except ValueError as exc:
+            raise ScenarioError(str(exc)) from None
+        old = raw.get("faults", [])
+        raw = {**raw, "faults": [*(old if isinstance(old, list) else [old]), *extra]}
     try:
         return from_dict(raw)
     except ScenarioError as exc:

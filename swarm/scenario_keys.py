@@ -224,7 +224,9 @@ SECTIONS: dict[str, tuple[Mapping[str, Key], str, str]] = {
     "obstacles": (OBSTACLE_KEYS, f"round obstacles (at most {MAX_OBSTACLES})", "[[obstacles]]"),
     "links": (LINK_KEYS, "faults of the one-way links: each message is dropped with this probability", "[links]"),
 }
-TOP_KEYS = ("run", "robot", "camera", "leader", "formations", "controller", "followers", "obstacles", "links")
+TOP_KEYS = (
+    "run", "robot", "camera", "leader", "formations", "controller", "followers", "obstacles", "links", "faults"
+)  # fmt: skip
 
 
 def type_name(types: type | tuple[type, ...]) -> str:
@@ -281,6 +283,14 @@ def markdown() -> str:
         out.append("")
         if name == "followers":
             out += ["`[followers.ID.ekf]` overrides the EKF keys the same way.", ""]
+    out += [
+        "## `[[faults]]`",
+        "",
+        "The fault schedule: kills, restarts, freezes, link, sensor and actuator faults at given times.",
+        "Each entry is a table (`kind`, `target`, `at_s`, `for_s` and the kind's parameters) or a string",
+        'such as `"kill agent-3@20s"`; [faults.md](faults.md) describes every kind.',
+        "",
+    ]
     return "\n".join(out)
 
 

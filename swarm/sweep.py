@@ -136,13 +136,14 @@ def _is_number(v: Any) -> bool:
 class Sweep:
     def __init__(self, scenario: str | Path, jobs: Sequence[Job], out: str | Path, *, workers: int | None = None,
                  logger: bool = False, progress: Callable[[str], None] = print,
-                 run_timeout_s: float = 600.0) -> None:  # fmt: skip
+                 run_timeout_s: float = 600.0, faults: Sequence[Any] = ()) -> None:  # fmt: skip
         self.scenario = Path(scenario)
         from formation_swarm import scenario as scenario_mod
 
-        scenario_mod.load(self.scenario)  # a bad scenario fails here, not in every run
+        self.faults = list(faults)  # added to every run (formation_swarm.faults)
+        scenario_mod.load(self.scenario, None, self.faults)  # a bad scenario or fault fails here, not in every run
         for ov in {j.label: j.overrides for j in jobs}.values():
-            scenario_mod.load(self.scenario, dict(ov))  # and so does a bad --set value
+            scenario_mod.load(self.scenario, dict(ov), self.faults)  # and so does a bad --set value
         self.jobs = list(jobs)
         self.out = Path(out)
         self.workers = max(1, workers or os.cpu_count() or 1)
@@ -210,7 +211,7 @@ class Sweep:
         if self._stop.is_set():
             return None
         with Launch(self.scenario, seed=job.seed, out=run_dir, overrides=dict(job.overrides), logger=self.logger,
-                    progress=lambda _line: None) as launch:  # fmt: skip
+                    faults=self.faults, progress=lambda _line: None) as launch:  # fmt: skip
             with self._lock:
                 self._live.add(launch)
             try:
@@ -279,6 +280,9 @@ def build_parser() -> Parser:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2",
                     help="a scenario key and the values to sweep, e.g. controller.vn=1.5,dynamic (repeatable: "
                     "the grid is every combination)")  # fmt: skip
+    ap.add_argument("--fault", action="append", default=[], metavar="'KIND TARGET@TIME ...'",
+                    help="a fault in every run, e.g. 'wheel_noise *@0s sigma_mps=0.1' (repeatable; "
+                    "docs/faults.md)")  # fmt: skip
     ap.add_argument("--jobs", type=integer(1, MAX_JOBS), default=None, metavar="J",
                     help=f"runs at once, 1 to {MAX_JOBS} (default: the number of cores, "
                     f"{os.cpu_count() or 1})")  # fmt: skip
@@ -303,7 +307,7 @@ def main(argv: list[str] | None = None) -> int:
         jobs = [Job(label, ov, run_seed) for label, ov in grid(sets)
                 for run_seed in range(args.seed_start, args.seed_start + args.seeds)]  # fmt: skip
         out = Path(args.out) if args.out else Path("sweeps") / _slug(sc.name)
-        sweep = Sweep(args.scenario, jobs, out, workers=args.jobs, logger=args.logger)
+        sweep = Sweep(args.scenario, jobs, out, workers=args.jobs, logger=args.logger, faults=args.fault)
         make_folder("--out" if args.out else "sweep folder", out)  # last: nothing made for a bad input
     except (ValueError, OSError) as exc:
         print(f"swarm sweep: {exc}", file=sys.stderr)

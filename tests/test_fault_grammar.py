@@ -1,0 +1,149 @@
+"""The fault grammar (formation_swarm.faults): strings, tables and objects
+are one schedule, checked the same way, placed on exact ticks."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from formation_swarm import scenario as scenario_mod
+from formation_swarm.faults import KINDS, Fault, link_faults, reference
+from formation_swarm.scenario import ScenarioError
+
+EXAMPLES = [
+    "kill agent-3@20s",
+    "kill logger@4s",
+    "restart agent-2@20s after=1.5",
+    "freeze agent-2@15s for=3s",
+    "drop obs:2@10s for=5s p=0.3",
+    "burst cmd:2,3@10s loss=0.9 p_bad=0.05 p_good=0.3",
+    "delay formation:*@5s for=10s jitter_ticks=2 ticks=4",
+    "delay obs:3@5s ms=120",
+    "duplicate links:2@1s p=0.2",
+    "reorder cmd:*@1s for=2s p=0.1",
+    "partition 2,3@12s for=15s from=world",
+    "blackout 3@20s for=2s",
+    "bias 2@1.5s beta_deg=-2 rho_m=0.2",
+    "outliers 3@0s p=0.05",
+    "range 2@3s m=4",
+    "wheel_noise *@0s sigma_mps=0.1",
+    "wheel_bias 2@0s left=0.03 right=-0.03",
+    "slip 3@10s for=2s fraction=0.4 wheel=right",
+    "stuck 2@30s for=4s wheel=left",
+]
+
+
+@pytest.mark.parametrize("text", EXAMPLES)
+def test_string_table_and_object_are_one_fault(text: str) -> None:
+    f = Fault.parse(text)
+    assert str(f) == text  # canonical form
+    assert Fault.from_table(f.to_table()) == f
+    assert Fault.coerce(f) is f
+
+
+def test_every_kind_has_an_example_and_a_doc() -> None:
+    assert {t.split()[0] for t in EXAMPLES} == set(KINDS)
+    doc = (Path(__file__).parents[1] / "docs" / "faults.md").read_text()
+    assert reference() in doc, "docs/faults.md: its table of kinds is stale (make docs)"
+
+
+def test_ticks_of_a_fault() -> None:
+    f = Fault.parse("freeze agent-2@20s for=3s")
+    assert (f.start_tick(0.05), f.end_tick(0.05)) == (400, 460)
+    assert [f.active(t, 0.05) for t in (399, 400, 459, 460)] == [False, True, True, False]
+    assert Fault.parse("kill agent-2@20s").end_tick(0.05) is None
+    assert Fault.parse("restart agent-2@20s after=1").end_tick(0.05) == 420
+    assert Fault.parse("bias 2@1500ms rho_m=1").start_tick(0.05) == 30
+
+
+def test_link_faults_by_link() -> None:
+    faults = [Fault.parse(t) for t in ("drop obs:2@1s p=0.1", "partition 3@1s for=1s from=leader",
+                                      "delay links:*@1s ticks=1", "partition 2@1s for=1s")]  # fmt: skip
+    assert [str(f) for f in link_faults(faults, "obs", 2)] == [
+        "drop obs:2@1s p=0.1", "delay links:*@1s ticks=1", "partition 2@1s for=1s"]  # fmt: skip
+    assert [f.kind for f in link_faults(faults, "obs", 3)] == ["delay"]
+    assert [f.kind for f in link_faults(faults, "formation", 3)] == ["partition", "delay"]
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("kill world@3s", "cannot kill the world"),
+        ("restart logger@3s", "only agents restart"),
+        ("kill agent-3", "a fault is KIND TARGET@START"),
+        ("agent-3@20", "did you mean 'kill agent-3@20'"),
+        ("drop obs:2@1s", "needs p=VALUE"),
+        ("drop obs:2@1s p=1.5", "p must be in [0, 1]"),
+        ("drop obs:2@-1s p=0.5", "a time such as 20, 20s or 1500ms"),
+        ("drop radio:2@1s p=0.5", "the target is a link class"),
+        ("delay obs@1s ticks=1 ms=3", "exactly one of ticks or ms"),
+        ("freeze agent-2@1s", "needs a duration"),
+        ("kill agent-2@1s for=2s", "takes no duration"),
+        ("drop obs:2@1s p=0.1 q=3", "has no parameter 'q'"),
+        ("partition 2@1s for=1s from=mars", "from must be one of world, leader, both"),
+        ("blackout 2,2@1s", "named twice"),
+        ("drop obs:2@1s for=0s p=0.1", "for must be > 0 s"),
+    ],
+)
+def test_bad_faults_name_the_problem(text: str, message: str) -> None:
+    with pytest.raises(ValueError, match=re.escape(message)):
+        Fault.parse(text)
+
+
+TOML_FAULTS = """
+[[faults]]
+kind = "kill"
+target = "agent-3"
+at_s = 20
+
+[[faults]]
+kind = "drop"
+target = "obs:2"
+at_s = 5
+for_s = 2.5
+p = 0.4
+"""
+
+
+def test_scenario_faults_from_tables_and_the_command_line(tmp_path: Path) -> None:
+    src = (Path(__file__).parents[1] / "scenarios" / "fig11_obstacles.toml").read_text()
+    path = tmp_path / "s.toml"
+    path.write_text(src + TOML_FAULTS)
+    sc = scenario_mod.load(path, faults=["freeze agent-2@1s for=2s"])
+    assert [str(f) for f in sc.faults] == [
+        "freeze agent-2@1s for=2s", "drop obs:2@5s for=2.5s p=0.4", "kill agent-3@20s"]  # fmt: skip
+    # The scenario as run holds every fault, so each process reads the same schedule.
+    from formation_swarm.scenario_files import dumps
+
+    again = tmp_path / "again.toml"
+    again.write_text(dumps(sc.raw))
+    assert scenario_mod.load(again).faults == sc.faults
+
+
+@pytest.mark.parametrize(
+    ("fault", "message"),
+    [
+        ("kill agent-9@5s", "no robot 9 in this run; robots are 1, 2, 3"),
+        ("kill agent-2@99s", "after the run's end"),
+        ("drop formation:1@1s p=0.5", "robot 1 is the leader; formation links go to followers"),
+        ("partition 1@1s for=2s from=leader", "cannot be cut off from itself"),
+        ("wheel_noise 4@0s sigma_mps=0.1", "no robot 4"),
+    ],
+)
+def test_faults_checked_against_the_run(fault: str, message: str) -> None:
+    with pytest.raises(ScenarioError) as err:
+        scenario_mod.load("fig11_obstacles", faults=[fault])
+    assert message in str(err.value)
+
+
+def test_a_faults_entry_that_is_not_a_table(tmp_path: Path) -> None:
+    src = (Path(__file__).parents[1] / "scenarios" / "fig11_obstacles.toml").read_text()
+    path = tmp_path / "s.toml"
+    path.write_text("faults = 3\n" + src)
+    with pytest.raises(ScenarioError, match="faults must be an array"):
+        scenario_mod.load(path)
+    path.write_text(src + '\n[[faults]]\nkind = "kill"\nat_s = 3\n')
+    with pytest.raises(ScenarioError, match=r"faults\[0\]: faults needs target"):
+        scenario_mod.load(path)
