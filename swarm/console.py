@@ -35,6 +35,17 @@ def describe_event(ev: Mapping[str, Any]) -> str:
     return ", ".join(f"{k} {v}" for k, v in ev.items() if k != "log_tail")
 
 
+def describe_fault(f: Mapping[str, Any]) -> str:
+    """One scheduled fault of the summary, with what it did, as a line."""
+    parts = []
+    for e in f.get("events") or []:
+        robot = f" R{e['robot']}" if e.get("robot") is not None else ""
+        parts.append(f"{e.get('event')}{robot} at tick {e.get('tick')}")
+    counts = ", ".join(f"{k} {v}" for k, v in sorted((f.get("counts") or {}).items()))
+    said = "; ".join(x for x in ("; ".join(parts), counts) if x)
+    return f"{f.get('fault')}" + (f": {said}" if said else "")
+
+
 def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
     """The run's metrics on the console; a run that ended early has fewer (never an error)."""
     s = res.summary
@@ -57,6 +68,8 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
         w(f"  formation changes: {', '.join(changes) or 'none'}\n")
         w(f"  lockstep misses {s.get('lockstep_misses')}, drops {s.get('drops_total')}, ")
         w(f"rejected {s.get('rejected_total')}\n")
+    for f in s.get("faults") or []:
+        w(f"  fault: {describe_fault(f)}\n")
     events = s.get("events") or []
     killed = {ev.get("process") for ev in events if ev.get("event") == "killed"}
     for ev in events:

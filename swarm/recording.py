@@ -14,6 +14,7 @@ Entity paths mirror the key space::
     robots/r<id>/fis/rho, /fis/alpha, /fis/v_n, robots/r<id>/wheels/left, /wheels/right
     robots/r<id>/formation               formation code flown; events: changes as text
     robots/r<id>/links/obs_dropped, /links/formation_dropped
+    events/faults                        the fault schedule: each fault where it starts and ends
 
 Messages are kept as they arrive (cheap, per tick) and turned into Rerun
 columns with numpy when the process loop calls ``Recorder.send`` (per send,
@@ -148,6 +149,19 @@ class Recorder:
             for i, (name, f) in enumerate(sc.formations.items())
         ]
         self.guard(self.rec.log, "world/formations", rr.TextDocument("\n".join(lines)), static=True)
+        self.log_fault_schedule()
+
+    def log_fault_schedule(self) -> None:
+        """Every scheduled fault in the event log, where it starts and where it ends."""
+        sc = self.sc
+        for f in sc.faults:
+            start = f.start_tick(sc.dt_s) * sc.dt_s
+            self.guard(self.rec.set_time, TIMELINE, duration=start)
+            self.guard(self.rec.log, "events/faults", rr.TextLog(f"fault: {f}", level="WARN"))
+            end = f.end_tick(sc.dt_s)
+            if end is not None and f.kind != "restart":
+                self.guard(self.rec.set_time, TIMELINE, duration=end * sc.dt_s)
+                self.guard(self.rec.log, "events/faults", rr.TextLog(f"fault over: {f}", level="INFO"))
 
     def send(self, final: bool = False) -> None:
         self.guard(self._send_truth)

@@ -106,10 +106,11 @@ def make_report(run_dir: str | Path, snapshots: int = 6) -> Path:
     out.mkdir(exist_ok=True)
     obstacles = _obstacles(run_dir)
     _trajectories(out / "trajectories.png", data, robots, followers, obstacles, snapshots, summary)
+    marks = fault_marks(summary)
     _over_time(out / "formation_error.png", data, followers, "error/formation", "distance to target, m",
-               "Formation error (Fig. 6b/d, 7b)")  # fmt: skip
-    _over_time(out / "vn.png", data, followers, "fis/v_n", "V_N, m/s", "Normal speed V_N (Fig. 8)")
-    _targets(out / "targets.png", data, followers)
+               "Formation error (Fig. 6b/d, 7b)", marks)  # fmt: skip
+    _over_time(out / "vn.png", data, followers, "fis/v_n", "V_N, m/s", "Normal speed V_N (Fig. 8)", marks)
+    _targets(out / "targets.png", data, followers, marks)
     (out / "report.md").write_text(_markdown(summary, followers))
     return out
 
@@ -119,6 +120,54 @@ def _ended_early(summary: Mapping[str, Any]) -> str:
     if not summary.get("ticks"):
         return f"the run ended before its first tick (exit code {summary.get('exit_code')}); see its logs/"
     return "the logger recorded none (see logs/logger.log)"
+
+
+def fault_marks(summary: Mapping[str, Any]) -> list[tuple[float, float | None, str]]:
+    """What to mark on the time axes: (start s, end s or None for an instant,
+    label) for every scheduled fault and every process that exited on its own."""
+    marks: list[tuple[float, float | None, str]] = []
+    for f in summary.get("faults") or []:
+        if not isinstance(f, Mapping) or not isinstance(f.get("at_s"), (int, float)):
+            continue
+        start = float(f["at_s"])
+        label = f"{f.get('kind')} {f.get('target')}"
+        end = None
+        if f.get("kind") == "restart":
+            back = [e.get("time_s") for e in f.get("events") or [] if e.get("event") == "rejoined"]
+            end = back[0] if back and isinstance(back[0], (int, float)) else None
+        elif isinstance(f.get("for_s"), (int, float)):
+            end = start + float(f["for_s"])
+        elif f.get("kind") != "kill":
+            end = math.inf  # to the end of the run
+        marks.append((start, end, label))
+    events = [ev for ev in summary.get("events") or [] if isinstance(ev, Mapping)]
+    for ev in _unexpected_exits(events):
+        t = ev.get("sim_time_s")
+        if isinstance(t, (int, float)) and t >= 0:
+            marks.append((float(t), None, f"{ev.get('process')} exited"))
+    return marks
+
+
+def _unexpected_exits(events: list[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
+    """The exits that no fault caused (a killed process's exit was the fault's doing)."""
+    caused = {ev.get("process") for ev in events if ev.get("event") in ("killed", "restarted")}
+    return [ev for ev in events if ev.get("event") == "exited" and ev.get("process") not in caused]
+
+
+def _mark(ax: Any, marks: list[tuple[float, float | None, str]]) -> None:
+    """Shade fault windows and draw instants, each labelled at the top of the axes."""
+    if not marks:
+        return
+    lo, hi = ax.get_xlim()
+    for k, (start, end, label) in enumerate(marks):
+        color = f"C{(k + 3) % 10}"
+        if end is None:
+            ax.axvline(start, color=color, lw=1.2, ls="--")
+        else:
+            ax.axvspan(start, min(end, hi), color=color, alpha=0.15, lw=0)
+        ax.text(start, 0.98, f" {label}", transform=ax.get_xaxis_transform(), rotation=90, va="top", ha="left",
+                fontsize=7, color=color)  # fmt: skip
+    ax.set_xlim(lo, hi)
 
 
 def _obstacles(run_dir: Path) -> list[tuple[float, float, float]]:
@@ -162,7 +211,7 @@ def _trajectories(path: Path, data: Mapping[str, Series], robots: list[int], fol
 
 
 def _over_time(path: Path, data: Mapping[str, Series], followers: list[int], entity: str, ylabel: str,
-               title: str) -> None:  # fmt: skip
+               title: str, marks: list[tuple[float, float | None, str]] = ()) -> None:  # fmt: skip
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(8, 3.5))
@@ -175,7 +224,8 @@ def _over_time(path: Path, data: Mapping[str, Series], followers: list[int], ent
     ax.set_title(title)
     ax.grid(alpha=0.3)
     if ax.lines:
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="upper right")
+        _mark(ax, list(marks))
     else:
         ax.text(0.5, 0.5, "no data (l-psi followers have no V_N)", ha="center", transform=ax.transAxes)
     fig.tight_layout()
@@ -183,7 +233,8 @@ def _over_time(path: Path, data: Mapping[str, Series], followers: list[int], ent
     plt.close(fig)
 
 
-def _targets(path: Path, data: Mapping[str, Series], followers: list[int]) -> None:
+def _targets(path: Path, data: Mapping[str, Series], followers: list[int],
+             marks: list[tuple[float, float | None, str]] = ()) -> None:  # fmt: skip
     import matplotlib.pyplot as plt
 
     n = max(1, len(followers))
@@ -210,7 +261,8 @@ def _targets(path: Path, data: Mapping[str, Series], followers: list[int]) -> No
         err.set_title(f"R{r}: target error vs the true target (Fig. 10)")
         err.set_xlabel("time, s")
         err.set_ylabel("m")
-        err.legend(fontsize=8)
+        err.legend(fontsize=8, loc="upper right")
+        _mark(err, list(marks))
         err.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
@@ -251,10 +303,49 @@ def _markdown(summary: Mapping[str, Any], followers: list[int]) -> str:
         f"Messages dropped by the link layer: {summary.get('drops_total')}; lockstep misses "
         f"{summary.get('lockstep_misses')}; rejected payloads {summary.get('rejected_total')}.",
         "",
+        *_faults_markdown(summary),
         *[f"![{name[:-4]}]({name})" for name in FIGURES],
         "",
     ]
     return "\n".join(lines)
+
+
+def _faults_markdown(summary: Mapping[str, Any]) -> list[str]:
+    """The faults and what they did; processes that exited; robots lost."""
+    from formation_swarm.console import describe_event
+
+    out: list[str] = []
+    faults = [f for f in summary.get("faults") or [] if isinstance(f, Mapping)]
+    if faults:
+        out += ["## Faults", "", "| fault | ticks | what happened | counted |", "|---|---|---|---|"]
+        for f in faults:
+            end = f.get("end_tick")
+            ticks = f"{f.get('start_tick')}-{end}" if end is not None else f"from {f.get('start_tick')}"
+            happened = "; ".join(_fault_event(e) for e in f.get("events") or []) or "-"
+            counted = ", ".join(f"{k} {v}" for k, v in sorted((f.get("counts") or {}).items())) or "-"
+            out.append(f"| `{f.get('fault')}` | {ticks} | {happened} | {counted} |")
+        out.append("")
+    events = [e for e in summary.get("events") or [] if isinstance(e, Mapping)]
+    deaths = [d for d in summary.get("deaths") or [] if isinstance(d, Mapping)]
+    if events or deaths:
+        out += ["## Processes", ""]
+        unexpected = _unexpected_exits(events)
+        out += [f"- {describe_event(e)}" for e in events if e.get("event") != "exited" or e in unexpected]
+        out += [f"- robot {d.get('robot')} lost its agent at tick {d.get('tick')} ({_t(d.get('time_s'))})"
+                for d in deaths]  # fmt: skip
+        if summary.get("failure"):
+            out.append(f"- the run failed: {summary['failure']}")
+        out.append("")
+    return out
+
+
+def _fault_event(e: Mapping[str, Any]) -> str:
+    robot = f" R{e['robot']}" if e.get("robot") is not None else ""
+    return f"{e.get('event')}{robot} at tick {e.get('tick')} ({_t(e.get('time_s'))})"
+
+
+def _t(x: Any) -> str:
+    return f"{x:.2f} s" if isinstance(x, (int, float)) and not isinstance(x, bool) else "-"
 
 
 def build_parser() -> Parser:

@@ -105,6 +105,39 @@ def robots_lost(world: Mapping[str, Any], sc: Scenario) -> str | None:
     return None
 
 
+def fault_effects(sc: Scenario, parts: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Each scheduled fault, its ticks and what it did: the events the world
+    logged for it (``fault_log``: killed, started, rejoined, frozen, thawed ...)
+    and the counters any process kept under the fault's string (links,
+    sensors, actuators: ``fault_counts``)."""
+    world = parts.get("world", {})
+    log = world.get("fault_log", []) or []
+    out = []
+    for index, f in enumerate(sc.faults):
+        text = str(f)
+        counts: dict[str, int] = {}
+        for part in parts.values():
+            for key, value in ((part.get("fault_counts") or {}).get(text) or {}).items():
+                if isinstance(value, (int, float)) and not isinstance(value, bool):
+                    counts[key] = counts.get(key, 0) + value
+        out.append(
+            {
+                "index": index,
+                "fault": text,
+                "kind": f.kind,
+                "group": f.group,
+                "target": f.target,
+                "at_s": f.at_s,
+                "for_s": f.for_s,
+                "start_tick": f.start_tick(sc.dt_s),
+                "end_tick": f.end_tick(sc.dt_s),
+                "events": [e for e in log if e.get("fault") == text],
+                "counts": counts,
+            }
+        )
+    return out
+
+
 def build(
     *,
     run_id: str,
@@ -158,6 +191,7 @@ def build(
         "stale_stops": world.get("stale_stops"),
         "formation_events": world.get("formation_events", []),
         "deaths": world.get("deaths", []),
+        "faults": fault_effects(sc, parts),
         "messages": world.get("messages", {}),
         "links": links,
         "drops_total": sum(v.get("dropped", 0) for v in links.values()),

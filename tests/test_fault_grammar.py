@@ -147,3 +147,22 @@ def test_a_faults_entry_that_is_not_a_table(tmp_path: Path) -> None:
     path.write_text(src + '\n[[faults]]\nkind = "kill"\nat_s = 3\n')
     with pytest.raises(ScenarioError, match=r"faults\[0\]: faults needs target"):
         scenario_mod.load(path)
+
+
+def test_summary_gathers_each_faults_ticks_events_and_counts() -> None:
+    from formation_swarm.summary import fault_effects
+
+    sc = scenario_mod.load("fig11_obstacles", faults=["restart agent-3@20s after=1", "drop obs:2@10s for=5s p=0.3"])
+    parts = {
+        "world": {"fault_log": [
+            {"tick": 400, "time_s": 20.0, "fault": "restart agent-3@20s after=1", "event": "killed", "robot": 3},
+            {"tick": 420, "time_s": 21.0, "fault": "restart agent-3@20s after=1", "event": "rejoined", "robot": 3},
+        ]},
+        "agent-2": {"fault_counts": {"drop obs:2@10s for=5s p=0.3": {"dropped": 29, "received": 100}}},
+        "agent-3": {"fault_counts": {"drop obs:2@10s for=5s p=0.3": {"dropped": 1}}},
+    }  # fmt: skip
+    out = fault_effects(sc, parts)
+    assert [(f["fault"], f["start_tick"], f["end_tick"]) for f in out] == [
+        ("drop obs:2@10s for=5s p=0.3", 200, 300), ("restart agent-3@20s after=1", 400, 420)]  # fmt: skip
+    assert out[0]["counts"] == {"dropped": 30, "received": 100}
+    assert [e["event"] for e in out[1]["events"]] == ["killed", "rejoined"]
