@@ -16,6 +16,9 @@ Besides the metrics it says which code made the run and why the run ended:
     link class (``obs``, ``cmd``, ``formation``); and per link fault, by its
     index in the scenario's schedule, the fault and the messages it affected
     on all its links.
+``error_windows``
+    per follower, its mean and largest formation error in each window
+    (``window_s``, 1 s) of the run: how long a formation took to recover.
 """
 
 from __future__ import annotations
@@ -156,6 +159,7 @@ def build(
         "sim_time_s": world.get("sim_time_s"),
         "ticks_per_s": world.get("ticks_per_s"),
         "followers": world.get("followers", {}),
+        "error_windows": world.get("error_windows"),
         "min_distance_m": world.get("min_distance_m"),
         "robot_diameter_m": world.get("robot_diameter_m"),
         "collisions": world.get("collisions"),
