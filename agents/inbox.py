@@ -11,6 +11,13 @@ who claims to have sent it; these checks make sure it could be true:
   stamped far past the agent's own clock (such a code would otherwise wait in
   the queue, or hold back the real ones).
 
+The agent's link layer (protocol.links) sits between these checks and the
+controller: what arrives is checked first, then handed to the link layer, and
+what the link layer hands over (the same message, a duplicate of it, one it
+held back) is checked again for order alone: an observation whose tick, or
+a code whose seq, is not above the last one handed over and taken is
+"replayed or reordered". That is how a duplicated or reordered message ends.
+
 Each check returns the reason of a rejection (counted by the agent) or None.
 No Zenoh here: the agent process feeds it decoded messages.
 """
@@ -46,6 +53,8 @@ class InboxChecks:
         self.code_ahead_ticks = max(2, math.ceil(CODE_AHEAD_S / dt_s))
         self.last_tick = -1  # of the last observation taken
         self.last_code_seq = -1
+        self.last_reading_tick = -1  # of the last observation the link layer handed over and taken
+        self.last_handed_code_seq = -1
 
     def observation(self, obs: Observation) -> str | None:
         if obs.tick <= self.last_tick:
@@ -69,4 +78,18 @@ class InboxChecks:
         if fc.tick > self.last_tick + self.code_ahead_ticks:
             return "tick ahead of the world"
         self.last_code_seq = fc.seq
+        return None
+
+    def reading(self, obs: Observation) -> str | None:
+        """An observation the link layer hands over (already taken on arrival)."""
+        if obs.tick <= self.last_reading_tick:
+            return "replayed or reordered"
+        self.last_reading_tick = obs.tick
+        return None
+
+    def handed_code(self, fc: FormationCode) -> str | None:
+        """A formation code the link layer hands over (already taken on arrival)."""
+        if fc.seq <= self.last_handed_code_seq:
+            return "replayed or reordered"
+        self.last_handed_code_seq = fc.seq
         return None

@@ -11,7 +11,8 @@ formation code to every follower over one-way links: every tick for
 (agents.leader.CodeRepeats).
 
 The agent answers every observation it receives, even one its link layer
-drops (then without the reading), so that lockstep never waits on a drop.
+loses or holds back (then with the newest reading the link did hand over,
+if any), so that lockstep never waits on a link fault (protocol.links).
 Before it announces itself (its liveliness token) it waits, up to
 ``--peers-timeout``, for the world's token and for its command publisher to
 match (the leader: also every follower's formation subscriber), each such
@@ -49,7 +50,7 @@ from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.protocol.links import Link, link_name
+from formation_swarm.protocol.links import Link, faults_on, link_name
 from formation_swarm.protocol.messages import Command, FormationCode, Observation, Status, Telemetry
 from formation_swarm.world.kinematics import Pose
 
@@ -80,8 +81,14 @@ class Agent:
         self._inbox_lock = threading.RLock()  # a stop signal may arrive while a callback closes it
         self.seq = 0
         self.code = sc.code_of(sc.leader.formation)
-        self.obs_link = Link(link_name("obs", WORLD_ID, rid), sc.links.obs_drop, seed)
-        self.formation_link = Link(link_name("formation", sc.leader.robot_id, rid), sc.links.formation_drop, seed)
+        # The receiving ends of our links, with the faults the run's schedule puts on them.
+        self.obs_link: Link[Observation] = Link(
+            link_name("obs", WORLD_ID, rid), sc.links.obs_drop, seed, faults_on(sc.faults, "obs", rid), sc.dt_s
+        )
+        self.formation_link: Link[FormationCode] = Link(
+            link_name("formation", sc.leader.robot_id, rid), sc.links.formation_drop, seed,
+            faults_on(sc.faults, "formation", rid), sc.dt_s,
+        )  # fmt: skip
         self.world_seen = False
         self.world_gone = False
         self.peers_changed = threading.Event()  # a matching change, the world's token or a stop
@@ -91,7 +98,8 @@ class Agent:
         self.answered = 0
         self.busy_s = 0.0  # time handling messages in the loop, summed
         self.formation_changes: list[dict[str, Any]] = []
-        self.pending_codes: collections.deque[FormationCode] = collections.deque(maxlen=PENDING_CODES)
+        # Codes taken, each with the tick it is stamped with or, if the link held it, released at.
+        self.pending_codes: collections.deque[tuple[int, FormationCode]] = collections.deque(maxlen=PENDING_CODES)
         self.checks = InboxChecks(sc.robots, sc.camera.range_m, sc.camera.sigma_rho_m, sc.leader.sensing_range_m,
                                   sc.dt_s)  # fmt: skip
         self.superseded = 0  # observations skipped because a newer one was already there
@@ -222,19 +230,21 @@ class Agent:
                 self.role.say(f"run {self.keys.run_id} started")
             t0 = time.perf_counter()
             # Everything that has arrived: codes in order, and only the newest
-            # observation is answered (after a stall, the older ones are stale).
-            newest = None
+            # observation is answered (after a stall, the older ones are stale),
+            # with the newest reading the observation link has handed over.
+            newest = reading = None
             while sample is not None:
-                obs = self._on_message(str(sample.key_expr), sample.payload.to_bytes())
-                if obs is not None:
+                got = self._on_message(str(sample.key_expr), sample.payload.to_bytes())
+                if got is not None:
                     self.superseded += newest is not None
-                    newest = obs
+                    newest = got[0]
+                    reading = got[1] if got[1] is not None else reading
                 try:
                     sample = channel.try_recv()
                 except zenoh.ZError:
                     sample = None  # closed by _close_inbox: answer what we have, then recv ends the loop
             if newest is not None:
-                self._on_observation(*newest)
+                self._on_observation(newest, reading)
             self.busy_s += time.perf_counter() - t0
         return self._exit_code()
 
@@ -242,9 +252,15 @@ class Agent:
         code, self.end_note = self.role.follower_end(self.keys.run_id, self.done, self.started)
         return code
 
-    def _on_message(self, key: str, payload: bytes) -> tuple[Observation, bool] | None:
-        """Take a formation code; return an observation (and whether the link
-        delivered it) for the loop to answer. Anything else is counted and dropped."""
+    def _on_message(self, key: str, payload: bytes) -> tuple[Observation, Observation | None] | None:
+        """Take a formation code; return an observation for the loop to answer,
+        with the newest observation its link handed over (None: no reading:
+        lost, held, or only replays). Anything else is counted and dropped.
+
+        What arrives is checked first (a message that could not be true is
+        neither answered nor given to the link layer); what the link layer
+        hands over is checked again for order (a duplicate or a message it
+        held back behind a newer one is "replayed or reordered")."""
         rk = self.keys.parse_robot(key)
         if rk is None or rk.robot_id != self.rid:
             self.rejections.reject("unknown key")
@@ -255,25 +271,38 @@ class Agent:
                 if (why := self.checks.observation(msg)) is not None:
                     self.rejections.reject(why)
                     return None
-                return msg, self.obs_link.accept(msg.seq)
+                if not self.is_leader:  # codes the formation link held until this tick
+                    self._take_codes(self.formation_link.due(msg.tick), msg.tick)
+                reading = None
+                for got in self.obs_link.deliver(msg.seq, msg.tick, msg):
+                    if (why := self.checks.reading(got)) is not None:
+                        self.rejections.reject(why)
+                    else:
+                        reading = got
+                return msg, reading
         elif rk.kind == "formation" and not self.is_leader:
             fc = self.rejections.decode(FormationCode, payload, sender=self.sc.leader.robot_id)
             if fc is not None:
                 if (why := self.checks.code(fc)) is not None:
                     self.rejections.reject(why)
-                elif self.formation_link.accept(fc.seq):
-                    self._accept_formation(fc)
+                else:
+                    self._take_codes(self.formation_link.deliver(fc.seq, fc.tick, fc), fc.tick)
         else:
             self.rejections.reject("unexpected key")
         return None
 
-    def _accept_formation(self, fc: FormationCode) -> None:
-        if fc.code >= len(self.sc.formation_names):
-            self.rejections.reject("unknown formation")
-        elif self.rid not in self.sc.formation_by_code(fc.code).slots:
-            self.rejections.reject("no slot in formation")
-        else:
-            self.pending_codes.append(fc)
+    def _take_codes(self, codes: list[FormationCode], release_tick: int) -> None:
+        """Codes the formation link handed over at ``release_tick``: one it held
+        takes effect as if stamped with the tick of its release."""
+        for fc in codes:
+            if (why := self.checks.handed_code(fc)) is not None:
+                self.rejections.reject(why)
+            elif fc.code >= len(self.sc.formation_names):
+                self.rejections.reject("unknown formation")
+            elif self.rid not in self.sc.formation_by_code(fc.code).slots:
+                self.rejections.reject("no slot in formation")
+            else:
+                self.pending_codes.append((max(fc.tick, release_tick), fc))
 
     def _apply_formation(self, fc: FormationCode) -> None:
         if fc.code == self.code:
@@ -284,44 +313,46 @@ class Agent:
         self.follower.set_offset(slot.offset)
         self.formation_changes.append({"tick": fc.tick, "code": fc.code, "name": self.sc.formation_names[fc.code]})
 
-    def _on_observation(self, obs: Observation, delivered: bool) -> None:
+    def _on_observation(self, obs: Observation, reading: Observation | None) -> None:
+        """Answer ``obs`` (its tick) with what ``reading`` says (None: nothing)."""
         if self.is_leader:
-            self._lead(obs, delivered)
+            self._lead(obs, reading)
         else:
-            self._follow(obs, delivered)
+            self._follow(obs, reading)
         self.answered += 1
 
     def _send_cmd(self, tick: int, left: float, right: float, done: bool = False) -> None:
         self.seq += 1
         self.cmd_pub.put(Command(self.rid, self.seq, tick, left, right, self.code, done).to_bytes())
 
-    def _lead(self, obs: Observation, delivered: bool) -> None:
-        if delivered:
-            self.code = self.switch.step(obs.obstacles)
-            self.last_cmd = self.pilot.step(Pose(*obs.pose))
+    def _lead(self, obs: Observation, reading: Observation | None) -> None:
+        if reading is not None:
+            self.code = self.switch.step(reading.obstacles)
+            self.last_cmd = self.pilot.step(Pose(*reading.pose))
         if self.repeats.due(self.code):
             for pub in self.form_pubs.values():
                 self.seq += 1
                 pub.put(FormationCode(self.rid, self.seq, obs.tick, self.code).to_bytes())
         self._send_cmd(obs.tick, *self.last_cmd, done=self.pilot.finished)
 
-    def _follow(self, obs: Observation, delivered: bool) -> None:
+    def _follow(self, obs: Observation, reading_obs: Observation | None) -> None:
         # The leader answers tick k with its code for k; that code can reach us before
         # or after our own observation k (the world publishes them one by one), so it
         # is applied from tick k + 1 on: never earlier, and in lockstep never later,
         # since the world publishes k + 1 only after the leader's answer to k.
         # Codes are taken in the order of their ticks, so one stamped far ahead
-        # cannot hold back the others.
-        if self.pending_codes and min(c.tick for c in self.pending_codes) < obs.tick:
-            due = sorted((c for c in self.pending_codes if c.tick < obs.tick), key=lambda c: (c.tick, c.seq))
+        # cannot hold back the others. A code the link held back counts from
+        # the tick of its release (so it too takes effect on the tick after).
+        if self.pending_codes and min(t for t, _ in self.pending_codes) < obs.tick:
+            due = sorted((p for p in self.pending_codes if p[0] < obs.tick), key=lambda p: (p[0], p[1].seq))
             self.pending_codes = collections.deque(
-                (c for c in self.pending_codes if c.tick >= obs.tick), maxlen=PENDING_CODES
+                (p for p in self.pending_codes if p[0] >= obs.tick), maxlen=PENDING_CODES
             )
-            for fc in due:
+            for _, fc in due:
                 self._apply_formation(fc)
         reading = None
-        if delivered:
-            for rid, rho, phi, beta in obs.readings:
+        if reading_obs is not None:  # this tick's, or an older one the link held back (stale, as delays are)
+            for rid, rho, phi, beta in reading_obs.readings:
                 if rid == self.reference:
                     reading = (rho, phi, beta)
                     break
@@ -348,8 +379,8 @@ class Agent:
                 d.right_mps,
                 int(d.steering_to),
                 d.changing,
-                self.obs_link.dropped,
-                self.formation_link.dropped,
+                self.obs_link.lost,
+                self.formation_link.lost,
                 self.rejections.total,
             ).to_bytes()  # fmt: skip
         )
@@ -366,7 +397,7 @@ class Agent:
             "formation": self.sc.formation_names[self.code],
             "formation_changes": self.formation_changes,
             "links": {
-                lk.name: {"received": lk.received, "dropped": lk.dropped}
+                lk.name: lk.stats()
                 for lk in ((self.obs_link,) if self.is_leader else (self.obs_link, self.formation_link))
             },
             "rejected": dict(self.rejections.by_reason + self.status_rejections.by_reason),

@@ -10,6 +10,15 @@ Besides the metrics it says which code made the run and why the run ended:
 ``end_reason``, ``ended_at_s``
     one of ``END_REASONS`` and the sim time (s) the run had reached then,
     None when it never started.
+``links``, ``link_totals``, ``link_faults``
+    every directed link's counts (received, dropped, partitioned, delayed,
+    duplicated, reordered, held at the end), by link name; their sums per
+    link class (``obs``, ``cmd``, ``formation``); and per link fault, by its
+    index in the scenario's schedule, the fault and the messages it affected
+    on all its links.
+``error_windows``
+    per follower, its mean and largest formation error in each window
+    (``window_s``, 1 s) of the run: how long a formation took to recover.
 """
 
 from __future__ import annotations
@@ -23,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 import formation_swarm
 from formation_swarm.proc import write_json
+from formation_swarm.protocol.links import EFFECTS
 
 if TYPE_CHECKING:
     from formation_swarm.scenario import Scenario
@@ -164,6 +174,7 @@ def build(
     for name, part in parts.items():
         if name.startswith("agent-"):
             links.update(part.get("links", {}))
+    link_totals, link_faults = _link_sums(links, sc)
     return {
         "run_id": run_id,
         "scenario": sc.name,
@@ -181,6 +192,7 @@ def build(
         "sim_time_s": world.get("sim_time_s"),
         "ticks_per_s": world.get("ticks_per_s"),
         "followers": world.get("followers", {}),
+        "error_windows": world.get("error_windows"),
         "min_distance_m": world.get("min_distance_m"),
         "robot_diameter_m": world.get("robot_diameter_m"),
         "collisions": world.get("collisions"),
@@ -194,6 +206,8 @@ def build(
         "faults": fault_effects(sc, parts),
         "messages": world.get("messages", {}),
         "links": links,
+        "link_totals": link_totals,
+        "link_faults": link_faults,
         "drops_total": sum(v.get("dropped", 0) for v in links.values()),
         "rejected": rejected,
         "rejected_total": sum(sum(r.values()) for r in rejected.values()),
@@ -203,6 +217,23 @@ def build(
         "recording": recording,
         "parts": dict(parts),
     }
+
+
+def _link_sums(links: Mapping[str, Any], sc: Scenario) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Per link class (the name's part before ":") the sums of every count; per
+    fault index the fault and the sums of its counts over its links."""
+    totals: dict[str, dict[str, int]] = {}
+    by_fault: dict[str, dict[str, Any]] = {}
+    for name, counts in sorted(links.items()):
+        total = totals.setdefault(name.split(":")[0], dict.fromkeys(("received", *EFFECTS, "held"), 0))
+        for key in total:
+            total[key] += int(counts.get(key, 0))
+        for index, effects in counts.get("faults", {}).items():
+            i = int(index)
+            entry = by_fault.setdefault(index, {"fault": str(sc.faults[i]) if 0 <= i < len(sc.faults) else None})
+            for effect, n in effects.items():
+                entry[effect] = entry.get(effect, 0) + int(n)
+    return totals, dict(sorted(by_fault.items(), key=lambda kv: int(kv[0])))
 
 
 def write(run_dir: Path, summary: Mapping[str, Any]) -> Path:

@@ -280,3 +280,17 @@ def test_follower_metrics_from_samples() -> None:
     empty = FollowerMetrics().as_dict()
     assert (empty["max_m"], empty["turn_max_m"], empty["max_lag_m"], empty["max_ahead_m"]) == (0.0, 0.0, 0.0, 0.0)
     assert all(math.isnan(empty[k]) for k in ("rms_m", "turn_rms_m", "straight_rms_m", "turn_mean_lag_m"))
+
+
+def test_error_windows_give_each_followers_mean_and_largest_error_per_second() -> None:
+    """The leader drives off at 1.5 m/s, its followers stay: robot 2's error is
+    the leader's distance from its start, 0.075 m more each tick; robot 3
+    keeps its place behind robot 2, error 0. 45 ticks: windows of 20, 20, 5."""
+    eng = WorldEngine(FIG11, 0)
+    _drive(eng, 45, {1: (1.5, 1.5), 2: (0.0, 0.0), 3: (0.0, 0.0)})
+    w = eng.summary()["error_windows"]
+    assert w["window_s"] == pytest.approx(1.0)
+    step = 1.5 * FIG11.dt_s
+    assert w["mean_m"]["2"] == pytest.approx([step * 9.5, step * 29.5, step * 42.0], abs=1e-4)
+    assert w["max_m"]["2"] == pytest.approx([step * 19, step * 39, step * 44], abs=1e-4)
+    assert w["mean_m"]["3"] == w["max_m"]["3"] == [0.0, 0.0, 0.0]

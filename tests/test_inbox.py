@@ -87,3 +87,23 @@ def test_codes_must_be_newer_and_not_far_ahead_of_the_agents_clock() -> None:
     assert c.code(FormationCode(1, 12, 20 + ahead + 1, 1)) == "tick ahead of the world"
     assert c.code(FormationCode(1, 13, 2**53, 1)) == "tick ahead of the world"
     assert c.last_code_seq == 11  # refused codes move nothing
+
+
+def test_what_the_link_layer_hands_over_must_be_newer_than_what_it_handed_over_before() -> None:
+    """Arrivals and the link layer's output are checked apart: a delayed
+    observation taken on arrival long ago still gives its reading when the
+    link releases it, while a duplicate or one held behind a newer one does not."""
+    c = checks()
+    for t in (5, 6, 7):
+        assert c.observation(obs(t)) is None  # arrivals: answered
+    assert c.reading(obs(5)) is None  # released late by a delay: taken, stale
+    assert c.reading(obs(5)) == "replayed or reordered"  # its duplicate
+    assert c.reading(obs(7)) is None
+    assert c.reading(obs(6)) == "replayed or reordered"  # held behind 7 by a reorder
+    assert (c.last_tick, c.last_reading_tick) == (7, 7)
+    assert c.code(FormationCode(1, 3, 0, 1)) is None
+    assert c.code(FormationCode(1, 4, 0, 1)) is None
+    assert c.handed_code(FormationCode(1, 4, 0, 1)) is None
+    assert c.handed_code(FormationCode(1, 3, 0, 1)) == "replayed or reordered"
+    assert c.handed_code(FormationCode(1, 4, 0, 1)) == "replayed or reordered"
+    assert c.last_handed_code_seq == 4

@@ -49,7 +49,7 @@ from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.protocol.links import Link, link_name
+from formation_swarm.protocol.links import Link, faults_on, link_name
 from formation_swarm.protocol.messages import Command, Observation, Status, Truth
 from formation_swarm.world.engine import WorldEngine
 
@@ -128,7 +128,12 @@ class World:
         self.seqs: collections.Counter[str] = collections.Counter()
         self.events: collections.deque[tuple[str, bool]] = collections.deque()  # liveliness, from its callback
         self.wakes = 0
-        self.cmd_links = {rid: Link(link_name("cmd", rid, 0), sc.links.cmd_drop, seed) for rid in sc.robots}
+        # The receiving ends of the command links, with the faults the run's schedule puts on them.
+        self.cmd_links: dict[int, Link[Command]] = {
+            rid: Link(link_name("cmd", rid, 0), sc.links.cmd_drop, seed, faults_on(sc.faults, "cmd", rid), sc.dt_s)
+            for rid in sc.robots
+        }
+        self.applied_seq = {rid: -1 for rid in sc.robots}  # of the last command a cmd link handed over and taken
         # Per robot, the last command taken: (seq, tick). A command must be newer on both.
         self.last_cmd: dict[int, tuple[int, int]] = {rid: (-1, -1) for rid in sc.robots}
         self.wheel_limit = sc.max_wheel_mps * (1.0 + 1e-9)
@@ -320,15 +325,26 @@ class World:
         if self.mode == "lockstep" and msg.tick != eng.tick:
             self.late_answers += 1
             return
+        # It answers the tick, whatever its link does with it: lost or held, the
+        # robot's command is not renewed now.
         r.answered = True
         if msg.done and msg.sender == self.sc.leader.robot_id:
             self.leader_done = True
-        if not self.cmd_links[msg.sender].accept(msg.seq):
+        for handed in self.cmd_links[msg.sender].deliver(msg.seq, msg.tick, msg):
+            self._apply_command(handed)
+
+    def _apply_command(self, msg: Command) -> None:
+        """A command its link hands over (now, or held until this tick): taken if
+        newer than the last one taken, else (a duplicate, one held behind a
+        newer one) "replayed or reordered"."""
+        if msg.seq <= self.applied_seq[msg.sender]:
+            self.rejections.reject("replayed or reordered")
             return
-        if not r.alive:
+        self.applied_seq[msg.sender] = msg.seq
+        if not self.engine.robots[msg.sender].alive:
             return
-        now = eng.time_s if self.mode == "lockstep" else self.wall_s
-        eng.set_command(msg.sender, msg.left_mps, msg.right_mps, msg.formation, now)
+        now = self.engine.time_s if self.mode == "lockstep" else self.wall_s
+        self.engine.set_command(msg.sender, msg.left_mps, msg.right_mps, msg.formation, now)
 
     def _publish_tick(self, obs_pubs: dict[int, zenoh.Publisher], truth_pub: BatchPublisher) -> None:
         eng = self.engine
@@ -387,6 +403,9 @@ class World:
             if self.mode == "realtime" or now >= next_status:
                 self._publish_status(status_pub, "running")
                 next_status = now + STATUS_PERIOD_S
+            for link in self.cmd_links.values():  # commands held back until this tick
+                for held in link.due(eng.tick):
+                    self._apply_command(held)
             eng.step(eng.time_s if self.mode == "lockstep" else self.wall_s)
         return 0
 
@@ -409,9 +428,7 @@ class World:
                 "end_reason": self.end_reason,
                 "ended_at_s": self.ended_at_s,
                 "messages": dict(self.counts),
-                "cmd_links": {
-                    lk.name: {"received": lk.received, "dropped": lk.dropped} for lk in self.cmd_links.values()
-                },
+                "cmd_links": {lk.name: lk.stats() for lk in self.cmd_links.values()},
                 "rejected": dict(self.rejections.by_reason),
             }
         )
