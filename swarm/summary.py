@@ -115,17 +115,19 @@ def robots_lost(world: Mapping[str, Any], sc: Scenario) -> str | None:
     return None
 
 
-def fault_effects(sc: Scenario, parts: Mapping[str, Any]) -> list[dict[str, Any]]:
+def fault_effects(
+    sc: Scenario, parts: Mapping[str, Any], link_faults: Mapping[str, Any] | None = None
+) -> list[dict[str, Any]]:
     """Each scheduled fault, its ticks and what it did: the events the world
     logged for it (``fault_log``: killed, started, rejoined, frozen, thawed ...)
-    and the counters any process kept under the fault's string (links,
-    sensors, actuators: ``fault_counts``)."""
+    and the counters any process kept under the fault's string (sensors,
+    actuators: ``fault_counts``) or the link layer under its index (``link_faults``)."""
     world = parts.get("world", {})
     log = world.get("fault_log", []) or []
     out = []
     for index, f in enumerate(sc.faults):
         text = str(f)
-        counts: dict[str, int] = {}
+        counts: dict[str, int] = {k: v for k, v in ((link_faults or {}).get(str(index)) or {}).items() if k != "fault"}
         for part in parts.values():
             for key, value in ((part.get("fault_counts") or {}).get(text) or {}).items():
                 if isinstance(value, (int, float)) and not isinstance(value, bool):
@@ -203,7 +205,7 @@ def build(
         "stale_stops": world.get("stale_stops"),
         "formation_events": world.get("formation_events", []),
         "deaths": world.get("deaths", []),
-        "faults": fault_effects(sc, parts),
+        "faults": fault_effects(sc, parts, link_faults),
         "messages": world.get("messages", {}),
         "links": links,
         "link_totals": link_totals,
