@@ -157,6 +157,8 @@ def build(
         "max_tick_lateness_s": world.get("max_tick_lateness_s"),
         "stale_stops": world.get("stale_stops"),
         "formation_events": world.get("formation_events", []),
+        "sensor_faults": world.get("sensor_faults", {}),
+        "actuator_faults": world.get("actuator_faults", {}),
         "deaths": world.get("deaths", []),
         "messages": world.get("messages", {}),
         "links": links,
