@@ -35,6 +35,25 @@ def describe_event(ev: Mapping[str, Any]) -> str:
     return ", ".join(f"{k} {v}" for k, v in ev.items() if k != "log_tail")
 
 
+def describe_hardware_faults(s: Mapping[str, Any]) -> list[str]:
+    """What each sensor and actuator fault did, one line per fault (summary's
+    ``sensor_faults`` and ``actuator_faults``)."""
+    out = []
+    for group in ("sensor_faults", "actuator_faults"):
+        for fault, robots in (s.get(group) or {}).items():
+            parts = []
+            for rid, c in robots.items():
+                if group == "sensor_faults":
+                    effect = next((k for k in c if k != "ticks"), "")
+                    parts.append(
+                        f"R{rid} {c.get(effect)} readings {effect.replace('_', ' ')} in {c.get('ticks')} ticks"
+                    )
+                else:
+                    parts.append(f"R{rid} {c.get('ticks')} ticks ({c.get('moving_ticks')} moving)")
+            out.append(f"{fault}: {', '.join(parts)}")
+    return out
+
+
 def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
     """The run's metrics on the console; a run that ended early has fewer (never an error)."""
     s = res.summary
@@ -55,6 +74,8 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
         changes = [f"R{e.get('robot')} {e.get('formation')} at {_num(e.get('time_s'), '.2f')} s"
                    for e in s.get("formation_events") or []]  # fmt: skip
         w(f"  formation changes: {', '.join(changes) or 'none'}\n")
+        for line in describe_hardware_faults(s):
+            w(f"  fault {line}\n")
         w(f"  lockstep misses {s.get('lockstep_misses')}, drops {s.get('drops_total')}, ")
         w(f"rejected {s.get('rejected_total')}\n")
     events = s.get("events") or []
