@@ -134,7 +134,7 @@ KINDS: dict[str, Kind] = {
         {"from": Param("what they are cut off from", default="both", choices=("world", "leader", "both"))},
         needs_for=True,
     ),
-    "blackout": Kind(SENSOR, "the camera sees nothing"),
+    "blackout": Kind(SENSOR, "the camera sees nothing (camera faults apply to followers: the leader has none)"),
     "bias": Kind(
         SENSOR,
         "every camera reading is offset",
@@ -429,7 +429,8 @@ def _canonical_target(kind: str, target: str, where: str) -> str:
 def check_against(faults: Sequence[Fault], robots: Sequence[int], leader_id: int, duration_s: float,
                   dt_s: float) -> None:  # fmt: skip
     """Faults that cannot apply to this run: unknown robots, a start past the end,
-    a formation link to the leader, two process faults on one process at once."""
+    a formation link to the leader, a camera fault on the leader (it has none),
+    two process faults on one process at once."""
     if len(faults) > MAX_FAULTS:
         raise ValueError(f"at most {MAX_FAULTS} faults, got {len(faults)}")
     known = set(robots)
@@ -447,6 +448,11 @@ def check_against(faults: Sequence[Fault], robots: Sequence[int], leader_id: int
         if f.group == LINK and "formation" in f.link_classes and named is not None and leader_id in named \
                 and f.link_classes == ("formation",):  # fmt: skip
             raise ValueError(f"{where}: robot {leader_id} is the leader; formation links go to followers")
+        if f.group == SENSOR and named is not None and leader_id in named:
+            raise ValueError(
+                f"{where}: robot {leader_id} is the leader; it has no camera in this model (sensor faults apply "
+                "to followers; '*' names them all)"
+            )
         if f.kind == "partition" and f.param("from") == "leader" and named is not None and leader_id in named:
             raise ValueError(f"{where}: robot {leader_id} is the leader; it cannot be cut off from itself")
         if f.group == PROCESS:

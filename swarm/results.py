@@ -1,11 +1,15 @@
 """The baseline comparison: fuzzy static / fuzzy dynamic / l-psi, under
-observation drops and two camera-noise levels, on the paper's turning path.
+observation drops and two camera-noise levels, on the paper's turning path;
+or, with --claims, the paper's claims a-d measured seed by seed.
 
 Runs the grid through swarm sweep (resumable: rerunning reuses finished runs),
 then prints a markdown table of the follower's RMS and max formation error
 (mean over seeds, with the 95% confidence half-width) and, with --write,
-replaces the table between the markers in that file. A run that
-failed or missed a lockstep tick keeps the table from being written.
+replaces the table between the markers in that file. --set changes a
+scenario key in every run (e.g. robot.wheel_noise_mps=0.1); the table then
+goes between markers that name the setting, so tables of several settings
+live side by side. A run that failed or missed a lockstep tick keeps the
+table from being written.
 """
 
 from __future__ import annotations
@@ -17,8 +21,10 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from formation_swarm import claims
 from formation_swarm.cliargs import USAGE_ERROR, Parser, integer, make_folder
 from formation_swarm.proc import interrupt_on_stop_signals
+from formation_swarm.scenario_files import parse_override
 from formation_swarm.sweep import MAX_JOBS, MAX_SEEDS, Job, Sweep, aggregate
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -38,21 +44,42 @@ NOISE: dict[str, dict[str, Any]] = {
         "controller.ekf.sigma_beta_rad": 0.0436,
     },
 }  # fmt: skip
-BEGIN, END = "<!-- results table: begin -->", "<!-- results table: end -->"
 
 
-def jobs(seeds: Sequence[int]) -> list[Job]:
+def markers(what: str = "results table", settings: str = "") -> tuple[str, str]:
+    """The markers a generated table sits between, naming its settings if any."""
+    name = f"{what} ({settings})" if settings else what
+    return f"<!-- {name}: begin -->", f"<!-- {name}: end -->"
+
+
+BEGIN, END = markers()
+
+
+def settings_text(settings: Mapping[str, Any]) -> str:
+    return ", ".join(f"{k}={v}" for k, v in settings.items())
+
+
+def _label(ctrl: str, noise: str, drop: float, settings: Mapping[str, Any]) -> str:
+    label = f"{ctrl} | noise {noise} | obs drop {drop:.0%}"
+    return f"{label} | {settings_text(settings)}" if settings else label
+
+
+def jobs(seeds: Sequence[int], settings: Mapping[str, Any] | None = None) -> list[Job]:
+    settings = dict(settings or {})
+    varied = {"links.obs_drop"} | {k for ov in (*CONTROLLERS.values(), *NOISE.values()) for k in ov}
+    if clash := sorted(varied & set(settings)):
+        raise ValueError(f"--set {clash[0]}: the table varies that key itself")
     out = []
     for ctrl, c_ov in CONTROLLERS.items():
         for noise, n_ov in NOISE.items():
             for drop in DROPS:
-                label = f"{ctrl} | noise {noise} | obs drop {drop:.0%}"
-                ov = {**c_ov, **n_ov, "links.obs_drop": drop}
-                out += [Job(label, ov, s) for s in seeds]
+                ov = {**c_ov, **n_ov, "links.obs_drop": drop, **settings}
+                out += [Job(_label(ctrl, noise, drop, settings), ov, s) for s in seeds]
     return out
 
 
-def table(rows: Sequence[Mapping[str, Any]], seeds: int) -> str:
+def table(rows: Sequence[Mapping[str, Any]], seeds: int, settings: Mapping[str, Any] | None = None) -> str:
+    settings = dict(settings or {})
     agg = {(a["combination"], a["metric"]): a for a in aggregate(rows)}
 
     def cell(label: str, metric: str) -> str:
@@ -65,7 +92,8 @@ def table(rows: Sequence[Mapping[str, Any]], seeds: int) -> str:
     head = ["controller", "noise"] + [f"obs drop {d:.0%}" for d in DROPS]
     lines = [
         f"Follower RMS formation error, m: mean over {seeds} seeds ± 95% CI half-width "
-        f"(max error in brackets, mean over seeds). Scenario `{SCENARIO.relative_to(ROOT)}`, lockstep.",
+        f"(max error in brackets, mean over seeds). Scenario `{SCENARIO.relative_to(ROOT)}`, lockstep"
+        + (f", with {settings_text(settings)}." if settings else "."),
         "",
         "| " + " | ".join(head) + " |",
         "|" + "---|" * len(head),
@@ -74,7 +102,7 @@ def table(rows: Sequence[Mapping[str, Any]], seeds: int) -> str:
         for noise in NOISE:
             cells = []
             for d in DROPS:
-                label = f"{ctrl} | noise {noise} | obs drop {d:.0%}"
+                label = _label(ctrl, noise, d, settings)
                 mx = agg.get((label, "r2_max_m"))
                 cells.append(cell(label, "r2_rms_m") + (f" [{mx['mean']:.2f}]" if mx else ""))
             lines.append(f"| {ctrl} | {noise} | " + " | ".join(cells) + " |")
@@ -94,26 +122,28 @@ def unfit_runs(rows: Sequence[Mapping[str, Any]]) -> list[str]:
     return out
 
 
-def check_markers(path: Path) -> None:
+def check_markers(path: Path, begin: str = BEGIN, end: str = END) -> None:
     """Raise ValueError unless ``path`` is a file with the table's markers."""
     try:
         doc = path.read_text()
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"--write {path}: cannot read it ({getattr(exc, 'strerror', None) or exc})") from None
-    if BEGIN not in doc or END not in doc:
-        raise ValueError(f"--write {path}: has no {BEGIN} ... {END} markers")
+    if begin not in doc or end not in doc:
+        raise ValueError(f"--write {path}: has no {begin} ... {end} markers")
 
 
-def write_into(path: Path, text: str) -> None:
-    check_markers(path)
+def write_into(path: Path, text: str, begin: str = BEGIN, end: str = END) -> None:
+    check_markers(path, begin, end)
     doc = path.read_text()
-    new = re.sub(re.escape(BEGIN) + ".*?" + re.escape(END), lambda _m: f"{BEGIN}\n{text}\n{END}", doc, flags=re.S)
+    new = re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _m: f"{begin}\n{text}\n{end}", doc, flags=re.S)
     path.write_text(new)
 
 
 def build_parser() -> Parser:
     ap = Parser(prog="swarm results", description=__doc__,
-                epilog="example:\n  swarm results --seeds 10 --jobs 2 --write docs/results.md")  # fmt: skip
+                epilog="examples:\n  swarm results --seeds 10 --jobs 2 --write docs/results.md\n"
+                "  swarm results --claims --seeds 10 --jobs 1 --set robot.wheel_noise_mps=0.1 "
+                "--write docs/results.md")  # fmt: skip
     ap.add_argument("--seeds", type=integer(2, MAX_SEEDS), default=10, metavar="N",
                     help=f"runs per cell of the table, seeds 0 to N-1, 2 to {MAX_SEEDS} (a confidence interval "
                     f"needs two); {len(jobs([0]))} runs per seed (default: 10)")  # fmt: skip
@@ -124,40 +154,71 @@ def build_parser() -> Parser:
         metavar="J",
         help=f"runs at once, 1 to {MAX_JOBS} (default: the number of cores, {os.cpu_count() or 1})",
     )
-    ap.add_argument("--out", default="sweeps/results", metavar="DIR",
+    ap.add_argument("--out", default=None, metavar="DIR",
                     help="the sweep folder, created if needed; finished runs there are reused "
-                    "(default: sweeps/results)")  # fmt: skip
+                    "(default: sweeps/results, or sweeps/claims with --claims)")  # fmt: skip
     ap.add_argument("--write", metavar="MARKDOWN", action="append", default=[],
-                    help="replace the table between the markers in this file (repeatable)")  # fmt: skip
+                    help="replace the table between the markers in this file (repeatable): "
+                    f"{BEGIN} ... {END}, or with --claims and --set, e.g. "
+                    f"{markers('claims', 'robot.wheel_noise_mps=0.1')[0]} ...")  # fmt: skip
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a scenario key for every run, e.g. robot.wheel_noise_mps=0.1 (repeatable; "
+                    "not a key the table varies)")  # fmt: skip
+    ap.add_argument("--claims", action="store_true",
+                    help=f"measure the paper's claims a-d instead ({len(claims.SWEEPS)} runs per seed, of the "
+                    "scenarios of tests/test_claims.py)")  # fmt: skip
     return ap
+
+
+def claim_sweeps(seeds: Sequence[int], settings: Mapping[str, Any], out: Path, workers: int | None) -> dict[str, Sweep]:
+    """One sweep per scenario the claims are measured on, each in its own folder under ``out``."""
+    label = settings_text(settings)
+    return {
+        name: Sweep(
+            ROOT / "scenarios" / file,
+            [Job(label, dict(settings), s) for s in seeds],
+            out / Path(file).stem,
+            workers=workers,
+            logger=logger,
+        )  # fmt: skip
+        for name, (file, logger) in claims.SWEEPS.items()
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    out = Path(args.out or ("sweeps/claims" if args.claims else "sweeps/results"))
     try:
+        settings = dict(parse_override(text) for text in args.set)
+        begin, end = markers("claims" if args.claims else "results table", settings_text(settings))
         for target in args.write:
-            check_markers(Path(target))  # before the runs, not after
-        sweep = Sweep(SCENARIO, jobs(range(args.seeds)), args.out, workers=args.jobs)
-        make_folder("--out", args.out)  # last: nothing made for a bad input
+            check_markers(Path(target), begin, end)  # before the runs, not after
+        if args.claims:
+            sweeps = claim_sweeps(range(args.seeds), settings, out, args.jobs)
+        else:
+            sweeps = {"": Sweep(SCENARIO, jobs(range(args.seeds), settings), out, workers=args.jobs)}
+        make_folder("--out", out)  # last: nothing made for a bad input
     except ValueError as exc:
         print(f"swarm results: {exc}", file=sys.stderr)
         return USAGE_ERROR
     interrupt_on_stop_signals()
+    rows: dict[str, list[dict[str, Any]]] = {}
     try:
-        rows = sweep.run()
+        for name, sweep in sweeps.items():
+            rows[name] = sweep.run()
     except KeyboardInterrupt:
         return 130
-    unfit = unfit_runs(rows)
+    unfit = [why for r in rows.values() for why in unfit_runs(r)]
     if unfit:
         # A failed run is run again by the next sweep; one with misses is kept, so it must be deleted.
         print(f"swarm results: {len(unfit)} runs cannot enter the table; delete their folders under "
-              f"{Path(args.out) / 'runs'} and run again:\n  " + "\n  ".join(unfit[:10]), file=sys.stderr)  # fmt: skip
+              f"{out} and run again:\n  " + "\n  ".join(unfit[:10]), file=sys.stderr)  # fmt: skip
         return 1
-    text = table(rows, args.seeds)
+    text = claims.table(rows, settings_text(settings)) if args.claims else table(rows[""], args.seeds, settings)
     print(text)
     for target in args.write:
         try:
-            write_into(Path(target), text)
+            write_into(Path(target), text, begin, end)
         except (OSError, ValueError) as exc:
             print(f"swarm results: {exc}", file=sys.stderr)
             return 1

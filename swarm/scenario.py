@@ -96,6 +96,7 @@ class Scenario:
     links: LinkFaults
     raw: Mapping[str, Any] = field(repr=False, compare=False)
     faults: tuple[Fault, ...] = ()  # the fault schedule, by start time (formation_swarm.faults)
+    wheel_noise_mps: float = 0.0  # robot.wheel_noise_mps: every wheel, every tick
 
     @property
     def formation_names(self) -> tuple[str, ...]:
@@ -371,6 +372,7 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         links=LinkFaults(**{k: float(v) for k, v in lk.items()}),
         raw=raw,
         faults=faults,
+        wheel_noise_mps=float(robot["wheel_noise_mps"]),
     )
 
 

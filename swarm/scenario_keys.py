@@ -98,6 +98,13 @@ ROBOT_KEYS = {
         3.0,
         "m/s",
     ),
+    "wheel_noise_mps": non_negative(
+        "standard deviation of the Gaussian noise on each wheel's speed, per tick: the paper's process noise on"
+        " the robots' motion, on every robot for the whole run (a robot at rest does not jitter; the"
+        " wheel_noise fault adds noise to some robots for a while)",
+        0.0,
+        "m/s",
+    ),
 }
 CAMERA_KEYS = {
     "fov_deg": Key(NUM, 360.0, "field of view, centred on the heading", "deg", low=0.0, high=360.0, open_low=True),

@@ -128,6 +128,10 @@ def fault_effects(
     for index, f in enumerate(sc.faults):
         text = str(f)
         counts: dict[str, int] = {k: v for k, v in ((link_faults or {}).get(str(index)) or {}).items() if k != "fault"}
+        for group in ("sensor_faults", "actuator_faults"):  # the world's: {fault: {robot: {count: n}}}
+            for rid, robot_counts in ((world.get(group) or {}).get(text) or {}).items():
+                for key, value in (robot_counts or {}).items():
+                    counts[f"R{rid} {key}"] = value
         for part in parts.values():
             for key, value in ((part.get("fault_counts") or {}).get(text) or {}).items():
                 if isinstance(value, (int, float)) and not isinstance(value, bool):
@@ -204,6 +208,8 @@ def build(
         "max_tick_lateness_s": world.get("max_tick_lateness_s"),
         "stale_stops": world.get("stale_stops"),
         "formation_events": world.get("formation_events", []),
+        "sensor_faults": world.get("sensor_faults", {}),
+        "actuator_faults": world.get("actuator_faults", {}),
         "deaths": world.get("deaths", []),
         "faults": fault_effects(sc, parts, link_faults),
         "messages": world.get("messages", {}),

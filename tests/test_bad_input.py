@@ -120,6 +120,19 @@ REJECTED = {
         "--write {tmp}/a_file: has no <!-- results table: begin --> ... <!-- results table: end --> markers",
     ),
     "results: --out is a file": (["results", "--out", "{tmp}/a_file"], "--out {tmp}/a_file: is an existing file"),
+    "results: --set a key the table varies": (
+        ["results", "--set", "links.obs_drop=0.5"],
+        "--set links.obs_drop: the table varies that key itself",
+    ),
+    "results: --claims with an unknown key": (
+        ["results", "--claims", "--set", "robot.wheel_noise=0.1"],
+        "unknown key robot.wheel_noise; did you mean 'wheel_noise_mps'?",
+    ),
+    "results: --claims --write a file without their markers": (
+        ["results", "--claims", "--set", "robot.wheel_noise_mps=0.1", "--write", "{tmp}/a_file"],
+        "has no <!-- claims (robot.wheel_noise_mps=0.1): begin --> ... <!-- claims (robot.wheel_noise_mps=0.1): "
+        "end --> markers",
+    ),
     "report: negative snapshots": (
         ["report", "--snapshots", "-1", "{tmp}"],
         "argument --snapshots: must be in [0, 100], got '-1'",

@@ -19,6 +19,7 @@ PURE = (
     "formation_swarm.world.kinematics",
     "formation_swarm.world.camera",
     "formation_swarm.world.engine",
+    "formation_swarm.world.hardware_faults",
     "formation_swarm.protocol.keys",
     "formation_swarm.protocol.links",
     "formation_swarm.protocol.codec",

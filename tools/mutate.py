@@ -93,7 +93,17 @@ MODULES = (
         (T + "test_kinematics.py", T + "test_camera.py", T + "test_geometry.py", T + "test_engine.py", PUBLISHED),
     ),
     Module("world/camera.py", (T + "test_camera.py", T + "test_geometry.py", PUBLISHED)),
-    Module("world/engine.py", (T + "test_engine.py", T + "test_world_engine.py", T + "test_avoidance.py", PUBLISHED)),
+    Module(
+        "world/engine.py",
+        (
+            T + "test_engine.py",
+            T + "test_world_engine.py",
+            T + "test_sensor_actuator_faults.py",
+            T + "test_avoidance.py",
+            PUBLISHED,
+        ),
+    ),
+    Module("world/hardware_faults.py", (T + "test_sensor_actuator_faults.py",)),
     Module(
         "protocol/keys.py",
         (T + "test_keys.py", T + "test_protocol.py", T + "test_messages.py", T + "test_role_inputs.py"),

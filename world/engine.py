@@ -3,9 +3,10 @@ drives tick by tick (and tests drive directly).
 
 It integrates every robot (eq. 7-10), simulates the cameras and the leader's
 obstacle sensing, holds each robot's latest command and stops a robot whose
-command is stale or whose process is gone, and keeps the run's metrics:
-formation error per follower, minimum distance, collisions, a digest of the
-trajectories.
+command is stale or whose process is gone, applies the scenario's sensor and
+actuator faults and wheel noise (``hardware_faults``), and keeps the run's
+metrics: formation error per follower, minimum distance, collisions, what
+each fault did, a digest of the trajectories.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from formation_swarm.world.camera import observe
+from formation_swarm.world.hardware_faults import SENSOR_EFFECT, CameraFaults, Wheels, counts_table
 from formation_swarm.world.kinematics import Pose, _step_unchecked, from_body_frame, to_body_frame
 
 if TYPE_CHECKING:  # an annotation only: the world's physics does not import the application layer
@@ -111,6 +113,8 @@ class WorldEngine:
     error_windows: dict[int, list[list[float]]] = field(init=False, default_factory=dict)
     _window_ticks: int = field(init=False, default=1)
     _recorded: int = field(init=False, default=0)  # ticks whose metrics were taken
+    cameras: dict[int, CameraFaults] = field(init=False, default_factory=dict)  # followers only
+    wheels: dict[int, Wheels] = field(init=False, default_factory=dict)
     _touching: set[tuple[int, int]] = field(init=False, default_factory=set)
     _digest: hashlib._Hash = field(init=False)
     # The state of the last tick stepped from, until record() takes its metrics.
@@ -130,6 +134,13 @@ class WorldEngine:
         self.metrics = {rid: FollowerMetrics() for rid in sc.follower_ids}
         self.error_windows = {rid: [] for rid in sc.follower_ids}
         self._window_ticks = max(1, round(ERROR_WINDOW_S / sc.dt_s))
+        for rid in sc.robots:
+            # The leader has no camera in this model: camera faults are the followers'.
+            if rid != sc.leader.robot_id:
+                self.cameras[rid] = CameraFaults(sc.faults, seed=self.seed, robot_id=rid, dt_s=sc.dt_s,
+                                                 camera=sc.camera)  # fmt: skip
+            self.wheels[rid] = Wheels(sc.faults, seed=self.seed, robot_id=rid, dt_s=sc.dt_s,
+                                      noise_sigma_mps=sc.wheel_noise_mps, max_wheel_mps=sc.max_wheel_mps)  # fmt: skip
         self._digest = hashlib.sha256()
 
     @property
@@ -149,7 +160,8 @@ class WorldEngine:
         if rid != sc.leader.robot_id:
             # The leader uses no camera: it flies its path and senses obstacles.
             poses = {i: s.pose for i, s in self.robots.items()}
-            readings = [tuple(m) for m in observe(rid, poses, sc.camera, r.rng)]
+            seen = self.cameras[rid].apply(self.tick, poses, observe(rid, poses, sc.camera, r.rng))
+            readings = [tuple(m) for m in seen]
         else:
             for ob in sc.obstacles:
                 xb, yb = to_body_frame(r.pose, ob.x_m, ob.y_m)
@@ -204,7 +216,7 @@ class WorldEngine:
         self._pending = {rid: (r.pose, r.command, r.formation) for rid, r in self.robots.items()}
         sc = self.scenario
         width, dt = sc.width_m, sc.dt_s
-        for r in self.robots.values():
+        for rid, r in self.robots.items():
             vl, vr = r.command
             if not r.alive:
                 vl = vr = 0.0
@@ -213,6 +225,7 @@ class WorldEngine:
                     self.stale_stops += 1
                 r.command = (0.0, 0.0)
                 vl = vr = 0.0
+            vl, vr = self.wheels[rid].turn(self.tick, vl, vr)
             x, y, th = r.pose
             r.pose = _step_unchecked(x, y, th, vl, vr, width, dt)
         self.tick += 1
@@ -292,6 +305,9 @@ class WorldEngine:
             "clamped_commands": self.clamped_commands,
             "formation_events": self.formation_events,
             "error_windows": self._error_windows(),
+            # {fault: {robot: {"ticks": active ticks, effect: count}}} (docs/faults.md)
+            "sensor_faults": counts_table({rid: c.effects for rid, c in self.cameras.items()}, SENSOR_EFFECT),
+            "actuator_faults": counts_table({rid: w.effects for rid, w in self.wheels.items()}, "moving_ticks"),
             "trajectory_digest": self.digest(),
             "final_poses": {str(rid): list(r.pose) for rid, r in self.robots.items()},
             "dead_robots": [rid for rid, r in self.robots.items() if not r.alive],
