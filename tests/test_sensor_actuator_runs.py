@@ -44,7 +44,8 @@ def test_a_blackout_of_robot_3_opens_its_error_and_it_recovers(swarm_run: Callab
     assert dark.summary["sensor_faults"] == {"blackout 3@5s for=3s": {"3": {"ticks": 60, "blacked_out": 120}}}
     console = io.StringIO()
     print_result(dark, console)
-    assert "  fault blackout 3@5s for=3s: R3 120 readings blacked out in 60 ticks\n" in console.getvalue()
+    assert dark.summary["faults"][0]["counts"] == {"R3 ticks": 60, "R3 blacked_out": 120}
+    assert "  fault: blackout 3@5s for=3s: R3 blacked_out 120, R3 ticks 60\n" in console.getvalue()
 
 
 def test_lockstep_runs_with_wheel_noise_and_outliers_are_reproducible(swarm_run: Callable[..., RunResult]) -> None:
