@@ -56,10 +56,10 @@ class BatchPublisher:
             self.flush()
 
     def flush(self) -> None:
-        if self.items:
+        if self.items:  # the window runs from the last put: flushing nothing leaves it as it is
             self.pub.put(pack_batch(self.items))
             self.items, self.size = [], 0
-        self.last_put = self.clock()
+            self.last_put = self.clock()
 
     def close(self) -> None:
         self.flush()

@@ -169,9 +169,9 @@ class Message:
             raise DecodeError("not msgpack", type(exc).__name__) from None
         if not isinstance(raw, list) or len(raw) < 5:
             raise DecodeError("wrong type", "payload must be a msgpack list with a header")
-        if raw[0] != cls.TAG:
+        if type(raw[0]) is not int or raw[0] != cls.TAG:  # 2.0 and True compare equal to ints
             raise DecodeError("wrong message type", f"tag {raw[0]!r}, expected {cls.TAG} ({cls.__name__})")
-        if raw[1] != VERSION:
+        if type(raw[1]) is not int or raw[1] != VERSION:
             raise DecodeError("unknown version", f"{raw[1]!r}, expected {VERSION}")
         names = cls._names()
         if len(raw) != 2 + len(names):
@@ -206,9 +206,9 @@ def unpack_batch(payload: bytes) -> list[bytes]:
         raise DecodeError("not msgpack", type(exc).__name__) from None
     if not isinstance(raw, list) or len(raw) != 3:
         raise DecodeError("wrong type", "a batch is a msgpack list [tag, version, items]")
-    if raw[0] != BATCH_TAG:
+    if type(raw[0]) is not int or raw[0] != BATCH_TAG:
         raise DecodeError("wrong message type", f"tag {raw[0]!r}, expected a batch ({BATCH_TAG})")
-    if raw[1] != VERSION:
+    if type(raw[1]) is not int or raw[1] != VERSION:
         raise DecodeError("unknown version", f"{raw[1]!r}, expected {VERSION}")
     items = raw[2]
     if not isinstance(items, list) or not all(isinstance(b, bytes) for b in items):

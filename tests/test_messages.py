@@ -3,11 +3,21 @@
 from __future__ import annotations
 
 import math
+from enum import IntEnum
 
 import msgpack
 import pytest
 
-from formation_swarm.protocol.codec import MAX_PAYLOAD_BYTES, VERSION, DecodeError, Rejections
+from formation_swarm.protocol.batch import pack_batch
+from formation_swarm.protocol.codec import (
+    BATCH_TAG,
+    MAX_PAYLOAD_BYTES,
+    VERSION,
+    DecodeError,
+    Rejections,
+    int_in,
+    unpack_batch,
+)
 from formation_swarm.protocol.keys import MAX_ROBOT_ID
 from formation_swarm.protocol.messages import Command, FormationCode, Observation, Status, Telemetry, Truth
 from formation_swarm.scenario_keys import MAX_OBSTACLES, MAX_ROBOTS
@@ -203,3 +213,104 @@ def test_the_payload_limit_and_who_sends_telemetry() -> None:
     assert MAX_PAYLOAD_BYTES == 32 * 1024  # under the routed size filter of protocol.session (~40 KiB)
     tel = Telemetry(1, 1, 1, 0.0, 2, 0, None, None, None, None, None, None, 0.0, 0.0, 0, False, 0, 0, 0)
     assert Telemetry.from_bytes(tel.to_bytes()).sender == 1  # robot 1 may follow (when another robot leads)
+
+
+@pytest.mark.parametrize(
+    ("msg", "at", "value", "reason"),
+    [
+        (CMD, 0, 2.0, "wrong message type"),
+        (EXAMPLES[0], 0, True, "wrong message type"),
+        (CMD, 1, 1.0, "unknown version"),
+        (CMD, 1, True, "unknown version"),
+    ],
+)
+def test_the_tag_and_the_version_are_integers(msg: object, at: int, value: object, reason: str) -> None:
+    """2.0 == 2 and True == 1 in Python: the header must not take them for its tag or version."""
+    raw = _raw(msg)
+    assert raw[at] == value
+    raw[at] = value
+    with pytest.raises(DecodeError) as info:
+        type(msg).from_bytes(msgpack.packb(raw))
+    assert info.value.reason == reason
+
+
+@pytest.mark.parametrize(
+    ("at", "value", "reason"),
+    [(0, 100.0, "wrong message type"), (1, 1.0, "unknown version"), (1, True, "unknown version")],
+)
+def test_a_batch_s_tag_and_version_are_integers(at: int, value: object, reason: str) -> None:
+    batch = [BATCH_TAG, VERSION, [CMD.to_bytes()]]
+    batch[at] = value
+    with pytest.raises(DecodeError) as info:
+        unpack_batch(msgpack.packb(batch, use_bin_type=True))
+    assert info.value.reason == reason
+
+
+@pytest.mark.parametrize("version", [0, 2])
+def test_a_batch_of_any_other_version_is_rejected(version: int) -> None:
+    with pytest.raises(DecodeError, match=f"unknown version: {version}, expected 1"):
+        unpack_batch(msgpack.packb([BATCH_TAG, version, []]))
+    assert unpack_batch(msgpack.packb([BATCH_TAG, 1, []])) == []
+
+
+def _batch_of_size(n_bytes: int) -> bytes:
+    """A batch of one bin item, exactly ``n_bytes`` long."""
+    item = b"\x00" * (n_bytes - 7)  # [100, 1, [bin 16]]: 3 bytes, a 1-byte array, 3 bytes of bin header
+    payload = pack_batch([item])
+    assert len(payload) == n_bytes
+    return payload
+
+
+def test_a_batch_of_exactly_the_payload_limit_is_taken_apart() -> None:
+    assert MAX_PAYLOAD_BYTES == 32768
+    assert [len(b) for b in unpack_batch(_batch_of_size(32768))] == [32761]
+    with pytest.raises(DecodeError, match="oversized: 32769 bytes > 32768"):
+        unpack_batch(_batch_of_size(32769))
+
+
+def test_a_batch_holds_at_most_256_messages() -> None:
+    assert len(unpack_batch(pack_batch([b"m"] * 256))) == 256
+    with pytest.raises(DecodeError) as info:
+        unpack_batch(pack_batch([b"m"] * 257))
+    assert info.value.reason == "not msgpack"  # refused by the unpacker, before the list is built
+
+
+def _observation_with_readings(readings: list) -> bytes:
+    return msgpack.packb([1, 1, 0, 1, 1, 0.0, [0.0, 0.0, 0.0], readings, []])
+
+
+def test_a_record_list_holds_at_most_1024_records() -> None:
+    assert len(Observation.from_bytes(_observation_with_readings([[1, 0, 0, 0]] * 1024)).readings) == 1024
+    with pytest.raises(DecodeError, match=r"too many items: readings has 1025 > 1024"):
+        Observation.from_bytes(_observation_with_readings([[1, 0, 0, 0]] * 1025))
+
+
+def test_the_unpacker_refuses_any_array_longer_than_8192() -> None:
+    """Up to 8 * MAX_ITEMS elements an array is built and refused by its check;
+    one more and msgpack refuses it before building it."""
+    rej = Rejections()
+    for n in (8192, 8193):
+        assert rej.decode(Observation, _observation_with_readings([0] * n)) is None
+    assert rej.by_reason == {"too many items": 1, "not msgpack": 1}
+    rej = Rejections()
+    for n in (8192, 8193):  # the same anywhere in the payload, here a message that is one long array
+        assert rej.decode(Observation, msgpack.packb([1, 1, 0, 1, 1, *[0] * (n - 5)])) is None
+    assert rej.by_reason == {"wrong length": 1, "not msgpack": 1}
+
+
+class _Side(IntEnum):
+    LEFT = 1
+    MIDDLE = 2
+    RIGHT = 3
+
+
+def test_an_int_subclass_is_taken_up_to_both_bounds() -> None:
+    """Not a plain int (an IntEnum, not a bool): checked the slow way, with the same bounds."""
+    check = int_in(1, 3)
+    assert [check("side", s) for s in _Side] == [_Side.LEFT, _Side.MIDDLE, _Side.RIGHT]
+    assert [check("side", v) for v in (1, 3)] == [1, 3]
+    for v in (0, 4):
+        with pytest.raises(DecodeError, match=f"out of range: side={v} not in \\[1, 3\\]"):
+            check("side", v)
+    with pytest.raises(DecodeError, match="wrong type: side must be an integer, got bool"):
+        check("side", True)

@@ -157,3 +157,84 @@ def test_a_batch_with_a_map_or_a_wrong_tag_is_refused() -> None:
         _unpack_batch(msgpack.packb([100, 7, []]))
     with pytest.raises(DecodeError, match="oversized"):
         _unpack_batch(b"\x00" * 70_000)
+
+
+@pytest.mark.parametrize("max_bytes", [0, -1, 16385])
+def test_max_bytes_out_of_its_bounds_is_refused_with_them(max_bytes: int) -> None:
+    with pytest.raises(ValueError, match=rf"^max_bytes must be in \(0, 16384\], got {max_bytes}$"):
+        BatchPublisher(FakePub(), max_bytes=max_bytes)
+
+
+def test_max_bytes_of_1_and_a_window_of_0_are_allowed() -> None:
+    pub, clock = FakePub(), FakeClock()
+    bp = BatchPublisher(pub, window_s=0.0, max_bytes=1, clock=clock)
+    msgs = _codes(3)
+    for m in msgs:
+        bp.put(m)  # no time passes: a window of 0 has passed all the same
+    assert [msgpack.unpackb(p)[2] for p in pub.payloads] == [[m] for m in msgs]
+    with pytest.raises(ValueError, match=r"^window_s must be >= 0, got -0.001$"):
+        BatchPublisher(FakePub(), window_s=-0.001)
+
+
+def test_a_put_exactly_one_window_after_the_last_sends() -> None:
+    pub, clock = FakePub(), FakeClock()
+    bp = BatchPublisher(pub, window_s=0.25, clock=clock)
+    msgs = _codes(4)
+    bp.put(msgs[0])
+    clock.t = 0.125
+    bp.put(msgs[1])
+    clock.t = 0.2499
+    bp.put(msgs[2])
+    assert len(pub.payloads) == 1
+    clock.t = 0.25
+    bp.put(msgs[3])
+    assert [len(msgpack.unpackb(p)[2]) for p in pub.payloads] == [1, 3]
+
+
+def test_the_defaults_are_20_ms_and_16_kib() -> None:
+    """docs/protocol.md: a window of 20 ms, and a batch of at most 16 KiB."""
+    pub, clock = FakePub(), FakeClock()
+    bp = BatchPublisher(pub, clock=clock)
+    bp.put(b"first")
+    clock.t = 0.019
+    bp.put(b"second")
+    assert len(pub.payloads) == 1
+    clock.t = 0.02  # 20 ms after the last send
+    bp.put(b"third")
+    assert [msgpack.unpackb(p)[2] for p in pub.payloads] == [[b"first"], [b"second", b"third"]]
+    for _ in range(4):  # no time passes: only the size sends
+        bp.put(b"x" * 4096)
+    assert (len(pub.payloads), bp.size) == (2, 16384)  # exactly 16 KiB held
+    bp.put(b"y")
+    assert [len(b) for b in msgpack.unpackb(pub.payloads[-1])[2]] == [4096] * 4
+    assert bp.items == [b"y"]
+
+
+def test_a_message_of_exactly_max_bytes_fits_a_batch_alone() -> None:
+    pub, clock = FakePub(), FakeClock()
+    m = _codes(1)[0]
+    bp = BatchPublisher(pub, window_s=10.0, max_bytes=len(m), clock=clock)
+    bp.put(m)  # the first leaves at once
+    bp.put(m)  # held: it fills the batch
+    assert (len(pub.payloads), bp.size) == (1, len(m))
+    bp.put(m)  # would pass max_bytes: the held one leaves alone
+    assert [len(msgpack.unpackb(p)[2]) for p in pub.payloads] == [1, 1]
+
+
+def test_a_message_larger_than_max_bytes_still_leaves_at_once() -> None:
+    """After a quiet window a message leaves at once, also one larger than a
+    batch may be (a ground truth of 500 robots is ~27 KB): flushing an empty
+    batch does not restart the window."""
+    pub, clock = FakePub(), FakeClock()
+    bp = BatchPublisher(pub, window_s=0.02, max_bytes=100, clock=clock)
+    big = b"z" * 101
+    bp.put(big)
+    assert [msgpack.unpackb(p)[2] for p in pub.payloads] == [[big]]
+    clock.t = 1.0
+    bp.put(big)
+    assert len(pub.payloads) == 2
+    clock.t = 1.01
+    bp.flush()  # nothing held: nothing sent, and the window still runs from the last put
+    clock.t = 1.02
+    bp.put(b"small")
+    assert len(pub.payloads) == 3

@@ -112,7 +112,7 @@ MODULES = (
     Module("protocol/codec.py", (T + "test_messages.py", T + "test_protocol.py", T + "test_role_inputs.py")),
     Module("protocol/messages.py", (T + "test_messages.py", T + "test_protocol.py", T + "test_role_inputs.py")),
     Module("protocol/batch.py", (T + "test_protocol.py", T + "test_messages.py")),
-    Module("protocol/trust.py", (T + "test_trust.py",)),
+    Module("protocol/trust.py", (T + "test_trust_rules.py",)),
     Module("agents/inbox.py", (T + "test_inbox.py", T + "test_role_inputs.py")),
     Module(
         "swarm/sweep.py",
