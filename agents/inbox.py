@@ -7,9 +7,12 @@ who claims to have sent it; these checks make sure it could be true:
   is dropped), and every reading in it is one the camera could make: a robot
   of the run, a distance within the camera's range plus its noise, angles
   wrapped to [-pi, pi]; obstacles within the leader's sensing range;
-- a formation code is newer than the last one taken from the leader, and not
-  stamped far past the agent's own clock (such a code would otherwise wait in
-  the queue, or hold back the real ones).
+- a formation code is newer than the last one taken from the leader, by
+  (tick, seq): a later tick, or the same tick and a higher seq. A restarted
+  leader counts its messages from 1 again but stamps the current tick, so it
+  is heard; a replay (an older tick, or the same tick and seq) is not. And a
+  code is not stamped far past the agent's own clock (such a code would
+  otherwise wait in the queue, or hold back the real ones).
 
 Each check returns the reason of a rejection (counted by the agent) or None.
 No Zenoh here: the agent process feeds it decoded messages.
@@ -45,7 +48,7 @@ class InboxChecks:
         self.sensing_range_m = sensing_range_m
         self.code_ahead_ticks = max(2, math.ceil(CODE_AHEAD_S / dt_s))
         self.last_tick = -1  # of the last observation taken
-        self.last_code_seq = -1
+        self.last_code = (-1, -1)  # (tick, seq) of the last formation code taken
 
     def observation(self, obs: Observation) -> str | None:
         if obs.tick <= self.last_tick:
@@ -64,9 +67,9 @@ class InboxChecks:
         return None
 
     def code(self, fc: FormationCode) -> str | None:
-        if fc.seq <= self.last_code_seq:
+        if (fc.tick, fc.seq) <= self.last_code:
             return "replayed or reordered"
         if fc.tick > self.last_tick + self.code_ahead_ticks:
             return "tick ahead of the world"
-        self.last_code_seq = fc.seq
+        self.last_code = (fc.tick, fc.seq)
         return None
