@@ -19,6 +19,8 @@ PURE = (
     "formation_swarm.world.kinematics",
     "formation_swarm.world.camera",
     "formation_swarm.world.engine",
+    "formation_swarm.world.recovery",
+    "formation_swarm.world.process_faults",
     "formation_swarm.protocol.keys",
     "formation_swarm.protocol.links",
     "formation_swarm.protocol.codec",

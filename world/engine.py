@@ -20,6 +20,7 @@ import numpy as np
 
 from formation_swarm.world.camera import observe
 from formation_swarm.world.kinematics import Pose, _step_unchecked, from_body_frame, to_body_frame
+from formation_swarm.world.recovery import Recovery
 
 if TYPE_CHECKING:  # an annotation only: the world's physics does not import the application layer
     from formation_swarm.scenario import Scenario
@@ -102,6 +103,8 @@ class WorldEngine:
     stale_stops: int = field(init=False, default=0)
     clamped_commands: int = field(init=False, default=0)  # wheel speeds beyond robot.max_wheel_mps
     formation_events: list[dict[str, object]] = field(init=False, default_factory=list)
+    # Formation errors after a robot's return (world.recovery), fed by record().
+    recoveries: list[Recovery] = field(init=False, default_factory=list)
     _touching: set[tuple[int, int]] = field(init=False, default_factory=set)
     _digest: hashlib._Hash = field(init=False)
     # The state of the last tick stepped from, until record() takes its metrics.
@@ -168,10 +171,17 @@ class WorldEngine:
             r.formation = formation
 
     def kill(self, rid: int) -> None:
-        """The robot's process is gone: it stops where it is, for good."""
+        """The robot's process is gone: it stops where it is, until revived."""
         r = self.robots[rid]
         r.alive = False
         r.command = (0.0, 0.0)
+
+    def revive(self, rid: int) -> None:
+        """The robot's agent is back (a fresh process, a session regained): it
+        gets observations again and holds still until its first command."""
+        r = self.robots[rid]
+        r.alive, r.answered = True, False
+        r.command, r.command_time_s = (0.0, 0.0), -math.inf
 
     def true_target(self, rid: int) -> tuple[float, float]:
         r = self.robots[rid]
@@ -212,6 +222,7 @@ class WorldEngine:
         if snap is None:
             return
         sc = self.scenario
+        errors: dict[int, float] = {}
         for rid, metrics in self.metrics.items():
             pose, _, formation = snap[rid]
             slot = sc.formation_by_code(formation).slots[rid]
@@ -220,7 +231,10 @@ class WorldEngine:
             ex, ey = tx - pose.x_m, ty - pose.y_m
             along = ex * math.cos(ref_pose.theta_rad) + ey * math.sin(ref_pose.theta_rad)
             turning = abs(ref_command[1] - ref_command[0]) / sc.width_m >= TURN_RATE_RPS
-            metrics.add(math.hypot(ex, ey), along, turning)
+            errors[rid] = math.hypot(ex, ey)
+            metrics.add(errors[rid], along, turning)
+        for rec in self.recoveries:
+            rec.add(self.tick - 1, errors)  # the snapshot is of the tick before the last step
         self._contacts({rid: pose for rid, (pose, _, _) in snap.items()})
         h = self._digest
         for rid in sorted(snap):
