@@ -143,7 +143,7 @@ def test_recovery_first_below_settled_and_the_window() -> None:
     assert d["error_at_start_m"] == 2.0
     assert d["first_below_tick"] == 12
     assert d["first_below_after_s"] == 1.0
-    assert d["settled_tick"] == 14
+    assert d["settled_tick"] == 14  # 0.4 then 0.6 broke the first streak
     assert d["settled_after_s"] == 2.0
     assert d["error_after_window_m"] == 0.3
     assert d["max_in_window_m"] == 2.0
@@ -232,7 +232,10 @@ def test_a_lockstep_restart_rejoins_on_its_tick_and_repeats_to_the_bit(swarm_run
     (rec,) = _fault(runs[0])["recoveries"]
     assert [_fault(s)["recoveries"] for s in runs[1:]] == [[rec], [rec]]
     assert rec["since_tick"] == 420
-    assert rec["first_below_tick"] is not None
+    # Back amid the formation's changes at the obstacles (line at 19.6 s, triangle at 30.4 s):
+    # below 0.5 m within a second, and within 1 m of its slot 5 s after its return.
+    assert rec["first_below_after_s"] < 1.0
+    assert rec["error_after_window_m"] < 1.0
     print("restart agent-3@20s: rejoin", [_fault(s)["rejoins"][0]["wall_s_to_rejoin"] for s in runs], "recovery", rec)
 
 
@@ -248,7 +251,8 @@ def test_a_lockstep_freeze_repeats_to_the_bit(swarm_run: Callable[..., RunResult
         assert s["parts"]["agent-2"]["answered"] == s["parts"]["agent-3"]["answered"] - 60
     (rec,) = _fault(runs[0])["recoveries"]
     assert rec["event"] == "thawed"
-    assert rec["error_at_start_m"] > 1.0
+    assert rec["error_at_start_m"] > 1.0  # the formation went on without it
+    assert rec["settled_after_s"] < 12.0  # and it caught up (measured: 10.35 s)
     print("freeze agent-2@15s for=3s: recovery", rec)
 
 
@@ -311,7 +315,7 @@ def test_a_leader_frozen_beyond_the_zenoh_lease_is_lost_then_rejoins(swarm_run: 
     assert 400 <= at["readmitted"] <= at["rejoined"] <= 400 + 20  # back within a second of the SIGCONT
     (back_after_s,) = s["parts"]["agent-1"]["world_back_after_s"]
     assert back_after_s is not None
-    assert back_after_s < 1.0
+    assert back_after_s < 1.0  # the agent did not leave: the world came back
     assert s["processes"]["agent-1"]["exit_code"] == 0
     (rejoin,) = f["rejoins"]
     assert rejoin["cause"] == "lost"

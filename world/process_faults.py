@@ -33,7 +33,6 @@ changes and the commands, and does the waiting.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -236,7 +235,7 @@ class ProcessFaults:
         self.rejoins.append(back)
 
     def stats(self) -> dict[str, Any]:
-        pending = [dict(b, rejoined_tick=None, ticks_to_rejoin=None, wall_s_to_rejoin=math.nan)
+        pending = [dict(b, rejoined_tick=None, ticks_to_rejoin=None, wall_s_to_rejoin=None)
                    for b in self.rejoining.values()]  # fmt: skip
         for b in pending:
             b.pop("since_wall_s", None)
