@@ -7,15 +7,18 @@ who claims to have sent it; these checks make sure it could be true:
   is dropped), and every reading in it is one the camera could make: a robot
   of the run, a distance within the camera's range plus its noise, angles
   wrapped to [-pi, pi]; obstacles within the leader's sensing range;
-- a formation code is newer than the last one taken from the leader, and not
-  stamped far past the agent's own clock (such a code would otherwise wait in
-  the queue, or hold back the real ones).
+- a formation code is newer than the last one taken from the leader, by
+  (tick, seq): a later tick, or the same tick and a higher seq. A restarted
+  leader counts its messages from 1 again but stamps the current tick, so it
+  is heard; a replay (an older tick, or the same tick and seq) is not. And a
+  code is not stamped far past the agent's own clock (such a code would
+  otherwise wait in the queue, or hold back the real ones).
 
 The agent's link layer (protocol.links) sits between these checks and the
 controller: what arrives is checked first, then handed to the link layer, and
 what the link layer hands over (the same message, a duplicate of it, one it
 held back) is checked again for order alone: an observation whose tick, or
-a code whose seq, is not above the last one handed over and taken is
+a code whose (tick, seq), is not above the last one handed over and taken is
 "replayed or reordered". That is how a duplicated or reordered message ends.
 
 Each check returns the reason of a rejection (counted by the agent) or None.
@@ -52,9 +55,9 @@ class InboxChecks:
         self.sensing_range_m = sensing_range_m
         self.code_ahead_ticks = max(2, math.ceil(CODE_AHEAD_S / dt_s))
         self.last_tick = -1  # of the last observation taken
-        self.last_code_seq = -1
+        self.last_code = (-1, -1)  # (tick, seq) of the last formation code taken
         self.last_reading_tick = -1  # of the last observation the link layer handed over and taken
-        self.last_handed_code_seq = -1
+        self.last_handed_code = (-1, -1)  # (tick, seq) of the last code the link layer handed over and taken
 
     def observation(self, obs: Observation) -> str | None:
         if obs.tick <= self.last_tick:
@@ -73,11 +76,11 @@ class InboxChecks:
         return None
 
     def code(self, fc: FormationCode) -> str | None:
-        if fc.seq <= self.last_code_seq:
+        if (fc.tick, fc.seq) <= self.last_code:
             return "replayed or reordered"
         if fc.tick > self.last_tick + self.code_ahead_ticks:
             return "tick ahead of the world"
-        self.last_code_seq = fc.seq
+        self.last_code = (fc.tick, fc.seq)
         return None
 
     def reading(self, obs: Observation) -> str | None:
@@ -89,7 +92,7 @@ class InboxChecks:
 
     def handed_code(self, fc: FormationCode) -> str | None:
         """A formation code the link layer hands over (already taken on arrival)."""
-        if fc.seq <= self.last_handed_code_seq:
+        if (fc.tick, fc.seq) <= self.last_handed_code:
             return "replayed or reordered"
-        self.last_handed_code_seq = fc.seq
+        self.last_handed_code = (fc.tick, fc.seq)
         return None

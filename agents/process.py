@@ -1,7 +1,7 @@
 """One robot's agent process: its brain on the run's Zenoh key space.
 
     swarm agent --id N --scenario S.toml --run RUN [--seed N] [--stats FILE] [--peers-timeout S]
-                --connect ENDPOINT
+                [--world-grace S] --connect ENDPOINT
 
 A follower turns each observation into wheel speeds with the paper's
 controller (agents.follower) and obeys the formation codes its leader sends.
@@ -17,7 +17,12 @@ Before it announces itself (its liveliness token) it waits, up to
 ``--peers-timeout``, for the world's token and for its command publisher to
 match (the leader: also every follower's formation subscriber), each such
 change waking the wait. It exits when the world says the run is done, when
-the world's token disappears, or on SIGINT/SIGTERM.
+the world's token has been gone for ``--world-grace`` seconds (default: the
+peers timeout) once the run started, or on SIGINT/SIGTERM. A session the
+router dropped (the agent frozen beyond the Zenoh lease, a network cut, a
+router restart) comes back by itself: the Zenoh client reconnects and
+declares the agent's subscribers and token again (measured with Zenoh 1.10),
+the world's token returns, and the world re-admits the robot.
 
 Observations and formation codes reach the loop through a Zenoh FIFO
 channel, received on the loop's own thread: no Python callback thread and no
@@ -31,6 +36,7 @@ from __future__ import annotations
 import collections
 import contextlib
 import gc
+import math
 import sys
 import threading
 import time
@@ -64,7 +70,7 @@ DUPLICATE_QUERY_S = 1.0  # how long the start-up check for another agent of the 
 
 class Agent:
     def __init__(self, sess: zenoh.Session, sc: scenario_mod.Scenario, rid: int, run_id: str, seed: int,
-                 role: role_mod.Role, where: str = "") -> None:  # fmt: skip
+                 role: role_mod.Role, where: str = "", world_grace_s: float = math.inf) -> None:  # fmt: skip
         if rid not in sc.robots:
             raise ValueError(f"--id {rid} is not a robot of this scenario; robots are {list(sc.robots)}")
         self.session = sess
@@ -91,6 +97,10 @@ class Agent:
         )  # fmt: skip
         self.world_seen = False
         self.world_gone = False
+        self.world_grace_s = world_grace_s  # how long a world lost mid-run is waited for
+        self.world_lost: threading.Timer | None = None  # running while the world's token is away
+        self.world_lost_at = 0.0
+        self.world_back_after_s: list[float | None] = []  # per loss of the world: how long it was away
         self.peers_changed = threading.Event()  # a matching change, the world's token or a stop
         self.started = False  # a message of the run has arrived
         self.done = False
@@ -126,9 +136,25 @@ class Agent:
         if sample.kind == zenoh.SampleKind.PUT:
             self.world_seen = True
             self.peers_changed.set()
-        elif self.world_seen:
-            self.world_gone = True
-            self._close_inbox()
+            if self.world_lost is not None:  # back: our session was dropped and regained
+                self.world_lost.cancel()
+                self.world_lost = None
+                self.world_back_after_s[-1] = away = time.monotonic() - self.world_lost_at
+                self.role.say(f"the world is back after {away:.2f} s")
+        elif self.world_seen and self.started and self.world_lost is None and not self.world_gone:
+            # Mid-run: the world, or only our session to it, may come back.
+            self.world_lost_at = time.monotonic()
+            self.world_back_after_s.append(None)
+            self.role.say(f"lost the world; waiting up to {self.world_grace_s:g} s for it to come back")
+            self.world_lost = threading.Timer(self.world_grace_s, self._world_left)
+            self.world_lost.daemon = True
+            self.world_lost.start()
+        elif self.world_seen and not self.started:
+            self._world_left()  # before the run: the world gave up
+
+    def _world_left(self) -> None:
+        self.world_gone = True
+        self._close_inbox()
 
     def _close_inbox(self) -> None:
         """End the loop: its ``recv`` raises once the messages already queued are read."""
@@ -170,6 +196,8 @@ class Agent:
         try:
             return self._loop()
         finally:
+            if self.world_lost is not None:
+                self.world_lost.cancel()
             self.tel_pub.close()  # the logger waits for this end-of-stream mark
             token.undeclare()
 
@@ -396,6 +424,7 @@ class Agent:
             "busy_s": self.busy_s,
             "formation": self.sc.formation_names[self.code],
             "formation_changes": self.formation_changes,
+            "world_back_after_s": self.world_back_after_s,  # per loss of the world's token mid-run (None: never)
             "links": {
                 lk.name: lk.stats()
                 for lk in ((self.obs_link,) if self.is_leader else (self.obs_link, self.formation_link))
@@ -445,6 +474,15 @@ def build_parser() -> cliargs.Parser:
     )
     ap.add_argument("--stats", metavar="FILE", help="write this agent's counters here at exit (JSON)")
     role_mod.add_arguments(ap, waits_for="the world (and, for the leader, its followers)")
+    ap.add_argument(
+        "--world-grace",
+        type=role_mod.seconds,
+        default=None,
+        metavar="S",
+        help="once the run started, how long to wait for the world's token to come back after it went (our "
+        "session dropped by the router, a network cut, a router restart) before leaving (default: the peers "
+        "timeout)",
+    )
     session.add_arguments(ap, default_mode="client")
     return ap
 
@@ -464,7 +502,8 @@ def main(argv: list[str] | None = None) -> int:
     seed = sc.seed if args.seed is None else args.seed
     where = role_mod.describe_session(args)
     with sess_cm as sess:
-        agent = Agent(sess, sc, args.id, args.run, seed, role, where)
+        grace = args.peers_timeout if args.world_grace is None else args.world_grace
+        agent = Agent(sess, sc, args.id, args.run, seed, role, where, grace)
         part = "leader" if agent.is_leader else f"follower of robot {agent.reference}"
         waits = "the world and its followers" if agent.is_leader else "the world"
         role.say(f"{where}; run {args.run}, {part}: waiting up to {role.peers_timeout_s:g} s for {waits}")

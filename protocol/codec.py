@@ -20,6 +20,7 @@ wire for writers of agents in other languages.
 from __future__ import annotations
 
 import math
+import re
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, fields
@@ -134,6 +135,18 @@ def one_of(*allowed: str) -> Callable[[str, Any], str]:
         return v
 
     return check
+
+
+_AGENT = re.compile(r"agent-[1-9][0-9]{0,4}")
+
+
+def process_name(name: str, v: Any) -> str:
+    """A process of a run a fault can hit: ``logger`` or ``agent-N`` (N a robot id)."""
+    if type(v) is not str:
+        raise DecodeError("wrong type", f"{name} must be a string, got {type(v).__name__}")
+    if v == "logger" or (_AGENT.fullmatch(v) and int(v[6:]) <= MAX_ROBOT_ID):
+        return v
+    raise DecodeError("out of range", f"{name}={v[:40]!r} is neither logger nor agent-<robot id>")
 
 
 robot_id = int_in(1, MAX_ROBOT_ID)

@@ -8,7 +8,8 @@ All keys start with ``swarm/<run>`` so that runs never cross-talk::
     swarm/<run>/robot/<id>/telemetry  agent -> logger   Telemetry
     swarm/<run>/world/truth           world -> logger   Truth (true poses and targets)
     swarm/<run>/world/status          world -> all      Status (progress, end of run)
-    swarm/<run>/alive/<role>/<id>     liveliness tokens (role: world, agent, logger)
+    swarm/<run>/world/faults          world -> launcher FaultCall (kill, start, freeze, thaw a process now)
+    swarm/<run>/alive/<role>/<id>     liveliness tokens (role: world, agent, logger, launcher)
     swarm/<run>/robot/wake/cmd        world -> itself   wakes its command loop (local only)
 
 An agent reads its inbox ``swarm/<run>/robot/<id>/*`` with one subscriber so
@@ -26,7 +27,7 @@ ROOT = "swarm"
 MAX_ROBOT_ID = 10_000
 _RUN_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 ROBOT_KINDS = ("obs", "cmd", "formation", "telemetry")
-ROLES = ("world", "agent", "logger")
+ROLES = ("world", "agent", "logger", "launcher")
 
 
 def check_run_id(run_id: str) -> str:
@@ -98,6 +99,11 @@ class Keys:
     @property
     def status(self) -> str:
         return f"{self.prefix}/world/status"
+
+    @property
+    def faults(self) -> str:
+        """The world's calls to the process that executes process faults (the launcher)."""
+        return f"{self.prefix}/world/faults"
 
     @property
     def world_all(self) -> str:

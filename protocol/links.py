@@ -173,6 +173,15 @@ class Link(Generic[T]):
         """Messages held by the link now (delayed or reordered)."""
         return len(self._delayed) + (self._reorder_held is not None)
 
+    def forget_held(self) -> int:
+        """Drop what the link holds (its sender is gone: a restarted agent's
+        predecessor); how many messages, counted as lost."""
+        n = self.held
+        self._delayed.clear()
+        self._reorder_held = None
+        self.dropped += n
+        return n
+
     def accept(self, seq: int) -> bool:
         """The steady drop alone, for a link without faults: True if message
         ``seq`` gets through; counts either way."""

@@ -36,6 +36,7 @@ from formation_swarm.protocol.codec import (
     numbers,
     one_of,
     opt_number,
+    process_name,
     records,
     robot_id,
 )
@@ -52,6 +53,7 @@ __all__ = [
     "BatchPublisher",
     "Command",
     "DecodeError",
+    "FaultCall",
     "FormationCode",
     "Message",
     "Observation",
@@ -175,3 +177,24 @@ class Status(Message):
     TAG: ClassVar[int] = 6
     SENDERS: ClassVar[tuple[int, int]] = (WORLD_ID, WORLD_ID)
     CHECKS = (number, one_of("waiting", "running", "done"), count)
+
+
+@dataclass(frozen=True, slots=True)
+class FaultCall(Message):
+    """World -> the executor of process faults (swarm run's launcher): do
+    ``action`` to ``process`` now, at tick k, for fault number ``index`` of the
+    scenario's schedule (``[[faults]]`` in start order, formation_swarm.faults).
+
+    action: "kill" (SIGKILL), "start" (a fresh process for the same robot),
+    "freeze" (SIGSTOP), "thaw" (SIGCONT). The world publishes it before the
+    tick's observations, so a run with process faults is reproducible.
+    """
+
+    time_s: float
+    action: str
+    process: str
+    index: int
+
+    TAG: ClassVar[int] = 7
+    SENDERS: ClassVar[tuple[int, int]] = (WORLD_ID, WORLD_ID)
+    CHECKS = (number, one_of("kill", "start", "freeze", "thaw"), process_name, count)

@@ -4,11 +4,12 @@ Every process of a run authenticates to the router with its own user name and
 password (Zenoh's usrpwd authentication), and the router holds access rules
 that deny everything not granted (``default_permission: deny``):
 
-    world     publishes observations, truth and run status; subscribes to commands
+    world     publishes observations, truth, run status and fault calls; subscribes to commands
     agent-N   publishes robot N's command and telemetry (the leader also the
               formation codes); subscribes to robot N's inbox and the run status
     logger    subscribes to the world's streams and the telemetry; publishes nothing
-    launcher  subscribes to the run status
+    launcher  subscribes to the run status and the world's fault calls (it executes
+              process faults: kill, start, freeze, thaw) and holds its token
 
 Each role may also hold its own liveliness token and watch the tokens it
 needs. A client without credentials cannot connect at all; one holding a
@@ -75,7 +76,7 @@ def grants(run_id: str, robots: Sequence[int], leader_id: int) -> dict[str, Gran
     followers = [r for r in robots if r != leader_id]
     out = {
         "world": Grants(
-            publish=(*(k.obs(r) for r in robots), k.truth, k.status, k.world_wake),
+            publish=(*(k.obs(r) for r in robots), k.truth, k.status, k.faults, k.world_wake),
             subscribe=(k.all_cmd,),
             tokens=(k.alive("world", 0),),
             watch=(f"{k.prefix}/alive/*/*",),
@@ -85,7 +86,9 @@ def grants(run_id: str, robots: Sequence[int], leader_id: int) -> dict[str, Gran
             tokens=(k.alive("logger", 0),),
             watch=(k.alive("world", 0),),
         ),
-        "launcher": Grants(subscribe=(k.status,), watch=(f"{k.prefix}/alive/*/*",)),
+        "launcher": Grants(
+            subscribe=(k.status, k.faults), tokens=(k.alive("launcher", 0),), watch=(f"{k.prefix}/alive/*/*",)
+        ),
     }
     for rid in robots:
         codes = tuple(k.formation(f) for f in followers) if rid == leader_id else ()

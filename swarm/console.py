@@ -28,8 +28,10 @@ def describe_event(ev: Mapping[str, Any]) -> str:
     """One event of the run (a kill, a process that exited, ...) as a sentence."""
     t = ev.get("sim_time_s")
     when = f"at sim t={t:.2f} s" if isinstance(t, (int, float)) and t >= 0 else "before the run started"
-    if ev.get("event") == "killed":
-        return f"killed {ev.get('process')} {when} (fault injection)"
+    if ev.get("event") in ("killed", "started", "frozen", "thawed"):
+        tick = f" (tick {ev['tick']})" if isinstance(ev.get("tick"), int) else ""
+        why = f"'{ev['fault']}'" if ev.get("fault") else "fault injection"
+        return f"{ev['event']} {ev.get('process')} {when}{tick} ({why})"
     if ev.get("event") == "exited" and isinstance(ev.get("code"), int):
         return f"{ev.get('process')} {describe_exit(ev['code'])} {when}"
     return ", ".join(f"{k} {v}" for k, v in ev.items() if k != "log_tail")

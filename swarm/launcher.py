@@ -11,6 +11,12 @@ on (the world stops a robot whose agent is gone); a world that dies ends the run
 and so does any process that dies before tick 0 (the world waits for them all).
 A process that exits with an error is named on the console with its exit code
 and the last lines of its log (logs/<name>.log), and in the summary's events.
+
+The launcher executes the scenario's process faults on the world's calls
+(``Keys.faults``, a FaultCall at the fault's tick, world.process_faults):
+SIGKILL, a fresh agent for the same robot (its log ``logs/agent-N.2.log``,
+its stats ``stats/agent-N.2.json``), SIGSTOP, SIGCONT. Each execution is an
+event of the summary with the call's tick and sim time and the wall time.
 """
 
 from __future__ import annotations
@@ -41,12 +47,19 @@ from formation_swarm.faults import Fault
 from formation_swarm.protocol import trust
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.protocol.messages import Status
+from formation_swarm.protocol.messages import FaultCall, Status
 from formation_swarm.protocol.session import make_config
 
 STOP_GRACE_S = 2.0
 SECRETS = "secrets"  # the run's credentials (folder 0700, files 0600), deleted when the run ends
 END_GRACE_S = 3.0
+# How long an agent of a local run waits for the world's token to come back
+# after it went. The world is the run's router here, and nothing restarts it:
+# once gone it is gone. What does come back is a session the router dropped
+# (an agent frozen beyond the Zenoh lease): its client reconnects and sees the
+# world's token go and return together when it resumes (measured, Zenoh 1.10).
+AGENT_WORLD_GRACE_S = 1.0
+SIGNALS = {"kill": signal.SIGKILL, "freeze": signal.SIGSTOP, "thaw": signal.SIGCONT}
 
 
 @dataclass
@@ -136,14 +149,20 @@ class Launch:
         self.port = 0
         self.children: dict[str, Child] = {}
         self.session: zenoh.Session | None = None
+        self.token: zenoh.LivelinessToken | None = None  # held: a dropped token is undeclared
         self.status_q: queue.SimpleQueue[bytes] = queue.SimpleQueue()
         self.last_status: Status | None = None
+        self.calls_q: queue.SimpleQueue[bytes] = queue.SimpleQueue()  # the world's fault calls
+        self.call_rejections = Rejections()
+        self.last_call_seq = 0
+        self.current: dict[str, str] = {}  # a process of the scenario -> its newest child (agent-3 -> agent-3.2)
+        self.frozen: set[str] = set()  # children stopped by SIGSTOP
         self.events: list[dict[str, Any]] = []
         self.started_at = 0.0
         for f in self.sc.faults:
             if f.process is not None and f.process not in self._names():
                 raise ValueError(f"cannot {f.kind} {f.process!r}: processes are {', '.join(self._names()[1:])}")
-        self.kills = [KillAt(f.target, f.at_s) for f in self.sc.faults if f.kind == "kill"]
+        self.process_faults = any(f.process is not None for f in self.sc.faults)
 
     def _names(self) -> list[str]:
         return ["world", *(["logger"] if self.logger else []), *(f"agent-{r}" for r in self.sc.robots)]
@@ -197,7 +216,7 @@ class Launch:
         specs = {
             "world": [*py("world.process"), *common, "--mode", self.mode, "--stats", str(stats / "world.json"),
                       "--zenoh-mode", "router", "--listen", self.endpoint, *["--expect-logger"] * self.logger,
-                      *auth("router")],
+                      *["--process-faults"] * self.process_faults, *auth("router")],
         }  # fmt: skip
         if self.logger:
             extra = ["--live", self.live] if self.live else []
@@ -210,16 +229,22 @@ class Launch:
             agent_stats = str(stats / f"agent-{rid}.json")
             specs[f"agent-{rid}"] = [*py("agents.process"), "--id", str(rid), *common,
                                      "--stats", agent_stats, "--connect", self.endpoint,
+                                     "--world-grace", f"{AGENT_WORLD_GRACE_S:g}",
                                      *auth(trust.agent_user(rid))]  # fmt: skip
         self.started_at = time.monotonic()
         for name, argv in specs.items():
             child = Child(name, argv, self.run_dir / "logs" / f"{name}.log")
             self.children[name] = child
+            self.current[name] = name
             child.start()
         settings = trust.read_settings(secrets["launcher"]) if secrets else None
         conf = make_config("client", [self.endpoint], connect_timeout_s=30.0, settings=settings)
         self.session = zenoh.open(conf)
-        self.session.declare_subscriber(Keys(self.run_id).status, lambda s: self.status_q.put(s.payload.to_bytes()))
+        keys = Keys(self.run_id)
+        self.session.declare_subscriber(keys.status, lambda s: self.status_q.put(s.payload.to_bytes()))
+        self.session.declare_subscriber(keys.faults, lambda s: self.calls_q.put(s.payload.to_bytes()))
+        # After the subscriber: with process faults the world waits for this token before tick 0.
+        self.token = self.session.liveliness().declare_token(keys.alive("launcher", 0))
 
     def pids(self) -> dict[str, int]:
         return {n: c.pid for n, c in self.children.items() if c.pid is not None}
@@ -254,17 +279,67 @@ class Launch:
     def _watch(self) -> None:
         self._read_status()
         t = self.sim_time()
-        while self.kills and t >= self.kills[0].time_s:
-            k = self.kills.pop(0)
-            self.children[k.who].signal(signal.SIGKILL)
-            self.events.append({"event": "killed", "process": k.who, "sim_time_s": t})
-            self.progress(f"[swarm] killed {k.who} at sim t={t:.2f} s (fault injection)")
+        self._execute_calls()
         for child in self.children.values():
             code = child.poll()
             if code is not None and not child.reported:
                 child.reported = True
                 if code != 0 and child.stop_sent_at is None:
                     self._exited(child, code, t)
+
+    def _execute_calls(self) -> None:
+        """The world's fault calls that have come, in order: a signal, or a fresh agent."""
+        while True:
+            try:
+                payload = self.calls_q.get_nowait()
+            except queue.Empty:
+                return
+            call = self.call_rejections.decode(FaultCall, payload)
+            if call is None:
+                continue
+            faults = self.sc.faults
+            if call.index >= len(faults) or faults[call.index].process != call.process:
+                self.call_rejections.reject("not a fault of the schedule")
+                continue
+            if call.seq <= self.last_call_seq:
+                self.call_rejections.reject("replayed or reordered")
+                continue
+            self.last_call_seq = call.seq
+            self._execute(call, faults[call.index])
+
+    def _execute(self, call: FaultCall, fault: Fault) -> None:
+        name = self.current[call.process]
+        child = self.children[name]
+        if call.action == "start":
+            name = self._restart(call.process)
+        else:
+            child.signal(SIGNALS[call.action])
+            (self.frozen.add if call.action == "freeze" else self.frozen.discard)(name)
+        done = {"kill": "killed", "start": "started", "freeze": "frozen", "thaw": "thawed"}[call.action]
+        self.events.append({"event": done, "process": name, "fault": str(fault), "tick": call.tick,
+                            "sim_time_s": call.time_s, "wall_s": time.monotonic() - self.started_at,
+                            "pid": self.children[name].pid})  # fmt: skip
+        self.progress(f"[swarm] {done} {name} at tick {call.tick}, sim t={call.time_s:.2f} s ('{fault}')")
+
+    def _restart(self, process: str) -> str:
+        """A fresh process for ``process`` (an agent), as the first was started
+        but with its own log and stats file; its name (agent-3.2, ...)."""
+        old = self.children[self.current[process]]
+        if old.proc is not None:  # SIGKILLed at the kill call: reaped first, so its token is gone
+            old.signal(signal.SIGKILL)
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                old.proc.wait(timeout=5.0)
+        n = 2
+        while f"{process}.{n}" in self.children:
+            n += 1
+        name = f"{process}.{n}"
+        argv = list(self.children[process].argv)
+        argv[argv.index("--stats") + 1] = str(self.run_dir / "stats" / f"{name}.json")
+        child = Child(name, argv, self.run_dir / "logs" / f"{name}.log")
+        self.children[name] = child
+        self.current[process] = name
+        child.start()
+        return name
 
     def _exited(self, child: Child, code: int, t: float) -> None:
         """A child that ended on its own, with an error: an event, and on the
@@ -332,6 +407,9 @@ class Launch:
             self._stop(graceful_first)
 
     def _stop(self, graceful_first: bool) -> None:
+        for name in self.frozen:  # a stopped process hears no SIGTERM, nor the end of the run
+            self.children[name].signal(signal.SIGCONT)
+        self.frozen.clear()
         if graceful_first:
             self._wait_exit(END_GRACE_S)
         for c in self.children.values():
@@ -361,6 +439,8 @@ class Launch:
     # -- summary ------------------------------------------------------------------
     def _summary(self, code: int, interrupted: bool, timed_out: bool) -> dict[str, Any]:
         parts = summary_mod.read_parts(self.run_dir / "stats")
+        if self.call_rejections.total:  # fault calls refused: counted like every receiver's rejections
+            parts["launcher"] = {"rejected": dict(self.call_rejections.by_reason)}
         world = parts.get("world", {})
         world_proc = self.children["world"].proc if "world" in self.children else None
         reached = world.get("sim_time_s")

@@ -37,7 +37,7 @@ from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import pack_batch
 from formation_swarm.protocol.codec import WORLD_ID, Rejections
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.protocol.messages import Status, Telemetry, Truth
+from formation_swarm.protocol.messages import FaultCall, Status, Telemetry, Truth
 from formation_swarm.recording import Recorder, open_recording
 
 SEND_PERIOD_S = 0.25
@@ -74,7 +74,7 @@ class Logger:
         self.inbox: queue.SimpleQueue[tuple[str, bytes]] = queue.SimpleQueue()
         self.rejections = Rejections()
         self.ended: set[int] = set()  # followers whose telemetry stream has ended
-        self.counts = {"truth": 0, "telemetry": 0, "other": 0}
+        self.counts = {"truth": 0, "telemetry": 0, "fault_calls": 0, "other": 0}
         self.world_seen = False
         self.world_gone = False
         self.started = False  # the run's first status or truth has been handled
@@ -174,6 +174,11 @@ class Logger:
             if st is not None:
                 self._start()
                 self.done = self.done or st.state == "done"
+        elif key == self.keys.faults:
+            call = self.rejections.decode(FaultCall, payload, sender=WORLD_ID)
+            if call is not None:
+                self.counts["fault_calls"] += 1
+                self.recorder.log_fault_call(call)
         else:
             self.counts["other"] += 1
 

@@ -15,6 +15,7 @@ Entity paths mirror the key space::
     robots/r<id>/formation               formation code flown; events: changes as text
     robots/r<id>/links/obs_dropped, /links/formation_dropped
     events/faults                        the fault schedule: each fault where it starts and ends
+    events/fault_calls                   the world's calls for process faults, at their tick
 
 Messages are kept as they arrive (cheap, per tick) and turned into Rerun
 columns with numpy when the process loop calls ``Recorder.send`` (per send,
@@ -36,7 +37,7 @@ import rerun.blueprint as rrb
 from formation_swarm.world.kinematics import Pose
 
 if TYPE_CHECKING:
-    from formation_swarm.protocol.messages import Telemetry, Truth
+    from formation_swarm.protocol.messages import FaultCall, Telemetry, Truth
     from formation_swarm.scenario import Scenario
 
 TIMELINE = "sim_time"
@@ -162,6 +163,15 @@ class Recorder:
             if end is not None and f.kind != "restart":
                 self.guard(self.rec.set_time, TIMELINE, duration=end * sc.dt_s)
                 self.guard(self.rec.log, "events/faults", rr.TextLog(f"fault over: {f}", level="INFO"))
+
+    def log_fault_call(self, call: FaultCall) -> None:
+        """A call the world made to execute a process fault (kill, start, freeze, thaw)."""
+        self.guard(self.rec.set_time, TIMELINE, duration=call.time_s)
+        text = f"{call.action} {call.process} (fault {call.index}: {self._fault_text(call.index)}, tick {call.tick})"
+        self.guard(self.rec.log, "events/fault_calls", rr.TextLog(text, level="WARN"))
+
+    def _fault_text(self, index: int) -> str:
+        return str(self.sc.faults[index]) if index < len(self.sc.faults) else "not in the schedule"
 
     def send(self, final: bool = False) -> None:
         self.guard(self._send_truth)

@@ -59,7 +59,7 @@ MAX_PEERS_TIMEOUT_S = 1e6  # 11 days: beyond, a deadline overflows the clock's t
 CONNECT_MARGIN_S = 2.0
 
 
-def _seconds(text: str) -> float:
+def seconds(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
@@ -73,7 +73,7 @@ def add_arguments(parser: argparse.ArgumentParser, waits_for: str) -> None:
     """``--peers-timeout``; ``waits_for`` names the peers in its help."""
     parser.add_argument(
         "--peers-timeout",
-        type=_seconds,
+        type=seconds,
         default=DEFAULT_PEERS_TIMEOUT_S,
         metavar="S",
         help=f"give up (exit code 3) when the router or {waits_for} have not appeared within S seconds "

@@ -105,8 +105,10 @@ def read_parts(stats_dir: Path) -> dict[str, Any]:
 
 def robots_lost(world: Mapping[str, Any], sc: Scenario) -> str | None:
     """Why a run that ran to its end still failed: its leader lost its agent
-    (the formation could not fly its path), or every follower did. None if not."""
-    deaths = {d.get("robot"): d for d in world.get("deaths", [])}
+    (the formation could not fly its path), or every follower did, for good
+    (a robot whose agent came back, after a restart say, is not lost). None if not."""
+    dead = world.get("dead_robots")  # at the end of the run; None in stats that do not say
+    deaths = {d.get("robot"): d for d in world.get("deaths", []) if dead is None or d.get("robot") in dead}
     leader = sc.leader.robot_id
     if leader in deaths:
         return f"the leader (robot {leader}) lost its agent at t={deaths[leader].get('time_s', 0.0):.2f} s"
@@ -116,14 +118,24 @@ def robots_lost(world: Mapping[str, Any], sc: Scenario) -> str | None:
 
 
 def fault_effects(
-    sc: Scenario, parts: Mapping[str, Any], link_faults: Mapping[str, Any] | None = None
+    sc: Scenario,
+    parts: Mapping[str, Any],
+    executed: list[dict[str, Any]] | None = None,
+    link_faults: Mapping[str, Any] | None = None,
 ) -> list[dict[str, Any]]:
     """Each scheduled fault, its ticks and what it did: the events the world
-    logged for it (``fault_log``: killed, started, rejoined, frozen, thawed ...)
-    and the counters any process kept under the fault's string (sensors,
-    actuators: ``fault_counts``) or the link layer under its index (``link_faults``)."""
+    logged for it (``fault_log``: killed, started, readmitted, rejoined, frozen,
+    thawed, lost ...); the counters kept for it: by the link layer under its
+    index (``link_faults``), by the world's cameras and wheels under its string
+    (``sensor_faults``, ``actuator_faults``, per robot) and by any process under
+    its string (``fault_counts``); for process faults what the launcher
+    executed (``executed``: its events for the fault, with wall times), each
+    return of the robot (``rejoins``: ticks and wall seconds from the "start"
+    call, or the loss, to the agent's first command) and how the formation
+    came back (``recoveries``, world.recovery)."""
     world = parts.get("world", {})
     log = world.get("fault_log", []) or []
+    launcher = [e for e in executed or [] if e.get("fault")]
     out = []
     for index, f in enumerate(sc.faults):
         text = str(f)
@@ -151,6 +163,34 @@ def fault_effects(
                 "counts": counts,
             }
         )
+        if f.process is not None:
+            out[-1]["executed"] = [e for e in launcher if e.get("fault") == text]
+            out[-1]["rejoins"] = [r for r in world.get("rejoins", []) or [] if r.get("fault") == text]
+            out[-1]["recoveries"] = [r for r in world.get("recoveries", []) or [] if r.get("fault") == text]
+    return out
+
+
+def _links(parts: Mapping[str, Any]) -> dict[str, Any]:
+    """Every link's counts: the world's command links and each agent's own;
+    an agent restarted (agent-3.2 ...) adds its counts to the first's."""
+    links: dict[str, Any] = dict(parts.get("world", {}).get("cmd_links", {}))
+    for name, part in parts.items():
+        if name.startswith("agent-"):
+            for link, counts in (part.get("links") or {}).items():
+                links[link] = _add(links.get(link, {}), counts)
+    return links
+
+
+def _add(a: Mapping[str, Any], b: Mapping[str, Any]) -> dict[str, Any]:
+    """Counts added key by key, nested tables too (a link's per-fault counts)."""
+    out = dict(a)
+    for k, v in b.items():
+        if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
+            out[k] = _add(out[k], v)
+        elif isinstance(v, (int, float)) and not isinstance(v, bool) and isinstance(out.get(k), (int, float)):
+            out[k] = out[k] + v
+        else:
+            out[k] = v
     return out
 
 
@@ -176,10 +216,7 @@ def build(
     world = parts.get("world", {})
     failure = robots_lost(world, sc)
     rejected = {name: part.get("rejected", {}) for name, part in parts.items() if part.get("rejected")}
-    links: dict[str, Any] = dict(world.get("cmd_links", {}))
-    for name, part in parts.items():
-        if name.startswith("agent-"):
-            links.update(part.get("links", {}))
+    links = _links(parts)
     link_totals, link_faults = _link_sums(links, sc)
     return {
         "run_id": run_id,
@@ -211,7 +248,7 @@ def build(
         "sensor_faults": world.get("sensor_faults", {}),
         "actuator_faults": world.get("actuator_faults", {}),
         "deaths": world.get("deaths", []),
-        "faults": fault_effects(sc, parts, link_faults),
+        "faults": fault_effects(sc, parts, events, link_faults),
         "messages": world.get("messages", {}),
         "links": links,
         "link_totals": link_totals,

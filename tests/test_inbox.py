@@ -76,17 +76,20 @@ def test_the_leaders_first_code_is_taken_and_a_coarse_tick_still_allows_two_ahea
     assert slow.code(FormationCode(1, 2, 2, 1)) == "tick ahead of the world"
 
 
-def test_codes_must_be_newer_and_not_far_ahead_of_the_agents_clock() -> None:
+def test_codes_must_be_newer_by_tick_then_seq_and_not_far_ahead_of_the_agents_clock() -> None:
     c = checks()
     ahead = math.ceil(5.0 / DT_S)  # CODE_AHEAD_S of ticks
-    assert c.code(FormationCode(1, 10, 0, 1)) is None
-    assert c.code(FormationCode(1, 10, 1, 1)) == "replayed or reordered"
-    assert c.code(FormationCode(1, 9, 1, 1)) == "replayed or reordered"
+    assert c.code(FormationCode(1, 10, 3, 1)) is None
+    assert c.code(FormationCode(1, 10, 3, 1)) == "replayed or reordered"  # the same code again
+    assert c.code(FormationCode(1, 9, 3, 1)) == "replayed or reordered"  # the same tick, an older seq
+    assert c.code(FormationCode(1, 50, 2, 1)) == "replayed or reordered"  # an older tick, whatever its seq
+    assert c.code(FormationCode(1, 11, 3, 0)) is None  # the same tick, a newer seq
+    assert c.code(FormationCode(1, 1, 4, 1)) is None  # a restarted leader: seq 1 again, at a later tick
     assert c.observation(obs(20)) is None
-    assert c.code(FormationCode(1, 11, 20 + ahead, 1)) is None
-    assert c.code(FormationCode(1, 12, 20 + ahead + 1, 1)) == "tick ahead of the world"
-    assert c.code(FormationCode(1, 13, 2**53, 1)) == "tick ahead of the world"
-    assert c.last_code_seq == 11  # refused codes move nothing
+    assert c.code(FormationCode(1, 2, 20 + ahead, 1)) is None
+    assert c.code(FormationCode(1, 3, 20 + ahead + 1, 1)) == "tick ahead of the world"
+    assert c.code(FormationCode(1, 4, 2**53, 1)) == "tick ahead of the world"
+    assert c.last_code == (20 + ahead, 2)  # refused codes move nothing
 
 
 def test_what_the_link_layer_hands_over_must_be_newer_than_what_it_handed_over_before() -> None:
@@ -106,4 +109,4 @@ def test_what_the_link_layer_hands_over_must_be_newer_than_what_it_handed_over_b
     assert c.handed_code(FormationCode(1, 4, 0, 1)) is None
     assert c.handed_code(FormationCode(1, 3, 0, 1)) == "replayed or reordered"
     assert c.handed_code(FormationCode(1, 4, 0, 1)) == "replayed or reordered"
-    assert c.last_handed_code_seq == 4
+    assert c.last_handed_code == (0, 4)

@@ -20,6 +20,8 @@ PURE = (
     "formation_swarm.world.camera",
     "formation_swarm.world.engine",
     "formation_swarm.world.hardware_faults",
+    "formation_swarm.world.recovery",
+    "formation_swarm.world.process_faults",
     "formation_swarm.protocol.keys",
     "formation_swarm.protocol.links",
     "formation_swarm.protocol.codec",

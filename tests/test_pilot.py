@@ -123,3 +123,20 @@ def test_the_stop_distance_is_half_the_look_ahead() -> None:
     path = ((0.0, 0.0), (0.0, 10.0))
     assert PathPilot(path, 1.0, 0.5, lookahead_m=2.0).step(Pose(0.0, 8.9, NORTH)) != (0.0, 0.0)
     assert PathPilot(path, 1.0, 0.5, lookahead_m=2.0).step(Pose(0.0, 9.1, NORTH)) == (0.0, 0.0)
+
+
+def test_a_pilot_started_along_the_path_goes_on_from_there_not_back_to_the_start() -> None:
+    """A leader restarted mid-run: its fresh pilot picks the segment nearest its pose."""
+    path = ((0.0, 0.0), (0.0, 20.0), (20.0, 20.0), (20.0, 0.0))
+    pilot = PathPilot(path, speed_mps=1.0, width_m=0.5, lookahead_m=1.0)
+    assert pilot.nearest_segment(10.0, 19.0) == 1
+    assert pilot.nearest_segment(0.0, 0.0) == 0
+    assert pilot.nearest_segment(20.0, 20.0) == 1  # the first of equally near segments
+    east = 0.0
+    assert pilot.step(Pose(10.0, 20.0, east)) == (1.0, 1.0)  # on the second leg, heading along it: straight on
+    # At the path's start, a fresh pilot flies the first segment, as it always did.
+    fresh = PathPilot(path, speed_mps=1.0, width_m=0.5, lookahead_m=1.0)
+    assert fresh.step(Pose(0.0, 0.0, NORTH)) == (1.0, 1.0)
+    # A closed loop: its start is also its last segment's end; the first segment wins.
+    loop = PathPilot(((0.0, 0.0), (0.0, 10.0), (10.0, 10.0), (0.0, 0.0)), speed_mps=1.0, width_m=0.5)
+    assert loop.nearest_segment(0.0, 0.0) == 0

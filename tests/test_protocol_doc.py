@@ -80,7 +80,8 @@ def test_every_key_in_the_table_is_built_by_the_keys_module_and_back() -> None:
         "telemetry": k.telemetry(ID),
         "truth": k.truth,
         "status": k.status,
-        "alive": (k.alive("world", 0), k.alive("agent", ID), k.alive("logger", 0)),
+        "faults": k.faults,
+        "alive": (k.alive("world", 0), k.alive("agent", ID), k.alive("logger", 0), k.alive("launcher", 0)),
         "world_wake": k.world_wake,
     }
     patterns = {
@@ -192,6 +193,18 @@ def spec(t: str) -> Spec:
                 (None, "wrong type"),
             ],
         )
+    if t == "process":
+        return Spec(
+            ["logger", "agent-1", "agent-10000"],
+            [
+                ("agent-0", "out of range"),
+                ("agent-10001", "out of range"),
+                ("agent-01", "out of range"),
+                ("world", "out of range"),
+                (3, "wrong type"),
+                (None, "wrong type"),
+            ],
+        )
     if t == "bool":
         return Spec([True, False], [(1, "wrong type"), (0, "wrong type"), (None, "wrong type")])
     if m := re.fullmatch(r"str (.*)", t):
@@ -226,7 +239,9 @@ def message_rows(name: str) -> tuple[int, list[list[str]]]:
 def test_every_message_type_has_a_section_and_no_other() -> None:
     documented = set(re.findall(r"^### (\w+) \(tag \d+\)$", TEXT, re.MULTILINE))
     assert (
-        documented == set(MESSAGE_TYPES) == {"Observation", "Command", "FormationCode", "Telemetry", "Truth", "Status"}
+        documented
+        == set(MESSAGE_TYPES)
+        == {"Observation", "Command", "FormationCode", "Telemetry", "Truth", "Status", "FaultCall"}
     )
     assert all(getattr(messages, n) is cls for n, cls in MESSAGE_TYPES.items())
 

@@ -35,7 +35,7 @@ def test_the_grants_of_a_three_robot_run() -> None:
     assert list(g) == ["world", "logger", "launcher", "agent-1", "agent-2", "agent-3"]
     assert g["world"] == Grants(
         publish=(f"{R}/robot/1/obs", f"{R}/robot/2/obs", f"{R}/robot/3/obs", f"{R}/world/truth", f"{R}/world/status",
-                 f"{R}/robot/wake/cmd"),
+                 f"{R}/world/faults", f"{R}/robot/wake/cmd"),
         subscribe=(f"{R}/robot/*/cmd",),
         tokens=(f"{R}/alive/world/0",),
         watch=(f"{R}/alive/*/*",),
@@ -45,7 +45,11 @@ def test_the_grants_of_a_three_robot_run() -> None:
         tokens=(f"{R}/alive/logger/0",),
         watch=(f"{R}/alive/world/0",),
     )
-    assert g["launcher"] == Grants(subscribe=(f"{R}/world/status",), watch=(f"{R}/alive/*/*",))
+    # The launcher hears the run's status and the world's fault calls, and holds a token of its own.
+    assert g["launcher"] == Grants(
+        subscribe=(f"{R}/world/status", f"{R}/world/faults"), tokens=(f"{R}/alive/launcher/0",),
+        watch=(f"{R}/alive/*/*",),
+    )  # fmt: skip
     # Only the leader may publish formation codes, one key per follower.
     assert g["agent-1"] == Grants(
         publish=(f"{R}/robot/1/cmd", f"{R}/robot/1/telemetry", f"{R}/robot/2/formation", f"{R}/robot/3/formation"),
@@ -87,7 +91,7 @@ def test_the_router_rules_of_a_two_robot_run() -> None:
     rows = {  # user -> (rule, flow, messages, keys)
         "world": [
             ("put", "ingress", ["put"], [f"{R}/robot/1/obs", f"{R}/robot/2/obs", f"{R}/world/truth",
-                                         f"{R}/world/status", f"{R}/robot/wake/cmd"]),
+                                         f"{R}/world/status", f"{R}/world/faults", f"{R}/robot/wake/cmd"]),
             ("sub", "ingress", ["declare_subscriber"], [f"{R}/robot/*/cmd"]),
             ("data", "egress", ["put"], [f"{R}/robot/*/cmd"]),
             ("token", "ingress", ["liveliness_token"], [f"{R}/alive/world/0"]),
@@ -102,8 +106,9 @@ def test_the_router_rules_of_a_two_robot_run() -> None:
             ("seen", "egress", SEEN, [f"{R}/alive/world/0"]),
         ],
         "launcher": [
-            ("sub", "ingress", ["declare_subscriber"], [f"{R}/world/status"]),
-            ("data", "egress", ["put"], [f"{R}/world/status"]),
+            ("sub", "ingress", ["declare_subscriber"], [f"{R}/world/status", f"{R}/world/faults"]),
+            ("data", "egress", ["put"], [f"{R}/world/status", f"{R}/world/faults"]),
+            ("token", "ingress", ["liveliness_token"], [f"{R}/alive/launcher/0"]),
             ("watch", "ingress", WATCHING, [f"{R}/alive/*/*"]),
             ("seen", "egress", SEEN, [f"{R}/alive/*/*"]),
         ],

@@ -22,6 +22,7 @@ import numpy as np
 from formation_swarm.world.camera import observe
 from formation_swarm.world.hardware_faults import SENSOR_EFFECT, CameraFaults, Wheels, counts_table
 from formation_swarm.world.kinematics import Pose, _step_unchecked, from_body_frame, to_body_frame
+from formation_swarm.world.recovery import Recovery
 
 if TYPE_CHECKING:  # an annotation only: the world's physics does not import the application layer
     from formation_swarm.scenario import Scenario
@@ -115,6 +116,8 @@ class WorldEngine:
     _recorded: int = field(init=False, default=0)  # ticks whose metrics were taken
     cameras: dict[int, CameraFaults] = field(init=False, default_factory=dict)  # followers only
     wheels: dict[int, Wheels] = field(init=False, default_factory=dict)
+    # Formation errors after a robot's return (world.recovery), fed by record().
+    recoveries: list[Recovery] = field(init=False, default_factory=list)
     _touching: set[tuple[int, int]] = field(init=False, default_factory=set)
     _digest: hashlib._Hash = field(init=False)
     # The state of the last tick stepped from, until record() takes its metrics.
@@ -191,10 +194,17 @@ class WorldEngine:
             r.formation = formation
 
     def kill(self, rid: int) -> None:
-        """The robot's process is gone: it stops where it is, for good."""
+        """The robot's process is gone: it stops where it is, until revived."""
         r = self.robots[rid]
         r.alive = False
         r.command = (0.0, 0.0)
+
+    def revive(self, rid: int) -> None:
+        """The robot's agent is back (a fresh process, a session regained): it
+        gets observations again and holds still until its first command."""
+        r = self.robots[rid]
+        r.alive, r.answered = True, False
+        r.command, r.command_time_s = (0.0, 0.0), -math.inf
 
     def true_target(self, rid: int) -> tuple[float, float]:
         r = self.robots[rid]
@@ -236,6 +246,7 @@ class WorldEngine:
         if snap is None:
             return
         sc = self.scenario
+        errors: dict[int, float] = {}
         for rid, metrics in self.metrics.items():
             pose, _, formation = snap[rid]
             slot = sc.formation_by_code(formation).slots[rid]
@@ -245,6 +256,7 @@ class WorldEngine:
             along = ex * math.cos(ref_pose.theta_rad) + ey * math.sin(ref_pose.theta_rad)
             turning = abs(ref_command[1] - ref_command[0]) / sc.width_m >= TURN_RATE_RPS
             err = math.hypot(ex, ey)
+            errors[rid] = err
             metrics.add(err, along, turning)
             windows = self.error_windows[rid]
             if self._recorded % self._window_ticks == 0:
@@ -252,6 +264,8 @@ class WorldEngine:
             w = windows[-1]
             w[0], w[1], w[2] = w[0] + err, max(w[1], err), w[2] + 1
         self._recorded += 1
+        for rec in self.recoveries:
+            rec.add(self.tick - 1, errors)  # the snapshot is of the tick before the last step
         self._contacts({rid: pose for rid, (pose, _, _) in snap.items()})
         h = self._digest
         for rid in sorted(snap):

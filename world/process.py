@@ -1,7 +1,8 @@
 """The world process: clock, physics and sensors of one run over Zenoh.
 
     swarm world --scenario S.toml --run RUN [--mode lockstep|realtime] [--seed N]
-                [--stats FILE] [--out DIR] [--expect-logger] [--peers-timeout S] [zenoh flags]
+                [--stats FILE] [--out DIR] [--expect-logger] [--process-faults]
+                [--peers-timeout S] [zenoh flags]
 
 By default it is also the run's Zenoh router (``--zenoh-mode router --listen ...``):
 agents and the logger connect to it as clients. Before tick 0 it waits, up
@@ -15,6 +16,14 @@ every live agent has answered tick k, or when ``lockstep_deadline_s`` passes
 (the miss is counted, that robot's command is not renewed). Real time: ticks
 follow the wall clock at 1/dt Hz; the latest command is held; a robot whose
 command is older than ``stale_after_s`` is stopped.
+
+Process faults of the scenario (kill, restart, freeze) are driven from here:
+at a fault's tick the world publishes a FaultCall on ``Keys.faults``, before
+that tick's observations, for the launcher to execute, and applies the
+fault's effect itself (world.process_faults). It needs ``--process-faults``,
+the promise that an executor is there: then it also waits for the
+executor's token before tick 0. A robot whose agent comes back (a restart,
+a session regained) is re-admitted.
 
 Commands reach the loop through a Zenoh FIFO channel read on the loop's own
 thread (one thread switch per message; a callback thread and a queue made
@@ -50,8 +59,9 @@ from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.links import Link, faults_on, link_name
-from formation_swarm.protocol.messages import Command, Observation, Status, Truth
+from formation_swarm.protocol.messages import Command, FaultCall, Observation, Status, Truth
 from formation_swarm.world.engine import WorldEngine
+from formation_swarm.world.process_faults import START, Call, ProcessFaults
 
 STATUS_PERIOD_S = 0.25
 LINGER_S = 2.0  # after "done", at most this long for the others to leave
@@ -111,6 +121,7 @@ class World:
         expect_logger: bool,
         role: role_mod.Role,
         where: str = "",
+        executor: bool = False,
     ) -> None:
         self.session = sess
         self.sc = sc
@@ -121,6 +132,11 @@ class World:
         self.stop = role.stop
         self.where = where  # the session's endpoints, for messages
         self.engine = WorldEngine(sc, seed)
+        # Kills, restarts, freezes and agents that come and go (world.process_faults).
+        self.faults = ProcessFaults(self.engine, sc.faults, mode == "lockstep")
+        self.executor = executor  # a process executes the fault calls (--process-faults)
+        self.executor_seen = False
+        self.t0 = time.monotonic()  # wall clock of the loop's start, for the fault log
         self.rejections = Rejections()
         # A sequence per stream (each robot's observations, truth, status): the number
         # an observation's link drop is decided on must not depend on how many status
@@ -145,7 +161,6 @@ class World:
         self.logger_seen = False
         self.present: set[str] = set()  # alive keys of the agents and the logger
         self.finished = False  # "done" sent: agents leaving now are not deaths
-        self.deaths: list[dict[str, Any]] = []
         self.leader_done = False
         self.end_reason = summary_mod.INTERRUPTED
         self.ended_at_s: float | None = None  # sim time when the run ended; None if it never started
@@ -170,9 +185,13 @@ class World:
         truth_pub = BatchPublisher(s.declare_publisher(k.truth))  # for the logger only: batched
         status_pub = s.declare_publisher(k.status)
         self.wake_pub = s.declare_publisher(k.world_wake, congestion_control=block)
+        self.fault_pub = s.declare_publisher(k.faults, congestion_control=block) if self.executor else None
+        self.obs_pubs = obs_pubs
         self.cmds = s.declare_subscriber(k.all_cmd, zenoh.handlers.FifoChannel(CMD_CAPACITY))
         self.alarm = Alarm(self._wake)
         self.stop.add_waker(self._wake)
+        # A matching change wakes the loop: before tick 0, and when a fresh agent subscribes mid-run.
+        self.matching = [p.declare_matching_listener(lambda _status: self._wake()) for p in obs_pubs.values()]
         s.liveliness().declare_subscriber(k.alive_any, self._on_alive, history=True)
         token = s.liveliness().declare_token(k.alive("world", 0))
         try:
@@ -189,9 +208,9 @@ class World:
                 f"up to {sc.ticks} ticks of {sc.dt_s:g} s"
             )
             gc.freeze()  # start-up objects leave the collector's scans
-            t0 = time.monotonic()
+            self.t0 = time.monotonic()
             code = self._loop(obs_pubs, truth_pub, status_pub)
-            self.loop_wall_s = time.monotonic() - t0
+            self.loop_wall_s = time.monotonic() - self.t0
             self.ended_at_s = self.engine.time_s
             if code == 0:
                 self.end_reason = summary_mod.LEADER_FINISHED if self.leader_done else summary_mod.DURATION_REACHED
@@ -214,24 +233,25 @@ class World:
     def _wait_ready(self, obs_pubs: dict[int, zenoh.Publisher]) -> bool:
         """Every agent's token (declared after its subscribers and after its
         command publisher matched us), every observation publisher matched and,
-        if expected, the logger's token; until the role's peers deadline. A
-        token or a matching change wakes the loop."""
+        if expected, the logger's token and the fault executor's (declared after
+        its subscriber to the calls); until the role's peers deadline. A token
+        or a matching change wakes the loop."""
         want = set(self.sc.robots)
-        listeners = [p.declare_matching_listener(lambda _status: self._wake()) for p in obs_pubs.values()]
-        try:
-            while not self.stop.is_set():
-                self._drain(until=0.0)
-                matched = all(p.matching_status.matching for p in obs_pubs.values())
-                if self.agents_seen >= want and matched and (self.logger_seen or not self.expect_logger):
-                    return True
-                if self.role.left_s() <= 0:
-                    self._give_up(want, obs_pubs)
-                    return False
-                self._drain(until=self.role.deadline)
-            return False
-        finally:
-            for listener in listeners:
-                listener.undeclare()
+        while not self.stop.is_set():
+            self._drain(until=0.0)
+            matched = all(p.matching_status.matching for p in obs_pubs.values())
+            if (
+                self.agents_seen >= want
+                and matched
+                and (self.logger_seen or not self.expect_logger)
+                and (self.executor_seen or not self.executor)
+            ):
+                return True
+            if self.role.left_s() <= 0:
+                self._give_up(want, obs_pubs)
+                return False
+            self._drain(until=self.role.deadline)
+        return False
 
     def _give_up(self, want: set[int], obs_pubs: dict[int, zenoh.Publisher]) -> None:
         missing = []
@@ -239,6 +259,8 @@ class World:
             missing.append(f"no agent for robot{'s' if len(absent) > 1 else ''} {', '.join(map(str, absent))}")
         if self.expect_logger and not self.logger_seen:
             missing.append("no logger")
+        if self.executor and not self.executor_seen:
+            missing.append("no executor of the process faults (the launcher's token alive/launcher/0)")
         deaf = sorted(r for r, p in obs_pubs.items() if r in self.agents_seen and not p.matching_status.matching)
         if deaf:
             missing.append(f"agents {', '.join(map(str, deaf))} present but not subscribed to their observations")
@@ -291,15 +313,18 @@ class World:
             (self.present.add if present else self.present.discard)(key)
         if role == "logger":
             self.logger_seen = self.logger_seen or present
+        elif role == "launcher":
+            self.executor_seen = self.executor_seen or present
         elif role == "agent" and ident.isdigit() and int(ident) in self.engine.robots:
             rid = int(ident)
             if present:
                 self.agents_seen.add(rid)
-            elif self.engine.robots[rid].alive and not self.finished:
-                self.engine.kill(rid)
-                self.deaths.append({"robot": rid, "tick": self.engine.tick, "time_s": self.engine.time_s,
-                                    "pose": list(self.engine.robots[rid].pose)})  # fmt: skip
-                print(f"world: robot {rid} lost its agent at t={self.engine.time_s:.2f} s; stopped", flush=True)
+            if lost := self.faults.token(rid, present, self._wall_s(), self.finished):
+                print(f"world: {lost}", flush=True)
+
+    def _wall_s(self) -> float:
+        """Wall seconds since the loop started (before: since the world started)."""
+        return time.monotonic() - self.t0
 
     def _on_command(self, msg: Command) -> None:
         eng = self.engine
@@ -328,6 +353,8 @@ class World:
         # It answers the tick, whatever its link does with it: lost or held, the
         # robot's command is not renewed now.
         r.answered = True
+        if r.alive:
+            self.faults.answered(msg.sender, self._wall_s())
         if msg.done and msg.sender == self.sc.leader.robot_id:
             self.leader_done = True
         for handed in self.cmd_links[msg.sender].deliver(msg.seq, msg.tick, msg):
@@ -350,6 +377,8 @@ class World:
         eng = self.engine
         tick, t = eng.tick, eng.time_s
         for rid in eng.alive_ids:
+            if not self.faults.observed(rid):
+                continue  # frozen (lockstep): no observation, not waited for
             eng.robots[rid].answered = False
             pose, readings, obstacles = eng.observation(rid)
             seq = self._next_seq(link_name("obs", 0, rid))
@@ -382,21 +411,30 @@ class World:
                 if lateness > 0.5 * period:
                     self.late_ticks += 1
                 self.wall_s = now - start
+            self._process_faults()  # this tick's fault calls and returning agents, before its observations
             self._publish_tick(obs_pubs, truth_pub)
             eng.record()  # the last tick's metrics, while the agents work on this one
             if self.mode == "lockstep":
                 t_wait = time.perf_counter()
                 deadline = time.monotonic() + sc.lockstep_deadline_s
+                # A robot just thawed may wait for its SIGCONT: its first answer gets longer.
+                thaw_deadline = time.monotonic() + self.role.peers_timeout_s
                 while not self.stop.is_set():
-                    waiting = [rid for rid in eng.alive_ids if not eng.robots[rid].answered]
+                    waiting = [
+                        rid for rid in eng.alive_ids if not eng.robots[rid].answered and self.faults.observed(rid)
+                    ]
                     if not waiting:
                         break
-                    if time.monotonic() >= deadline:
+                    if time.monotonic() >= (until := self._answer_deadline(waiting, deadline, thaw_deadline)):
                         self.misses += len(waiting)
                         for rid in waiting:
                             eng.robots[rid].command = (0.0, 0.0)  # missed: stopped this tick
+                            if rid in self.faults.thawing:
+                                self.faults.thawing.discard(rid)
+                                print(f"world: robot {rid} did not answer within {self.role.peers_timeout_s:g} s "
+                                      f"of its thaw at t={eng.time_s:.2f} s; a miss", flush=True)  # fmt: skip
                         break
-                    self._drain(until=deadline)
+                    self._drain(until=until)
                 self.wait_s += time.perf_counter() - t_wait
             else:
                 self._drain(until=0.0)
@@ -408,6 +446,53 @@ class World:
                     self._apply_command(held)
             eng.step(eng.time_s if self.mode == "lockstep" else self.wall_s)
         return 0
+
+    def _answer_deadline(self, waiting: list[int], deadline: float, thaw_deadline: float) -> float:
+        return thaw_deadline if any(rid in self.faults.thawing for rid in waiting) else deadline
+
+    def _process_faults(self) -> None:
+        """The fault calls of this tick, published before its observations and
+        applied to the world; then the robots whose agent is back are re-admitted."""
+        faults = self.faults
+        for call in faults.due(self.engine.tick):
+            self._publish_call(call)
+            faults.execute(call, self._wall_s())
+            if call.action == START and self.mode == "lockstep" and call.robot in faults.starting:
+                self._await_fresh_agent(call)
+        for rid in faults.returned():
+            if self.mode == "lockstep" and not self.obs_pubs[rid].matching_status.matching:
+                continue  # its observations would be lost: next tick
+            faults.readmit(rid, self._wall_s())
+            # A fresh agent counts its messages from 1; what its predecessor's link
+            # still held would be taken for newer than all of them.
+            self.last_cmd[rid] = (-1, -1)
+            self.applied_seq[rid] = -1
+            self.cmd_links[rid].forget_held()
+            print(f"world: robot {rid} is back at t={self.engine.time_s:.2f} s", flush=True)
+
+    def _publish_call(self, call: Call) -> None:
+        if self.fault_pub is not None:
+            msg = FaultCall(0, self._next_seq("faults"), self.engine.tick, self.engine.time_s, call.action,
+                            call.fault.target, call.index)  # fmt: skip
+            self.fault_pub.put(msg.to_bytes())
+
+    def _await_fresh_agent(self, call: Call) -> None:
+        """Lockstep, at a restart's "start": wait until the fresh agent's token is
+        there and its observations are subscribed (bounded by --peers-timeout)."""
+        rid = call.robot
+        if rid is None:  # only agents restart (formation_swarm.faults)
+            return
+        deadline = time.monotonic() + self.role.peers_timeout_s
+        while not self.stop.is_set():
+            self._drain(until=0.0)
+            if self.faults.back(rid) and self.obs_pubs[rid].matching_status.matching:
+                return
+            if time.monotonic() >= deadline:
+                self.faults.not_back(rid, self._wall_s())
+                print(f"world: no fresh agent for robot {rid} within {self.role.peers_timeout_s:g} s of its restart "
+                      f"at t={self.engine.time_s:.2f} s ('{call.fault}'); it stays stopped", flush=True)  # fmt: skip
+                return
+            self._drain(until=deadline)
 
     def stats(self, wall_s: float) -> dict[str, Any]:
         out = self.engine.summary()
@@ -423,7 +508,7 @@ class World:
                 "late_ticks": self.late_ticks,
                 "wake_ups": self.wakes,  # deadlines, clock ticks, liveliness, stop: not commands
                 "max_tick_lateness_s": self.max_tick_lateness_s,
-                "deaths": self.deaths,
+                **self.faults.stats(),  # deaths, fault_log, rejoins, recoveries
                 "leader_done": self.leader_done,
                 "end_reason": self.end_reason,
                 "ended_at_s": self.ended_at_s,
@@ -489,6 +574,13 @@ def build_parser() -> cliargs.Parser:
         help="write the run's summary.json and the scenario as run (scenario.toml) into DIR, as swarm run does",
     )
     ap.add_argument("--expect-logger", action="store_true", help="also wait for the logger before the first tick")
+    ap.add_argument(
+        "--process-faults",
+        action="store_true",
+        help="a process of the run (swarm run's launcher) executes the scenario's process faults (kill, restart, "
+        "freeze) on the world's calls: wait for its token too before the first tick. Without it the world "
+        "refuses a scenario with process faults",
+    )
     role_mod.add_arguments(ap, waits_for="an agent per robot (and the logger)")
     session.add_arguments(ap, default_mode="router")
     return ap
@@ -501,6 +593,12 @@ def main(argv: list[str] | None = None) -> int:
     sc = role.load(args)
     if isinstance(sc, int):
         return sc
+    if (procs := [str(f) for f in sc.faults if f.process is not None]) and not args.process_faults:
+        role.complain(
+            f"the scenario has process faults ({', '.join(procs)}) and nothing here executes them: swarm run "
+            "does; by hand, remove them from [[faults]], or pass --process-faults with an executor of your own"
+        )
+        return role_mod.EXIT_USAGE
     sess_cm = role.connect(args)
     if isinstance(sess_cm, int):
         return sess_cm
@@ -514,7 +612,7 @@ def main(argv: list[str] | None = None) -> int:
     with sess_cm as sess:
         waits = f"agents {', '.join(map(str, sc.robots))}" + (" and the logger" if args.expect_logger else "")
         role.say(f"{where}; run {args.run}: waiting up to {role.peers_timeout_s:g} s for {waits}")
-        world = World(sess, sc, args.run, sc.seed, args.mode, args.expect_logger, role, where)
+        world = World(sess, sc, args.run, sc.seed, args.mode, args.expect_logger, role, where, args.process_faults)
         code = world.run()
         stats = world.stats(time.monotonic() - started)
         stats["exit_code"] = code

@@ -1,0 +1,328 @@
+"""Process faults (kill, restart, freeze) driven by the world's clock: the
+schedule, the world's bookkeeping, and real runs that repeat to the tick."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+
+from formation_swarm import scenario as scenario_mod
+from formation_swarm import scenario_files
+from formation_swarm import summary as summary_mod
+from formation_swarm.faults import Fault
+from formation_swarm.launcher import RunResult
+from formation_swarm.world.engine import WorldEngine
+from formation_swarm.world.process_faults import FREEZE, KILL, START, THAW, ProcessFaults, calls
+from formation_swarm.world.recovery import Recovery
+
+FIG11 = "fig11_obstacles"
+SHORT = {"run.duration_s": 30.0}
+
+
+def _faults(*texts: str) -> tuple[Fault, ...]:
+    return tuple(sorted((Fault.parse(t) for t in texts), key=lambda f: f.at_s))
+
+
+# -- the schedule and the world's bookkeeping, without processes ---------------------
+
+
+def test_each_process_fault_is_one_or_two_calls_at_its_ticks() -> None:
+    faults = _faults(
+        "kill agent-3@20s", "restart agent-2@10s after=1", "freeze logger@5s for=3s", "drop obs:2@1s p=0.5"
+    )
+    got = {tick: [(c.action, c.fault.target, c.index) for c in cs] for tick, cs in calls(faults, 0.05).items()}
+    # Index: the place in the schedule (by start time): drop 0, freeze 1, restart 2, kill 3.
+    assert got == {
+        100: [(FREEZE, "logger", 1)],
+        160: [(THAW, "logger", 1)],
+        200: [(KILL, "agent-2", 2)],
+        220: [(START, "agent-2", 2)],
+        400: [(KILL, "agent-3", 3)],
+    }
+
+
+def _world(*faults: str, mode: str = "lockstep") -> tuple[WorldEngine, ProcessFaults]:
+    sc = scenario_mod.load(FIG11, SHORT, faults)
+    eng = WorldEngine(sc, seed=1)
+    pf = ProcessFaults(eng, sc.faults, mode == "lockstep")
+    for rid in sc.robots:
+        pf.token(rid, True, 0.0, finished=False)
+    return eng, pf
+
+
+def _run_to(eng: WorldEngine, pf: ProcessFaults, tick: int) -> None:
+    """Step to ``tick``, doing each tick's calls as the world does, before its observations."""
+    while eng.tick < tick:
+        eng.step(eng.time_s)
+        for call in pf.due(eng.tick):
+            pf.execute(call, wall_s=eng.time_s)
+
+
+def test_a_restart_kills_at_its_tick_and_readmits_only_a_fresh_agent() -> None:
+    eng, pf = _world("restart agent-3@1s after=0.5")
+    _run_to(eng, pf, 20)
+    assert not eng.robots[3].alive  # dead at the kill's tick, before its observations
+    assert pf.deaths == [{"robot": 3, "tick": 20, "time_s": 1.0, "pose": list(eng.robots[3].pose), "cause": "killed"}]
+    _run_to(eng, pf, 30)
+    assert 3 in pf.starting
+    assert not pf.back(3)  # the old agent's token is still there: the SIGKILL has not landed
+    pf.token(3, False, 1.6, finished=False)  # the old token goes: not a loss, the robot is already dead
+    assert not pf.back(3)
+    assert [e["event"] for e in pf.fault_log] == ["killed", "started"]
+    pf.token(3, True, 3.5, finished=False)  # the fresh agent
+    assert pf.returned() == [3]
+    pf.readmit(3, wall_s=3.5)
+    assert eng.robots[3].alive
+    assert eng.robots[3].command_time_s == -math.inf
+    eng.step(eng.time_s)
+    pf.answered(3, wall_s=3.6)  # its first command, a tick later
+    (rejoin,) = pf.rejoins
+    assert rejoin["since_tick"] == 30
+    assert rejoin["rejoined_tick"] == 31
+    assert rejoin["ticks_to_rejoin"] == 1
+    assert rejoin["wall_s_to_rejoin"] == pytest.approx(3.6 - 1.5)  # from the "start" call (wall_s 1.5 here)
+    assert [e["event"] for e in pf.fault_log] == ["killed", "started", "readmitted", "rejoined"]
+    assert {e["fault"] for e in pf.fault_log} == {"restart agent-3@1s after=0.5"}
+
+
+def test_a_lost_agent_stops_its_robot_and_is_readmitted_when_it_returns() -> None:
+    eng, pf = _world("freeze agent-1@1s for=20s", mode="realtime")
+    _run_to(eng, pf, 40)
+    assert pf.frozen == set()  # real time: a freeze is the executor's business only
+    assert pf.observed(1)
+    said = pf.token(1, False, 12.0, finished=False)  # the router dropped its session (the lease)
+    assert said is not None
+    assert "robot 1 lost its agent at t=2.00 s" in said
+    assert not eng.robots[1].alive
+    assert pf.returned() == []
+    pf.token(1, True, 21.0, finished=False)  # it resumed and reconnected
+    assert pf.returned() == [1]
+    pf.readmit(1, wall_s=21.0)
+    pf.answered(1, wall_s=21.05)
+    assert [(e["event"], e["fault"]) for e in pf.fault_log] == [
+        ("frozen", "freeze agent-1@1s for=20s"),
+        ("lost", "freeze agent-1@1s for=20s"),  # a loss while frozen is the freeze's doing
+        ("readmitted", "freeze agent-1@1s for=20s"),
+        ("rejoined", "freeze agent-1@1s for=20s"),
+    ]
+    # The leader came back: each follower's formation error is watched from then on.
+    assert [(r.robot, r.watched) for r in eng.recoveries] == [(1, (2,)), (1, (3,))]
+    # After "done", agents leave: no loss.
+    assert pf.token(2, False, 30.0, finished=True) is None
+    assert eng.robots[2].alive
+
+
+def test_a_lockstep_freeze_skips_the_robot_and_waits_long_for_its_first_answer() -> None:
+    eng, pf = _world("freeze agent-2@1s for=0.5s")
+    _run_to(eng, pf, 20)
+    assert not pf.observed(2)
+    assert pf.observed(3)
+    _run_to(eng, pf, 30)
+    assert pf.observed(2)
+    assert pf.thawing == {2}
+    pf.answered(2, wall_s=1.0)
+    assert pf.thawing == set()
+    assert [e["event"] for e in pf.fault_log] == ["frozen", "thawed"]
+    assert pf.rejoins == []
+    assert pf.deaths == []
+
+
+def test_recovery_first_below_settled_and_the_window() -> None:
+    rec = Recovery(3, "readmitted", "restart agent-3@20s", since_tick=10, watched=(3,), dt_s=0.5, window_s=2.0,
+                   hold_s=1.0)  # fmt: skip
+    errors = [2.0, 1.0, 0.4, 0.6, 0.3, 0.2, 0.1]  # ticks 10..16; window 4 ticks, hold 2 ticks
+    rec.add(9, {3: 9.0})  # before the return: not counted
+    for k, e in enumerate(errors):
+        rec.add(10 + k, {3: e, 2: 99.0})
+    d = rec.as_dict()
+    assert d["error_at_start_m"] == 2.0
+    assert d["first_below_tick"] == 12
+    assert d["first_below_after_s"] == 1.0
+    assert d["settled_tick"] == 14  # 0.4 then 0.6 broke the first streak
+    assert d["settled_after_s"] == 2.0
+    assert d["error_after_window_m"] == 0.3
+    assert d["max_in_window_m"] == 2.0
+    assert d["rms_in_window_m"] == pytest.approx(math.sqrt((4 + 1 + 0.16 + 0.36) / 4))
+
+
+def test_a_robot_that_came_back_is_not_lost_and_restarted_agents_links_add_up() -> None:
+    sc = scenario_mod.load(FIG11)
+    death = {"robot": 1, "tick": 100, "time_s": 5.0}
+    assert summary_mod.robots_lost({"deaths": [death], "dead_robots": []}, sc) is None
+    assert "the leader (robot 1) lost its agent at t=5.00 s" in str(
+        summary_mod.robots_lost({"deaths": [death], "dead_robots": [1]}, sc)
+    )
+    parts: dict[str, Any] = {
+        "world": {"cmd_links": {"cmd:3>0": {"received": 10, "dropped": 0}}},
+        "agent-3": {"links": {"obs:0>3": {"received": 400, "dropped": 4}}},
+        "agent-3.2": {"links": {"obs:0>3": {"received": 180, "dropped": 2}}},
+    }
+    assert summary_mod._links(parts)["obs:0>3"] == {"received": 580, "dropped": 6}
+
+
+def test_a_world_started_by_hand_refuses_process_faults_it_cannot_execute(tmp_path: Any) -> None:
+    sc_file = tmp_path / "s.toml"
+    src = scenario_files.resolve(FIG11).read_text()
+    sc_file.write_text(src + '\n[[faults]]\nkind = "kill"\ntarget = "agent-3"\nat_s = 20\n')
+    argv = [sys.executable, "-m", "formation_swarm.world.process", "--scenario", str(sc_file), "--run", "r1"]
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines() == [
+        "world: the scenario has process faults (kill agent-3@20s) and nothing here executes them: swarm run does; "
+        "by hand, remove them from [[faults]], or pass --process-faults with an executor of your own"
+    ]
+
+
+# -- real runs: every robot its own process ----------------------------------------------
+
+
+def _runs(swarm_run: Callable[..., RunResult], fault: str, n: int) -> list[dict[str, Any]]:
+    out = []
+    for _ in range(n):
+        res = swarm_run(FIG11, seed=1, logger=False, faults=[fault], overrides=SHORT, timeout_s=240)
+        assert res.exit_code == 0, (res.summary.get("events"), res.summary.get("failure"))
+        assert res.summary["lockstep_misses"] == 0
+        out.append(res.summary)
+    return out
+
+
+def _fault(summary: dict[str, Any]) -> dict[str, Any]:
+    (f,) = summary["faults"]
+    return f
+
+
+def test_a_lockstep_kill_lands_on_its_tick_and_repeats_to_the_bit(swarm_run: Callable[..., RunResult]) -> None:
+    runs = _runs(swarm_run, "kill agent-3@20s", 3)
+    assert len({s["trajectory_digest"] for s in runs}) == 1
+    for s in runs:
+        f = _fault(s)
+        assert f["start_tick"] == 400
+        assert [(e["event"], e["tick"], e["robot"]) for e in f["events"]] == [("killed", 400, 3)]
+        assert [(e["event"], e["process"], e["tick"]) for e in f["executed"]] == [("killed", "agent-3", 400)]
+        assert [(d["robot"], d["tick"]) for d in s["deaths"]] == [(3, 400)]
+        assert s["parts"]["world"]["dead_robots"] == [3]
+        assert s["processes"]["agent-3"]["exit_code"] == -9
+        assert s["ticks"] == 600  # the run went on to its end
+    assert runs[0]["parts"]["world"]["final_poses"]["3"] == runs[0]["deaths"][0]["pose"]  # never moved again
+
+
+def test_a_lockstep_restart_rejoins_on_its_tick_and_repeats_to_the_bit(swarm_run: Callable[..., RunResult]) -> None:
+    runs = _runs(swarm_run, "restart agent-3@20s after=1", 3)
+    assert len({s["trajectory_digest"] for s in runs}) == 1
+    for s in runs:
+        f = _fault(s)
+        assert (f["start_tick"], f["end_tick"]) == (400, 420)
+        assert [(e["event"], e["tick"]) for e in f["events"]] == [
+            ("killed", 400), ("started", 420), ("readmitted", 420), ("rejoined", 420)]  # fmt: skip
+        assert [(e["event"], e["process"]) for e in f["executed"]] == [("killed", "agent-3"), ("started", "agent-3.2")]
+        (rejoin,) = f["rejoins"]
+        # Lockstep waits at tick 420 for the fresh process: no tick passes, only wall time.
+        assert rejoin["ticks_to_rejoin"] == 0
+        assert 0.3 < rejoin["wall_s_to_rejoin"] < 30.0
+        assert s["processes"]["agent-3.2"]["exit_code"] == 0  # the fresh agent flew to the end
+        assert s["parts"]["world"]["dead_robots"] == []
+        assert s["failure"] is None
+        assert s["parts"]["agent-3.2"]["answered"] == 600 - 420
+    # How the formation came back is part of the trajectories: the same every run.
+    (rec,) = _fault(runs[0])["recoveries"]
+    assert [_fault(s)["recoveries"] for s in runs[1:]] == [[rec], [rec]]
+    assert rec["since_tick"] == 420
+    # Back amid the formation's changes at the obstacles (line at 19.6 s, triangle at 30.4 s):
+    # below 0.5 m within a second, and within 1 m of its slot 5 s after its return.
+    assert rec["first_below_after_s"] < 1.0
+    assert rec["error_after_window_m"] < 1.0
+    print("restart agent-3@20s: rejoin", [_fault(s)["rejoins"][0]["wall_s_to_rejoin"] for s in runs], "recovery", rec)
+
+
+def test_a_lockstep_freeze_repeats_to_the_bit(swarm_run: Callable[..., RunResult]) -> None:
+    runs = _runs(swarm_run, "freeze agent-2@15s for=3s", 3)
+    assert len({s["trajectory_digest"] for s in runs}) == 1
+    for s in runs:
+        f = _fault(s)
+        assert [(e["event"], e["tick"]) for e in f["events"]] == [("frozen", 300), ("thawed", 360)]
+        assert [(e["event"], e["tick"]) for e in f["executed"]] == [("frozen", 300), ("thawed", 360)]
+        assert s["deaths"] == []
+        # Frozen, it answered nothing: 60 observations fewer than the others.
+        assert s["parts"]["agent-2"]["answered"] == s["parts"]["agent-3"]["answered"] - 60
+    (rec,) = _fault(runs[0])["recoveries"]
+    assert rec["event"] == "thawed"
+    assert rec["error_at_start_m"] > 1.0  # the formation went on without it
+    assert rec["settled_after_s"] < 12.0  # and it caught up (measured: 10.35 s)
+    print("freeze agent-2@15s for=3s: recovery", rec)
+
+
+def test_a_restarted_leader_goes_on_along_its_path_and_its_codes_are_heard(
+    swarm_run: Callable[..., RunResult],
+) -> None:
+    """Its pilot starts from the segment nearest its pose; its formation codes
+    count from seq 1 again and the followers take them (ordered by tick, seq)."""
+    res = swarm_run(FIG11, seed=1, logger=False, faults=["restart agent-1@10s after=1"],
+                    overrides={"run.duration_s": 40.0}, timeout_s=240)  # fmt: skip
+    s = res.summary
+    assert res.exit_code == 0
+    assert s["failure"] is None
+    killed_at = next(d for d in s["deaths"] if d["robot"] == 1)["pose"]
+    assert s["parts"]["world"]["final_poses"]["1"][1] > killed_at[1] + 20.0  # on north, not back to y = 0
+    # The obstacles at y = 36 m, passed after the restart: every robot went to line and back.
+    changes = sorted((e["robot"], e["formation"]) for e in s["formation_events"])
+    assert changes == [(r, f) for r in (1, 2, 3) for f in ("line", "triangle")], changes
+    assert s["collisions"] == 0
+    assert s["obstacle_collisions"] == 0
+    assert s["rejected_total"] == 0
+
+
+def test_a_realtime_restart_readmits_the_robot_when_its_fresh_agent_appears(
+    swarm_run: Callable[..., RunResult],
+) -> None:
+    res = swarm_run(FIG11, mode="realtime", logger=False, faults=["restart agent-3@3s after=1"],
+                    overrides={"run.duration_s": 12.0}, timeout_s=120)  # fmt: skip
+    s = res.summary
+    assert res.exit_code == 0
+    f = _fault(s)
+    events = {e["event"]: e["tick"] for e in f["events"]}
+    assert events["killed"] == 60
+    assert events["started"] == 80
+    # Real time does not wait: the robot is back when its fresh agent is, some ticks later.
+    assert events["readmitted"] > 80
+    (rejoin,) = f["rejoins"]
+    assert 0 < rejoin["ticks_to_rejoin"] < 200
+    assert rejoin["wall_s_to_rejoin"] == pytest.approx(rejoin["ticks_to_rejoin"] * 0.05, abs=0.3)
+    assert s["parts"]["world"]["dead_robots"] == []
+    print("realtime restart agent-3@3s: rejoin", rejoin)
+
+
+@pytest.mark.slow
+def test_a_leader_frozen_beyond_the_zenoh_lease_is_lost_then_rejoins(swarm_run: Callable[..., RunResult]) -> None:
+    """Real time, the leader SIGSTOPped for 15 s: after the 10 s lease the router
+    drops its session and the world counts it lost; once SIGCONTed its Zenoh
+    client reconnects and declares its token again, the agent sees the world
+    back, and the world re-admits the robot."""
+    res = swarm_run(FIG11, mode="realtime", logger=False, faults=["freeze agent-1@5s for=15s"],
+                    overrides=SHORT, timeout_s=120)  # fmt: skip
+    s = res.summary
+    assert res.exit_code == 0, s["failure"]  # the leader came back: not a failed run
+    f = _fault(s)
+    at = {e["event"]: e["tick"] for e in f["events"]}
+    assert set(at) == {"frozen", "lost", "thawed", "readmitted", "rejoined"}
+    assert at["frozen"] == 100
+    assert at["thawed"] == 400
+    assert 100 + 190 <= at["lost"] <= 100 + 260  # Zenoh's lease: 10 s, checked a few times per lease
+    assert 400 <= at["readmitted"] <= at["rejoined"] <= 400 + 20  # back within a second of the SIGCONT
+    (back_after_s,) = s["parts"]["agent-1"]["world_back_after_s"]
+    assert back_after_s is not None
+    assert back_after_s < 1.0  # the agent did not leave: the world came back
+    assert s["processes"]["agent-1"]["exit_code"] == 0
+    (rejoin,) = f["rejoins"]
+    assert rejoin["cause"] == "lost"
+    recs = {r["watched"][0]: r for r in f["recoveries"]}
+    assert set(recs) == {2, 3}
+    for r in recs.values():
+        assert r["since_tick"] == at["readmitted"]
+        assert r["max_in_window_m"] is not None
+        assert math.isfinite(r["rms_in_window_m"])
+    print("leader frozen 15 s: events", at, "back after", back_after_s, "recoveries", recs)
