@@ -141,6 +141,8 @@ class Agent:
                 self.world_lost = None
                 self.world_back_after_s[-1] = away = time.monotonic() - self.world_lost_at
                 self.role.say(f"the world is back after {away:.2f} s")
+        elif self.done:
+            pass  # the run is over: the world leaves after "done", as it should
         elif self.world_seen and self.started and self.world_lost is None and not self.world_gone:
             # Mid-run: the world, or only our session to it, may come back.
             self.world_lost_at = time.monotonic()
