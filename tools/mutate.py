@@ -65,6 +65,18 @@ class Module:
 
 T = "tests/"
 PUBLISHED = T + "test_published.py"  # the published figures recomputed (seconds): last, it is the slowest
+# The tests of tests/test_process_faults.py that start no process.
+PROCESS_FAULT_UNITS = tuple(
+    T + "test_process_faults.py::" + name
+    for name in (
+        "test_each_process_fault_is_one_or_two_calls_at_its_ticks",
+        "test_a_restart_kills_at_its_tick_and_readmits_only_a_fresh_agent",
+        "test_a_lost_agent_stops_its_robot_and_is_readmitted_when_it_returns",
+        "test_a_lockstep_freeze_skips_the_robot_and_waits_long_for_its_first_answer",
+        "test_recovery_first_below_settled_and_the_window",
+        "test_a_robot_that_came_back_is_not_lost_and_restarted_agents_links_add_up",
+    )
+)
 MODULES = (
     Module(
         "agents/geometry.py",
@@ -114,6 +126,9 @@ MODULES = (
     Module("protocol/batch.py", (T + "test_protocol.py", T + "test_messages.py")),
     Module("protocol/trust.py", (T + "test_trust_rules.py",)),
     Module("agents/inbox.py", (T + "test_inbox.py", T + "test_role_inputs.py")),
+    Module("swarm/faults.py", (T + "test_fault_grammar.py",)),
+    Module("world/process_faults.py", PROCESS_FAULT_UNITS),
+    Module("world/recovery.py", PROCESS_FAULT_UNITS),
     Module(
         "swarm/sweep.py",
         (T + "test_results.py", T + "test_sweep.py::test_aggregate_mean_std_and_t_interval"),
