@@ -234,6 +234,11 @@ class TargetEKF:
         return self._kf.x[:, 0].copy()
 
     @property
+    def speed_mps(self) -> float:
+        """v_r, the reference's estimated speed (m/s)."""
+        return float(self._kf.x[3, 0])
+
+    @property
     def covariance(self) -> np.ndarray:
         return self._kf.P.copy()
 

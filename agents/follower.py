@@ -7,10 +7,20 @@ slot directly (no partition-zone avoidance during formation changes).
 This is the whole controller of paper Fig. 4 plus the EKF of section 3 and
 the collision avoidance of section 2.2, with no I/O, so the same object runs
 inside an agent process, the one-process simulator and the benchmarks.
+
+On top of either law sits one rule that is not the paper's: the hold at a
+standing reference (docs/paper.md, "Beyond the paper"). The fuzzy controller
+never drives slower than V_N - a (1 m/s), so a follower whose reference has
+stopped would drive past its target and away; instead, when the EKF says the
+reference stands still, the follower stops at its target, and goes on when
+the reference moves again. It is decided from the follower's own estimate
+only, so a lockstep run stays reproducible; raw mode (no EKF) has no speed
+estimate and no hold.
 """
 
 from __future__ import annotations
 
+import collections
 import math
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -23,7 +33,7 @@ from formation_swarm.agents.ekf import EkfParams, TargetEKF
 from formation_swarm.agents.geometry import Point, errors, leader_point, target_from_reading, target_point
 from formation_swarm.agents.lpsi import LpsiParams
 from formation_swarm.agents.lpsi import control as lpsi_control
-from formation_swarm.checks import non_negative, positive
+from formation_swarm.checks import finite, non_negative, positive
 
 LAWS = ("fuzzy", "lpsi")
 
@@ -42,6 +52,13 @@ class FollowerParams:
     use_ekf: bool = True
     law: str = "fuzzy"  # or "lpsi", the baseline
     lpsi: LpsiParams = field(default_factory=LpsiParams)
+    # The hold at a standing reference (not the paper's; docs/paper.md): the
+    # reference stands still once the mean of the EKF's estimate of its speed
+    # over the last hold_after_s is below hold_speed_mps (0: never hold), and
+    # moves again once that mean is above resume_speed_mps.
+    hold_speed_mps: float = 0.1
+    resume_speed_mps: float = 0.3
+    hold_after_s: float = 0.5
 
     def __post_init__(self) -> None:
         if self.law not in LAWS:
@@ -51,6 +68,12 @@ class FollowerParams:
         positive("dt_s", self.dt_s)
         positive("clearance_m", self.clearance_m)
         positive("lost_after_s", self.lost_after_s)
+        non_negative("hold_speed_mps", self.hold_speed_mps)
+        if not finite("resume_speed_mps", self.resume_speed_mps) >= self.hold_speed_mps:
+            raise ValueError(
+                f"resume_speed_mps must be >= hold_speed_mps ({self.hold_speed_mps!r}), got {self.resume_speed_mps!r}"
+            )
+        positive("hold_after_s", self.hold_after_s)
 
 
 class Decision(NamedTuple):
@@ -67,6 +90,7 @@ class Decision(NamedTuple):
     estimate_cov: np.ndarray | None
     steering_to: Choice
     changing: bool
+    holding: bool = False  # stopped at its standing reference (vn is then 0)
 
 
 class Follower:
@@ -83,6 +107,10 @@ class Follower:
         self._raw: tuple[float, float, float] | None = None
         self._predicted = False
         self.changing = False
+        # The EKF's estimates of the reference's speed over the last hold_after_s.
+        window = max(1, round(params.hold_after_s / params.dt_s))
+        self._speeds: collections.deque[float] = collections.deque(maxlen=window)
+        self.holding = False
 
     def set_offset(self, offset: Point) -> None:
         """A new formation slot: start the collision-avoiding change (sec. 2.2)."""
@@ -113,7 +141,12 @@ class Follower:
         if p.use_ekf:
             self.prepare()
             self._predicted = False
+            starting = not self.ekf.initialized
             self.ekf.update(reading)
+            if starting or not self.ekf.initialized:
+                self._speeds.clear()  # a filter that (re)starts knows only its prior speed, 0
+            else:
+                self._speeds.append(self.ekf.speed_mps)
         if self._since_reading_s > p.lost_after_s or self._raw is None or (p.use_ekf and not self.ekf.initialized):
             return self._stop(measured)  # lost, never seen, or the EKF restarts (diverged)
 
@@ -140,9 +173,13 @@ class Follower:
             # or T0 is the nearer: the change is
             # over, track T0 from now on (docs/paper.md, eq. 13).
             self.changing = False
-        vn, wheels = fz.control(err.alpha_rad, err.rho_m, err.drho_m, p.dt_s, p.fuzzy, p.speed)
         self._prev_rho = err.rho_m
         self._prev_choice = choice
+        if self._hold(err.rho_m, err.drho_m):
+            self._last_cmd = (0.0, 0.0)
+            return Decision(0.0, 0.0, 0.0, err.alpha_rad, err.rho_m, err.drho_m, measured, estimate, cov, choice,
+                            self.changing, holding=True)  # fmt: skip
+        vn, wheels = fz.control(err.alpha_rad, err.rho_m, err.drho_m, p.dt_s, p.fuzzy, p.speed)
         self._last_cmd = (wheels.left_mps, wheels.right_mps)
         return Decision(
             wheels.left_mps,
@@ -158,20 +195,50 @@ class Follower:
             self.changing,
         )
 
+    def reference_speed(self) -> float:
+        """The mean of the EKF's estimates of the reference's speed over the last
+        hold_after_s, m/s (inf until there are that many since the filter started)."""
+        n = len(self._speeds)
+        return abs(sum(self._speeds)) / n if n == self._speeds.maxlen else math.inf
+
+    def _hold(self, rho_m: float, drho_m: float) -> bool:
+        """Whether to hold this tick (docs/paper.md, "Beyond the paper").
+
+        With the reference standing still, the follower stops once it is at its
+        target: within d0 of it, level with it or past it (signed rho <= d0), or
+        at its closest approach within dn (rho no longer falling). It goes on
+        when the reference moves again, or when the target is more than d1
+        ahead, which it then approaches with its law and holds at again.
+        """
+        fzp = self.p.fuzzy
+        speed = self.reference_speed()
+        if self.holding:
+            self.holding = speed <= self.p.resume_speed_mps and rho_m <= fzp.d1_m
+        else:
+            self.holding = speed < self.p.hold_speed_mps and (
+                rho_m <= fzp.d0_m or (rho_m <= fzp.dn_m and drho_m >= 0.0)
+            )
+        return self.holding
+
     def _lpsi(self, leader: Point, phi: float, measured: Point | None, estimate: Point,
               cov: np.ndarray | None) -> Decision:  # fmt: skip
         p = self.p
         v_ref, w_ref = (float(v) for v in self.ekf.state[3:5]) if p.use_ekf else (0.0, 0.0)
-        left, right = lpsi_control(leader, phi, v_ref, w_ref, self.offset, p.width_m, p.lpsi)
         err = errors(estimate, self._prev_rho, phi)
         self.changing = False
         self._prev_rho = err.rho_m
+        if self._hold(err.rho_m, err.drho_m):
+            self._last_cmd = (0.0, 0.0)
+            return Decision(0.0, 0.0, 0.0, err.alpha_rad, err.rho_m, err.drho_m, measured, estimate, cov,
+                            Choice.T0, False, holding=True)  # fmt: skip
+        left, right = lpsi_control(leader, phi, v_ref, w_ref, self.offset, p.width_m, p.lpsi)
         self._last_cmd = (left, right)
         return Decision(left, right, math.nan, err.alpha_rad, err.rho_m, err.drho_m, measured, estimate, cov,
                         Choice.T0, False)  # fmt: skip
 
     def _stop(self, measured: Point | None) -> Decision:
         self._last_cmd = (0.0, 0.0)
+        self.holding = False
         self._prev_rho = None
         nan = math.nan
         return Decision(0.0, 0.0, nan, nan, nan, nan, measured, None, None, Choice.T0, self.changing)

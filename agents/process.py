@@ -65,6 +65,7 @@ WORLD_ID = 0
 # Zenoh waits for the loop (back-pressure) rather than dropping.
 INBOX_CAPACITY = 1024
 PENDING_CODES = 64  # formation codes waiting for their tick
+MAX_HOLDS = 100  # holds listed in a follower's stats (all are counted in held_ticks)
 DUPLICATE_QUERY_S = 1.0  # how long the start-up check for another agent of the same robot waits
 
 
@@ -113,6 +114,10 @@ class Agent:
         self.checks = InboxChecks(sc.robots, sc.camera.range_m, sc.camera.sigma_rho_m, sc.leader.sensing_range_m,
                                   sc.dt_s)  # fmt: skip
         self.superseded = 0  # observations skipped because a newer one was already there
+        # The follower's holds at a standing reference: ticks held, and [first, last] tick of each hold.
+        self.held_ticks = 0
+        self.holds: list[list[int]] = []
+        self._hold_span: list[int] | None = None  # the hold under way, if it is recorded
         if self.is_leader:
             ld = sc.leader
             self.pilot = PathPilot(ld.waypoints, ld.speed_mps, sc.width_m, ld.lookahead_m, ld.turn_rate_rps)
@@ -388,6 +393,7 @@ class Agent:
                     break
         d: Decision = self.follower.step(reading)
         self._send_cmd(obs.tick, d.left_mps, d.right_mps)
+        self._count_hold(obs.tick, d.holding)
         cov = None if d.estimate_cov is None else (
             float(d.estimate_cov[0, 0]), float(d.estimate_cov[0, 1]), float(d.estimate_cov[1, 1]))  # fmt: skip
         self.seq += 1
@@ -416,6 +422,17 @@ class Agent:
         )
         self.follower.prepare()  # the next tick's EKF prediction, before its observation comes
 
+    def _count_hold(self, tick: int, holding: bool) -> None:
+        if not holding:
+            self._hold_span = None
+            return
+        self.held_ticks += 1
+        if self._hold_span is not None:
+            self._hold_span[1] = tick
+        elif len(self.holds) < MAX_HOLDS:
+            self._hold_span = [tick, tick]
+            self.holds.append(self._hold_span)
+
     def stats(self) -> dict[str, Any]:
         return {
             "robot": self.rid,
@@ -423,6 +440,8 @@ class Agent:
             "answered": self.answered,
             "superseded": self.superseded,
             "ekf_resets": 0 if self.is_leader else self.follower.ekf.resets,
+            "held_ticks": self.held_ticks,  # a follower's ticks held at a standing reference
+            "holds": self.holds,  # [first, last] tick of each hold, the first MAX_HOLDS
             "busy_s": self.busy_s,
             "formation": self.sc.formation_names[self.code],
             "formation_changes": self.formation_changes,

@@ -13,6 +13,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 from formation_swarm.agents.ekf import EkfParams
+from formation_swarm.agents.follower import FollowerParams
 from formation_swarm.agents.fuzzy import FuzzyParams
 from formation_swarm.checks import SEED_MAX
 
@@ -169,6 +170,7 @@ def _ekf_key(name: str) -> Key:
 
 EKF_KEYS = {f.name: _ekf_key(f.name) for f in fields(EkfParams)}
 _FZ = FuzzyParams()
+_FOLLOWER = FollowerParams()
 CONTROLLER_KEYS = {
     "vn": Key(
         (str, int, float), "dynamic", "V_N, the nominal wheel speed: 'dynamic' (FIS-2 picks it) or a number", "m/s"
@@ -176,6 +178,21 @@ CONTROLLER_KEYS = {
     "use_ekf": Key(bool, True, "steer on the EKF's estimate of the target (false: on the raw camera reading)"),
     "clearance_m": positive("partition-zone collision avoidance (eq. 13): the clearance kept while changing", 1.0, "m"),
     "lost_after_s": positive("with no reading for this long the follower stops and waits", 1.0, "s"),
+    "hold_speed_mps": non_negative(
+        "the hold at a standing reference (not the paper's; docs/paper.md): the reference stands still once the"
+        " mean of the EKF's estimate of its speed over hold_after_s is below this, and the follower then stops at"
+        " its target; 0: never hold (nor without the EKF)",
+        _FOLLOWER.hold_speed_mps,
+        "m/s",
+    ),
+    "resume_speed_mps": non_negative(
+        "the hold ends once that mean is above this (>= hold_speed_mps): the reference moves again",
+        _FOLLOWER.resume_speed_mps,
+        "m/s",
+    ),
+    "hold_after_s": positive(
+        "the window of that mean: how long the reference must stand still", _FOLLOWER.hold_after_s, "s"
+    ),
     "gamma_deg": Key(
         NUM, math.degrees(_FZ.gamma_rad), "FIS-1 heading tolerance", "deg", low=0.0, high=180.0, open_low=True
     ),

@@ -5,16 +5,23 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
+import statistics
+from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from formation_swarm import scenario as scenario_mod
 from formation_swarm.agents import fuzzy as fz
 from formation_swarm.agents.avoidance import Choice
-from formation_swarm.agents.follower import Follower, FollowerParams
+from formation_swarm.agents.follower import Decision, Follower, FollowerParams
 from formation_swarm.agents.geometry import Point, errors, leader_point, target_from_reading, target_point
 from formation_swarm.agents.lpsi import control as lpsi_control
+from formation_swarm.world import kinematics
+from formation_swarm.world.camera import CameraParams, observe
+from formation_swarm.world.kinematics import Pose, from_body_frame
 from tests.test_avoidance import fly_the_change
 
 READING = (2.0, 0.2, 0.3)  # rho_r, phi, beta: the reference 2 m ahead, a little right, turned left
@@ -135,7 +142,8 @@ def test_defaults_are_the_scenario_files_defaults() -> None:
     """One source per fact: a scenario that sets nothing gets the follower defaults."""
     sc = scenario_mod.load(Path(__file__).parent.parent / "scenarios" / "fig7_turn_vn_dynamic.toml")
     p, default = sc.followers[2], FollowerParams()
-    for name in ("width_m", "marker_offset_m", "dt_s", "clearance_m", "lost_after_s", "use_ekf", "law"):
+    for name in ("width_m", "marker_offset_m", "dt_s", "clearance_m", "lost_after_s", "use_ekf", "law",
+                 "hold_speed_mps", "resume_speed_mps", "hold_after_s"):  # fmt: skip
         assert getattr(p, name) == getattr(default, name), name
     assert (default.clearance_m, default.lost_after_s) == (1.0, 1.0)
 
@@ -143,3 +151,143 @@ def test_defaults_are_the_scenario_files_defaults() -> None:
 def test_parameters_are_frozen() -> None:
     with pytest.raises(dataclasses.FrozenInstanceError):
         FollowerParams().dt_s = 1.0  # type: ignore[misc]
+
+
+# -- the hold at a standing reference (docs/paper.md, "Beyond the paper") --------------
+
+SLOT = Point(-1.5, -1.5)  # the paper's two-robot offset
+
+
+def _fly(p: FollowerParams, ref_speed_mps: Callable[[int], float], ticks: int, start_back_m: float = 0.0,
+         start_right_m: float = 0.0, seed: int = 0) -> list[tuple[Decision, float, Pose]]:  # fmt: skip
+    """A reference driving north at ``ref_speed_mps(tick)``, seen by the default
+    camera (noise included); the follower starts on its slot, moved back and
+    right. Per tick: the decision, the follower's distance to its true target
+    (m) and its pose."""
+    ref = Pose(0.0, 0.0, math.pi / 2)
+    x, y = from_body_frame(ref, SLOT.x_m + start_right_m, SLOT.y_m - start_back_m)
+    pose = Pose(x, y, math.pi / 2)
+    f = Follower(p, SLOT)
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(ticks):
+        m = next(iter(observe(2, {1: ref, 2: pose}, CameraParams(), rng)), None)
+        d = f.step(None if m is None else (m.rho_m, m.phi_rad, m.beta_rad))
+        tx, ty = from_body_frame(ref, SLOT.x_m, SLOT.y_m)
+        out.append((d, math.hypot(tx - pose.x_m, ty - pose.y_m), pose))
+        v = ref_speed_mps(k)
+        ref = kinematics.step(ref, v, v, p.width_m, p.dt_s)
+        pose = kinematics.step(pose, d.left_mps, d.right_mps, p.width_m, p.dt_s)
+    return out
+
+
+def _holds(run: list[tuple[Decision, float, Pose]]) -> list[tuple[int, int]]:
+    """(first, last) tick of each hold."""
+    spans: list[tuple[int, int]] = []
+    for k, (d, _, _) in enumerate(run):
+        if d.holding:
+            spans[-1:] = [(spans[-1][0], k)] if spans and spans[-1][1] == k - 1 else [*spans[-1:], (k, k)]
+    return spans
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_follower_holds_at_its_stopped_reference_and_resumes_when_it_moves(seed: int) -> None:
+    """The reference cruises at 1.5 m/s, stops at tick 100 (5 s), stands for 30 s
+    and drives on at tick 700. The follower stops within 0.5 m of its target
+    (measured: 0.38-0.46 m past it, seeds 0-4: the 0.5 s it takes to see the
+    reference stand), does not move by a millimetre while it stands, and drives
+    on within 8 ticks of the reference (measured: 5-6)."""
+    run = _fly(FollowerParams(), lambda k: 0.0 if 100 <= k < 700 else 1.5, 900, seed=seed)
+    ((first, last),) = _holds(run)
+    assert 100 < first < 100 + 25  # measured 114-115
+    assert run[first][1] < 0.5
+    held = [pose for _, _, pose in run[first : last + 1]]
+    assert max(math.hypot(p.x_m - held[0].x_m, p.y_m - held[0].y_m) for p in held) == 0.0
+    assert all(d.vn == 0.0 and (d.left_mps, d.right_mps) == (0.0, 0.0) for d, _, _ in run[first : last + 1])
+    assert 700 <= last < 700 + 8  # the reference moves from tick 700 on
+    # And it flies its slot again: within 0.5 m from 3 s after (measured: 0.42-0.46 m at most).
+    assert max(err for _, err, _ in run[760:]) < 0.5
+
+
+@pytest.mark.parametrize(("back_m", "right_m"), [(4.0, 0.0), (4.0, 1.0), (2.0, -2.0)])
+def test_a_follower_behind_a_standing_reference_drives_up_and_holds_at_its_target(back_m: float,
+                                                                                  right_m: float) -> None:  # fmt: skip
+    """The reference stands from the start: the paper's controller brings the
+    follower up (it never slows below 1 m/s), and it stops on reaching its
+    target: within d0, level with it, or at the closest approach within dn.
+    Measured, seeds 0-4: 0.04-0.42 m from its target, and it stays there for 30 s."""
+    for seed in range(3):
+        run = _fly(FollowerParams(), lambda k: 0.0, 600, back_m, right_m, seed)
+        ((first, last),) = _holds(run)
+        assert first >= 10  # the window of hold_after_s fills first
+        assert last == len(run) - 1
+        assert run[first][1] < FollowerParams().fuzzy.dn_m
+        assert run[-1][2] == run[first][2]
+
+
+def test_ahead_of_a_standing_reference_it_holds_where_it_is() -> None:
+    """Past its target the paper's controller would drive straight on (Close: both
+    wheels Slow, no reverse): the follower stops as soon as it sees the reference
+    stand, ahead of its target."""
+    run = _fly(FollowerParams(), lambda k: 0.0, 300, start_back_m=-2.0)
+    ((first, last),) = _holds(run)
+    assert 10 <= first < 20  # once the window is full and says the reference stands (measured: 13)
+    assert last == 299
+    assert 2.0 < run[-1][1] < 3.0  # where it stood after 10 ticks at 1 m/s
+
+
+def test_without_the_hold_the_paper_controller_drives_past_a_stopped_reference() -> None:
+    """hold_speed_mps = 0: the paper's controller alone, the reason for the hold."""
+    run = _fly(FollowerParams(hold_speed_mps=0.0), lambda k: 0.0 if k >= 100 else 1.5, 700)
+    assert _holds(run) == []
+    assert run[-1][1] > 10.0
+
+
+def test_without_the_ekf_there_is_no_hold() -> None:
+    """Raw mode has no estimate of the reference's speed: the paper's controller as it is."""
+    run = _fly(FollowerParams(use_ekf=False), lambda k: 0.0 if k >= 100 else 1.5, 300)
+    assert _holds(run) == []
+    assert min(d.left_mps for d, _, _ in run) >= 1.0 - 1e-9
+
+
+def test_the_lpsi_baseline_holds_too() -> None:
+    """l-psi can slow down, but on a standing reference it chases the EKF's
+    speed noise for ever; with the hold it stops near its slot."""
+    run = _fly(FollowerParams(law="lpsi"), lambda k: 0.0 if 100 <= k < 700 else 1.5, 900)
+    ((first, last),) = _holds(run)
+    assert run[first][1] < 0.5
+    assert 700 <= last < 700 + 8
+    free = _fly(FollowerParams(law="lpsi", hold_speed_mps=0.0), lambda k: 0.0 if 100 <= k < 700 else 1.5, 700)
+    assert statistics.fmean(abs(d.left_mps) + abs(d.right_mps) for d, _, _ in free[200:]) > 0.05
+
+
+def test_the_hold_needs_a_full_window_after_the_filter_starts() -> None:
+    """The EKF starts with the reference's speed at 0: that prior is no
+    measurement, so only hold_after_s of estimates after a (re)start of the
+    filter say whether the reference stands (until then its speed is unknown, inf)."""
+    f = Follower(FollowerParams(hold_after_s=0.25), SLOT)  # a window of 5 ticks
+
+    def unknown() -> list[bool]:
+        out = []
+        for _ in range(7):
+            f.step(READING)
+            out.append(math.isinf(f.reference_speed()))
+        return out
+
+    assert unknown() == [True] * 5 + [False] * 2  # tick 0 starts the filter, ticks 1-5 fill the window
+    f.ekf.reset()  # as after a divergence
+    assert unknown() == [True] * 5 + [False] * 2
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"hold_speed_mps": -0.1}, "hold_speed_mps must be >= 0"),
+        ({"hold_speed_mps": 0.5}, "resume_speed_mps must be >= hold_speed_mps (0.5), got 0.3"),
+        ({"resume_speed_mps": math.nan}, "resume_speed_mps must be finite"),
+        ({"hold_after_s": 0.0}, "hold_after_s must be > 0"),
+    ],
+)
+def test_the_hold_parameters_are_checked(kwargs: dict[str, float], message: str) -> None:
+    with pytest.raises(ValueError, match=re.escape(message)):
+        FollowerParams(**kwargs)

@@ -296,6 +296,64 @@ def test_a_realtime_restart_readmits_the_robot_when_its_fresh_agent_appears(
     print("realtime restart agent-3@3s: rejoin", rejoin)
 
 
+def _hold_runs(swarm_run: Callable[..., RunResult], fault: str) -> dict[str, Any]:
+    res = swarm_run(FIG11, seed=1, mode="lockstep", logger=False, faults=[fault], overrides={"run.duration_s": 25},
+                    timeout_s=240)  # fmt: skip
+    s = res.summary
+    assert s["lockstep_misses"] == 0
+    for agent in ("agent-2", "agent-3"):  # the fault took no other process down
+        assert s["processes"][agent]["exit_code"] == 0, agent
+    assert s["collisions"] == 0
+    assert s["min_distance_m"] > s["robot_diameter_m"]
+    return s
+
+
+def test_a_killed_leaders_followers_stop_near_their_slots(swarm_run: Callable[..., RunResult]) -> None:
+    """The leader's agent killed at 5 s: its robot stops, and so do its followers
+    (the hold at a standing reference, docs/paper.md), R2 on the leader and R3
+    on R2, each once its EKF has seen its reference stand for 0.5 s: measured,
+    R2 from tick 116 and R3 from tick 132 to the end, 0.56 m and 0.67 m from
+    their targets, at least 1.36 m from any other robot. Without the hold they
+    drove on, 12.2 m and 9.1 m from their targets at 25 s."""
+    s = _hold_runs(swarm_run, "kill agent-1@5s")
+    assert s["exit_code"] == 1
+    assert s["failure"] == "the leader (robot 1) lost its agent at t=5.00 s"
+    for agent, started_by in (("agent-2", 100 + 30), ("agent-3", 100 + 45)):
+        ((first, last),) = s["parts"][agent]["holds"]  # one hold, to the end
+        assert 100 < first < started_by, agent
+        assert last == 499
+    for rid in ("2", "3"):
+        final = s["error_windows"]["max_m"][rid][-1]
+        assert final < 0.8, rid
+        # Standing from 8 s on: the same error in every second to the end.
+        assert s["error_windows"]["max_m"][rid][8:] == [final] * 17
+        assert s["error_windows"]["mean_m"][rid][8:] == [final] * 17
+
+
+def test_a_frozen_leaders_followers_hold_then_follow_again(swarm_run: Callable[..., RunResult]) -> None:
+    """The leader's agent frozen from 5 s to 10 s: its robot stops 0.5 s later
+    (its last command goes stale), its followers hold, and they drive on once it
+    moves after the thaw. Measured: R2 held over ticks 124-204 and R3 over
+    140-212; 5 s after the thaw their formation errors were 0.41 m and 0.62 m,
+    below 0.83 m over those 5 s. Without the hold R2 drove past the standing
+    leader, was still 2.70 m off its target 5 s after the thaw, and collided
+    with the leader at 18.6 s (0.26 m apart)."""
+    s = _hold_runs(swarm_run, "freeze agent-1@5s for=5s")
+    assert s["exit_code"] == 0
+    assert s["failure"] is None
+    for agent, started_by, resumed_by in (("agent-2", 100 + 40, 200 + 10), ("agent-3", 100 + 55, 200 + 20)):
+        ((first, last),) = s["parts"][agent]["holds"]
+        assert 110 < first < started_by, agent  # the leader stops at tick 110 (run.stale_after_s)
+        assert 200 <= last < resumed_by, agent  # the thaw: the leader moves again from tick 200
+    recs = {r["watched"][0]: r for r in _fault(s)["recoveries"]}
+    assert set(recs) == {2, 3}
+    assert all(r["event"] == "thawed" and r["since_tick"] == 200 for r in recs.values())
+    assert recs[2]["error_after_window_m"] < 0.6
+    assert recs[3]["error_after_window_m"] < 0.8
+    assert max(r["max_in_window_m"] for r in recs.values()) < 1.0
+    print("hold under a frozen leader:", {a: s["parts"][a]["holds"] for a in ("agent-2", "agent-3")}, recs)
+
+
 @pytest.mark.slow
 def test_a_leader_frozen_beyond_the_zenoh_lease_is_lost_then_rejoins(swarm_run: Callable[..., RunResult]) -> None:
     """Real time, the leader SIGSTOPped for 15 s: after the 10 s lease the router
