@@ -94,6 +94,8 @@ REJECTED = {
     "run: no scenario": (["run"], "the following arguments are required: scenario"),
     "run: unknown flag": ([*RUN, "--bogus"], "unrecognized arguments: --bogus (see swarm run --help)"),
     "unknown command": (["fly"], "argument COMMAND: invalid choice: 'fly'"),
+    "sweep: a fault on no robot of the run": ([*SWEEP, "--fault", "blackout 9@3s"], "no robot 9 in this run"),
+    "sweep: a fault without its time": ([*SWEEP, "--fault", "blackout 2"], "a fault is KIND TARGET@START"),
     "sweep: zero jobs": ([*SWEEP, "--jobs", "0"], "argument --jobs: must be in [1, 256], got '0'"),
     "sweep: zero seeds": (
         ["sweep", "fig11_obstacles", "--seeds", "0"],

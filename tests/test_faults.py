@@ -252,3 +252,25 @@ def test_the_report_marks_every_fault(process_runs: list[dict[str, Any]], tmp_pa
     assert marks[1][:2] == (6.0, 7.0)
     text = "\n".join(_faults_markdown(process_runs[0]))
     assert "| `kill agent-3@12s` | from 240 | killed R3 at tick 240 (12.00 s) | - |" in text
+
+
+# -- real time ------------------------------------------------------------------------------------
+
+
+def test_the_same_faults_in_real_time(swarm_run: Callable[..., Any]) -> None:
+    """In real time the schedule is placed on the world's wall-clock ticks: a
+    partition still cuts exactly its ticks' observations, and the camera and
+    wheel faults act on exactly their ticks."""
+    faults = ["partition 3@2s for=1s from=world", "blackout 2@3s for=1s", "stuck 3@4s for=0.5s wheel=right",
+              "delay cmd:2@1s for=2s ms=120"]  # fmt: skip
+    res = swarm_run(FIG11, mode="realtime", logger=False, faults=faults, overrides={"run.duration_s": 6.0},
+                    timeout_s=60)  # fmt: skip
+    s = res.summary
+    assert res.exit_code == 0
+    assert s["links"]["obs:0>3"]["partitioned"] == TICKS_PER_S  # the world publishes every tick
+    # Commands are answers: at most one per observation, fewer if the agent skipped a stale one.
+    assert 0.75 * TICKS_PER_S <= s["links"]["cmd:3>0"]["partitioned"] <= TICKS_PER_S
+    assert fault(s, "blackout 2@3s for=1s")["counts"] == {"R2 ticks": 20, "R2 blacked_out": 40}
+    assert fault(s, "stuck 3@4s for=0.5s wheel=right")["counts"]["R3 ticks"] == 10
+    delayed = fault(s, "delay cmd:2@1s for=2s ms=120")["counts"]["delayed"]
+    assert 0.75 * 2 * TICKS_PER_S <= delayed <= 2 * TICKS_PER_S  # 120 ms: held 3 ticks each
