@@ -6,7 +6,7 @@ scenario's ``[links]``) and takes the link faults of the run's schedule that
 name it (formation_swarm.faults: ``drop``, ``burst``, ``delay``,
 ``duplicate``, ``reorder``, and ``partition`` for the links it cuts). Every
 random decision is a pure function of (seed, link, seq) and, for a fault, of
-its index in the schedule, so the same run loses, holds and repeats the same
+its text (``fault_key``), so the same run loses, holds and repeats the same
 messages however the machine is loaded; the time windows of the faults are
 counted in ticks of the message (its sim tick), never in wall time.
 
@@ -75,11 +75,17 @@ def uniform(seed: int, link: str, seq: int) -> float:
     return struct.unpack("<Q", h.digest())[0] / _SCALE
 
 
-def fault_uniform(seed: int, link: str, seq: int, fault_index: int, draw: int = 0) -> float:
-    """The ``draw``-th uniform number of fault ``fault_index`` (its place in the
-    run's schedule) for message ``seq`` of ``link``: ``uniform`` over the name
-    ``"<link>#<fault_index>/<draw>"``."""
-    return uniform(seed, f"{link}#{fault_index}/{draw}", seq)
+def fault_key(fault: Fault, occurrence: int = 0) -> str:
+    """What a fault's draws are keyed by: its text and how many identical faults
+    come before it in the schedule. Not its place in the schedule, so that
+    adding another fault changes none of this one's draws."""
+    return f"{fault}~{occurrence}"
+
+
+def fault_uniform(seed: int, link: str, seq: int, key: str, draw: int = 0) -> float:
+    """The ``draw``-th uniform number of the fault keyed ``key`` (``fault_key``)
+    for message ``seq`` of ``link``: ``uniform`` over the name ``"<link>#<key>/<draw>"``."""
+    return uniform(seed, f"{link}#{key}/{draw}", seq)
 
 
 def whole_ticks(value: float, unit: str, dt_s: float) -> int:
@@ -151,6 +157,11 @@ class Link(Generic[T]):
             raise ValueError(f"link {name}: dt_s is needed to place its faults on ticks")
         dt = positive(f"dt_s of link {name}", dt_s) if dt_s is not None else 0.0
         self.rules = tuple(_Rule.of(i, f, dt) for i, f in faults)
+        seen: collections.Counter[str] = collections.Counter()
+        self.keys: dict[int, str] = {}  # each rule's draws, by index: keyed by its fault's text
+        for i, f in faults:
+            self.keys[i] = fault_key(f, seen[str(f)])
+            seen[str(f)] += 1
         self.received = 0
         self.dropped = 0
         self.partitioned = 0
@@ -271,7 +282,7 @@ class Link(Generic[T]):
         return self.drop_probability > 0.0 and uniform(self.seed, self.name, seq) < self.drop_probability
 
     def _draw(self, rule: _Rule, seq: int, draw: int = 0) -> float:
-        return fault_uniform(self.seed, self.name, seq, rule.index, draw)
+        return fault_uniform(self.seed, self.name, seq, self.keys[rule.index], draw)
 
     def _burst_loses(self, rule: _Rule, seq: int) -> bool:
         """Step the rule's two-state chain (draw 0), then, in the bad state, lose

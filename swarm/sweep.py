@@ -22,7 +22,7 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -48,10 +48,13 @@ class Job:
     label: str  # the combination, e.g. "controller.vn=1.5"
     overrides: Mapping[str, Any]
     seed: int
+    # What else makes the run (the scenario as run, faults included, without its
+    # seed): a finished run is reused only for the very same scenario.
+    context: str = ""
 
     @property
     def name(self) -> str:
-        digest = hashlib.blake2b(self.label.encode(), digest_size=4).hexdigest()
+        digest = hashlib.blake2b((self.label + "\n" + self.context).encode(), digest_size=4).hexdigest()
         return f"{_slug(self.label) or 'base'}-{digest}-s{self.seed}"
 
 
@@ -139,12 +142,15 @@ class Sweep:
                  run_timeout_s: float = 600.0, faults: Sequence[Any] = ()) -> None:  # fmt: skip
         self.scenario = Path(scenario)
         from formation_swarm import scenario as scenario_mod
+        from formation_swarm import scenario_files
 
         self.faults = list(faults)  # added to every run (formation_swarm.faults)
         scenario_mod.load(self.scenario, None, self.faults)  # a bad scenario or fault fails here, not in every run
-        for ov in {j.label: j.overrides for j in jobs}.values():
-            scenario_mod.load(self.scenario, dict(ov), self.faults)  # and so does a bad --set value
-        self.jobs = list(jobs)
+        contexts = {}
+        for label, ov in {j.label: j.overrides for j in jobs}.items():
+            sc = scenario_mod.load(self.scenario, dict(ov), self.faults)  # and so does a bad --set value
+            contexts[label] = scenario_files.dumps(sc.with_seed(0).raw)
+        self.jobs = [replace(j, context=contexts[j.label]) for j in jobs]
         self.out = Path(out)
         self.workers = max(1, workers or os.cpu_count() or 1)
         self.logger = logger

@@ -16,6 +16,7 @@ import pytest
 from formation_swarm.faults import Fault
 from formation_swarm.launcher import RunResult
 from formation_swarm.protocol.links import Link, faults_on
+from tests.test_faults import assert_same_links
 
 pytestmark = pytest.mark.slow
 
@@ -54,7 +55,7 @@ def test_every_link_fault_at_once_is_reproducible_and_counted_exactly(swarm_run:
     clean = swarm_run(FIG11, mode="lockstep", logger=False, overrides={"run.duration_s": 20}).summary
     assert a["trajectory_digest"] == b["trajectory_digest"] != clean["trajectory_digest"]
     assert (a["ticks"], a["lockstep_misses"], b["lockstep_misses"]) == (400, 0, 0)
-    assert a["links"] == b["links"]
+    assert_same_links(a["links"], b["links"])
     assert a["rejected"] == b["rejected"]
 
     links = a["links"]
@@ -67,14 +68,14 @@ def test_every_link_fault_at_once_is_reproducible_and_counted_exactly(swarm_run:
     cmd2, _ = offline("cmd", 2, 400, lambda t: 2 * t + 1)
     cmd3, refused_cmd3 = offline("cmd", 3, 400, lambda t: 2 * t + 1)
     assert (links["obs:0>2"], links["obs:0>3"], links["cmd:2>0"], links["cmd:3>0"]) == (obs2, obs3, cmd2, cmd3)
-    assert (obs2["duplicated"], obs3["delayed"], cmd2["dropped"], cmd3["reordered"]) == (24, 80, 17, 9)
+    assert (obs2["duplicated"], obs3["delayed"], cmd2["dropped"], cmd3["reordered"]) == (24, 80, 6, 11)
     # Duplicates and messages held behind newer ones meet the receivers' order checks.
     assert a["rejected"] == {
         "agent-2": {"replayed or reordered": refused2},
         "agent-3": {"replayed or reordered": refused3},
         "world": {"replayed or reordered": refused_cmd3},
     }
-    assert (refused2, refused3, refused_cmd3) == (24, 10, 9)
+    assert (refused2, refused3, refused_cmd3) == (24, 14, 10)
     # Every formation code to robot 2 is 3 ticks late: it takes the line 3 ticks after robot 3.
     assert links["formation:1>2"]["delayed"] == links["formation:1>2"]["received"] > 0
     line = {e["robot"]: e["tick"] for e in a["formation_events"] if e["formation"] == "line"}
@@ -83,9 +84,9 @@ def test_every_link_fault_at_once_is_reproducible_and_counted_exactly(swarm_run:
     assert a["link_faults"] == {
         "0": {"fault": str(Fault.parse(CODE_DELAY)), "delayed": links["formation:1>2"]["delayed"]},
         "1": {"fault": str(Fault.parse(DUPLICATE)), "duplicated": 24},
-        "2": {"fault": str(Fault.parse(REORDER)), "reordered": 9},
+        "2": {"fault": str(Fault.parse(REORDER)), "reordered": 11},
         "3": {"fault": str(Fault.parse(DELAY)), "delayed": 80},
-        "4": {"fault": str(Fault.parse(BURST)), "dropped": 17},
+        "4": {"fault": str(Fault.parse(BURST)), "dropped": 6},
         "5": {"fault": str(Fault.parse(PARTITION)), "partitioned": 80},
     }
     assert a["link_totals"]["obs"]["partitioned"] == a["link_totals"]["cmd"]["partitioned"] == 40

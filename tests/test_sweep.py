@@ -49,7 +49,9 @@ def test_bad_set_value_fails_before_any_run(tmp_path: Path) -> None:
 def test_sweep_writes_tables_and_resumes(tmp_path: Path) -> None:
     jobs = [Job("controller.vn=1.5", {"controller.vn": 1.5, "run.duration_s": 5.0}, s) for s in (0, 1)]
     lines: list[str] = []
-    rows = Sweep(SCENARIOS / "fig7_turn_vn_dynamic.toml", jobs, tmp_path, workers=2, progress=lines.append).run()
+    sweep = Sweep(SCENARIOS / "fig7_turn_vn_dynamic.toml", jobs, tmp_path, workers=2, progress=lines.append)
+    rows = sweep.run()
+    jobs = sweep.jobs  # named after the scenario as run, too
     assert [r["seed"] for r in rows] == [0, 1]
     assert all(r["exit_code"] == 0 and r["ticks"] == 100 for r in rows)
     assert sum("2/2" in line for line in lines) == 1  # progress, one line per finished run
@@ -69,3 +71,10 @@ def test_sweep_writes_tables_and_resumes(tmp_path: Path) -> None:
     assert len(again) == 2
     assert json.loads((tmp_path / "runs" / jobs[0].name / "summary.json").read_text()) == first
     assert again[1]["r2_rms_m"] == rows[1]["r2_rms_m"]  # lockstep: the rerun is the same run
+    # The same combination with a fault (or a changed scenario) is another run, never a finished one reused.
+    lines.clear()
+    blind = Sweep(SCENARIOS / "fig7_turn_vn_dynamic.toml", jobs[:1], tmp_path, workers=1, progress=lines.append,
+                  faults=["blackout 2@1s"]).run()  # fmt: skip
+    assert not any("already done" in line for line in lines)
+    assert blind[0]["run"] != jobs[0].name
+    assert blind[0]["r2_rms_m"] != rows[0]["r2_rms_m"]
