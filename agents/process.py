@@ -64,6 +64,7 @@ WORLD_ID = 0
 # Lockstep holds at most a tick's observation and a few codes here; when full,
 # Zenoh waits for the loop (back-pressure) rather than dropping.
 INBOX_CAPACITY = 1024
+STATS_PERIOD_S = 1.0  # wall time between two writes of the counters while the run goes on
 PENDING_CODES = 64  # formation codes waiting for their tick
 MAX_HOLDS = 100  # holds listed in a follower's stats (all are counted in held_ticks)
 DUPLICATE_QUERY_S = 1.0  # how long the start-up check for another agent of the same robot waits
@@ -71,7 +72,12 @@ DUPLICATE_QUERY_S = 1.0  # how long the start-up check for another agent of the 
 
 class Agent:
     def __init__(self, sess: zenoh.Session, sc: scenario_mod.Scenario, rid: int, run_id: str, seed: int,
-                 role: role_mod.Role, where: str = "", world_grace_s: float = math.inf) -> None:  # fmt: skip
+                 role: role_mod.Role, where: str = "", world_grace_s: float = math.inf,
+                 stats_path: str | None = None) -> None:  # fmt: skip
+        # The counters go to stats_path at exit and every STATS_PERIOD_S meanwhile, so
+        # a SIGKILLed agent (a kill or restart fault) leaves what it counted until then.
+        self.stats_path = stats_path
+        self.stats_written_at = time.monotonic()
         if rid not in sc.robots:
             raise ValueError(f"--id {rid} is not a robot of this scenario; robots are {list(sc.robots)}")
         self.session = sess
@@ -281,6 +287,9 @@ class Agent:
             if newest is not None:
                 self._on_observation(newest, reading)
             self.busy_s += time.perf_counter() - t0
+            if self.stats_path and time.monotonic() - self.stats_written_at >= STATS_PERIOD_S:
+                write_json(self.stats_path, self.stats())
+                self.stats_written_at = time.monotonic()
         return self._exit_code()
 
     def _exit_code(self) -> int:
@@ -491,7 +500,7 @@ def build_parser() -> cliargs.Parser:
         type=cliargs.seed,
         default=None,
         metavar="N",
-        help="random seed of the link drops (default: the scenario's); the same as the world's",
+        help="random seed of the link drops and link faults (default: the scenario's); the same as the world's",
     )
     ap.add_argument("--stats", metavar="FILE", help="write this agent's counters here at exit (JSON)")
     role_mod.add_arguments(ap, waits_for="the world (and, for the leader, its followers)")
@@ -524,7 +533,7 @@ def main(argv: list[str] | None = None) -> int:
     where = role_mod.describe_session(args)
     with sess_cm as sess:
         grace = args.peers_timeout if args.world_grace is None else args.world_grace
-        agent = Agent(sess, sc, args.id, args.run, seed, role, where, grace)
+        agent = Agent(sess, sc, args.id, args.run, seed, role, where, grace, stats_path=args.stats)
         part = "leader" if agent.is_leader else f"follower of robot {agent.reference}"
         waits = "the world and its followers" if agent.is_leader else "the world"
         role.say(f"{where}; run {args.run}, {part}: waiting up to {role.peers_timeout_s:g} s for {waits}")

@@ -146,8 +146,9 @@ DELEGATED = {
 }
 
 RUN_EPILOG = """\
-exit codes: 0 the run ended normally; 1 the world failed, or a process failed
-before tick 0 (its log's last lines are printed); 2 a bad command line (one
+exit codes: 0 the run ended normally; 1 the world failed, a process failed
+before tick 0 (its log's last lines are printed), or the run lost its leader
+(or every follower) for good, a kill fault included; 2 a bad command line (one
 line on stderr, nothing started); 124 --timeout; 130 interrupted (Ctrl-C).
 
 examples:
@@ -174,8 +175,8 @@ def _add_run(sub: argparse._SubParsersAction[Parser]) -> None:
                      help="lockstep: the world waits for every robot each tick, reproducible and as fast as the "
                      "machine goes; realtime: the world steps on the wall clock (default: lockstep)")  # fmt: skip
     run.add_argument("--seed", type=seed, default=None, metavar="N",
-                     help="seed of every random draw (camera noise, link drops), an integer in [0, 2**63 - 1] "
-                     "(default: the scenario's run.seed)")  # fmt: skip
+                     help="seed of every random draw (camera noise, link drops, the faults' draws), "
+                     "an integer in [0, 2**63 - 1] (default: the scenario's run.seed)")  # fmt: skip
     run.add_argument("--out", default=None, metavar="DIR",
                      help="the run folder, created if needed (default: runs/<run id>)")  # fmt: skip
     run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",

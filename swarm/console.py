@@ -44,6 +44,14 @@ def describe_fault(f: Mapping[str, Any]) -> str:
         robot = f" R{e['robot']}" if e.get("robot") is not None else ""
         parts.append(f"{e.get('event')}{robot} at tick {e.get('tick')}")
     counts = ", ".join(f"{k} {v}" for k, v in sorted((f.get("counts") or {}).items()))
+    for rec in f.get("recoveries") or []:
+        who = ", ".join(f"R{r}" for r in rec.get("watched") or [])
+        after = rec.get("first_below_after_s")
+        bound = rec.get("bound_m", 0.5)
+        if isinstance(after, (int, float)):
+            parts.append(f"{who} below {bound:g} m {after:.2f} s after tick {rec.get('since_tick')}")
+        else:
+            parts.append(f"{who} not back below {bound:g} m by the end")
     said = "; ".join(x for x in ("; ".join(parts), counts) if x)
     return f"{f.get('fault')}" + (f": {said}" if said else "")
 
@@ -75,6 +83,8 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
     events = s.get("events") or []
     killed = {ev.get("process") for ev in events if ev.get("event") == "killed"}
     for ev in events:
+        if ev.get("fault"):
+            continue  # carried out for a fault: its line above says it
         if not (ev.get("event") == "exited" and ev.get("process") in killed):  # the kill said it
             w(f"  event: {describe_event(ev)}\n")
     w(f"run folder: {res.run_dir}\n  summary: {res.run_dir / 'summary.json'}\n")

@@ -30,6 +30,7 @@ launcher each take the part of the schedule that is theirs.
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
 from collections.abc import Iterable, Mapping, Sequence
@@ -253,6 +254,14 @@ class Fault:
         where = f"fault {kind!r}"
         target = _canonical_target(kind, str(target), where)
         at = seconds(f"{where}: the start", at_s)
+        checked: dict[str, float | str] = {}
+        for name, value in params.items():
+            if name not in spec.params:
+                known = ", ".join(spec.params) or "none"
+                close = difflib.get_close_matches(name, [*spec.params, "for", "for_s"], n=1, cutoff=0.5)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                raise ValueError(f"{where} has no parameter {name!r}{hint} (its parameters: {known})")
+            checked[name] = spec.params[name].check(f"{where}: {name}", value)
         dur = None
         if for_s is not None:
             if not spec.allows_for:
@@ -262,12 +271,6 @@ class Fault:
                 raise ValueError(f"{where}: for must be > 0 s, got {for_s!r}")
         elif spec.needs_for:
             raise ValueError(f"{where} needs a duration: for=SECONDS")
-        checked: dict[str, float | str] = {}
-        for name, value in params.items():
-            if name not in spec.params:
-                known = ", ".join(spec.params) or "none"
-                raise ValueError(f"{where} has no parameter {name!r}; its parameters: {known}")
-            checked[name] = spec.params[name].check(f"{where}: {name}", value)
         if spec.one_of:
             given = [n for n in spec.one_of if n in checked]
             if len(given) != 1:

@@ -344,9 +344,13 @@ class Launch:
     def _exited(self, child: Child, code: int, t: float) -> None:
         """A child that ended on its own, with an error: an event, and on the
         console which one, how, and the last lines of its log."""
-        if any(e["event"] == "killed" and e["process"] == child.name for e in self.events):
-            self.events.append({"event": "exited", "process": child.name, "code": code, "sim_time_s": t})
-            return  # by fault injection, already said
+        kill = next((e for e in self.events if e["event"] == "killed" and e["process"] == child.name), None)
+        if kill is not None:
+            # By fault injection, already said; it died at the kill (the status may lag behind).
+            at = kill.get("sim_time_s", t)
+            self.events.append({"event": "exited", "process": child.name, "code": code, "sim_time_s": at,
+                                "tick": kill.get("tick")})  # fmt: skip
+            return
         tail = log_tail(child.log_path)
         self.events.append({"event": "exited", "process": child.name, "code": code, "sim_time_s": t, "log_tail": tail})
         when = "before the run started" if self.last_status is None else f"at sim t={t:.2f} s"

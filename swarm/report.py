@@ -166,7 +166,8 @@ def _mark(ax: Any, marks: list[tuple[float, float | None, str]]) -> None:
         else:
             ax.axvspan(start, min(end, hi), color=color, alpha=0.15, lw=0)
         ax.text(start, 0.98, f" {label}", transform=ax.get_xaxis_transform(), rotation=90, va="top", ha="left",
-                fontsize=7, color=color)  # fmt: skip
+                fontsize=8, color=color, zorder=5,
+                bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": "none", "pad": 1.0})  # fmt: skip
     ax.set_xlim(lo, hi)
 
 

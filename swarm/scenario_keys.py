@@ -80,7 +80,9 @@ def non_negative(doc: str, default: Any = REQUIRED, unit: str = "") -> Key:
 
 RUN_KEYS = {
     "name": Key(str, "scenario", "the run's name: the start of its run id and folder"),
-    "seed": Key(int, 0, "seed of every random draw (camera noise, link drops)", low=0, high=SEED_MAX),
+    "seed": Key(
+        int, 0, "seed of every random draw (camera noise, link drops and faults, wheel noise)", low=0, high=SEED_MAX
+    ),
     "robots": Key(int, REQUIRED, "how many robots; ids run from leader.id upward", low=2, high=MAX_ROBOTS),
     "dt_s": positive("the tick: the world's integration step and the agents' control period", 0.05, "s"),
     "duration_s": positive("the run's length in sim time", unit="s"),

@@ -565,7 +565,7 @@ def build_parser() -> cliargs.Parser:
         type=cliargs.seed,
         default=None,
         metavar="N",
-        help="random seed of camera noise and link drops (default: the scenario's)",
+        help="random seed of camera noise, link drops and the faults' draws (default: the scenario's)",
     )
     ap.add_argument("--stats", metavar="FILE", help="write the world's metrics here at the end (JSON)")
     ap.add_argument(
