@@ -37,7 +37,6 @@ import collections
 import contextlib
 import gc
 import math
-import sys
 import threading
 import time
 from typing import Any
@@ -51,7 +50,7 @@ from formation_swarm.agents.follower import Decision, Follower
 from formation_swarm.agents.inbox import InboxChecks
 from formation_swarm.agents.leader import CodeRepeats, FormationSwitch
 from formation_swarm.agents.pilot import PathPilot
-from formation_swarm.proc import wait_for, write_json
+from formation_swarm.proc import exit_after_main, wait_for, write_json
 from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.codec import Rejections
@@ -549,4 +548,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    exit_after_main(main())

@@ -21,7 +21,6 @@ import gc
 import math
 import os
 import queue
-import sys
 import threading
 import time
 from pathlib import Path
@@ -32,7 +31,7 @@ import zenoh
 from formation_swarm import cliargs
 from formation_swarm import role as role_mod
 from formation_swarm import scenario as scenario_mod
-from formation_swarm.proc import write_json
+from formation_swarm.proc import exit_after_main, write_json
 from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import pack_batch
 from formation_swarm.protocol.codec import WORLD_ID, Rejections
@@ -307,4 +306,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    exit_after_main(main())

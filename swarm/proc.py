@@ -6,6 +6,7 @@ import contextlib
 import json
 import math
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -64,6 +65,17 @@ def install_stop_handlers() -> StopEvent:
     signal.signal(signal.SIGINT, handler)
     signal.signal(signal.SIGTERM, handler)
     return stop
+
+
+def exit_after_main(code: int) -> None:
+    """Exit with ``code`` once a role's main() has returned. A SIGINT or SIGTERM
+    that comes now (a launcher stopping every process as the run ends) finds
+    the work done: it is ignored. Otherwise the interpreter's shutdown puts
+    the default action back and such a signal would kill the process (-15)
+    after it had finished cleanly."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    sys.exit(code)
 
 
 def wait_for(event: threading.Event, timeout_s: float | None = None) -> bool:

@@ -40,7 +40,6 @@ import contextlib
 import gc
 import math
 import os
-import sys
 import threading
 import time
 from collections.abc import Callable
@@ -53,7 +52,7 @@ from formation_swarm import cliargs, scenario_files
 from formation_swarm import role as role_mod
 from formation_swarm import scenario as scenario_mod
 from formation_swarm import summary as summary_mod
-from formation_swarm.proc import write_json
+from formation_swarm.proc import exit_after_main, write_json
 from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.codec import Rejections
@@ -657,4 +656,4 @@ def _write_summary(
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    exit_after_main(main())
