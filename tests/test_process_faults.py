@@ -255,9 +255,10 @@ def test_a_late_rejoin_counts_its_ticks_and_a_pending_one_is_in_the_stats() -> N
     pf.token(2, False, 2.1, finished=False)
     pf.token(2, True, 2.4, finished=False)
     pf.readmit(2, wall_s=2.4)
-    pf.answered(3, wall_s=2.5)
+    _run_to(eng, pf, 70)
+    pf.answered(3, wall_s=3.5)
     (rejoin,) = pf.rejoins
-    assert (rejoin["since_tick"], rejoin["rejoined_tick"], rejoin["ticks_to_rejoin"]) == (30, 50, 20)
+    assert (rejoin["since_tick"], rejoin["rejoined_tick"], rejoin["ticks_to_rejoin"]) == (30, 70, 40)
     stats = pf.stats()
     assert stats["rejoins"] == [
         rejoin,
