@@ -3,13 +3,28 @@ are one schedule, checked the same way, placed on exact ticks."""
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import re
 from pathlib import Path
 
 import pytest
 
 from formation_swarm import scenario as scenario_mod
-from formation_swarm.faults import KINDS, Fault, link_faults, reference
+from formation_swarm.faults import (
+    ACTUATOR,
+    KINDS,
+    LINK,
+    NETWORK,
+    PROCESS,
+    SENSOR,
+    Fault,
+    check_against,
+    link_faults,
+    of_robot,
+    reference,
+    seconds,
+)
 from formation_swarm.scenario import ScenarioError
 
 EXAMPLES = [
@@ -166,3 +181,148 @@ def test_summary_gathers_each_faults_ticks_events_and_counts() -> None:
         ("drop obs:2@10s for=5s p=0.3", 200, 300), ("restart agent-3@20s after=1", 400, 420)]  # fmt: skip
     assert out[0]["counts"] == {"dropped": 30, "received": 100}
     assert [e["event"] for e in out[1]["events"]] == ["killed", "rejoined"]
+
+
+# -- exact boundaries, without a scenario ------------------------------------------------
+
+
+def _check(*texts: str, duration_s: float = 60.0) -> None:
+    check_against([Fault.parse(t) for t in texts], robots=(1, 2, 3), leader_id=1, duration_s=duration_s, dt_s=0.05)
+
+
+@pytest.mark.parametrize(
+    ("value", "expected"), [("1500ms", 1.5), ("0", 0.0), ("1e3s", 1000.0), ("20s", 20.0), (3, 3.0), (0.0, 0.0)]
+)
+def test_seconds_reads_units_and_zero(value: object, expected: float) -> None:
+    assert seconds("t", value) == expected
+
+
+@pytest.mark.parametrize("value", [-0.5, -1e-9, math.inf, math.nan, "1e400s", "-1s", True, "abc"])
+def test_seconds_refuses_negative_infinite_and_non_times(value: object) -> None:
+    with pytest.raises(ValueError, match="^t must be a time"):
+        seconds("t", value)
+
+
+def test_start_and_end_ticks_round_and_last_at_least_one_tick() -> None:
+    assert Fault.parse("freeze agent-2@1.02s for=0.01s").start_tick(0.05) == 20  # 20.4 -> 20
+    assert Fault.parse("freeze agent-2@1.03s for=0.01s").start_tick(0.05) == 21  # 20.6 -> 21
+    assert Fault.parse("freeze agent-2@1s for=0.01s").end_tick(0.05) == 21  # 0.2 tick -> one tick
+    assert Fault.parse("restart agent-2@1s after=0").end_tick(0.05) == 21
+    assert Fault.parse("freeze agent-2@1s for=0.04s").end_tick(0.05) == 21  # 0.8 tick -> one tick
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("drop obs:2@1s p=-0.5", "p must be in [0, 1], got -0.5"),
+        ("drop obs:2@1s p=abc", "p must be a number, got 'abc'"),
+        ("drop obs:2@1s p=nan", "p must be a finite number, got nan"),
+        ("drop obs:2@1s p=inf", "p must be a finite number, got inf"),
+        ("drop obs:2@1s p=", "'p=' is not PARAM=VALUE"),
+        ("drop obs:2@1s =0.5", "'=0.5' is not PARAM=VALUE"),
+        ("range 2@1s m=0", "m must be in (0, inf], got 0.0"),
+    ],
+)
+def test_bad_values_name_the_problem(text: str, message: str) -> None:
+    with pytest.raises(ValueError, match=re.escape(message)):
+        Fault.parse(text)
+
+
+def test_a_lone_word_gets_a_hint_only_when_it_looks_like_a_target() -> None:
+    with pytest.raises(ValueError, match="a fault is KIND TARGET@START") as err:
+        Fault.parse("kill")
+    assert "did you mean" not in str(err.value)
+    with pytest.raises(ValueError, match=re.escape("did you mean 'kill agent-3@20'")):
+        Fault.parse("agent-3@20")
+
+
+def test_values_on_the_bounds_are_taken() -> None:
+    assert Fault.parse("drop obs:2@1s p=0").param("p") == 0.0
+    assert Fault.parse("drop obs:2@1s p=1").param("p") == 1.0
+    assert Fault.parse("wheel_bias 2@1s left=-1 right=1").params == (("left", -1.0), ("right", 1.0))
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        KINDS["drop"].params["p"].low = -1.0  # type: ignore[misc]
+
+
+def test_which_robots_and_links_a_fault_names() -> None:
+    stuck, partition = Fault.parse("stuck 2,3@1s"), Fault.parse("partition *@1s for=1s")
+    assert (stuck.link_classes, stuck.robots, stuck.applies_to(2), stuck.applies_to(1)) == ((), (2, 3), True, False)
+    assert (partition.link_classes, partition.robots, partition.applies_to(7)) == ((), None, True)
+    kill, logger = Fault.parse("kill agent-3@1s"), Fault.parse("kill logger@1s")
+    assert (kill.link_classes, kill.robots, kill.robot, kill.process) == ((), (3,), 3, "agent-3")
+    assert (logger.robots, logger.robot, logger.process, logger.applies_to(2)) == (None, None, "logger", True)
+    links = Fault.parse("delay links:2@1s ticks=1")
+    assert (links.link_classes, links.robots, links.process) == (("obs", "cmd", "formation"), (2,), None)
+
+
+def test_link_faults_take_only_faults_on_that_link() -> None:
+    faults = [Fault.parse(t) for t in ("drop cmd:2@1s p=0.1", "blackout 2@1s", "stuck 2@1s", "kill agent-2@1s",
+                                      "partition 2@1s for=1s from=world")]  # fmt: skip
+    assert [str(f) for f in link_faults(faults, "obs", 2)] == ["partition 2@1s for=1s from=world"]
+    assert [str(f) for f in link_faults(faults, "cmd", 2)] == [
+        "drop cmd:2@1s p=0.1",
+        "partition 2@1s for=1s from=world",
+    ]
+    assert link_faults(faults, "formation", 2) == ()
+    assert link_faults(faults, "cmd", 3) == ()
+
+
+def test_of_robot_takes_one_group_for_one_robot() -> None:
+    texts = ("blackout 2@1s", "stuck 2@1s", "drop obs:2@1s p=0.1", "kill agent-2@1s", "partition 2@1s for=1s",
+             "bias 3@1s rho_m=1", "slip *@1s fraction=0.1")  # fmt: skip
+    faults = [Fault.parse(t) for t in texts]
+
+    def kinds(group: str, rid: int) -> list[str]:
+        return [f.kind for f in of_robot(faults, group, rid)]
+
+    assert kinds(SENSOR, 2) == ["blackout"]
+    assert kinds(ACTUATOR, 2) == ["stuck", "slip"]
+    assert kinds(ACTUATOR, 3) == ["slip"]
+    assert kinds(LINK, 2) == ["drop"]
+    assert kinds(NETWORK, 2) == ["partition"]
+    assert kinds(PROCESS, 2) == ["kill"]
+    assert kinds(PROCESS, 3) == []
+
+
+def test_formation_links_to_the_leader_are_refused_but_other_links_of_it_are_not() -> None:
+    _check("drop links:1@1s p=0.5", "drop obs:1@1s p=0.5", "drop formation:2,3@1s p=0.5", "drop formation:*@1s p=0.5")
+    with pytest.raises(ValueError, match="robot 1 is the leader; formation links go to followers"):
+        _check("drop formation:1,2@1s p=0.5")
+
+
+def test_process_faults_overlap_only_when_their_ticks_do() -> None:
+    # Ticks past 256 (20 s at 0.05 s): the comparison is of values, not of objects.
+    _check("freeze agent-2@0s for=20s", "freeze agent-2@20s for=1s")  # ends at 400, the next starts at 400
+    _check("freeze agent-2@20s for=1s", "freeze agent-2@0s for=20s")  # either order
+    _check("freeze agent-2@0s for=20s", "kill agent-3@10s", "restart agent-2@20s after=1", "kill agent-2@21s")
+    for texts in (
+        ("freeze agent-2@0s for=20s", "freeze agent-2@19.95s for=1s"),  # starts at 399, before the end
+        ("freeze agent-2@19.95s for=1s", "freeze agent-2@0s for=20s"),
+        ("freeze agent-2@30s for=1s", "freeze agent-2@0s for=40s"),  # inside
+        ("kill agent-2@20s", "freeze agent-2@30s for=1s"),  # a kill lasts to the end
+        ("freeze agent-2@30s for=1s", "kill agent-2@20s"),
+        ("restart agent-2@20s after=1", "freeze agent-2@20.95s for=1s"),
+    ):
+        with pytest.raises(ValueError, match="overlaps '.*' on the same process"):
+            _check(*texts)
+
+
+def test_at_most_256_faults() -> None:
+    faults = [f"drop obs:2@{k * 0.1:g}s p=0.1" for k in range(256)]
+    _check(*faults)
+    with pytest.raises(ValueError, match="at most 256 faults, got 257"):
+        _check(*faults, "drop obs:3@0s p=0.1")
+
+
+def test_update_doc_rewrites_between_the_markers_only(tmp_path: Path) -> None:
+    from formation_swarm.faults import BEGIN, END, update_doc
+
+    doc = tmp_path / "faults.md"
+    doc.write_text(f"head\n{BEGIN}\nold\n{END}\ntail\n")
+    update_doc(str(doc))
+    assert doc.read_text() == f"head\n{BEGIN}\n{reference()}{END}\ntail\n"
+    for text in (f"head\n{BEGIN}\nold\n", f"head\nold\n{END}\n"):
+        doc.write_text(text)
+        with pytest.raises(SystemExit, match="no .* markers"):
+            update_doc(str(doc))
+        assert doc.read_text() == text

@@ -3,6 +3,7 @@ schedule, the world's bookkeeping, and real runs that repeat to the tick."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import subprocess
 import sys
@@ -17,7 +18,7 @@ from formation_swarm import summary as summary_mod
 from formation_swarm.faults import Fault
 from formation_swarm.launcher import RunResult
 from formation_swarm.world.engine import WorldEngine
-from formation_swarm.world.process_faults import FREEZE, KILL, START, THAW, ProcessFaults, calls
+from formation_swarm.world.process_faults import FREEZE, KILL, START, THAW, ProcessFaults, _Agent, calls
 from formation_swarm.world.recovery import Recovery
 
 FIG11 = "fig11_obstacles"
@@ -148,6 +149,133 @@ def test_recovery_first_below_settled_and_the_window() -> None:
     assert d["error_after_window_m"] == 0.3
     assert d["max_in_window_m"] == 2.0
     assert d["rms_in_window_m"] == pytest.approx(math.sqrt((4 + 1 + 0.16 + 0.36) / 4))
+
+
+def _recovery_of(errors: dict[int, float], **kw: Any) -> dict[str, object]:
+    rec = Recovery(3, "readmitted", None, watched=(3,), dt_s=0.05, **kw)
+    for tick, e in errors.items():
+        rec.add(tick, {3: e})
+    return rec.as_dict()
+
+
+def test_recovery_with_the_defaults_waits_1_s_and_sums_5_s_with_a_strict_bound() -> None:
+    errors = {100: 2.0}
+    errors |= dict.fromkeys(range(101, 120), 0.4)  # 19 ticks below: 0.95 s, not settled
+    errors[120] = 0.5  # on the bound: not below
+    errors |= dict.fromkeys(range(121, 141), 0.3)  # 20 ticks below: 1 s, settled from 121
+    errors |= dict.fromkeys(range(141, 200), 0.6)
+    errors[200] = 0.7  # 5 s after the return
+    errors[220] = 0.8
+    d = _recovery_of(errors, since_tick=100)
+    assert (d["since_s"], d["bound_m"], d["window_s"]) == (pytest.approx(5.0), 0.5, 5.0)
+    assert d["error_at_start_m"] == 2.0
+    assert d["first_below_tick"] == 101
+    assert d["first_below_after_s"] == pytest.approx(0.05)
+    assert d["settled_tick"] == 121
+    assert d["settled_after_s"] == pytest.approx(1.05)
+    assert d["error_after_window_m"] == 0.7
+    assert d["max_in_window_m"] == 2.0
+    window = [errors[t] for t in range(100, 200)]
+    assert d["rms_in_window_m"] == pytest.approx(math.sqrt(sum(e * e for e in window) / 100))
+
+
+def test_recovery_settles_on_ticks_that_are_not_consecutive_and_after_a_single_tick() -> None:
+    # The errors of ticks 0 and 30 only: below from tick 0 for 31 ticks (>= 20): settled at 0.
+    d = _recovery_of({0: 0.1, 30: 0.2}, since_tick=0)
+    assert (d["first_below_tick"], d["settled_tick"], d["error_at_start_m"]) == (0, 0, 0.1)
+    assert d["max_in_window_m"] == 0.2  # the largest error seen, below 1 m
+    assert d["error_after_window_m"] is None
+    # A hold shorter than a tick is one tick: one tick below settles.
+    d = _recovery_of({10: 0.9, 11: 0.1, 12: 0.9}, since_tick=10, hold_s=0.01)
+    assert (d["first_below_tick"], d["settled_tick"]) == (11, 11)
+
+
+@pytest.mark.parametrize(
+    "name", ["first_below_tick", "settled_tick", "error_after_window_m", "max_m", "_below_since", "_n"]
+)
+def test_a_recovery_starts_empty_whatever_it_is_given(name: str) -> None:
+    with pytest.raises(TypeError):
+        Recovery(3, "readmitted", None, since_tick=0, watched=(3,), dt_s=0.05, **{name: 1})  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("name", ["frozen", "thawing", "rejoining", "fault_log", "rejoins", "deaths"])
+def test_the_worlds_bookkeeping_starts_empty_whatever_it_is_given(name: str) -> None:
+    with pytest.raises(TypeError):
+        ProcessFaults(None, (), True, **{name: set()})  # type: ignore[arg-type]
+
+
+def test_calls_skip_faults_of_other_groups_and_a_call_is_frozen() -> None:
+    faults = _faults("blackout 2@1s for=1s", "wheel_noise 3@1s sigma_mps=0.1", "partition 2@1s for=1s",
+                     "kill agent-3@2s")  # fmt: skip
+    got = calls(faults, 0.05)
+    assert [(t, [(c.action, c.index) for c in cs]) for t, cs in got.items()] == [(40, [(KILL, 3)])]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        got[40][0].tick = 41  # type: ignore[misc]
+    assert _Agent() == _Agent(token=False, fresh=False)
+
+
+def test_active_fault_is_the_process_fault_on_that_process_at_that_tick() -> None:
+    eng, pf = _world("freeze agent-2@1s for=1s", "kill agent-3@5s", "blackout 2@0s")
+    f2 = pf.faults[1]
+    assert str(f2) == "freeze agent-2@1s for=1s"
+    assert [pf.active_fault("agent-2", t) for t in (19, 20, 39, 40)] == [None, f2, f2, None]
+    assert pf.active_fault("agent-1", 30) is None  # another process
+    assert pf.active_fault("agent-3", 30) is None  # before its kill
+    assert str(pf.active_fault("agent-3", 100)) == "kill agent-3@5s"
+    assert pf.active_fault("2", 30) is None  # the blackout on robot 2 is no process fault
+
+
+def test_a_kill_of_the_logger_is_logged_and_kills_no_robot() -> None:
+    eng, pf = _world("kill logger@1s")
+    _run_to(eng, pf, 20)
+    assert [(e["event"], e["robot"], e["tick"]) for e in pf.fault_log] == [("killed", None, 20)]
+    assert pf.deaths == []
+    assert all(r.alive for r in eng.robots.values())
+
+
+def test_a_robot_killed_before_its_token_came_is_back_once_it_comes() -> None:
+    sc = scenario_mod.load(FIG11, SHORT, _faults("kill agent-3@1s"))
+    eng = WorldEngine(sc, seed=1)
+    pf = ProcessFaults(eng, sc.faults, True)
+    _run_to(eng, pf, 20)
+    assert not eng.robots[3].alive
+    assert not pf.back(3)
+    pf.token(3, True, 2.0, finished=False)  # its first token, after the kill: a fresh agent
+    assert pf.back(3)
+
+
+def test_a_late_rejoin_counts_its_ticks_and_a_pending_one_is_in_the_stats() -> None:
+    eng, pf = _world("restart agent-3@1s after=0.5", "restart agent-2@1s after=1")
+    _run_to(eng, pf, 30)  # agent-3: killed at 20, started at 30
+    pf.token(3, False, 1.5, finished=False)
+    pf.token(3, True, 1.6, finished=False)
+    pf.readmit(3, wall_s=1.6)
+    assert pf.agents[3].fresh is False  # readmitted: its token is no longer news
+    _run_to(eng, pf, 50)  # agent-2: started at 40, never back
+    pf.token(2, False, 2.1, finished=False)
+    pf.token(2, True, 2.4, finished=False)
+    pf.readmit(2, wall_s=2.4)
+    _run_to(eng, pf, 70)
+    pf.answered(3, wall_s=3.5)
+    (rejoin,) = pf.rejoins
+    assert (rejoin["since_tick"], rejoin["rejoined_tick"], rejoin["ticks_to_rejoin"]) == (30, 70, 40)
+    stats = pf.stats()
+    assert stats["rejoins"] == [
+        rejoin,
+        {"robot": 2, "fault": "restart agent-2@1s after=1", "cause": "restart", "since_tick": 40,
+         "readmitted_tick": 50, "rejoined_tick": None, "ticks_to_rejoin": None, "wall_s_to_rejoin": None},
+    ]  # fmt: skip
+    assert pf.rejoining[2]["since_wall_s"] == 2.0  # the pending one's wall time is not in the stats only
+
+
+def test_not_back_names_the_restart_it_gave_up_on() -> None:
+    eng, pf = _world("restart agent-3@1s after=0.5")
+    _run_to(eng, pf, 30)
+    pf.not_back(3, wall_s=9.0)
+    pf.not_back(3, wall_s=9.5)  # no "start" pending any more
+    assert [(e["event"], e["fault"]) for e in pf.fault_log][-2:] == [
+        ("not back", "restart agent-3@1s after=0.5"), ("not back", None)]  # fmt: skip
+    assert 3 not in pf.starting
 
 
 def test_a_robot_that_came_back_is_not_lost_and_restarted_agents_links_add_up() -> None:

@@ -4,6 +4,7 @@ processes are in test_sensor_actuator_runs.py)."""
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Sequence
 
@@ -12,9 +13,9 @@ import pytest
 
 from formation_swarm import scenario as sm
 from formation_swarm.faults import Fault
-from formation_swarm.world.camera import true_reading
+from formation_swarm.world.camera import CameraParams, MarkerReading, true_reading
 from formation_swarm.world.engine import WorldEngine
-from formation_swarm.world.hardware_faults import Wheels
+from formation_swarm.world.hardware_faults import CameraFaults, Wheels
 from formation_swarm.world.kinematics import Pose, _step_unchecked, wrap_angle
 
 FIG11 = "fig11_obstacles"  # three robots in a triangle: 1 leads 2, 2 leads 3; camera all around, 10 m
@@ -297,3 +298,51 @@ def test_same_seed_same_faults_same_digest() -> None:
     assert _digest(FAULTY, 1) != _digest([], 1)
     noisy = {"robot.wheel_noise_mps": 0.05}
     assert _digest([], 3, **noisy) == _digest([], 3, **noisy) != _digest([], 3)
+
+
+# -- exact effects on hand-set readings and commands -------------------------------------
+
+
+def _key_rng(seed: int, rid: int, tag: int, fault: Fault, occurrence: int) -> np.random.Generator:
+    """A fault's generator as documented: [seed, robot, tag, blake2b-32 of its text, occurrence + 1]."""
+    text = int.from_bytes(hashlib.blake2b(str(fault).encode(), digest_size=4).digest(), "little")
+    return np.random.default_rng([seed, rid, tag, text, occurrence + 1])
+
+
+def test_outliers_are_exactly_the_documented_draws_scaled_to_range_and_view() -> None:
+    faults = [Fault.parse("outliers 2@0s p=1"), Fault.parse("range 2@0s m=4"), Fault.parse("outliers 2@0s p=1")]
+    camera = CameraParams(fov_rad=math.pi / 2, range_m=10.0)
+    cam = CameraFaults(faults, seed=7, robot_id=2, dt_s=0.05, camera=camera)
+    assert [(e.fault.kind, e.rng is None) for e in cam.effects] == [
+        ("range", True), ("outliers", False), ("outliers", False)]  # fmt: skip
+    poses = {1: Pose(1.0, 0.0, 0.0), 2: Pose(0.0, 0.0, 0.0), 3: Pose(0.0, 2.0, 0.0)}
+    readings = [MarkerReading(1, 1.0, 0.1, 0.2), MarkerReading(3, 2.0, 0.3, 0.4)]
+    out = cam.apply(0, poses, readings)
+    # Two identical faults: occurrences 0 and 1, each replacing both readings in turn.
+    first = _key_rng(7, 2, 0x53454E53, faults[0], 0).random((2, 4)).tolist()
+    second = _key_rng(7, 2, 0x53454E53, faults[0], 1).random((2, 4)).tolist()
+    half_fov = math.pi / 4
+    assert out == [
+        MarkerReading(rid, rho * 4.0, math.pi * (2.0 * phi - 1.0), half_fov * (2.0 * beta - 1.0))
+        for rid, (_u, rho, phi, beta) in zip((1, 3), second, strict=True)
+    ]
+    assert first != second
+    assert [(e.ticks, e.effect) for e in cam.effects] == [(1, 0), (1, 2), (1, 2)]
+
+
+def test_a_robot_turning_on_one_wheel_backwards_is_moving() -> None:
+    wheels = Wheels([Fault.parse("wheel_bias 2@0s right=0.5")], seed=0, robot_id=2, dt_s=0.05,
+                    noise_sigma_mps=0.0, max_wheel_mps=3.0)  # fmt: skip
+    assert wheels.turn(0, 0.0, -1.0) == (0.0, -1.5)
+    assert wheels.turn(1, 0.0, 0.0) == (0.0, 0.0)
+    assert [(e.ticks, e.effect) for e in wheels.effects] == [(2, 1)]
+
+
+def test_wheel_noise_adds_the_documented_draws() -> None:
+    f = Fault.parse("wheel_noise 2@0s sigma_mps=0.1")
+    wheels = Wheels([f, Fault.parse("stuck 3@0s")], seed=3, robot_id=2, dt_s=0.05, noise_sigma_mps=0.0,
+                    max_wheel_mps=3.0)  # fmt: skip
+    rng = _key_rng(3, 2, 0x41435455, f, 0)
+    for k in range(5):
+        n_l, n_r = rng.standard_normal(2).tolist()
+        assert wheels.turn(k, 1.0, -1.0) == (1.0 + 0.1 * n_l, -1.0 + 0.1 * n_r)
