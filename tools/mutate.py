@@ -65,18 +65,22 @@ class Module:
 
 T = "tests/"
 PUBLISHED = T + "test_published.py"  # the published figures recomputed (seconds): last, it is the slowest
-# The tests of tests/test_process_faults.py that start no process.
-PROCESS_FAULT_UNITS = tuple(
-    T + "test_process_faults.py::" + name
-    for name in (
-        "test_each_process_fault_is_one_or_two_calls_at_its_ticks",
-        "test_a_restart_kills_at_its_tick_and_readmits_only_a_fresh_agent",
-        "test_a_lost_agent_stops_its_robot_and_is_readmitted_when_it_returns",
-        "test_a_lockstep_freeze_skips_the_robot_and_waits_long_for_its_first_answer",
-        "test_recovery_first_below_settled_and_the_window",
-        "test_a_robot_that_came_back_is_not_lost_and_restarted_agents_links_add_up",
+
+
+def _unit_tests(path: str, fixtures: tuple[str, ...] = ("swarm_run", "swarm_launch", "tmp_path")) -> tuple[str, ...]:
+    """The tests of a file that take none of ``fixtures`` (start no process)."""
+    tree = ast.parse((ROOT / path).read_text())
+    return tuple(
+        f"{path}::{node.name}"
+        for node in tree.body
+        if isinstance(node, ast.FunctionDef)
+        and node.name.startswith("test_")
+        and not {a.arg for a in node.args.args} & set(fixtures)
     )
-)
+
+
+# The tests of tests/test_process_faults.py that start no process.
+PROCESS_FAULT_UNITS = _unit_tests(T + "test_process_faults.py")
 MODULES = (
     Module(
         "agents/geometry.py",
