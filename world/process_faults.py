@@ -191,8 +191,8 @@ class ProcessFaults:
         return not self.engine.robots[rid].alive and a.token and a.fresh
 
     def returned(self) -> list[int]:
-        """The stopped robots whose agent is back."""
-        return [rid for rid in self.engine.robots if self.back(rid)]
+        """The stopped robots whose agent is back (asked every tick: only the stopped ones are looked at)."""
+        return sorted(rid for rid in self._stopped if self.back(rid))
 
     def readmit(self, rid: int, wall_s: float) -> None:
         """The robot is alive again from this tick: observed and waited for."""
