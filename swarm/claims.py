@@ -74,11 +74,10 @@ def claim_a(rows: Rows) -> Claim:
 def claim_b_behind(rows: Rows) -> Claim:
     s15 = rows["static 1.5"]
     n = len(s15)
-    behind = _count(n, lambda i: s15[i]["r2_turn_rms_m"] > s15[i]["r2_straight_rms_m"]
-                    and s15[i]["r2_turn_mean_lag_m"] > 0.5)  # fmt: skip
-    never_ahead = _count(n, lambda i: s15[i]["r2_max_ahead_m"] == 0.0)
-    ok = _count(n, lambda i: s15[i]["r2_turn_rms_m"] > s15[i]["r2_straight_rms_m"]
-                and s15[i]["r2_turn_mean_lag_m"] > 0.5 and s15[i]["r2_max_ahead_m"] == 0.0)  # fmt: skip
+    is_behind = [r["r2_turn_rms_m"] > r["r2_straight_rms_m"] and r["r2_turn_mean_lag_m"] > 0.5 for r in s15]
+    is_never_ahead = [r["r2_max_ahead_m"] == 0.0 for r in s15]
+    behind, never_ahead = sum(is_behind), sum(is_never_ahead)
+    ok = sum(b and a for b, a in zip(is_behind, is_never_ahead, strict=True))
     text = (
         f"RMS in turns {_m(s15, 'r2_turn_rms_m')} vs {_m(s15, 'r2_straight_rms_m')} on straights; mean lag in "
         f"turns {_m(s15, 'r2_turn_mean_lag_m', '+')}: behind in {behind} of {n} seeds. Never ahead of its "
