@@ -29,6 +29,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/fuzzy_step.py
 	$(BIN)/python bench/lockstep.py
 	$(BIN)/python bench/realtime.py
+	$(BIN)/python bench/start.py
 
 # The generated tables of docs/results.md: the baseline (180 lockstep runs), the
 # same under wheel noise (180), the paper's claims under wheel noise, the EKF

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from formation_swarm import spawner
+
 # One worker thread per Zenoh runtime in each child: five processes share this
 # machine's cores, and fewer threads preempt each other less (measured ~+10%
 # lockstep ticks/s on 2 cores). A ZENOH_RUNTIME set by the user wins.
@@ -63,7 +65,8 @@ class Child:
     name: str
     argv: list[str]
     log_path: Path
-    proc: subprocess.Popen[bytes] | None = None
+    proc: subprocess.Popen[bytes] | spawner.Forked | None = None
+    fork: bool = True  # our roles are forked from the spawner (see formation_swarm.spawner)
     log: Any = None
     stop_sent_at: float | None = None
     exited_at: float | None = None
@@ -77,6 +80,10 @@ class Child:
         self.log = open(self.log_path, "wb")  # noqa: SIM115 - closed in close()
         env = dict(os.environ)
         env.setdefault("ZENOH_RUNTIME", CHILD_ZENOH_RUNTIME)
+        module = spawner.forkable(self.argv) if self.fork else None
+        if module is not None:
+            self.proc = spawner.Forked(module, self.argv, self.log_path, env)
+            return
         self.proc = subprocess.Popen(
             self.argv,
             env=env,

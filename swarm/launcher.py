@@ -126,6 +126,7 @@ class Launch:
         run_id: str | None = None,
         python: str = sys.executable,
         auth: bool = True,
+        fork: bool = True,
     ) -> None:
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be 'lockstep' or 'realtime', got {mode!r}")
@@ -145,6 +146,7 @@ class Launch:
         self.web_ports = web_ports  # (gRPC, web viewer), with serve_web
         self.progress = progress or (lambda line: print(line, flush=True))
         self.python = python
+        self.fork = fork  # our roles forked from the spawner, else exec'd (formation_swarm.spawner)
         self.auth = auth  # every process logs in with its own fresh credentials; the world enforces the rules
         self.port = 0
         self.children: dict[str, Child] = {}
@@ -233,7 +235,7 @@ class Launch:
                                      *auth(trust.agent_user(rid))]  # fmt: skip
         self.started_at = time.monotonic()
         for name, argv in specs.items():
-            child = Child(name, argv, self.run_dir / "logs" / f"{name}.log")
+            child = Child(name, argv, self.run_dir / "logs" / f"{name}.log", fork=self.fork)
             self.children[name] = child
             self.current[name] = name
             child.start()
@@ -335,7 +337,7 @@ class Launch:
         name = f"{process}.{n}"
         argv = list(self.children[process].argv)
         argv[argv.index("--stats") + 1] = str(self.run_dir / "stats" / f"{name}.json")
-        child = Child(name, argv, self.run_dir / "logs" / f"{name}.log")
+        child = Child(name, argv, self.run_dir / "logs" / f"{name}.log", fork=self.fork)
         self.children[name] = child
         self.current[process] = name
         child.start()

@@ -100,12 +100,29 @@ def _cpu_hogs(n: int = 2) -> object:
 
 def test_same_seed_same_digest_other_seed_differs(swarm_run: Callable[..., RunResult]) -> None:
     a = swarm_run(FIG11, seed=7, logger=False).summary
-    with _cpu_hogs():  # the same run on a loaded machine: timing changes, trajectories must not
-        b = swarm_run(FIG11, seed=7, logger=False).summary
+    with _cpu_hogs():  # the same run on a loaded machine, each process exec'd rather than forked
+        b = swarm_run(FIG11, seed=7, logger=False, fork=False).summary  # timing changes, trajectories must not
     c = swarm_run(FIG11, seed=8, logger=False).summary
     assert a["lockstep_misses"] == b["lockstep_misses"] == 0
     assert a["trajectory_digest"] == b["trajectory_digest"]
     assert a["trajectory_digest"] != c["trajectory_digest"]
+
+
+def test_forked_roles_are_what_exec_would_start(swarm_launch: Callable[..., Launch]) -> None:
+    """Each role forked from the spawner shows its own command line, leads its own
+    session, reads /dev/null, writes its log, and left the server's pipes closed."""
+    launch = swarm_launch(FIG11, mode="realtime", overrides={"run.duration_s": 30.0})
+    assert launch.wait_until(lambda: launch.sim_time() >= 0.5, timeout_s=60)
+    for name, pid in launch.pids().items():
+        argv = Path(f"/proc/{pid}/cmdline").read_bytes().rstrip(b"\0").decode().split("\0")[0].split(" ")
+        assert argv == launch.children[name].argv, name
+        assert os.getsid(pid) == pid, name
+        fds = {int(fd.name): os.readlink(fd) for fd in Path(f"/proc/{pid}/fd").iterdir()}
+        assert fds[0] == "/dev/null", name
+        assert fds[1] == fds[2] == str(launch.children[name].log_path), name
+        # Its parent is the spawner's server, which ends with the launcher.
+        assert Path(f"/proc/{pid}/stat").read_text().split(") ")[1].split()[1] != str(os.getpid()), name
+    launch.stop()
 
 
 def test_runs_with_observation_and_formation_code_drops_are_reproducible(swarm_run: Callable[..., RunResult]) -> None:
@@ -310,8 +327,10 @@ def test_lockstep_deadline_counts_a_frozen_agent_and_goes_on(swarm_launch: Calla
     assert s["ticks"] == 2400  # the whole 120 s ran
     assert s["lockstep_misses"] >= 20
     # Misses are agent 3's only: the others answered every tick.
-    # Resumed, it skipped the observations queued meanwhile and answered only the newest one.
-    assert s["parts"]["agent-3"]["superseded"] >= s["lockstep_misses"] - 1
+    # Resumed, it skipped the observations queued meanwhile and answered only the newest one:
+    # at least the 20 of the second it was seen frozen, but one. (Not every miss: on a loaded
+    # machine a thawed agent can miss a 50 ms deadline again, with nothing queued.)
+    assert s["parts"]["agent-3"]["superseded"] >= 20 - 1
     assert s["processes"]["agent-3"]["exit_code"] == 0
 
 
@@ -323,8 +342,11 @@ def test_every_process_exits_within_2s_of_the_run_end(swarm_run: Callable[..., R
     assert all(p["exit_after_stop_s"] is None for p in procs.values()), procs
 
 
-@pytest.mark.parametrize("when", ["starting", "running"])
+@pytest.mark.parametrize("when", ["starting", "running", "sigkill"])
 def test_ctrl_c_on_swarm_run_leaves_no_process(tmp_path: Path, when: str) -> None:
+    """Ctrl-C while the processes start or run: a clean stop and a summary. SIGKILL
+    (no summary can be written): every process still goes, each forked from the
+    spawner, whose server ends with the launcher (formation_swarm.spawner)."""
     before = {pid for pid, _ in our_processes()}
     cmd = [
         sys.executable,
@@ -349,7 +371,7 @@ def test_ctrl_c_on_swarm_run_leaves_no_process(tmp_path: Path, when: str) -> Non
     while time.monotonic() < deadline and len(mine()) < 5:
         time.sleep(0.02)
     assert len(mine()) == 5
-    if when == "running":  # wait for a progress line past tick 0
+    if when != "starting":  # wait for a progress line past tick 0
         seen = ""
         while time.monotonic() < deadline and not (
             seen.startswith("[swarm] tick") and not seen.startswith("[swarm] tick 0/")
@@ -358,6 +380,13 @@ def test_ctrl_c_on_swarm_run_leaves_no_process(tmp_path: Path, when: str) -> Non
                 seen = lines.get(timeout=0.1)
         assert seen.startswith("[swarm] tick"), seen
     t0 = time.monotonic()
+    if when == "sigkill":
+        proc.kill()
+        proc.wait(timeout=30)
+        while time.monotonic() < t0 + 15.0 and mine():  # SIGTERM on the parent's death, then their 2 s stop
+            time.sleep(0.05)
+        assert mine() == []
+        return
     proc.send_signal(signal.SIGINT)
     proc.wait(timeout=30)
     reader.join(timeout=5)

@@ -351,7 +351,7 @@ def test_a_lockstep_restart_rejoins_on_its_tick_and_repeats_to_the_bit(swarm_run
         (rejoin,) = f["rejoins"]
         # Lockstep waits at tick 420 for the fresh process: no tick passes, only wall time.
         assert rejoin["ticks_to_rejoin"] == 0
-        assert 0.3 < rejoin["wall_s_to_rejoin"] < 30.0
+        assert 0.0 < rejoin["wall_s_to_rejoin"] < 30.0  # about 0.1 s forked from the spawner, 1 s exec'd
         assert s["processes"]["agent-3.2"]["exit_code"] == 0  # the fresh agent flew to the end
         assert s["parts"]["world"]["dead_robots"] == []
         assert s["failure"] is None

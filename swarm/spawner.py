@@ -1,0 +1,137 @@
+"""Fast start for many roles on one machine: import once, fork per process.
+
+A role started as ``python -m formation_swarm.agents.process ...`` spends about
+0.9 s of CPU importing some 900 modules (filterpy pulls in scipy.stats) before
+it does anything, and each process then holds its own copy of them. Here the
+launcher's roles are forked instead from one server process that imported them
+once (``multiprocessing``'s forkserver, with :mod:`formation_swarm.spawn_preload`
+as its preload). The server holds no Zenoh session and runs no thread when it
+forks (numpy's BLAS is kept to the calling thread there), so each child starts
+with a clean runtime and opens its own session.
+
+A forked child is the same process a ``python -m`` one would be: its own
+session (setsid), stdin from /dev/null, stdout and stderr into its log, the
+launcher's current environment, ``sys.argv`` as ``-m`` sets it, the command line
+``ps`` shows (setproctitle), SIGTERM when its parent dies (the server dies with
+the launcher), and the exit codes ``subprocess`` reports (``-9`` for SIGKILL).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import importlib
+import multiprocessing
+import os
+import signal
+import subprocess
+import sys
+import threading
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+# The roles the server imports ahead (the logger's rerun starts threads on
+# import, so the logger is forked too but imports rerun itself, after the fork).
+PRELOAD = "formation_swarm.spawn_preload"
+FORKED_ROLES = ("formation_swarm.agents.process", "formation_swarm.world.process", "formation_swarm.logger")
+_LOCK = threading.Lock()
+_context: Any = None
+
+
+def forkable(argv: Sequence[str]) -> str | None:
+    """The role module of ``[sys.executable, "-m", MODULE, ...]`` when it is one
+    of ours, else None (another interpreter or program: started with exec)."""
+    if len(argv) >= 3 and argv[0] == sys.executable and argv[1] == "-m" and argv[2] in FORKED_ROLES:
+        return argv[2]
+    return None
+
+
+def _forkserver() -> Any:
+    global _context  # noqa: PLW0603 - one server per launcher process, started on first use
+    with _LOCK:
+        if _context is None:
+            ctx = multiprocessing.get_context("forkserver")
+            ctx.set_forkserver_preload([PRELOAD])
+            _context = ctx
+        return _context
+
+
+class Forked:
+    """A forked role, with the part of ``subprocess.Popen`` the launcher uses."""
+
+    def __init__(self, module: str, argv: Sequence[str], log_path: Path, env: Mapping[str, str]) -> None:
+        self.args = list(argv)
+        self._p = _forkserver().Process(
+            target=_child, args=(module, list(argv), str(log_path), dict(env)), name=module, daemon=True
+        )
+        self._p.start()
+        self.pid: int = self._p.pid
+        self.returncode: int | None = None
+
+    def poll(self) -> int | None:
+        if self.returncode is None:
+            self.returncode = self._p.exitcode
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        self._p.join(timeout)
+        code = self.poll()
+        if code is None:
+            raise subprocess.TimeoutExpired(self.args, timeout or 0.0)
+        return code
+
+    def send_signal(self, sig: int) -> None:
+        if self.poll() is None:
+            os.kill(self.pid, sig)
+
+
+def _child(module: str, argv: list[str], log_path: str, env: dict[str, str]) -> None:  # pragma: no cover - child
+    """What runs in the forked process: become the ``python -m`` role, run its
+    main, then exit as :func:`formation_swarm.proc.exit_after_main` does."""
+    # What exec would have closed: the server's sockets and pipes, among them the
+    # write end of the pipe by which the server sees the launcher die (held here,
+    # it would keep the server, and so this process, alive after the launcher).
+    os.closerange(3, os.sysconf("SC_OPEN_MAX"))
+    os.setsid()
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    if os.getppid() == 1:  # the server died before the prctl: so did the launcher
+        os._exit(128 + signal.SIGTERM)
+    fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    os.close(fd)
+    with contextlib.suppress(ImportError):  # first: it takes its room from the environment's memory
+        import setproctitle
+
+        setproctitle.setproctitle(" ".join(argv))
+    os.environ.clear()
+    os.environ.update(env)
+    mod = importlib.import_module(module)
+    sys.argv = [str(mod.__file__), *argv[3:]]
+    code: Any = 1
+    try:
+        code = mod.main(argv[3:])
+    except SystemExit as exc:
+        code = exc.code
+    except BaseException:  # noqa: BLE001 - reported as an uncaught exception would be
+        import traceback
+
+        traceback.print_exc()
+        code = 1
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # done: a stop signal now finds nothing to stop
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        import atexit
+
+        atexit._run_exitfuncs()
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+    if code is None:
+        code = 0
+    elif not isinstance(code, int):
+        print(code, file=sys.stderr, flush=True)
+        code = 1
+    os._exit(code & 0xFF)
