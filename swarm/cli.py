@@ -136,6 +136,8 @@ def _cmd_scenarios(_args: argparse.Namespace) -> int:
 # Commands with their own parser in their own module: name -> (module, one-line summary).
 DELEGATED = {
     "report": ("formation_swarm.report", "figures (PNG) and a markdown summary of a run's folder"),
+    "export": ("formation_swarm.export", "a run's folder as a table, one row per robot per tick (CSV or Parquet)"),
+    "compare": ("formation_swarm.compare", "one figure overlaying several runs: formation error and trajectories"),
     "sweep": ("formation_swarm.sweep", "many lockstep runs of a scenario (seeds x parameter values), in parallel"),
     "results": ("formation_swarm.results", "recompute the baseline comparison table of docs/results.md"),
     "world": ("formation_swarm.world.process", "role: the world alone (physics, cameras, clock; a Zenoh router)"),
@@ -239,7 +241,7 @@ def build_parser() -> Parser:
                                "swarm run takes, each with the first comment line of its file.")  # fmt: skip
     scenarios.set_defaults(func=_cmd_scenarios, parser=scenarios)
     _add_run(sub)
-    for name in ("report", "sweep", "results"):
+    for name in ("report", "export", "compare", "sweep", "results"):
         sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
     _add_sim(sub)
     for name in ("world", "agent", "logger", "router", "secure"):

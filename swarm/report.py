@@ -15,8 +15,6 @@ from __future__ import annotations
 import json
 import math
 import sys
-import warnings
-from collections import defaultdict
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -24,51 +22,10 @@ from typing import Any
 import numpy as np
 
 from formation_swarm.cliargs import USAGE_ERROR, Parser, integer
+from formation_swarm.data import Series, read_recording, robots_in
 
 FIGURES = ("trajectories.png", "formation_error.png", "vn.png", "targets.png")
 MAX_SNAPSHOTS = 100
-
-
-class Series:
-    """One entity's rows from the recording: times (s) and values, time-sorted."""
-
-    def __init__(self, t: np.ndarray, v: np.ndarray) -> None:
-        order = np.argsort(t, kind="stable")
-        self.t, self.v = t[order], v[order]
-
-    def __len__(self) -> int:
-        return len(self.t)
-
-
-def read_recording(path: Path) -> dict[str, Series]:
-    """Every point and scalar entity of a recording, by entity path."""
-    from rerun.chunk import RrdReader
-
-    times: dict[str, list[np.ndarray]] = defaultdict(list)
-    values: dict[str, list[np.ndarray]] = defaultdict(list)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # a recording cut by a kill has no footer: still readable
-        chunks = list(RrdReader(str(path)).stream())
-    for ch in chunks:
-        rb = ch.to_record_batch()
-        names = rb.schema.names
-        if "sim_time" not in names:
-            continue
-        col = next((n for n in ("Points2D:positions", "Scalars:scalars") if n in names), None)
-        if col is None:
-            continue
-        t = rb.column("sim_time").cast("int64").to_numpy(zero_copy_only=False) / 1e9
-        rows = rb.column(col).to_pylist()
-        keep = [i for i, r in enumerate(rows) if r]
-        entity = str(ch.entity_path)
-        times[entity].append(t[keep])
-        values[entity].append(np.array([r[0] for i, r in enumerate(rows) if r], dtype=float))
-    return {e: Series(np.concatenate(times[e]), np.concatenate(values[e])) for e in times}
-
-
-def robots_in(data: Mapping[str, Series]) -> list[int]:
-    ids = {int(e.split("/")[2][1:]) for e in data if e.startswith("/robots/r") and e.endswith("/pose")}
-    return sorted(ids)
 
 
 def make_report(run_dir: str | Path, snapshots: int = 6) -> Path:

@@ -5,7 +5,10 @@ once as --jobs (default: the number of cores). Each run keeps its own folder
 under DIR/runs/; a run whose summary is already there is not run again, so an
 interrupted sweep resumes where it stopped. DIR/runs.csv holds one row of
 metrics per run and DIR/aggregate.csv, per combination, the mean, standard
-deviation and 95% confidence interval (Student t) of every metric.
+deviation and 95% confidence interval (Student t) of every metric, and
+DIR/aggregate.png the main ones (formation error RMS and maximum, EKF target
+error, least distance between robots) with their intervals against the swept
+value, one line per follower.
 """
 
 from __future__ import annotations
@@ -209,7 +212,12 @@ class Sweep:
             raise
         finally:
             self._write(rows)
-        return [rows[j.name] for j in self.jobs if j.name in rows]
+        ordered = [rows[j.name] for j in self.jobs if j.name in rows]
+        if ordered:
+            from formation_swarm import sweep_figure
+
+            sweep_figure.write(self.out / "aggregate.png", aggregate(ordered), self.jobs, self.scenario.stem)
+        return ordered
 
     def _one(self, job: Job, run_dir: Path) -> RunResult | None:
         from formation_swarm.launcher import Launch
@@ -324,7 +332,8 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         return 130
     failed = [r["run"] for r in rows if r.get("exit_code") != 0]
-    print(f"[sweep] {len(rows)} runs; tables: {out / 'runs.csv'}, {out / 'aggregate.csv'}")
+    print(f"[sweep] {len(rows)} runs; tables: {out / 'runs.csv'}, {out / 'aggregate.csv'}; "
+          f"figure: {out / 'aggregate.png'}")  # fmt: skip
     if failed:
         print(f"[sweep] {len(failed)} runs failed: {', '.join(failed[:10])}", file=sys.stderr)
         return 1

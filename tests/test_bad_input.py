@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from formation_swarm import __version__, cli, report, results, sweep
+from formation_swarm import __version__, cli, compare, export, report, results, sweep
 from formation_swarm.console import print_result
 from formation_swarm.launcher import RunResult, free_port
 
@@ -111,6 +111,9 @@ REJECTED = {
         [*SWEEP, "--set", "controller.vn=1.5,0"],
         "controller.vn: static_vn must be > 0, got 0.0",
     ),
+    "export: a missing folder": (["export", "{tmp}/nowhere"], "{tmp}/nowhere: no such folder"),
+    "export: unknown format": (["export", "{tmp}", "--format", "xls"], "argument --format: invalid choice: 'xls'"),
+    "compare: a missing run": (["compare", "{tmp}/nowhere"], "{tmp}/nowhere: no such folder"),
     "results: one seed": (["results", "--seeds", "1"], "argument --seeds: must be in [2, 10000], got '1'"),
     "results: zero jobs": (["results", "--jobs", "0"], "argument --jobs: must be in [1, 256], got '0'"),
     "results: --write a missing file": (
@@ -297,7 +300,8 @@ def test_help_is_written_for_people() -> None:
     assert proc.returncode == 0
     assert proc.stdout.split("\n\n")[1].startswith("swarm: an emulator of vision-based leader-follower formation")
     parsers = {"swarm": cli.build_parser(), "report": report.build_parser(), "sweep": sweep.build_parser(),
-               "results": results.build_parser()}  # fmt: skip
+               "results": results.build_parser(), "export": export.build_parser(),
+               "compare": compare.build_parser()}  # fmt: skip
     for sub in parsers["swarm"]._subparsers._group_actions[0].choices.values():  # type: ignore[union-attr]
         if sub.add_help:  # the ones with their own parser here, not a module's
             parsers[sub.prog] = sub

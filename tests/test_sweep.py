@@ -7,6 +7,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from formation_swarm.sweep import Job, Sweep, aggregate, grid, parse_set
@@ -62,6 +63,7 @@ def test_sweep_writes_tables_and_resumes(tmp_path: Path) -> None:
     with (tmp_path / "aggregate.csv").open() as f:
         agg = {r["metric"]: r for r in csv.DictReader(f)}
     assert int(agg["r2_rms_m"]["n"]) == 2
+    assert (tmp_path / "aggregate.png").stat().st_size > 10_000  # the figure of aggregate.csv
     # A lost or failed run is run again; finished ones are not.
     first = json.loads((tmp_path / "runs" / jobs[0].name / "summary.json").read_text())
     (tmp_path / "runs" / jobs[1].name / "summary.json").unlink()
@@ -78,3 +80,47 @@ def test_sweep_writes_tables_and_resumes(tmp_path: Path) -> None:
     assert not any("already done" in line for line in lines)
     assert blind[0]["run"] != jobs[0].name
     assert blind[0]["r2_rms_m"] != rows[0]["r2_rms_m"]
+
+
+def _rows(values: list[object]) -> list[dict[str, object]]:
+    """runs.csv rows: two followers, three seeds per value, r2's RMS = value + seed / 10."""
+    return [{"combination": f"links.obs_drop={v}", "seed": s, "run": f"{v}-{s}",
+             "r2_rms_m": (v if isinstance(v, float) else k) + s / 10, "r3_rms_m": 1.0 + s, "r2_max_m": 2.0,
+             "r3_max_m": 3.0, "min_distance_m": 1.5, "ticks": 100}
+            for k, v in enumerate(values) for s in range(3)]  # fmt: skip
+
+
+def test_sweep_figure_draws_each_metric_with_its_interval() -> None:
+    from formation_swarm.sweep_figure import figure
+
+    values = [0.0, 0.1, 0.3]
+    jobs = [Job(f"links.obs_drop={v}", {"links.obs_drop": v, "run.duration_s": 5.0}, s) for v in values
+            for s in range(3)]  # fmt: skip
+    agg = aggregate(_rows(values))
+    fig = figure(agg, jobs, "fig11_obstacles")
+    rms, peak, dist = (ax for ax in fig.axes if ax.get_visible())
+    assert [c.get_label() for c in rms.containers] == ["R2", "R3"]  # one line per follower
+    assert [c.get_label() for c in peak.containers] == ["R2", "R3"]
+    assert [c.get_label() for c in dist.containers] == ["all robots"]  # pooled
+    assert rms.get_xlabel() == "links.obs_drop"  # the swept key; run.duration_s is the same in every job
+    line, _caps, (bars,) = rms.containers[0]
+    x, y = line.get_data()
+    assert np.allclose(x - x.mean(), np.array(values) - np.mean(values))  # on the values, shifted together
+    assert np.allclose(y, np.array(values) + 0.1)  # mean over seeds 0, 1, 2
+    half = 4.303 * 0.1 / math.sqrt(3)  # t(0.975, 2 dof) * s / sqrt(n), s = 0.1
+    (seg0,) = bars.get_segments()[:1]
+    assert seg0[:, 1] == pytest.approx([0.1 - half, 0.1 + half])
+    assert fig.get_suptitle().startswith("fig11_obstacles: mean and 95% confidence interval over 3 seeds")
+
+
+def test_sweep_figure_puts_non_numeric_values_on_ticks() -> None:
+    from formation_swarm.sweep_figure import figure
+
+    values = [1.5, "dynamic"]
+    jobs = [Job(f"controller.vn={v}", {"controller.vn": v}, s) for v in values for s in range(3)]
+    rows = [dict(r, combination=f"controller.vn={v}") for v in values for r in _rows([v])]
+    fig = figure(aggregate(rows), jobs)
+    ax = fig.axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["1.5", "dynamic"]
+    assert ax.get_xlabel() == "controller.vn"
+    assert len(ax.containers) == 2

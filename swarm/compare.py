@@ -1,0 +1,111 @@
+"""One figure overlaying several runs: their trajectories and each follower's
+formation error over time (the paper's Fig. 6-7, run against run).
+
+Each run has its colour, each robot its line style; the legend names each run
+by its folder, scenario, seed and control law. Reads each RUN_DIR's
+recording.rrd and summary.json (formation_swarm.load_run).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from formation_swarm.cliargs import USAGE_ERROR, Parser
+from formation_swarm.data import RunData, load_run
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+MAX_RUNS = 10  # one colour each
+STYLES = ("-", "--", ":", "-.")  # per robot, in the order of their ids (cycled)
+
+
+def law(run: RunData) -> str:
+    """The run's control law in words, from its scenario as run."""
+    from formation_swarm.scenario_keys import CONTROLLER_KEYS
+
+    ctl = run.config.get("controller") or {}
+    if ctl.get("law", CONTROLLER_KEYS["law"].default) == "lpsi":
+        return "l-psi"
+    return f"fuzzy, V_N {ctl.get('vn', CONTROLLER_KEYS['vn'].default)}"
+
+
+def label(run: RunData) -> str:
+    return f"{run.run_dir.name}: {run.scenario}, seed {run.seed}, {law(run)}"
+
+
+def figure(runs: Sequence[RunData]) -> Figure:
+    """Trajectories (left) and formation error over time (right) of every run:
+    one line per robot per run on the left, per follower per run on the right."""
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+
+    if not 1 <= len(runs) <= MAX_RUNS:
+        raise ValueError(f"compare takes 1 to {MAX_RUNS} runs, got {len(runs)}")
+    fig = Figure(figsize=(13, 6.5), layout="constrained")
+    traj, err = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1, 1.4]})
+    robots = sorted({r for run in runs for r in run.robots})
+    style = {r: STYLES[k % len(STYLES)] for k, r in enumerate(robots)}
+    for k, run in enumerate(runs):
+        color = f"C{k}"
+        for i, r in enumerate(run.robots):
+            traj.plot(run.pose[i, :, 0], run.pose[i, :, 1], color=color, ls=style[r], lw=1.2)
+        for r in run.followers:
+            i = run.index(r)
+            err.plot(run.time_s, run.formation_error_m[i], color=color, ls=style[r], lw=1.0)
+    traj.set_aspect("equal", adjustable="datalim")
+    traj.set(xlabel="x, m", ylabel="y, m", title="Trajectories")
+    err.set(xlabel="time, s", ylabel="distance to target, m", title="Formation error (Fig. 6b/d, 7b)")
+    err.set_ylim(bottom=0)
+    for ax in (traj, err):
+        ax.grid(alpha=0.3)
+    leaders = {r for run in runs for r in run.robots if r not in run.followers}
+    robot_keys = [Line2D([], [], color="0.2", ls=style[r], label=f"R{r}" + (" (leader)" if r in leaders else ""))
+                  for r in robots]  # fmt: skip
+    err.legend(handles=robot_keys, loc="upper right", fontsize=8, title="robot", title_fontsize=8)
+    run_keys = [Line2D([], [], color=f"C{k}", lw=2.5, label=label(run)) for k, run in enumerate(runs)]
+    fig.legend(handles=run_keys, loc="outside lower center", ncol=1 if len(runs) > 3 else len(runs), fontsize=9)
+    fig.suptitle(f"{len(runs)} runs compared")
+    return fig
+
+
+def compare(run_dirs: Sequence[str | Path], out: str | Path) -> Path:
+    """Reads the runs, draws them into ``out`` (PNG, PDF or SVG by its suffix) and returns its path.
+    ValueError for a folder it cannot use, OSError when it cannot write."""
+    runs = [load_run(d) for d in run_dirs]
+    fig = figure(runs)
+    path = Path(out)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def build_parser() -> Parser:
+    ap = Parser(prog="swarm compare", description=__doc__,
+                epilog="example:\n  swarm run fig6_turn_vn_1_5 --out runs/static\n"
+                "  swarm run fig7_turn_vn_dynamic --out runs/dynamic\n"
+                "  swarm compare runs/static runs/dynamic --out static-vs-dynamic.png")  # fmt: skip
+    ap.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
+                    help=f"the run folders to overlay, 1 to {MAX_RUNS}, each as swarm run printed it")  # fmt: skip
+    ap.add_argument("--out", default="compare.png", metavar="FILE",
+                    help="the figure to write, PNG, PDF or SVG by its suffix (default: compare.png)")  # fmt: skip
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if len(args.run_dirs) > MAX_RUNS:
+        print(f"swarm compare: at most {MAX_RUNS} runs, got {len(args.run_dirs)}", file=sys.stderr)
+        return USAGE_ERROR
+    try:
+        path = compare(args.run_dirs, args.out)
+    except ValueError as exc:
+        print(f"swarm compare: {exc}", file=sys.stderr)
+        return USAGE_ERROR
+    except OSError as exc:
+        print(f"swarm compare: cannot write {args.out}: {exc}", file=sys.stderr)
+        return USAGE_ERROR
+    print(f"[compare] {path}")
+    return 0

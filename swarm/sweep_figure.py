@@ -1,0 +1,115 @@
+"""The figure of a sweep: each metric's mean over the seeds with its 95%
+confidence interval (Student t, as in aggregate.csv) against the swept value,
+one line per follower (the minimum distance between robots: one for the run).
+``swarm sweep`` writes it next to runs.csv as aggregate.png.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from formation_swarm.sweep import Job
+
+# Per-follower metrics (r<id>_<name> in runs.csv), then metrics of the whole run: name -> axis label.
+PER_FOLLOWER = {
+    "rms_m": "formation error RMS, m",
+    "max_m": "largest formation error, m",
+    "ekf_rms_m": "EKF target error RMS, m",
+}
+POOLED = {"min_distance_m": "least distance between robots, m"}
+
+
+def swept(jobs: Sequence[Job]) -> dict[str, list[Any]]:
+    """The override keys whose value differs between the jobs, each with its values in job order."""
+    keys = sorted({k for j in jobs for k in j.overrides})
+    out = {}
+    for k in keys:
+        values: list[Any] = []
+        for j in jobs:
+            v = j.overrides.get(k)
+            if v not in values:
+                values.append(v)
+        if len(values) > 1:
+            out[k] = values
+    return out
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def figure(agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "") -> Figure:
+    """One panel per metric present in ``agg`` (aggregate()'s rows); in each, one
+    error bar line per follower (or one for a pooled metric) over the combinations."""
+    from matplotlib.figure import Figure
+
+    labels = list(dict.fromkeys(j.label for j in jobs))
+    keys = swept(jobs)
+    numeric = len(keys) == 1 and all(_is_number(v) for v in next(iter(keys.values())))
+    if numeric:
+        key = next(iter(keys))
+        first = {}
+        for j in jobs:
+            first.setdefault(j.label, j.overrides[key])
+        xs = {lab: float(first[lab]) for lab in labels}
+        xlabel = key
+    else:  # one tick per combination, named by its value when one key is swept
+        xs = {lab: float(k) for k, lab in enumerate(labels)}
+        xlabel = " x ".join(keys) or "combination"
+        names = {j.label: str(j.overrides[next(iter(keys))]) if len(keys) == 1 else j.label or "base" for j in jobs}
+    by = {(r["combination"], r["metric"]): r for r in agg}
+    metrics = {r["metric"] for r in agg}
+    panels: list[tuple[str, list[tuple[str, str]]]] = []  # (axis label, [(metric, line label)])
+    for name, ylabel in PER_FOLLOWER.items():
+        lines = sorted(((m, f"R{m[1:-len(name) - 1]}") for m in metrics
+                        if m.startswith("r") and m[1:-len(name) - 1].isdigit() and m.endswith("_" + name)),
+                       key=lambda ml: int(ml[1][1:]))  # fmt: skip
+        if lines:
+            panels.append((ylabel, lines))
+    panels += [(ylabel, [(name, "all robots")]) for name, ylabel in POOLED.items() if name in metrics]
+    n = max(1, len(panels))
+    cols = 2 if n > 1 else 1
+    rows = (n + cols - 1) // cols
+    fig = Figure(figsize=(6 * cols, 3.6 * rows + 0.6), layout="constrained")
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    span = (max(xs.values()) - min(xs.values())) if len(xs) > 1 else 1.0
+    step = span / max(1, len(xs) - 1)
+    for ax, (ylabel, lines) in zip(axes, panels, strict=False):
+        for k, (metric, line_label) in enumerate(lines):
+            dodge = (k - (len(lines) - 1) / 2) * 0.06 * step  # the bars of several robots side by side
+            pts = [(xs[lab] + dodge, by[lab, metric]) for lab in labels if (lab, metric) in by]
+            x = [p[0] for p in pts]
+            mean = [p[1]["mean"] for p in pts]
+            low = [p[1]["mean"] - p[1]["ci95_low"] if p[1]["n"] > 1 else 0.0 for p in pts]
+            high = [p[1]["ci95_high"] - p[1]["mean"] if p[1]["n"] > 1 else 0.0 for p in pts]
+            ax.errorbar(x, mean, yerr=[low, high], marker="o", ms=4, capsize=4, lw=1.2, label=line_label,
+                        ls="-" if numeric else "none")  # fmt: skip
+        ax.set_ylabel(ylabel)
+        ax.set_xlabel(xlabel)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="best")
+        if numeric and len(labels) <= 12:
+            ax.set_xticks(sorted(set(xs.values())))
+        if not numeric:
+            ax.set_xticks([xs[lab] for lab in labels], [names[lab] for lab in labels],
+                          rotation=20 if sum(len(names[lab]) for lab in labels) > 60 else 0, fontsize=8)  # fmt: skip
+    for ax in axes[len(panels) :]:
+        ax.set_visible(False)
+    seeds = sorted({j.seed for j in jobs})
+    head = f"{title}: " if title else ""
+    fig.suptitle(f"{head}mean and 95% confidence interval over {len(seeds)} seeds per value")
+    return fig
+
+
+def write(path: Path, agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "") -> Path:
+    """The figure of ``agg`` into ``path``; its path."""
+    fig = figure(agg, jobs, title)
+    tmp = path.with_name(path.stem + ".tmp" + path.suffix)
+    fig.savefig(tmp, dpi=110)
+    tmp.replace(path)  # never a half-written figure
+    return path
