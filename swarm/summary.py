@@ -15,7 +15,8 @@ Besides the metrics it says which code made the run and why the run ended:
     duplicated, reordered, held at the end), by link name; their sums per
     link class (``obs``, ``cmd``, ``formation``); and per link fault, by its
     index in the scenario's schedule, the fault and the messages it affected
-    on all its links.
+    on all its links. ``partial_links``: the links received by an agent that
+    a signal killed, whose counts are those of its last write of its stats.
 ``error_windows``
     per follower, its mean and largest formation error in each window
     (``window_s``, 1 s) of the run: how long a formation took to recover.
@@ -170,15 +171,22 @@ def fault_effects(
     return out
 
 
-def _links(parts: Mapping[str, Any]) -> dict[str, Any]:
+def _links(parts: Mapping[str, Any], processes: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
     """Every link's counts: the world's command links and each agent's own;
-    an agent restarted (agent-3.2 ...) adds its counts to the first's."""
+    an agent restarted (agent-3.2 ...) adds its counts to the first's. And the
+    links whose counts are partial: received by an agent killed by a signal,
+    whose counters are those of its last periodic write (up to STATS_PERIOD_S
+    of wall time old), not of the moment it died."""
     links: dict[str, Any] = dict(parts.get("world", {}).get("cmd_links", {}))
+    partial: set[str] = set()
     for name, part in parts.items():
         if name.startswith("agent-"):
+            code = (processes.get(name) or {}).get("exit_code")
             for link, counts in (part.get("links") or {}).items():
                 links[link] = _add(links.get(link, {}), counts)
-    return links
+                if isinstance(code, int) and code < 0:
+                    partial.add(link)
+    return links, sorted(partial)
 
 
 def _add(a: Mapping[str, Any], b: Mapping[str, Any]) -> dict[str, Any]:
@@ -216,7 +224,7 @@ def build(
     world = parts.get("world", {})
     failure = robots_lost(world, sc)
     rejected = {name: part.get("rejected", {}) for name, part in parts.items() if part.get("rejected")}
-    links = _links(parts)
+    links, partial_links = _links(parts, processes)
     link_totals, link_faults = _link_sums(links, sc)
     return {
         "run_id": run_id,
@@ -251,6 +259,7 @@ def build(
         "faults": fault_effects(sc, parts, events, link_faults),
         "messages": world.get("messages", {}),
         "links": links,
+        "partial_links": partial_links,
         "link_totals": link_totals,
         "link_faults": link_faults,
         "drops_total": sum(v.get("dropped", 0) for v in links.values()),
