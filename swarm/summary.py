@@ -15,8 +15,8 @@ Besides the metrics it says which code made the run and why the run ended:
     duplicated, reordered, held at the end), by link name; their sums per
     link class (``obs``, ``cmd``, ``formation``); and per link fault, by its
     index in the scenario's schedule, the fault and the messages it affected
-    on all its links. ``partial_links``: the links received by an agent that
-    a signal killed, whose counts are those of its last write of its stats.
+    on all its links. ``partial_links``: the links into a robot whose agent a
+    signal killed, whose counts are those of its last write of its stats.
 ``error_windows``
     per follower, its mean and largest formation error in each window
     (``window_s``, 1 s) of the run: how long a formation took to recover.
@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import formation_swarm
 from formation_swarm.proc import write_json
-from formation_swarm.protocol.links import EFFECTS
+from formation_swarm.protocol.links import EFFECTS, link_name
 
 if TYPE_CHECKING:
     from formation_swarm.scenario import Scenario
@@ -171,22 +171,32 @@ def fault_effects(
     return out
 
 
-def _links(parts: Mapping[str, Any], processes: Mapping[str, Any]) -> tuple[dict[str, Any], list[str]]:
+def _links(parts: Mapping[str, Any]) -> dict[str, Any]:
     """Every link's counts: the world's command links and each agent's own;
-    an agent restarted (agent-3.2 ...) adds its counts to the first's. And the
-    links whose counts are partial: received by an agent killed by a signal,
-    whose counters are those of its last periodic write (up to STATS_PERIOD_S
-    of wall time old), not of the moment it died."""
+    an agent restarted (agent-3.2 ...) adds its counts to the first's."""
     links: dict[str, Any] = dict(parts.get("world", {}).get("cmd_links", {}))
-    partial: set[str] = set()
     for name, part in parts.items():
         if name.startswith("agent-"):
-            code = (processes.get(name) or {}).get("exit_code")
             for link, counts in (part.get("links") or {}).items():
                 links[link] = _add(links.get(link, {}), counts)
-                if isinstance(code, int) and code < 0:
-                    partial.add(link)
-    return links, sorted(partial)
+    return links
+
+
+def partial_links(processes: Mapping[str, Any], sc: Scenario) -> list[str]:
+    """The links whose counts are partial: those into a robot one of whose agents
+    (agent-3, agent-3.2, ...) a signal killed. Such an agent's counters are
+    those of its last periodic write (up to STATS_PERIOD_S of wall time old),
+    or none when it died before its first; how many messages it had by then
+    depends on the machine's speed, not on the run."""
+    killed = set()
+    for name, proc in processes.items():
+        code = (proc or {}).get("exit_code")
+        if name.startswith("agent-") and isinstance(code, int) and code < 0:
+            killed.add(int(name.removeprefix("agent-").split(".")[0]))
+    leader = sc.leader.robot_id
+    out = [link_name("obs", 0, r) for r in killed]
+    out += [link_name("formation", leader, r) for r in killed if r != leader]
+    return sorted(out)
 
 
 def _add(a: Mapping[str, Any], b: Mapping[str, Any]) -> dict[str, Any]:
@@ -224,7 +234,7 @@ def build(
     world = parts.get("world", {})
     failure = robots_lost(world, sc)
     rejected = {name: part.get("rejected", {}) for name, part in parts.items() if part.get("rejected")}
-    links, partial_links = _links(parts, processes)
+    links = _links(parts)
     link_totals, link_faults = _link_sums(links, sc)
     return {
         "run_id": run_id,
@@ -259,7 +269,7 @@ def build(
         "faults": fault_effects(sc, parts, events, link_faults),
         "messages": world.get("messages", {}),
         "links": links,
-        "partial_links": partial_links,
+        "partial_links": partial_links(processes, sc),
         "link_totals": link_totals,
         "link_faults": link_faults,
         "drops_total": sum(v.get("dropped", 0) for v in links.values()),

@@ -290,10 +290,12 @@ def test_a_robot_that_came_back_is_not_lost_and_restarted_agents_links_add_up() 
         "agent-3": {"links": {"obs:0>3": {"received": 400, "dropped": 4}}},
         "agent-3.2": {"links": {"obs:0>3": {"received": 180, "dropped": 2}}},
     }
-    links, partial = summary_mod._links(parts, {"agent-3": {"exit_code": -9}, "agent-3.2": {"exit_code": 0}})
-    assert links["obs:0>3"] == {"received": 580, "dropped": 6}
-    assert partial == ["obs:0>3"]  # agent-3's counts stopped at its last write before its SIGKILL
-    assert summary_mod._links(parts, {})[1] == []
+    assert summary_mod._links(parts)["obs:0>3"] == {"received": 580, "dropped": 6}
+    # agent-3's counts stopped at its last write before its SIGKILL: the links into robot 3 are partial.
+    killed = {"agent-1": {"exit_code": 0}, "agent-3": {"exit_code": -9}, "agent-3.2": {"exit_code": 0}}
+    assert summary_mod.partial_links(killed, sc) == ["formation:1>3", "obs:0>3"]
+    assert summary_mod.partial_links({"agent-1": {"exit_code": -9}}, sc) == ["obs:0>1"]  # the leader hears no codes
+    assert summary_mod.partial_links({"agent-3": {"exit_code": 0}, "logger": {"exit_code": -9}}, sc) == []
 
 
 def test_a_world_started_by_hand_refuses_process_faults_it_cannot_execute(tmp_path: Any) -> None:
