@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import math
 import struct
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -207,9 +208,14 @@ class WorldEngine:
         r.command, r.command_time_s = (0.0, 0.0), -math.inf
 
     def true_target(self, rid: int) -> tuple[float, float]:
-        r = self.robots[rid]
-        slot = self.scenario.formation_by_code(r.formation).slots[rid]
-        return from_body_frame(self.robots[slot.reference].pose, slot.offset[0], slot.offset[1])
+        """Follower ``rid``'s true virtual target now (eq. 2 on true poses), in the
+        formation it flies: the code of its last command, so at a formation
+        switch tick the new formation's slot."""
+        return self._target(rid, self.robots[rid].formation, {i: r.pose for i, r in self.robots.items()})
+
+    def _target(self, rid: int, formation: int, poses: Mapping[int, Pose]) -> tuple[float, float]:
+        slot = self.scenario.formation_by_code(formation).slots[rid]
+        return from_body_frame(poses[slot.reference], slot.offset[0], slot.offset[1])
 
     def step(self, now_s: float) -> None:
         """Integrate tick k to tick k+1.
@@ -247,11 +253,12 @@ class WorldEngine:
             return
         sc = self.scenario
         errors: dict[int, float] = {}
+        poses = {rid: pose for rid, (pose, _, _) in snap.items()}
         for rid, metrics in self.metrics.items():
             pose, _, formation = snap[rid]
-            slot = sc.formation_by_code(formation).slots[rid]
-            ref_pose, ref_command, _ = snap[slot.reference]
-            tx, ty = from_body_frame(ref_pose, slot.offset[0], slot.offset[1])
+            reference = sc.formation_by_code(formation).slots[rid].reference
+            ref_pose, ref_command, _ = snap[reference]
+            tx, ty = self._target(rid, formation, poses)
             ex, ey = tx - pose.x_m, ty - pose.y_m
             along = ex * math.cos(ref_pose.theta_rad) + ey * math.sin(ref_pose.theta_rad)
             turning = abs(ref_command[1] - ref_command[0]) / sc.width_m >= TURN_RATE_RPS
@@ -266,7 +273,7 @@ class WorldEngine:
         self._recorded += 1
         for rec in self.recoveries:
             rec.add(self.tick - 1, errors)  # the snapshot is of the tick before the last step
-        self._contacts({rid: pose for rid, (pose, _, _) in snap.items()})
+        self._contacts(poses)
         h = self._digest
         for rid in sorted(snap):
             h.update(struct.pack("<3d", *snap[rid][0]))

@@ -1,0 +1,48 @@
+"""The target metrics tell the truth: at a formation switch the true target is
+that of the formation flown at that tick; a follower that never saw its
+reference has no metrics; the summary says why the run ended."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from formation_swarm import scenario as scenario_mod
+from formation_swarm.launcher import RunResult
+from formation_swarm.report import read_recording
+
+
+def test_true_target_at_a_switch_tick_is_the_new_formations(swarm_run: Callable[..., RunResult]) -> None:
+    # fig11_obstacles switches to "line" at 19.6 s (leader) and 19.65 s (followers).
+    res = swarm_run("fig11_obstacles", overrides={"run.duration_s": 21.0})
+    s = res.summary
+    assert s["end_reason"] == "duration_reached"
+    switches = {e["robot"]: e["tick"] for e in s["formation_events"] if e["formation"] == "line"}
+    assert switches == {1: 392, 2: 393, 3: 393}
+    sc = scenario_mod.load(res.run_dir / "scenario.toml")
+    line = sc.formations["line"]
+    data = read_recording(res.recording)
+    dt = sc.dt_s
+    errors = s["parts"]["logger"]["target_errors"]
+    for rid in (2, 3):
+        k = switches[rid]
+        ekf = data[f"/robots/r{rid}/error/ekf"]
+        at = np.flatnonzero(np.isclose(ekf.t, k * dt))
+        assert len(at) == 1
+        # Measured against the old (triangle) slot it was 1.5 m (R2) and 3.4 m (R3).
+        assert ekf.v[at[0]] < 0.25, (rid, ekf.v[at[0]])
+        # The published true target is the line slot's: its offset away from the
+        # line's reference (in the triangle: 2.1 m from R1 for both followers).
+        truth, slot = data[f"/robots/r{rid}/target/true"], line.slots[rid]
+        ref = data[f"/robots/r{slot.reference}/pose"]
+        i, j = np.flatnonzero(np.isclose(truth.t, k * dt))[0], np.flatnonzero(np.isclose(ref.t, k * dt))[0]
+        assert math.dist(truth.v[i], ref.v[j]) == pytest.approx(math.hypot(*slot.offset), abs=1e-3)
+        # The logger's RMS is the RMS of the errors it recorded; the recorded
+        # formation error is the world's own (same formation at every tick).
+        assert errors[str(rid)]["ekf_rms_m"] == pytest.approx(math.sqrt(np.mean(ekf.v**2)), rel=1e-9)
+        form = data[f"/robots/r{rid}/error/formation"]
+        assert s["followers"][str(rid)]["rms_m"] == pytest.approx(math.sqrt(np.mean(form.v**2)), rel=1e-9)
+        assert float(np.max(ekf.v)) < 0.6, rid  # no sample near the 1.5-4.5 m slot jump
