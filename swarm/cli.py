@@ -135,7 +135,7 @@ def _cmd_scenarios(_args: argparse.Namespace) -> int:
 
 # Commands with their own parser in their own module: name -> (module, one-line summary).
 DELEGATED = {
-    "report": ("formation_swarm.report", "figures (PNG) and a markdown summary of a run's folder"),
+    "report": ("formation_swarm.report", "figures (PNG, SVG or PDF) and a markdown summary of a run's folder"),
     "sweep": ("formation_swarm.sweep", "many lockstep runs of a scenario (seeds x parameter values), in parallel"),
     "results": ("formation_swarm.results", "recompute the baseline comparison table of docs/results.md"),
     "world": ("formation_swarm.world.process", "role: the world alone (physics, cameras, clock; a Zenoh router)"),
