@@ -233,7 +233,7 @@ def _markdown(
         "",
         f"Mode {summary.get('mode')}, seed {summary.get('seed')}, {summary.get('ticks')} ticks "
         f"({f(summary.get('sim_time_s'), '.1f')} s simulated), exit code {summary.get('exit_code')}. "
-        f"Ended: {describe_end(summary.get('end_reason'), summary.get('ended_at_s'))}.",
+        f"Ended: {summary.get('ended') or describe_end(summary.get('end_reason'), summary.get('ended_at_s'))}.",
         "",
         f"Reproduces: {paper}."
         if paper

@@ -4,6 +4,7 @@ reference has no metrics; the summary says why the run ended."""
 
 from __future__ import annotations
 
+import io
 import math
 from collections.abc import Callable
 
@@ -46,3 +47,47 @@ def test_true_target_at_a_switch_tick_is_the_new_formations(swarm_run: Callable[
         form = data[f"/robots/r{rid}/error/formation"]
         assert s["followers"][str(rid)]["rms_m"] == pytest.approx(math.sqrt(np.mean(form.v**2)), rel=1e-9)
         assert float(np.max(ekf.v)) < 0.6, rid  # no sample near the 1.5-4.5 m slot jump
+
+
+def test_a_stranded_follower_is_reported_never_acquired(swarm_run: Callable[..., RunResult]) -> None:
+    from formation_swarm.console import print_result
+    from formation_swarm.report import make_report
+
+    # R3 starts 3 m from its reference R2, beyond a 2.5 m camera: it never sees it.
+    res = swarm_run("fig11_obstacles", overrides={"camera.range_m": 2.5, "run.duration_s": 3.0})
+    s = res.summary
+    assert s["scenario_warnings"] == [
+        "robot 3 starts with its reference, robot 2 (formation 'triangle'), 3.00 m away, beyond camera.range_m = "
+        "2.5 m: unless it comes into view, robot 3 never moves and gets no metrics (never acquired)"
+    ]
+    r2, r3 = s["followers"]["2"], s["followers"]["3"]
+    assert (r2["acquired"], r2["frames"], r2["seen_ticks"]) == (True, 60, 60)
+    assert r2["rms_m"] < 0.5
+    assert (r3["acquired"], r3["frames"], r3["seen_ticks"]) == (False, 60, 0)
+    assert r3["rms_m"] is None
+    assert r3["max_m"] is None
+    text = io.StringIO()
+    print_result(res, text)
+    out = text.getvalue()
+    assert "follower R3: NEVER ACQUIRED its reference (never in its camera's view): no metrics" in out
+    assert "follower R2: formation error RMS" in out
+    assert "ended: the scenario's duration was reached at t=3.00 s" in out
+    assert s["end_reason"] == "duration_reached"
+    assert s["ended"] == "the scenario's duration was reached at t=3.00 s"
+    md = (make_report(res.run_dir) / "report.md").read_text()
+    assert "| R3 | never acquired its reference: no metrics |" in md
+
+
+def test_why_a_run_ended_in_words() -> None:
+    from formation_swarm.summary import describe_end
+
+    assert describe_end("leader_finished", 53.05) == "the leader reached its last waypoint at t=53.05 s"
+    assert describe_end("interrupted", 2.0) == "stopped by a signal (Ctrl-C, SIGINT or SIGTERM) at t=2.00 s"
+    events = [
+        {"event": "killed", "process": "agent-3", "sim_time_s": 1.0},
+        {"event": "exited", "process": "agent-3", "code": -9, "sim_time_s": 1.0},  # the kill's doing
+        {"event": "exited", "process": "world", "code": 1, "sim_time_s": 4.5},
+        {"event": "exited", "process": "logger", "code": 0, "sim_time_s": 4.5},
+    ]
+    assert describe_end("role_failed", 4.5, events) == "a process failed at t=4.50 s (world exited with code 1)"
+    assert describe_end("role_failed", None, []) == "a process failed"
