@@ -135,7 +135,7 @@ def _cmd_scenarios(_args: argparse.Namespace) -> int:
 
 # Commands with their own parser in their own module: name -> (module, one-line summary).
 DELEGATED = {
-    "report": ("formation_swarm.report", "figures (PNG) and a markdown summary of a run's folder"),
+    "report": ("formation_swarm.report", "figures (PNG, SVG or PDF) and a markdown summary of a run's folder"),
     "export": ("formation_swarm.export", "a run's folder as a table, one row per robot per tick (CSV or Parquet)"),
     "compare": ("formation_swarm.compare", "one figure overlaying several runs: formation error and trajectories"),
     "sweep": ("formation_swarm.sweep", "many lockstep runs of a scenario (seeds x parameter values), in parallel"),

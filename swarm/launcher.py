@@ -195,6 +195,8 @@ class Launch:
             raise
 
     def _start(self) -> None:
+        for warning in self.sc.warnings:
+            self.progress(f"[swarm] warning: {warning}")
         self.run_dir.mkdir(parents=True, exist_ok=True)
         (self.run_dir / "logs").mkdir(exist_ok=True)
         (self.run_dir / "stats").mkdir(exist_ok=True)

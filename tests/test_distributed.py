@@ -160,6 +160,11 @@ def test_a_lockstep_run_is_its_one_process_replica(
     assert real["trajectory_digest"] == again["trajectory_digest"]
     for rid, m in real["followers"].items():
         assert m["rms_m"] == again["followers"][rid]["rms_m"]
+        assert (m["frames"], m["seen_ticks"]) == (
+            again["followers"][rid]["frames"],
+            again["followers"][rid]["seen_ticks"],
+        )
+        assert m["acquired"] is True
     # (Within one tick, the world lists formation events in the order the answers came.)
     by_tick = sorted(real["formation_events"], key=lambda e: (e["tick"], e["robot"]))
     assert by_tick == sorted(again["formation_events"], key=lambda e: (e["tick"], e["robot"]))
