@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from formation_swarm.cliargs import USAGE_ERROR, Parser, integer
+from formation_swarm.palette import robot_colour
 
 FIGURES = ("trajectories.png", "formation_error.png", "vn.png", "targets.png")
 MAX_SNAPSHOTS = 100
@@ -191,7 +192,8 @@ def _trajectories(path: Path, data: Mapping[str, Series], robots: list[int], fol
         ax.add_patch(plt.Circle((x, y), r, color="tab:red", alpha=0.4))
     poses = {r: data[f"/robots/r{r}/pose"] for r in robots}
     for r, s in poses.items():
-        ax.plot(s.v[:, 0], s.v[:, 1], lw=1.2, label=f"R{r}" + (" (leader)" if r not in followers else ""))
+        ax.plot(s.v[:, 0], s.v[:, 1], lw=1.2, color=robot_colour(r),
+                label=f"R{r}" + (" (leader)" if r not in followers else ""))  # fmt: skip
     leader = next(r for r in robots if r not in followers) if len(followers) < len(robots) else robots[0]
     t_end = poses[leader].t[-1] if len(poses[leader]) else 0.0
     for k, ts in enumerate(np.linspace(0.0, t_end, snapshots)):  # from the start to the end
@@ -219,7 +221,7 @@ def _over_time(path: Path, data: Mapping[str, Series], followers: list[int], ent
     for r in followers:
         s = data.get(f"/robots/r{r}/{entity}")
         if s is not None and len(s):
-            ax.plot(s.t, s.v, lw=1.0, label=f"R{r}")
+            ax.plot(s.t, s.v, lw=1.0, color=robot_colour(r), label=f"R{r}")
     ax.set_xlabel("time, s")
     ax.set_ylabel(ylabel)
     ax.set_title(title)

@@ -21,14 +21,17 @@ OUR_MODULES = (
 RERUN = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
 
 
-def rrd_rows(path: Path) -> dict[str, int]:
-    """Rows per entity path in a recording (an absent or empty file has none)."""
+def rrd_rows(path: Path, static: bool = False) -> dict[str, int]:
+    """Rows per entity path in a recording (an absent or empty file has none):
+    the rows on its timeline (one per tick and entity), or with ``static``
+    its static rows (obstacles, how each robot is drawn)."""
     from rerun.chunk import RrdReader
 
     rows: dict[str, int] = {}
     if path.exists() and path.stat().st_size > 0:
         for chunk in RrdReader(str(path)).stream():
-            rows[str(chunk.entity_path)] = rows.get(str(chunk.entity_path), 0) + chunk.num_rows
+            if chunk.is_static == static:
+                rows[str(chunk.entity_path)] = rows.get(str(chunk.entity_path), 0) + chunk.num_rows
     return rows
 
 
