@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import os
 import shutil
+import socket
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -33,6 +35,17 @@ def rrd_rows(path: Path, static: bool = False) -> dict[str, int]:
             if chunk.is_static == static:
                 rows[str(chunk.entity_path)] = rows.get(str(chunk.entity_path), 0) + chunk.num_rows
     return rows
+
+
+def wait_listening(port: int, timeout_s: float) -> None:
+    """Return once something accepts connections on loopback ``port``."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        with socket.socket() as s:
+            if s.connect_ex(("127.0.0.1", port)) == 0:
+                return
+        assert time.monotonic() < deadline, f"nothing listens on port {port}"
+        time.sleep(0.05)
 
 
 def processes(match: Callable[[str], bool]) -> list[tuple[int, str]]:

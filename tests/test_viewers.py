@@ -9,7 +9,6 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
-import socket
 import subprocess
 import time
 import urllib.request
@@ -26,19 +25,9 @@ from formation_swarm.launcher import Launch, RunResult, free_port
 from formation_swarm.palette import robot_colour
 from formation_swarm.recording import blueprint, open_recording
 from formation_swarm.report import make_report, read_recording
-from tests.conftest import RERUN, SCENARIOS, rrd_rows
+from tests.conftest import RERUN, SCENARIOS, rrd_rows, wait_listening
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"
-
-
-def _wait_listening(port: int, timeout_s: float) -> None:
-    deadline = time.monotonic() + timeout_s
-    while True:
-        with socket.socket() as s:
-            if s.connect_ex(("127.0.0.1", port)) == 0:
-                return
-        assert time.monotonic() < deadline, f"nothing listens on port {port}"
-        time.sleep(0.05)
 
 
 @contextlib.contextmanager
@@ -86,7 +75,7 @@ def test_live_stream_carries_what_the_recording_has(tmp_path: Path, swarm_run: C
     port = free_port()
     live = tmp_path / "live.rrd"
     with _saving_viewer(["--port", str(port)], live):
-        _wait_listening(port, timeout_s=30)
+        wait_listening(port, timeout_s=30)
         res = swarm_run(FIG11, live=f"rerun+http://127.0.0.1:{port}/proxy", overrides={"run.duration_s": 6.0})
         assert res.exit_code == 0
         ticks = res.summary["ticks"]
@@ -150,7 +139,7 @@ def test_an_absent_live_viewer_is_said_once_and_costs_nothing(swarm_run: Callabl
         "the run is recorded to recording.rrd only"
     ]
     # Rerun's own sink would hold the logger 5 s at its start and 5 s at its end.
-    assert with_absent_s < alone_s + 2.0, (with_absent_s, alone_s)
+    assert with_absent_s < alone_s + 4.0, (with_absent_s, alone_s)
     assert not [e for e in res.summary["events"] if e.get("event") == "killed after stop timeout"]
     _assert_complete(res)
 
