@@ -16,7 +16,7 @@ Entity paths mirror the key space::
     robots/r<id>/formation               formation code flown
     events                               the run's start and each follower's formation changes, as text
     robots/r<id>/links/obs_dropped, /links/formation_dropped
-    events/faults                        the fault schedule: each fault where it starts and ends
+    events/faults                        the fault schedule: each fault where it starts and ends (once reached)
     events/fault_calls                   the world's calls for process faults, at their tick
 
 How each robot is drawn (colour: formation_swarm.palette, size, series
@@ -236,6 +236,7 @@ class Recorder:
         # Per follower: squared error of the measured and of the EKF target vs the true one.
         self.target_errors: dict[int, dict[str, float]] = defaultdict(lambda: defaultdict(float))
         self.counts = {"log_errors": 0, "rows": 0, "unjoined": 0}
+        self.schedule: list[tuple[float, str, str]] = []  # fault schedule events still to come: time s, text, level
         self.last_time_s = -1.0
 
     def add_truths(self, truths: list[Truth]) -> None:
@@ -287,16 +288,23 @@ class Recorder:
         self.log_fault_schedule()
 
     def log_fault_schedule(self) -> None:
-        """Every scheduled fault in the event log, where it starts and where it ends."""
+        """Every scheduled fault in the event log, where it starts and where it
+        ends, each logged once the run's ground truth reaches its time: a
+        viewer following the run must not jump to a time still to come."""
         sc = self.sc
         for f in sc.faults:
-            start = f.start_tick(sc.dt_s) * sc.dt_s
-            self.guard(self.rec.set_time, TIMELINE, duration=start)
-            self.guard(self.rec.log, "events/faults", rr.TextLog(f"fault: {f}", level="WARN"))
+            self.schedule.append((f.start_tick(sc.dt_s) * sc.dt_s, f"fault: {f}", "WARN"))
             end = f.end_tick(sc.dt_s)
             if end is not None and f.kind != "restart":
-                self.guard(self.rec.set_time, TIMELINE, duration=end * sc.dt_s)
-                self.guard(self.rec.log, "events/faults", rr.TextLog(f"fault over: {f}", level="INFO"))
+                self.schedule.append((end * sc.dt_s, f"fault over: {f}", "INFO"))
+        self.schedule.sort(key=lambda e: e[0])
+        self._log_due_faults()
+
+    def _log_due_faults(self) -> None:
+        while self.schedule and self.schedule[0][0] <= max(self.last_time_s, 0.0):
+            t, text, level = self.schedule.pop(0)
+            self.guard(self.rec.set_time, TIMELINE, duration=t)
+            self.guard(self.rec.log, "events/faults", rr.TextLog(text, level=level))
 
     def log_fault_call(self, call: FaultCall) -> None:
         """A call the world made to execute a process fault (kill, start, freeze, thaw)."""
@@ -356,6 +364,7 @@ class Recorder:
             self._columns(f"robots/r{rid}/target/true", "point", a[:, 0], a[:, 1:3])
             err = np.hypot(a[:, 1] - a[:, 3], a[:, 2] - a[:, 4])
             self._columns(f"robots/r{rid}/error/formation", "scalar", a[:, 0], err)
+        self._log_due_faults()
 
     def _send_telemetry(self, final: bool) -> None:
         """Telemetry whose tick's truth has arrived, joined with it: the follower's

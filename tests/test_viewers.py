@@ -178,10 +178,22 @@ def test_every_path_the_viewer_shows_is_in_the_recording(swarm_run: Callable[...
     assert all("*" not in path for path in named), named  # the viewer matches no wildcard mid-path
     missing = sorted(path for path in named if path not in timed and path not in static)
     assert not missing, missing
+    # The fault's start and end, each at its own sim time (2 rows), logged once the run got there.
+    assert _times(res.recording, "/events/faults") == [1.0, 2.0]
     for path in named:
         if path.startswith("/robots/"):  # on the timeline; from the ground truth: every tick
             every_tick = path.endswith(("/pose", "/heading", "/trajectory", "/target/true", "/error/formation"))
             assert timed[path] == ticks if every_tick else timed[path] > 0, (path, timed[path], ticks)
+
+
+def _times(rrd: Path, entity: str) -> list[float]:
+    from rerun.chunk import RrdReader
+
+    times = []
+    for chunk in RrdReader(str(rrd)).stream():
+        if str(chunk.entity_path) == entity and not chunk.is_static:
+            times += [t / 1e9 for t in chunk.to_record_batch().column("sim_time").cast("int64").to_pylist()]
+    return sorted(times)
 
 
 def test_the_layout_follows_the_scenario() -> None:
