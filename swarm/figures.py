@@ -27,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from formation_swarm.palette import robot_colour
+
 Series = Any  # report.Series: .t (s) and .v, time-sorted
 Mark = tuple[float, "float | None", str]
 
@@ -60,8 +62,9 @@ class Context:
         cf = f" (cf. paper {self.paper[stem]})" if stem in self.paper else ""
         return f"{self.scenario}, seed {self.seed}: {what}{cf}"
 
-    def colour(self, rid: int) -> str:
-        return f"C{self.robots.index(rid) % 10}" if rid in self.robots else "0.3"
+    def colour(self, rid: int) -> tuple[float, float, float]:
+        """The robot's colour, the same as in the Rerun viewer (formation_swarm.palette)."""
+        return robot_colour(rid)
 
     def flown(self, rid: int, t: float) -> str | None:
         """The formation robot ``rid`` flies at time ``t``."""
@@ -142,7 +145,7 @@ def _time_marks(ax: Any, ctx: Context) -> None:
                 color="0.25",
             )
     for k, (start, end, label) in enumerate(ctx.fault_marks):
-        color = ("tab:red", "tab:purple", "tab:brown", "tab:olive", "tab:cyan")[k % 5]
+        color = ("tab:red", "darkred", "0.4")[k % 3]  # none of them a robot's (formation_swarm.palette)
         if end is None:
             ax.axvline(start, color=color, lw=1.2, ls="--", zorder=1)
         else:

@@ -23,8 +23,6 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from formation_swarm import figures
 from formation_swarm.cliargs import USAGE_ERROR, Parser, integer
 from formation_swarm.data import Series, read_recording, robots_in
