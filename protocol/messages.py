@@ -150,11 +150,12 @@ class Telemetry(Message):
 
 @dataclass(frozen=True, slots=True)
 class Truth(Message):
-    """World -> logger: ground truth at tick k (before the step).
+    """World -> logger: ground truth at tick k (before the step, after the
+    commands of tick k).
 
     robots: (robot_id, x_m, y_m, theta_rad, alive) each, world frame.
     targets: (follower_id, x_m, y_m) true virtual target of each follower's
-    current slot, world frame.
+    slot in the formation its command of tick k names, world frame.
     """
 
     time_s: float

@@ -135,7 +135,7 @@ def _cmd_scenarios(_args: argparse.Namespace) -> int:
 
 # Commands with their own parser in their own module: name -> (module, one-line summary).
 DELEGATED = {
-    "report": ("formation_swarm.report", "figures (PNG) and a markdown summary of a run's folder"),
+    "report": ("formation_swarm.report", "figures (PNG, SVG or PDF) and a markdown summary of a run's folder"),
     "export": ("formation_swarm.export", "a run's folder as a table, one row per robot per tick (CSV or Parquet)"),
     "compare": ("formation_swarm.compare", "one figure overlaying several runs: formation error and trajectories"),
     "sweep": ("formation_swarm.sweep", "many lockstep runs of a scenario (seeds x parameter values), in parallel"),
@@ -199,10 +199,11 @@ def _add_run(sub: argparse._SubParsersAction[Parser]) -> None:
                      "a little faster")  # fmt: skip
     run.add_argument("--live", metavar="URL", type=rerun_url,
                      help="also stream to a Rerun viewer already listening there, e.g. "
-                     "rerun+http://127.0.0.1:9876/proxy (start one with: rerun)")  # fmt: skip
+                     "rerun+http://127.0.0.1:9876/proxy (start one with: rerun); if none answers, "
+                     "the run goes on without it")  # fmt: skip
     run.add_argument("--serve-web", action="store_true",
-                     help="also serve the Rerun web viewer while the run lasts "
-                     "(best with --mode realtime)")  # fmt: skip
+                     help="also serve the Rerun web viewer while the run lasts; prints the address that "
+                     "opens it on the run (best with --mode realtime)")  # fmt: skip
     run.add_argument("--grpc-port", type=port, default=None, metavar="PORT",
                      help=f"with --serve-web: the port the logger serves the data on "
                      f"(default: {GRPC_PORT})")  # fmt: skip

@@ -63,13 +63,16 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
     ticks = s.get("ticks")
     w(f"run {s.get('run_id')}: exit {res.exit_code}, {ticks if ticks is not None else 'no'} ticks, "
       f"sim {_num(s.get('sim_time_s'), '.2f')} s\n")  # fmt: skip
-    w(f"  ended: {summary_mod.describe_end(s.get('end_reason'), s.get('ended_at_s'))}\n")
+    w(f"  ended: {s.get('ended') or summary_mod.describe_end(s.get('end_reason'), s.get('ended_at_s'))}\n")
     if s.get("failure"):
         w(f"  failed: {s['failure']}\n")
     if not ticks:
         w("  no metrics: the run ended before its first tick\n")
     else:
         for rid, m in sorted((s.get("followers") or {}).items()):
+            if m.get("acquired") is False:
+                w(f"  follower R{rid}: NEVER ACQUIRED its reference (never in its camera's view): no metrics\n")
+                continue
             w(f"  follower R{rid}: formation error RMS {_num(m.get('rms_m'))} m, max {_num(m.get('max_m'))} m\n")
         w(f"  min distance {_num(s.get('min_distance_m'))} m (diameter {_num(s.get('robot_diameter_m'), 'g')} m), "
           f"collisions {s.get('collisions')}, obstacle collisions {s.get('obstacle_collisions')}\n")  # fmt: skip

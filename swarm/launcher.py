@@ -39,7 +39,7 @@ from typing import Any
 import zenoh
 
 from formation_swarm import scenario as scenario_mod
-from formation_swarm import scenario_files
+from formation_swarm import scenario_files, viewer
 from formation_swarm import summary as summary_mod
 from formation_swarm.children import Child, describe_exit, free_port, log_tail
 from formation_swarm.console import print_result as print_result  # re-exported: the API of swarm run
@@ -144,6 +144,7 @@ class Launch:
         self.live = live
         self.serve_web = serve_web
         self.web_ports = web_ports  # (gRPC, web viewer), with serve_web
+        self.said_web = False  # the web viewer's address is on the console
         self.progress = progress or (lambda line: print(line, flush=True))
         self.python = python
         self.fork = fork  # our roles forked from the spawner, else exec'd (formation_swarm.spawner)
@@ -195,6 +196,8 @@ class Launch:
             raise
 
     def _start(self) -> None:
+        for warning in self.sc.warnings:
+            self.progress(f"[swarm] warning: {warning}")
         self.run_dir.mkdir(parents=True, exist_ok=True)
         (self.run_dir / "logs").mkdir(exist_ok=True)
         (self.run_dir / "stats").mkdir(exist_ok=True)
@@ -222,6 +225,11 @@ class Launch:
         }  # fmt: skip
         if self.logger:
             extra = ["--live", self.live] if self.live else []
+            if self.live and (why := viewer.unreachable(self.live)) is not None:
+                # Said here, once: the logger's own line would end in its log.
+                self.progress(f"[swarm] --live {self.live}: no Rerun viewer answers there ({why}); not streaming "
+                              "there, the run is recorded to recording.rrd only")  # fmt: skip
+                extra = []
             if self.serve_web:
                 extra += ["--serve-web", "--grpc-port", str(self.web_ports[0]), "--web-port", str(self.web_ports[1])]
             specs["logger"] = [*py("logger"), *common, "--out", str(self.run_dir / "recording.rrd"),
@@ -281,6 +289,10 @@ class Launch:
     def _watch(self) -> None:
         self._read_status()
         t = self.sim_time()
+        if self.serve_web and self.logger and not self.said_web and self.last_status is not None:
+            # The world starts once the logger is there, serving: the address works now.
+            self.said_web = True
+            self.progress(f"[swarm] watch the run in a browser: {viewer.web_address(*self.web_ports)}")
         self._execute_calls()
         for child in self.children.values():
             code = child.poll()

@@ -3,6 +3,10 @@
     swarm logger --scenario S.toml --run RUN --out recording.rrd [--live URL] [--serve-web]
                  [--stats FILE] [--peers-timeout S] --connect ENDPOINT
 
+The recording file is complete whatever live outputs are added: they are fed
+by a second Rerun stream, which is never waited on while the run lasts
+(formation_swarm.recording.Recording).
+
 It subscribes to the world's keys and to every follower's telemetry (not
 to observations, commands and formation codes: they would double the
 router's work for nothing), holds a liveliness token the world waits for,
@@ -21,6 +25,7 @@ import gc
 import math
 import os
 import queue
+import sys
 import threading
 import time
 from pathlib import Path
@@ -224,7 +229,10 @@ leaves. Start it before the world's first tick (the world waits for it
 with --expect-logger): what is sent before it is there is not recorded.
 
 It prints one line when its session is open, one when the run starts and
-one when it ends (why, and where the recording and its stats went)."""
+one when it ends (why, and where the recording and its stats went); with
+--serve-web, the address that opens the web viewer on the run; with --live,
+whether a viewer answered there (one that does not is left out at once:
+the recording goes on, never slowed by the viewer)."""
 
 
 def build_parser() -> cliargs.Parser:
@@ -276,14 +284,16 @@ def main(argv: list[str] | None = None) -> int:
     if isinstance(sc, int):
         return sc
     try:  # before connecting: a recording that cannot be written fails at once
-        rec, web = open_recording(
-            args.run, Path(args.out), args.live, (args.grpc_port, args.web_port) if args.serve_web else None
+        rec = open_recording(
+            args.run, Path(args.out), sc, args.live, (args.grpc_port, args.web_port) if args.serve_web else None
         )
     except (OSError, RuntimeError) as exc:
         role.complain(f"cannot record to {args.out}: {exc}")
         return role_mod.EXIT_FAILED
-    if web:
-        role.say(f"web viewer on {web}")
+    if rec.dropped:
+        role.say(f"{rec.dropped}: not streaming there; the run is recorded to {args.out} only")
+    if rec.web:
+        role.say(f"web viewer: {rec.web}")
     sess_cm = role.connect(args)
     if isinstance(sess_cm, int):
         return sess_cm
@@ -295,13 +305,20 @@ def main(argv: list[str] | None = None) -> int:
         logger = Logger(sess, sc, args.run, Recorder(rec, sc), role, where)
         code = logger.run()
         write_json(args.stats, logger.stats())
-    rec.flush(timeout_sec=2.0)
+    delivered = rec.close()
     if code != role_mod.EXIT_NO_PEERS:
         written = f"stats in {args.stats}" if args.stats else "no --stats: counters not written"
         role.say(
             f"run {args.run} ended ({logger.end_note}), exit code {code}, {logger.counts['truth']} ticks "
             f"recorded in {args.out}; {written}"
         )
+    if not delivered:
+        # Rerun waits 5 s for a viewer that is not there when its stream is
+        # dropped; the file is closed already: leave without waiting.
+        role.say("the live viewer did not take the end of the run; leaving without it")
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
     return code
 
 

@@ -3,19 +3,25 @@
 Timeline ``sim_time`` (the messages' sim time, never the wall clock).
 Entity paths mirror the key space::
 
-    world/obstacles                      static circles
-    robots/r<id>/pose, /heading          true position and heading (Truth)
-    robots/r<id>/trajectory              the same positions, shown with their past
+    world, robots                        static: a flip of y (the 2D view draws y down, the paper y up)
+    world/obstacles, world/path          static circles, the leader's waypoints
+    robots/r<id>/pose, /heading          true position (a disc of the robot's size) and heading (Truth)
+    robots/r<id>/trajectory              the same positions, shown with their last TRAIL_S
     robots/r<id>/target/true             the follower's true virtual target
     robots/r<id>/target/measured         the target from the raw reading (eq. 1-2)
     robots/r<id>/ekf/target, /ekf/cov    EKF estimate and its 2-sigma ellipse
     robots/r<id>/error/formation         |follower - true target|, m
     robots/r<id>/error/ekf, /error/measured   |estimate or reading - true target|, m
     robots/r<id>/fis/rho, /fis/alpha, /fis/v_n, robots/r<id>/wheels/left, /wheels/right
-    robots/r<id>/formation               formation code flown; events: changes as text
+    robots/r<id>/formation               formation code flown
+    events                               the run's start and each follower's formation changes, as text
     robots/r<id>/links/obs_dropped, /links/formation_dropped
-    events/faults                        the fault schedule: each fault where it starts and ends
+    events/faults                        the fault schedule: each fault where it starts and ends (once reached)
     events/fault_calls                   the world's calls for process faults, at their tick
+
+How each robot is drawn (colour: formation_swarm.palette, size, series
+names) is static data too; blueprint(scenario) lays the viewer out with
+these paths written out for the scenario's robots.
 
 Messages are kept as they arrive (cheap, per tick) and turned into Rerun
 columns with numpy when the process loop calls ``Recorder.send`` (per send,
@@ -24,9 +30,11 @@ not per tick). Logging errors are counted, never fatal.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 from collections import defaultdict
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -34,6 +42,8 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from formation_swarm import viewer
+from formation_swarm.palette import OBSTACLE, PATH, lighter, robot_colour
 from formation_swarm.world.kinematics import Pose
 
 if TYPE_CHECKING:
@@ -42,64 +52,180 @@ if TYPE_CHECKING:
 
 TIMELINE = "sim_time"
 HISTORY_TICKS = 400  # telemetry waits this long for its tick's truth
+TRAIL_S = 10.0  # the map's trails: this much of the past, s
+LINK_SERIES = ("links/obs_dropped", "links/formation_dropped")
+FLIP = rr.Transform3D(scale=(1.0, -1.0, 1.0))  # the 2D view draws y down; the paper's figures y up
 _CIRCLE = np.stack([np.cos(np.linspace(0, 2 * np.pi, 25)), np.sin(np.linspace(0, 2 * np.pi, 25))], axis=1)
 
 
-def blueprint() -> rrb.Blueprint:
+def blueprint(sc: Scenario) -> rrb.Blueprint:
+    """The viewer's layout for ``sc``: the formation map, then the follower
+    series over time and the run's events. Every entity is named by its full
+    path: the viewer matches no wildcard in the middle of a path."""
+    followers = sc.follower_ids
+
+    def series(name: str, leaves: tuple[str, ...]) -> rrb.TimeSeriesView:
+        paths = [f"+ /robots/r{r}/{leaf}" for r in followers for leaf in leaves]
+        return rrb.TimeSeriesView(name=name, origin="/", contents=paths, plot_legend=rrb.PlotLegend(corner="LeftTop"))
+
+    events = ["+ /events"]
+    if sc.faults:
+        events.append("+ /events/faults")
+    if any(f.process is not None for f in sc.faults):
+        events.append("+ /events/fault_calls")
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial2DView(
-                name="formation (Fig. 6a, 7a, 9-11)",
-                origin="/",
-                contents=["+ /world/**", "+ /robots/**"],
-                time_ranges=rrb.VisibleTimeRange(
-                    TIMELINE, start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.cursor_relative()
-                ),
+            _map_view(sc),
+            rrb.Vertical(
+                series("formation error, m (Fig. 6b, 7b)", ("error/formation",)),
+                series("V_N, m/s (Fig. 8)", ("fis/v_n",)),
+                series("target error: raw (light) vs EKF, m (Fig. 9-10)", ("error/measured", "error/ekf")),
             ),
             rrb.Vertical(
-                rrb.TimeSeriesView(
-                    name="formation error, m (Fig. 6b, 7b)", origin="/", contents=["+ /robots/*/error/formation"]
-                ),
-                rrb.TimeSeriesView(name="V_N (Fig. 8)", origin="/", contents=["+ /robots/*/fis/v_n"]),
-                rrb.TimeSeriesView(
-                    name="target error: raw vs EKF, m (Fig. 9-10)",
+                series("wheel speeds: left, right (light), m/s", ("wheels/left", "wheels/right")),
+                series("link drops: observations, formation codes (light)", LINK_SERIES),
+                rrb.TextLogView(
+                    name="events: formation changes, faults",
                     origin="/",
-                    contents=["+ /robots/*/error/ekf", "+ /robots/*/error/measured"],
+                    contents=events,
+                    columns=rrb.TextLogColumns(
+                        timeline_columns=[rrb.encodings.TimelineColumn(TIMELINE)],
+                        text_log_columns=[
+                            rrb.encodings.TextLogColumn("LogLevel"),
+                            rrb.encodings.TextLogColumn("Body"),
+                            rrb.encodings.TextLogColumn("EntityPath", visible=False),
+                        ],
+                    ),
                 ),
-            ),  # fmt: skip
-            column_shares=[3, 2],
+            ),
+            column_shares=[1.5, 1.75, 1.75],
         ),
+        rrb.TimePanel(state="collapsed", timeline=TIMELINE, play_state="following"),
         collapse_panels=True,
     )
 
 
+def _map_view(sc: Scenario) -> rrb.Spatial2DView:
+    """The formation map, y up (the world and the robots are drawn through a
+    flip, FLIP), the whole path in view; trails over the last TRAIL_S only."""
+    robots = [f"/robots/r{r}" for r in sc.robots]
+    contents = ["+ /world/obstacles", "+ /world/path"] if sc.obstacles else ["+ /world/path"]
+    contents += [f"+ {base}/{leaf}" for base in robots for leaf in ("trajectory", "pose", "heading")]
+    contents += [f"+ /robots/r{r}/{leaf}" for r in sc.follower_ids for leaf in ("target/true", "ekf/target", "ekf/cov")]
+    trail = rrb.VisibleTimeRanges(
+        rrb.VisibleTimeRange(
+            TIMELINE,
+            start=rrb.TimeRangeBoundary.cursor_relative(seconds=-TRAIL_S),
+            end=rrb.TimeRangeBoundary.cursor_relative(),
+        )
+    )
+    xs = [x for x, _ in sc.leader.waypoints] + [o.x_m + s * o.radius_m for o in sc.obstacles for s in (-1, 1)]
+    ys = [y for _, y in sc.leader.waypoints] + [o.y_m + s * o.radius_m for o in sc.obstacles for s in (-1, 1)]
+    reach = max((math.hypot(*slot.offset) for f in sc.formations.values() for slot in f.slots.values()), default=0.0)
+    margin = 1.0 + reach * max(1, len(sc.follower_ids))  # the formation around the path
+    return rrb.Spatial2DView(
+        name="formation map, m, y up (Fig. 6a, 7a, 9-11)",
+        origin="/",
+        contents=contents,
+        visual_bounds=rrb.VisualBounds2D(
+            x_range=(min(xs) - margin, max(xs) + margin), y_range=(-max(ys) - margin, -min(ys) + margin)
+        ),
+        overrides={f"{base}/trajectory": trail for base in robots},
+    )
+
+
 def open_recording(
-    run_id: str, out: Path, live: str | None = None, web_ports: tuple[int, int] | None = None
-) -> tuple[rr.RecordingStream, str | None]:
-    """A recording stream writing ``out`` (its folder created), also streaming to
-    the viewer at ``live`` and, with ``web_ports`` (gRPC, web), serving the web
-    viewer; and that viewer's address. Rerun raises RuntimeError for a sink it
-    cannot open."""
+    run_id: str,
+    out: Path,
+    sc: Scenario,
+    live: str | None = None,
+    web_ports: tuple[int, int] | None = None,
+) -> Recording:
+    """The run's recording: a stream writing ``out`` (its folder created) and,
+    with ``live`` (a viewer's gRPC address) or ``web_ports`` (gRPC, web: serve
+    the web viewer), a second stream fed the same data. A ``live`` address
+    where nothing answers is left out (``Recording.dropped`` says why): Rerun
+    would hold the logger for seconds at its start and at its end. Rerun
+    raises RuntimeError for a sink it cannot open."""
     out.parent.mkdir(parents=True, exist_ok=True)
-    rec = rr.RecordingStream(
+    bp = blueprint(sc)
+    rec = Recording(file=_stream(run_id))
+    rec.file.set_sinks(rr.FileSink(str(out)))
+    sinks: list[Any] = []
+    if live and (why := viewer.unreachable(live)) is not None:
+        rec.dropped = f"no Rerun viewer answers at {live} ({why})"
+    elif live:
+        sinks.append(rr.GrpcSink(live))
+    if web_ports is not None:
+        grpc_port, web_port = web_ports
+        server = rr.GrpcServerSink(bind_ip="127.0.0.1", port=grpc_port)
+        sinks.append(server)
+        rec.web = viewer.web_address(grpc_port, web_port)
+    if sinks:
+        rec.live = _stream(run_id)
+        rec.live.set_sinks(*sinks)
+    if web_ports is not None:
+        rr.serve_web_viewer(web_port=web_ports[1], connect_to=viewer.grpc_address(web_ports[0]), open_browser=False)
+    for stream in rec.streams():
+        stream.send_blueprint(bp, make_active=True, make_default=True)
+    return rec
+
+
+def _stream(run_id: str) -> rr.RecordingStream:
+    return rr.RecordingStream(
         "formation-swarm", recording_id=run_id, batcher_config=rr.ChunkBatcherConfig(flush_tick=0.1)
     )
-    sinks: list[Any] = [rr.FileSink(str(out))]
-    if live:
-        sinks.append(rr.GrpcSink(live))
-    rec.set_sinks(*sinks, default_blueprint=blueprint())
-    if web_ports is None:
-        return rec, None
-    grpc_port, web_port = web_ports
-    url = rr.serve_grpc(grpc_port=grpc_port, recording=rec, default_blueprint=blueprint())
-    rr.serve_web_viewer(web_port=web_port, connect_to=url, open_browser=False)
-    return rec, f"http://127.0.0.1:{web_port}, data at {url}"
+
+
+@dataclass
+class Recording:
+    """The recording file's stream and the live one (a viewer, the served web
+    viewer), fed the same data. Only the file is flushed while the run lasts:
+    a slow or absent viewer never holds the file back."""
+
+    file: rr.RecordingStream
+    live: rr.RecordingStream | None = None
+    web: str | None = None  # the served web viewer's address
+    dropped: str | None = None  # why the --live viewer was left out
+
+    def streams(self) -> list[rr.RecordingStream]:
+        return [self.file] if self.live is None else [self.file, self.live]
+
+    def log(self, entity: str, data: Any, static: bool = False) -> None:
+        for stream in self.streams():
+            stream.log(entity, data, static=static)
+
+    def set_time(self, timeline: str, duration: float) -> None:
+        for stream in self.streams():
+            stream.set_time(timeline, duration=duration)
+
+    def send_columns(self, entity: str, indexes: Any, columns: Any) -> None:
+        for stream in self.streams():
+            stream.send_columns(entity, indexes=indexes, columns=columns)
+
+    def flush(self, timeout_sec: float) -> None:
+        self.file.flush(timeout_sec=timeout_sec)
+
+    def close(self, timeout_s: float = 2.0) -> bool:
+        """The file flushed and closed (its footer written), then the live
+        stream given ``timeout_s`` to deliver the rest; False when it could
+        not: the caller should then leave without waiting on it."""
+        with contextlib.suppress(RuntimeError):  # "Flush timed out": closing writes what is left
+            self.file.flush(timeout_sec=timeout_s)
+        self.file.disconnect()
+        if self.live is None:
+            return True
+        try:
+            self.live.flush(timeout_sec=timeout_s)
+        except RuntimeError:  # "Flush timed out": the viewer went away or never took it all
+            return False
+        return True
 
 
 class Recorder:
     """One run's recording: truth and telemetry messages in, Rerun columns out."""
 
-    def __init__(self, rec: rr.RecordingStream, sc: Scenario) -> None:
+    def __init__(self, rec: Recording, sc: Scenario) -> None:
         self.rec = rec
         self.sc = sc
         self.truths: list[Truth] = []  # since the last send
@@ -110,6 +236,7 @@ class Recorder:
         # Per follower: squared error of the measured and of the EKF target vs the true one.
         self.target_errors: dict[int, dict[str, float]] = defaultdict(lambda: defaultdict(float))
         self.counts = {"log_errors": 0, "rows": 0, "unjoined": 0}
+        self.schedule: list[tuple[float, str, str]] = []  # fault schedule events still to come: time s, text, level
         self.last_time_s = -1.0
 
     def add_truths(self, truths: list[Truth]) -> None:
@@ -130,16 +257,20 @@ class Recorder:
         self.guard(self.rec.flush, timeout_sec=timeout_s)
 
     def log_static(self) -> None:
-        """The obstacles, the leader's path and the formations, logged once as static data."""
+        """The obstacles, the leader's path, the formations and how each robot
+        is drawn, logged once as static data."""
         sc = self.sc
+        for top in ("world", "robots"):  # y up on the map, as in the paper's figures
+            self.guard(self.rec.log, top, FLIP, static=True)
         if sc.obstacles:
             circles = rr.Ellipses2D(
                 centers=[(o.x_m, o.y_m) for o in sc.obstacles],
                 half_sizes=[(o.radius_m, o.radius_m) for o in sc.obstacles],
-                colors=[200, 60, 60],
+                colors=[OBSTACLE],
+                line_radii=[rr.Radius.ui_points(2.0)],
             )
             self.guard(self.rec.log, "world/obstacles", circles, static=True)
-        path = rr.LineStrips2D([list(sc.leader.waypoints)], colors=[120, 120, 120])
+        path = rr.LineStrips2D([list(sc.leader.waypoints)], colors=[PATH], radii=[rr.Radius.ui_points(1.0)])
         self.guard(self.rec.log, "world/path", path, static=True)
         lines = [
             f"{name} (code {i}): "
@@ -150,19 +281,30 @@ class Recorder:
             for i, (name, f) in enumerate(sc.formations.items())
         ]
         self.guard(self.rec.log, "world/formations", rr.TextDocument("\n".join(lines)), static=True)
+        for rid in sc.robots:
+            for entity, style in _styles(sc, rid).items():
+                self.guard(self.rec.log, f"robots/r{rid}/{entity}", style, static=True)
+        self._event(0.0, f"run of {sc.name}: {len(sc.robots)} robots, leader R{sc.leader.robot_id}")
         self.log_fault_schedule()
 
     def log_fault_schedule(self) -> None:
-        """Every scheduled fault in the event log, where it starts and where it ends."""
+        """Every scheduled fault in the event log, where it starts and where it
+        ends, each logged once the run's ground truth reaches its time: a
+        viewer following the run must not jump to a time still to come."""
         sc = self.sc
         for f in sc.faults:
-            start = f.start_tick(sc.dt_s) * sc.dt_s
-            self.guard(self.rec.set_time, TIMELINE, duration=start)
-            self.guard(self.rec.log, "events/faults", rr.TextLog(f"fault: {f}", level="WARN"))
+            self.schedule.append((f.start_tick(sc.dt_s) * sc.dt_s, f"fault: {f}", "WARN"))
             end = f.end_tick(sc.dt_s)
             if end is not None and f.kind != "restart":
-                self.guard(self.rec.set_time, TIMELINE, duration=end * sc.dt_s)
-                self.guard(self.rec.log, "events/faults", rr.TextLog(f"fault over: {f}", level="INFO"))
+                self.schedule.append((end * sc.dt_s, f"fault over: {f}", "INFO"))
+        self.schedule.sort(key=lambda e: e[0])
+        self._log_due_faults()
+
+    def _log_due_faults(self) -> None:
+        while self.schedule and self.schedule[0][0] <= max(self.last_time_s, 0.0):
+            t, text, level = self.schedule.pop(0)
+            self.guard(self.rec.set_time, TIMELINE, duration=t)
+            self.guard(self.rec.log, "events/faults", rr.TextLog(text, level=level))
 
     def log_fault_call(self, call: FaultCall) -> None:
         """A call the world made to execute a process fault (kill, start, freeze, thaw)."""
@@ -215,12 +357,14 @@ class Recorder:
             base = f"robots/r{rid}"
             self._columns(f"{base}/pose", "point", t, xy)
             self._columns(f"{base}/trajectory", "point", t, xy)
-            self._columns(f"{base}/heading", "arrow", t, np.column_stack([xy, 0.4 * np.cos(th), 0.4 * np.sin(th)]))
+            heading = self.sc.diameter_m * np.column_stack([np.cos(th), np.sin(th)])  # a diameter long
+            self._columns(f"{base}/heading", "arrow", t, np.column_stack([xy, heading]))
         for rid, rows in targets.items():
             a = np.array(rows)
             self._columns(f"robots/r{rid}/target/true", "point", a[:, 0], a[:, 1:3])
             err = np.hypot(a[:, 1] - a[:, 3], a[:, 2] - a[:, 4])
             self._columns(f"robots/r{rid}/error/formation", "scalar", a[:, 0], err)
+        self._log_due_faults()
 
     def _send_telemetry(self, final: bool) -> None:
         """Telemetry whose tick's truth has arrived, joined with it: the follower's
@@ -297,6 +441,41 @@ class Recorder:
                 for rid, acc in sorted(self.target_errors.items())
             },
         }
+
+
+def _styles(sc: Scenario, rid: int) -> dict[str, Any]:
+    """How robot ``rid``'s entities are drawn (static: colours, sizes, names),
+    by path under robots/r<id>: its body at true scale, labelled, its heading,
+    its trail; a follower's targets, EKF ellipse and series."""
+    colour, light = robot_colour(rid), lighter(robot_colour(rid))
+    leader = rid == sc.leader.robot_id
+    name = f"R{rid}"
+    styles: dict[str, Any] = {
+        "pose": rr.Points2D.from_fields(
+            radii=[sc.diameter_m / 2],
+            colors=[colour],
+            labels=[f"{name} leader" if leader else name],
+            show_labels=True,
+            draw_order=40.0,  # over the trails and the targets
+        ),
+        "heading": rr.Arrows2D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(1.5)]),
+        "trajectory": rr.Points2D.from_fields(colors=[light], radii=[rr.Radius.ui_points(1.5)], draw_order=25.0),
+    }
+    if leader:
+        return styles
+    return styles | {
+        "target/true": rr.Points2D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(3.0)]),
+        "ekf/target": rr.Points2D.from_fields(colors=[light], radii=[rr.Radius.ui_points(3.0)]),
+        "ekf/cov": rr.LineStrips2D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(1.0)]),
+        "error/formation": rr.SeriesLines(colors=[colour], names=[name]),
+        "fis/v_n": rr.SeriesLines(colors=[colour], names=[name]),
+        "error/ekf": rr.SeriesLines(colors=[colour], names=[f"{name} EKF"]),
+        "error/measured": rr.SeriesLines(colors=[light], names=[f"{name} raw"], widths=[0.75]),
+        "wheels/left": rr.SeriesLines(colors=[colour], names=[f"{name} left"]),
+        "wheels/right": rr.SeriesLines(colors=[light], names=[f"{name} right"]),
+        "links/obs_dropped": rr.SeriesLines(colors=[colour], names=[f"{name} observations"]),
+        "links/formation_dropped": rr.SeriesLines(colors=[light], names=[f"{name} formation codes"]),
+    }
 
 
 def _nan(x: float | None) -> float:

@@ -1,13 +1,16 @@
-"""Figures and a markdown summary of one run folder, in the spirit of the paper.
+"""Figures and a markdown summary of one run folder, beside the paper's.
 
-Reads RUN_DIR/recording.rrd (so the run needs its logger) and summary.json,
-and writes into RUN_DIR/report/:
+Reads RUN_DIR/recording.rrd (so the run needs its logger), summary.json and
+scenario.toml, and writes into RUN_DIR/report/ (as PNG, SVG or PDF):
 
-    trajectories.png      paths, obstacles and formation snapshots (Fig. 6a/c, 7a, 11)
-    formation_error.png   each follower's distance to its true target (Fig. 6b/d, 7b)
-    vn.png                V_N of each follower (Fig. 8)
-    targets.png           true, measured and EKF target, and their errors (Fig. 9-10)
-    report.md             the run's metrics and the figures
+    trajectories      paths, obstacles and the formation at each switch (Fig. 6a/c, 7a, 11)
+    formation_error   each follower's distance to its true target (Fig. 6b/d, 7b)
+    vn                V_N of each follower: every tick and a moving average (Fig. 8)
+    targets           true, read and EKF target, and their errors (Fig. 9-10)
+    report.md         the run's metrics, formation events, faults and the figures
+
+What each figure shows and why: formation_swarm.figures. A title says
+"cf. paper Fig. N" only when the run is a shipped scenario as shipped.
 """
 
 from __future__ import annotations
@@ -15,26 +18,38 @@ from __future__ import annotations
 import json
 import math
 import sys
+import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
+from formation_swarm import figures
 from formation_swarm.cliargs import USAGE_ERROR, Parser, integer
 from formation_swarm.data import Series, read_recording, robots_in
 
-FIGURES = ("trajectories.png", "formation_error.png", "vn.png", "targets.png")
+FIGURES = ("trajectories", "formation_error", "vn", "targets")
+FORMATS = ("png", "svg", "pdf")
+DEFAULT_DPI = 150
 MAX_SNAPSHOTS = 100
+# The paper's figures each shipped scenario reproduces, by figure (scenarios/*.toml).
+PAPER = {
+    "fig6_turn_vn_1_5": {"trajectories": "Fig. 6a", "formation_error": "Fig. 6b"},
+    "fig6_turn_vn_2": {"trajectories": "Fig. 6c", "formation_error": "Fig. 6d"},
+    "fig7_turn_vn_dynamic": {"trajectories": "Fig. 7a", "formation_error": "Fig. 7b", "vn": "Fig. 8"},
+    "fig9_ekf_noise": {"targets": "Fig. 9-10"},
+    "fig11_obstacles": {"trajectories": "Fig. 11"},
+}
 
 
-def make_report(run_dir: str | Path, snapshots: int = 6) -> Path:
+def make_report(run_dir: str | Path, snapshots: int = 6, fmt: str = "png", dpi: int = DEFAULT_DPI) -> Path:
     """Writes RUN_DIR/report/ and returns it. Raises ValueError for a folder it
     cannot use (not a run folder, no recording, a run that ended before its
     first tick) and OSError when it cannot write the report."""
     run_dir = Path(run_dir)
     if not 0 <= snapshots <= MAX_SNAPSHOTS:
         raise ValueError(f"snapshots must be in [0, {MAX_SNAPSHOTS}], got {snapshots!r}")
+    if fmt not in FORMATS:
+        raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
     summary_path, rrd = run_dir / "summary.json", run_dir / "recording.rrd"
     if not run_dir.is_dir():
         raise ValueError(f"{run_dir}: no such folder")
@@ -61,15 +76,61 @@ def make_report(run_dir: str | Path, snapshots: int = 6) -> Path:
     matplotlib.use("Agg")
     out = run_dir / "report"
     out.mkdir(exist_ok=True)
-    obstacles = _obstacles(run_dir)
-    _trajectories(out / "trajectories.png", data, robots, followers, obstacles, snapshots, summary)
-    marks = fault_marks(summary)
-    _over_time(out / "formation_error.png", data, followers, "error/formation", "distance to target, m",
-               "Formation error (Fig. 6b/d, 7b)", marks)  # fmt: skip
-    _over_time(out / "vn.png", data, followers, "fis/v_n", "V_N, m/s", "Normal speed V_N (Fig. 8)", marks)
-    _targets(out / "targets.png", data, followers, marks)
-    (out / "report.md").write_text(_markdown(summary, followers))
+    ctx = _context(run_dir, summary, data, robots, followers)
+    name = {stem: out / f"{stem}.{fmt}" for stem in FIGURES}
+    figures.trajectories(name["trajectories"], data, ctx, snapshots, dpi)
+    rms = {r: ((summary.get("followers") or {}).get(str(r)) or {}).get("rms_m") for r in followers}
+    figures.formation_error(name["formation_error"], data, ctx, rms, dpi)
+    figures.vn(name["vn"], data, ctx, dpi)
+    errs = ((summary.get("parts") or {}).get("logger") or {}).get("target_errors") or {}
+    figures.targets(name["targets"], data, ctx, {r: errs.get(str(r)) or {} for r in followers}, dpi)
+    (out / "report.md").write_text(_markdown(summary, followers, fmt, ctx))
     return out
+
+
+def _context(run_dir: Path, summary: Mapping[str, Any], data: Mapping[str, Series], robots: list[int],
+             followers: list[int]) -> figures.Context:  # fmt: skip
+    """What the figures need from the summary and the scenario as run."""
+    from formation_swarm import scenario as scenario_mod
+
+    ctx = figures.Context(scenario=str(summary.get("scenario")), seed=summary.get("seed"), robots=robots,
+                          followers=followers)  # fmt: skip
+    ctx.t_end = max((float(s.t[-1]) for e, s in data.items() if e.endswith("/pose") and len(s)), default=0.0)
+    ctx.fault_marks = fault_marks(summary)
+    ctx.formation_events = [e for e in summary.get("formation_events") or [] if isinstance(e, Mapping)]
+    ctx.switches = figures.switches(ctx.formation_events)
+    try:
+        sc = scenario_mod.load(run_dir / "scenario.toml")
+    except (OSError, ValueError):
+        return ctx
+    ctx.dt_s, ctx.diameter_m = sc.dt_s, sc.diameter_m
+    ctx.obstacles = [(o.x_m, o.y_m, o.radius_m) for o in sc.obstacles]
+    ctx.formations = {n: {r: (s.reference, (s.offset[0], s.offset[1])) for r, s in f.slots.items()}
+                      for n, f in sc.formations.items()}  # fmt: skip
+    ctx.start_formation = sc.leader.formation
+    ctx.paper = paper_figures(run_dir / "scenario.toml")
+    return ctx
+
+
+def paper_figures(scenario_toml: Path) -> dict[str, str]:
+    """The paper's figures this run reproduces, by figure stem: those of the
+    shipped scenario it is, with any seed; none if it was changed (a --set,
+    a fault) or is not shipped."""
+    from formation_swarm.scenario_files import shipped
+
+    try:
+        raw = tomllib.loads(scenario_toml.read_text())
+    except (OSError, ValueError):
+        return {}
+    for stem, path in shipped().items():
+        if stem in PAPER and _without_seed(tomllib.loads(path.read_text())) == _without_seed(raw):
+            return dict(PAPER[stem])
+    return {}
+
+
+def _without_seed(raw: Mapping[str, Any]) -> dict[str, Any]:
+    run = {k: v for k, v in (raw.get("run") or {}).items() if k != "seed"}
+    return {**raw, "run": run}
 
 
 def _ended_early(summary: Mapping[str, Any]) -> str:
@@ -111,131 +172,27 @@ def _unexpected_exits(events: list[Mapping[str, Any]]) -> list[Mapping[str, Any]
     return [ev for ev in events if ev.get("event") == "exited" and ev.get("process") not in caused]
 
 
-def _mark(ax: Any, marks: list[tuple[float, float | None, str]]) -> None:
-    """Shade fault windows and draw instants, each labelled at the top of the axes."""
-    if not marks:
-        return
-    lo, hi = ax.get_xlim()
-    for k, (start, end, label) in enumerate(marks):
-        color = f"C{(k + 3) % 10}"
-        if end is None:
-            ax.axvline(start, color=color, lw=1.2, ls="--")
-        else:
-            ax.axvspan(start, min(end, hi), color=color, alpha=0.15, lw=0)
-        ax.text(start, 0.98, f" {label}", transform=ax.get_xaxis_transform(), rotation=90, va="top", ha="left",
-                fontsize=8, color=color, zorder=5,
-                bbox={"facecolor": "white", "alpha": 0.85, "edgecolor": "none", "pad": 1.0})  # fmt: skip
-    ax.set_xlim(lo, hi)
+def _num(x: Any, fmt: str = ".3f") -> str:
+    return "-" if not isinstance(x, (int, float)) or isinstance(x, bool) else format(x, fmt)
 
 
-def _obstacles(run_dir: Path) -> list[tuple[float, float, float]]:
-    from formation_swarm import scenario as scenario_mod
+def _markdown(
+    summary: Mapping[str, Any], followers: list[int], fmt: str = "png", ctx: figures.Context | None = None
+) -> str:
+    from formation_swarm.summary import describe_end
 
-    try:
-        sc = scenario_mod.load(run_dir / "scenario.toml")
-    except (OSError, ValueError):
-        return []
-    return [(o.x_m, o.y_m, o.radius_m) for o in sc.obstacles]
-
-
-def _trajectories(path: Path, data: Mapping[str, Series], robots: list[int], followers: list[int],
-                  obstacles: list[tuple[float, float, float]], snapshots: int,
-                  summary: Mapping[str, Any]) -> None:  # fmt: skip
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 7))
-    for x, y, r in obstacles:
-        ax.add_patch(plt.Circle((x, y), r, color="tab:red", alpha=0.4))
-    poses = {r: data[f"/robots/r{r}/pose"] for r in robots}
-    for r, s in poses.items():
-        ax.plot(s.v[:, 0], s.v[:, 1], lw=1.2, label=f"R{r}" + (" (leader)" if r not in followers else ""))
-    leader = next(r for r in robots if r not in followers) if len(followers) < len(robots) else robots[0]
-    t_end = poses[leader].t[-1] if len(poses[leader]) else 0.0
-    for k, ts in enumerate(np.linspace(0.0, t_end, snapshots)):  # from the start to the end
-        pts = {r: s.v[min(np.searchsorted(s.t, ts), len(s) - 1)] for r, s in poses.items() if len(s)}
-        xs = [pts[r][0] for r in sorted(pts)] + [pts[sorted(pts)[0]][0]]
-        ys = [pts[r][1] for r in sorted(pts)] + [pts[sorted(pts)[0]][1]]
-        ax.plot(xs, ys, color="0.4", lw=0.8, ls="--", label="formation snapshots" if k == 0 else None)
-        ax.scatter([p[0] for p in pts.values()], [p[1] for p in pts.values()], s=14, color="k", zorder=3)
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("x, m")
-    ax.set_ylabel("y, m")
-    ax.set_title(f"{summary.get('scenario', '')}: trajectories (Fig. 6a/c, 7a, 11)")
-    ax.legend(loc="best", fontsize=8)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def _over_time(path: Path, data: Mapping[str, Series], followers: list[int], entity: str, ylabel: str,
-               title: str, marks: list[tuple[float, float | None, str]] = ()) -> None:  # fmt: skip
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(8, 3.5))
-    for r in followers:
-        s = data.get(f"/robots/r{r}/{entity}")
-        if s is not None and len(s):
-            ax.plot(s.t, s.v, lw=1.0, label=f"R{r}")
-    ax.set_xlabel("time, s")
-    ax.set_ylabel(ylabel)
-    ax.set_title(title)
-    ax.grid(alpha=0.3)
-    if ax.lines:
-        ax.legend(fontsize=8, loc="upper right")
-        _mark(ax, list(marks))
-    else:
-        ax.text(0.5, 0.5, "no data (l-psi followers have no V_N)", ha="center", transform=ax.transAxes)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def _targets(path: Path, data: Mapping[str, Series], followers: list[int],
-             marks: list[tuple[float, float | None, str]] = ()) -> None:  # fmt: skip
-    import matplotlib.pyplot as plt
-
-    n = max(1, len(followers))
-    fig, axes = plt.subplots(n, 2, figsize=(11, 4 * n), squeeze=False)
-    for row, r in zip(axes, followers, strict=False):
-        base = f"/robots/r{r}"
-        xy, err = row
-        s = data.get(f"{base}/target/measured")
-        if s is not None and len(s):
-            xy.scatter(s.v[:, 0], s.v[:, 1], s=3, alpha=0.35, color="tab:orange", label="measured")
-        for name, label, color in (("target/true", "true", "k"), ("ekf/target", "EKF", "tab:blue")):
-            s = data.get(f"{base}/{name}")
-            if s is not None and len(s):
-                xy.plot(s.v[:, 0], s.v[:, 1], lw=1.0, color=color, label=label)
-        xy.set_aspect("equal", adjustable="datalim")
-        xy.set_title(f"R{r}: virtual target (Fig. 9)")
-        xy.legend(fontsize=8)
-        xy.grid(alpha=0.3)
-        for name, label, color in (("error/measured", "measured", "tab:orange"), ("error/ekf", "EKF", "tab:blue")):
-            s = data.get(f"{base}/{name}")
-            if s is not None and len(s):
-                rms = math.sqrt(float(np.mean(s.v**2)))
-                err.plot(s.t, s.v, lw=0.8, color=color, label=f"{label} (RMS {rms:.3f} m)")
-        err.set_title(f"R{r}: target error vs the true target (Fig. 10)")
-        err.set_xlabel("time, s")
-        err.set_ylabel("m")
-        err.legend(fontsize=8, loc="upper right")
-        _mark(err, list(marks))
-        err.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-
-
-def _markdown(summary: Mapping[str, Any], followers: list[int]) -> str:
-    def f(x: Any, fmt: str = ".3f") -> str:
-        return "-" if not isinstance(x, (int, float)) or isinstance(x, bool) else format(x, fmt)
-
+    f = _num
+    paper = "; ".join(f"{stem} cf. paper {fig}" for stem, fig in (ctx.paper if ctx else {}).items())
     lines = [
         f"# Run {summary.get('run_id')}: {summary.get('scenario')}",
         "",
         f"Mode {summary.get('mode')}, seed {summary.get('seed')}, {summary.get('ticks')} ticks "
-        f"({f(summary.get('sim_time_s'), '.1f')} s simulated), exit code {summary.get('exit_code')}.",
+        f"({f(summary.get('sim_time_s'), '.1f')} s simulated), exit code {summary.get('exit_code')}. "
+        f"Ended: {summary.get('ended') or describe_end(summary.get('end_reason'), summary.get('ended_at_s'))}.",
+        "",
+        f"Reproduces: {paper}."
+        if paper
+        else "Reproduces no figure of the paper as it is (not a shipped scenario of the paper, or changed).",
         "",
         "| follower | RMS error, m | max, m | RMS in turns, m | RMS on straights, m | mean lag in turns, m "
         "| max ahead of target, m | measured target RMS, m | EKF target RMS, m |",
@@ -245,27 +202,39 @@ def _markdown(summary: Mapping[str, Any], followers: list[int]) -> str:
     for r in followers:
         m = (summary.get("followers") or {}).get(str(r)) or {}
         e = errs.get(str(r)) or {}
+        if m.get("acquired") is False:
+            lines.append(f"| R{r} | never acquired its reference: no metrics |" + " - |" * 7)
+            continue
         lines.append(
             f"| R{r} | {f(m.get('rms_m'))} | {f(m.get('max_m'))} | {f(m.get('turn_rms_m'))} | "
             f"{f(m.get('straight_rms_m'))} | {f(m.get('turn_mean_lag_m'))} | {f(m.get('max_ahead_m'))} | "
             f"{f(e.get('measured_rms_m'))} | {f(e.get('ekf_rms_m'))} |"
         )
-    events = ", ".join(f"R{e.get('robot')} {e.get('formation')} at {f(e.get('time_s'), '.2f')} s"
-                       for e in summary.get("formation_events") or []) or "none"  # fmt: skip
     lines += [
         "",
         f"Minimum distance between robots {f(summary.get('min_distance_m'))} m "
         f"(diameter {f(summary.get('robot_diameter_m'))} m); collisions {summary.get('collisions')}, "
         f"with obstacles {summary.get('obstacle_collisions')}.",
-        f"Formation changes: {events}.",
         f"Messages dropped by the link layer: {summary.get('drops_total')}; lockstep misses "
         f"{summary.get('lockstep_misses')}; rejected payloads {summary.get('rejected_total')}.",
         "",
+        *_events_markdown(summary),
         *_faults_markdown(summary),
-        *[f"![{name[:-4]}]({name})" for name in FIGURES],
+        *[f"![{stem}]({stem}.{fmt})" for stem in FIGURES],
         "",
     ]
     return "\n".join(lines)
+
+
+def _events_markdown(summary: Mapping[str, Any]) -> list[str]:
+    """The formation events: each robot's formation code change, by tick."""
+    events = [e for e in summary.get("formation_events") or [] if isinstance(e, Mapping)]
+    if not events:
+        return ["## Formation events", "", "None: the formation never changed.", ""]
+    out = ["## Formation events", "", "| tick | time, s | robot | flies from then |", "|---|---|---|---|"]
+    out += [f"| {e.get('tick')} | {_num(e.get('time_s'), '.2f')} | R{e.get('robot')} | {e.get('formation')} |"
+            for e in events]  # fmt: skip
+    return [*out, ""]
 
 
 def _faults_markdown(summary: Mapping[str, Any]) -> list[str]:
@@ -311,20 +280,24 @@ def build_parser() -> Parser:
                 epilog="example:\n  swarm run fig11_obstacles --out runs/fig11\n  swarm report runs/fig11")  # fmt: skip
     ap.add_argument("run_dir", metavar="RUN_DIR", help="a run's folder, as swarm run printed it (runs/<run id>)")
     ap.add_argument("--snapshots", type=integer(0, MAX_SNAPSHOTS), default=6, metavar="N",
-                    help="formation snapshots drawn on the trajectory figure, evenly spaced in time from the start "
-                    f"to the end, 0 to {MAX_SNAPSHOTS} (default: 6)")  # fmt: skip
+                    help="for a run with no formation switch, formation snapshots drawn on the trajectory figure, "
+                    f"evenly spaced from the start to the end, 0 to {MAX_SNAPSHOTS} (default: 6); a run with "
+                    "switches gets one at each switch and one mid-way through each formation")  # fmt: skip
+    ap.add_argument("--format", choices=FORMATS, default="png", help="the figures' file format (default: png)")
+    ap.add_argument("--dpi", type=integer(50, 600), default=DEFAULT_DPI, metavar="N",
+                    help=f"resolution of PNG figures, 50 to 600 (default: {DEFAULT_DPI})")  # fmt: skip
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        out = make_report(args.run_dir, args.snapshots)
+        out = make_report(args.run_dir, args.snapshots, args.format, args.dpi)
     except ValueError as exc:
         print(f"swarm report: {exc}", file=sys.stderr)
         return USAGE_ERROR
     except OSError as exc:
         print(f"swarm report: cannot write the report into {args.run_dir}: {exc}", file=sys.stderr)
         return USAGE_ERROR
-    print(f"[report] {out}: {', '.join(FIGURES)}, report.md")
+    print(f"[report] {out}: {', '.join(f'{stem}.{args.format}' for stem in FIGURES)}, report.md")
     return 0

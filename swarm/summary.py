@@ -7,9 +7,10 @@ Besides the metrics it says which code made the run and why the run ended:
 ``version``, ``git_commit``
     ``formation_swarm.__version__``, and the commit checked out in the source
     tree when the package runs from a git checkout (None otherwise).
-``end_reason``, ``ended_at_s``
+``end_reason``, ``ended_at_s``, ``ended``
     one of ``END_REASONS`` and the sim time (s) the run had reached then,
-    None when it never started.
+    None when it never started; and the two in words (for a failed run, with
+    the processes that exited on their own).
 ``links``, ``link_totals``, ``link_faults``
     every directed link's counts (received, dropped, partitioned, delayed,
     duplicated, reordered, held at the end), by link name; their sums per
@@ -32,6 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import formation_swarm
+from formation_swarm.children import describe_exit
 from formation_swarm.proc import write_json
 from formation_swarm.protocol.links import EFFECTS, link_name
 
@@ -47,16 +49,25 @@ ROLE_FAILED = "role_failed"  # the world exited with an error (see "events" and 
 END_REASONS = (LEADER_FINISHED, DURATION_REACHED, INTERRUPTED, TIMED_OUT, PEERS_TIMEOUT, ROLE_FAILED)
 
 
-def describe_end(reason: str | None, ended_at_s: float | None) -> str:
-    """``end_reason`` in words, for a report line."""
+def describe_end(reason: str | None, ended_at_s: float | None, events: list[Mapping[str, Any]] | None = None) -> str:
+    """``end_reason`` in words, for a report line; for a failed run, with the
+    processes that exited on their own (from the launcher's ``events``)."""
     at = "" if ended_at_s is None else f" at t={ended_at_s:.2f} s"
+    if reason == ROLE_FAILED:
+        killed = {e.get("process") for e in events or [] if e.get("event") == "killed"}
+        died = [
+            f"{e.get('process')} {describe_exit(e['code'])}"
+            for e in events or []
+            if e.get("event") == "exited" and isinstance(e.get("code"), int) and e["code"] != 0
+            and e.get("process") not in killed
+        ]  # fmt: skip
+        return f"a process failed{at}" + (f" ({'; '.join(died)})" if died else "")
     return {
         LEADER_FINISHED: f"the leader reached its last waypoint{at}",
         DURATION_REACHED: f"the scenario's duration was reached{at}",
-        INTERRUPTED: f"interrupted{at}",
-        TIMED_OUT: f"the wall-clock limit was reached{at}",
+        INTERRUPTED: f"stopped by a signal (Ctrl-C, SIGINT or SIGTERM){at}",
+        TIMED_OUT: f"the wall-clock limit (--timeout) was reached{at}",
         PEERS_TIMEOUT: "the peers did not appear in time",
-        ROLE_FAILED: f"a process failed{at}",
     }.get(reason or "", f"unknown ({reason})")
 
 
@@ -245,6 +256,7 @@ def build(
         "git_commit": git_commit(),
         "exit_code": exit_code,
         "end_reason": end_reason,
+        "ended": describe_end(end_reason, ended_at_s, events),  # the same in words
         "failure": failure,
         "ended_at_s": ended_at_s,
         "interrupted": interrupted,
@@ -252,7 +264,8 @@ def build(
         "ticks": world.get("ticks"),
         "sim_time_s": world.get("sim_time_s"),
         "ticks_per_s": world.get("ticks_per_s"),
-        "followers": world.get("followers", {}),
+        "followers": world.get("followers", {}),  # a follower that never saw its reference: "acquired": false
+        "scenario_warnings": list(sc.warnings),
         "error_windows": world.get("error_windows"),
         "min_distance_m": world.get("min_distance_m"),
         "robot_diameter_m": world.get("robot_diameter_m"),

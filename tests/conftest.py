@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import os
 import shutil
+import socket
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -21,15 +23,29 @@ OUR_MODULES = (
 RERUN = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
 
 
-def rrd_rows(path: Path) -> dict[str, int]:
-    """Rows per entity path in a recording (an absent or empty file has none)."""
+def rrd_rows(path: Path, static: bool = False) -> dict[str, int]:
+    """Rows per entity path in a recording (an absent or empty file has none):
+    the rows on its timeline (one per tick and entity), or with ``static``
+    its static rows (obstacles, how each robot is drawn)."""
     from rerun.chunk import RrdReader
 
     rows: dict[str, int] = {}
     if path.exists() and path.stat().st_size > 0:
         for chunk in RrdReader(str(path)).stream():
-            rows[str(chunk.entity_path)] = rows.get(str(chunk.entity_path), 0) + chunk.num_rows
+            if chunk.is_static == static:
+                rows[str(chunk.entity_path)] = rows.get(str(chunk.entity_path), 0) + chunk.num_rows
     return rows
+
+
+def wait_listening(port: int, timeout_s: float) -> None:
+    """Return once something accepts connections on loopback ``port``."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        with socket.socket() as s:
+            if s.connect_ex(("127.0.0.1", port)) == 0:
+                return
+        assert time.monotonic() < deadline, f"nothing listens on port {port}"
+        time.sleep(0.05)
 
 
 def processes(match: Callable[[str], bool]) -> list[tuple[int, str]]:

@@ -83,7 +83,7 @@ def test_recording_verifies_and_reads_back(fig11_run: RunResult) -> None:
         # Telemetry travels in batches; the last one still arrives before the logger closes.
         assert rows.get(f"/robots/r{r}/ekf/target", 0) == ticks
         assert rows.get(f"/robots/r{r}/fis/v_n", 0) == ticks
-    assert rows.get("/world/obstacles") == 1
+    assert rrd_rows(rrd, static=True).get("/world/obstacles") == 1
 
 
 @contextlib.contextmanager
@@ -160,6 +160,11 @@ def test_a_lockstep_run_is_its_one_process_replica(
     assert real["trajectory_digest"] == again["trajectory_digest"]
     for rid, m in real["followers"].items():
         assert m["rms_m"] == again["followers"][rid]["rms_m"]
+        assert (m["frames"], m["seen_ticks"]) == (
+            again["followers"][rid]["frames"],
+            again["followers"][rid]["seen_ticks"],
+        )
+        assert m["acquired"] is True
     # (Within one tick, the world lists formation events in the order the answers came.)
     by_tick = sorted(real["formation_events"], key=lambda e: (e["tick"], e["robot"]))
     assert by_tick == sorted(again["formation_events"], key=lambda e: (e["tick"], e["robot"]))
@@ -274,7 +279,7 @@ def test_logger_sigkill_keeps_the_recording_up_to_the_kill(swarm_run: Callable[.
     killed = next(e for e in res.summary["events"] if e["event"] == "killed")
     last = -1.0
     for chunk in RrdReader(str(res.recording)).stream():
-        if str(chunk.entity_path) == "/robots/r1/pose":
+        if str(chunk.entity_path) == "/robots/r1/pose" and not chunk.is_static:  # static: how it is drawn
             times = chunk.to_record_batch().column("sim_time").to_pylist()
             last = max([last, *[t.total_seconds() if hasattr(t, "total_seconds") else t / 1e9 for t in times]])
     assert last >= killed["sim_time_s"] - 1.0, (last, killed)

@@ -274,6 +274,8 @@ def test_follower_metrics_from_samples() -> None:
     m.add(4.0, -0.5, turning=True)
     m.add(1.0)  # along the heading: 0 unless given
     d = m.as_dict()
+    # No camera frame was taken: whether it saw its reference is not known, and the metrics stand.
+    assert (d.pop("acquired"), d.pop("frames"), d.pop("seen_ticks")) == (None, 0, 0)
     assert d == pytest.approx({"rms_m": math.sqrt(26 / 3), "max_m": 4.0, "samples": 3, "turn_rms_m": math.sqrt(12.5),
                                "straight_rms_m": 1.0, "turn_max_m": 4.0, "turn_samples": 2, "turn_mean_lag_m": 0.75,
                                "max_lag_m": 2.0, "max_ahead_m": 0.5})  # fmt: skip
@@ -294,3 +296,45 @@ def test_error_windows_give_each_followers_mean_and_largest_error_per_second() -
     assert w["mean_m"]["2"] == pytest.approx([step * 9.5, step * 29.5, step * 42.0], abs=1e-4)
     assert w["max_m"]["2"] == pytest.approx([step * 19, step * 39, step * 44], abs=1e-4)
     assert w["mean_m"]["3"] == w["max_m"]["3"] == [0.0, 0.0, 0.0]
+
+
+def test_a_follower_that_never_sees_its_reference_has_no_metrics() -> None:
+    """Camera range 1.8 m: R2 starts 2.05 m from R1, R3 3 m from R2. Neither
+    ever sees its reference; R3's (R2) never moves, so its error would be 0."""
+    sc = scenario_mod.load(SCENARIOS / "fig11_obstacles.toml", {"camera.range_m": 1.8})
+    eng = WorldEngine(sc, 0)
+    for _ in range(40):
+        for rid in sc.robots:
+            eng.observation(rid)
+        eng.set_command(1, 1.5, 1.5, eng.robots[1].formation, eng.time_s)  # the leader drives off
+        eng.step(eng.time_s)
+    m = eng.summary()["followers"]
+    for rid in ("2", "3"):
+        assert m[rid]["acquired"] is False
+        assert (m[rid]["frames"], m[rid]["seen_ticks"], m[rid]["samples"]) == (40, 0, 40)
+        assert all(m[rid][k] is None for k in ("rms_m", "max_m", "turn_rms_m", "straight_rms_m", "max_ahead_m"))
+    # With 2.5 m, R2 sees R1 from the first frame; R3 (3 m from R2) still never sees R2.
+    eng = WorldEngine(scenario_mod.load(SCENARIOS / "fig11_obstacles.toml", {"camera.range_m": 2.5}), 0)
+    for _ in range(5):
+        for rid in sc.robots:
+            eng.observation(rid)
+        eng.step(eng.time_s)
+    m = eng.summary()["followers"]
+    assert (m["2"]["acquired"], m["2"]["seen_ticks"], m["2"]["rms_m"]) == (True, 5, 0.0)
+    assert (m["3"]["acquired"], m["3"]["rms_m"]) == (False, None)
+
+
+def test_a_reference_out_of_view_at_the_start_is_a_warning_at_load() -> None:
+    assert FIG11.warnings == ()
+    far = scenario_mod.load(SCENARIOS / "fig11_obstacles.toml", {"camera.range_m": 2.5})
+    assert far.warnings == (
+        "robot 3 starts with its reference, robot 2 (formation 'triangle'), 3.00 m away, beyond camera.range_m = "
+        "2.5 m: unless it comes into view, robot 3 never moves and gets no metrics (never acquired)",
+    )
+    narrow = scenario_mod.load(SCENARIOS / "fig11_obstacles.toml", {"camera.fov_deg": 60.0})
+    assert [w.split(":")[0] for w in narrow.warnings] == [
+        "robot 2 starts with its reference, robot 1 (formation 'triangle'), at a bearing of +47 deg, outside "
+        "camera.fov_deg = 60 (2.05 m away)",
+        "robot 3 starts with its reference, robot 2 (formation 'triangle'), at a bearing of -92 deg, outside "
+        "camera.fov_deg = 60 (3.00 m away)",
+    ]

@@ -1,4 +1,4 @@
-"""swarm report: figures for every shipped scenario, not blank."""
+"""swarm report: figures for every shipped scenario, not blank, and what they mark."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ def test_figures_for_every_shipped_scenario(swarm_run: Callable[..., RunResult],
     assert res.exit_code == 0
     out = make_report(res.run_dir)
     for name in FIGURES:
-        img = matplotlib.image.imread(out / name)[..., :3]
+        img = matplotlib.image.imread(out / f"{name}.png")[..., :3]
         assert img.shape[0] > 200, name
         assert img.shape[1] > 400, name
         ink = np.mean(np.any(img < 0.9, axis=-1))  # share of pixels that are not (near) white
@@ -31,7 +31,7 @@ def test_figures_for_every_shipped_scenario(swarm_run: Callable[..., RunResult],
         colours = len(np.unique((img.reshape(-1, 3) * 255).astype(np.uint8), axis=0))
         assert colours > 20, (name, colours)  # data lines in several colours, not only axes
     md = (out / "report.md").read_text()
-    assert all(f"]({name})" in md for name in FIGURES)
+    assert all(f"]({name}.png)" in md for name in FIGURES)
     assert "| R2 |" in md
 
 
@@ -76,3 +76,60 @@ def test_faults_are_marked_on_the_time_axes_and_listed() -> None:
     assert "- logger exited with code 1 at sim t=31.50 s" in text
     assert "agent-3 was killed by SIGKILL" not in text  # said once, by the kill
     assert "- robot 3 lost its agent at tick 400 (20.00 s)" in text
+
+
+def test_switches_snapshots_and_limits() -> None:
+    from formation_swarm.figures import moving_average, robust_top, snapshot_times, switches
+
+    events = [{"tick": 392, "time_s": 19.6, "robot": 1, "formation": "line"},
+              {"tick": 393, "time_s": 19.65, "robot": 3, "formation": "line"},
+              {"tick": 608, "time_s": 30.4, "robot": 1, "formation": "triangle"}]  # fmt: skip
+    assert switches(events) == [(19.6, "line"), (30.4, "triangle")]  # a leader's and its followers' change: one
+    # At the start, each switch and mid-way through each formation: the line between the obstacles at 25 s.
+    assert snapshot_times([19.6, 30.4], 53.0, 6) == [(0.0, "start"), (19.6, "switch"), (25.0, "held"),
+                                                     (30.4, "switch"), (41.7, "held")]  # fmt: skip
+    assert [t for t, _ in snapshot_times([], 40.0, 5)] == [0.0, 10.0, 20.0, 30.0, 40.0]
+    assert snapshot_times([], 40.0, 0) == []
+    # A few outliers do not set the axis: it is cut, and says where the largest value is.
+    top, cut = robust_top([np.r_[np.full(998, 0.1), np.full(2, 9.0)]])
+    assert top == pytest.approx(0.115)
+    assert cut == 9.0
+    assert robust_top([np.array([0.0, 1.0, 2.0])]) == (pytest.approx(2.1), None)
+    # V_N's moving average (display only): a 0.2 s window of 0.05 s ticks averages 4 ticks.
+    vn = np.array([1.5, 2.0] * 10)
+    assert moving_average(np.arange(20) * 0.05, vn, 0.2, 0.05)[5:15] == pytest.approx(np.full(10, 1.75))
+
+
+def test_cf_paper_only_for_a_shipped_scenario_as_shipped(tmp_path: Path) -> None:
+    from formation_swarm.report import paper_figures
+    from formation_swarm.scenario_files import shipped
+
+    text = shipped()["fig7_turn_vn_dynamic"].read_text()
+    (tmp_path / "a.toml").write_text(text.replace("seed = 1", "seed = 7"))
+    assert paper_figures(tmp_path / "a.toml") == {"trajectories": "Fig. 7a", "formation_error": "Fig. 7b",
+                                                  "vn": "Fig. 8"}  # fmt: skip
+    (tmp_path / "b.toml").write_text(text.replace('vn = "dynamic"', "vn = 1.5"))
+    assert paper_figures(tmp_path / "b.toml") == {}
+    (tmp_path / "c.toml").write_text(text + '\n[[faults]]\nfault = "kill agent-2@5s"\n')
+    assert paper_figures(tmp_path / "c.toml") == {}
+
+
+def test_formats_dpi_and_the_events_listed(swarm_run: Callable[..., RunResult]) -> None:
+    import matplotlib.image
+
+    res = swarm_run(SCENARIOS / "fig11_obstacles.toml", overrides={"run.duration_s": 32.0})
+    assert main([str(res.run_dir), "--dpi", "80"]) == 0
+    small = matplotlib.image.imread(res.run_dir / "report" / "vn.png")
+    assert main([str(res.run_dir), "--dpi", "160"]) == 0
+    big = matplotlib.image.imread(res.run_dir / "report" / "vn.png")
+    assert big.shape[1] == pytest.approx(2 * small.shape[1], abs=2)  # 10 in wide at the dpi asked
+    for fmt, magic in (("svg", b"<?xml"), ("pdf", b"%PDF")):
+        assert main([str(res.run_dir), "--format", fmt]) == 0
+        for name in FIGURES:
+            assert (res.run_dir / "report" / f"{name}.{fmt}").read_bytes().startswith(magic)
+    md = (res.run_dir / "report" / "report.md").read_text()
+    assert "![vn](vn.pdf)" in md
+    assert "| 393 | 19.65 | R2 | line |" in md
+    assert "| 608 | 30.40 | R1 | triangle |" in md
+    assert "Ended: the scenario's duration was reached at t=32.00 s." in md
+    assert "Reproduces no figure of the paper" in md  # its duration was changed

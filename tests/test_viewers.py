@@ -9,27 +9,25 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
-import socket
 import subprocess
 import time
 import urllib.request
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
+import rerun.blueprint as rrb
+
+from formation_swarm import scenario as scenario_mod
+from formation_swarm import viewer
+from formation_swarm.faults import Fault
 from formation_swarm.launcher import Launch, RunResult, free_port
-from tests.conftest import RERUN, SCENARIOS, rrd_rows
+from formation_swarm.palette import robot_colour
+from formation_swarm.recording import blueprint, open_recording
+from formation_swarm.report import make_report, read_recording
+from tests.conftest import RERUN, SCENARIOS, rrd_rows, wait_listening
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"
-
-
-def _wait_listening(port: int, timeout_s: float) -> None:
-    deadline = time.monotonic() + timeout_s
-    while True:
-        with socket.socket() as s:
-            if s.connect_ex(("127.0.0.1", port)) == 0:
-                return
-        assert time.monotonic() < deadline, f"nothing listens on port {port}"
-        time.sleep(0.05)
 
 
 @contextlib.contextmanager
@@ -77,7 +75,7 @@ def test_live_stream_carries_what_the_recording_has(tmp_path: Path, swarm_run: C
     port = free_port()
     live = tmp_path / "live.rrd"
     with _saving_viewer(["--port", str(port)], live):
-        _wait_listening(port, timeout_s=30)
+        wait_listening(port, timeout_s=30)
         res = swarm_run(FIG11, live=f"rerun+http://127.0.0.1:{port}/proxy", overrides={"run.duration_s": 6.0})
         assert res.exit_code == 0
         ticks = res.summary["ticks"]
@@ -91,15 +89,16 @@ def test_live_stream_carries_what_the_recording_has(tmp_path: Path, swarm_run: C
 
 def test_served_web_viewer_answers_and_streams(tmp_path: Path, swarm_launch: Callable[..., Launch]) -> None:
     grpc_port, web_port, viewer_port = free_port(), free_port(), free_port()
+    said: list[str] = []
     launch = swarm_launch(FIG11, mode="realtime", serve_web=True, web_ports=(grpc_port, web_port),
-                          overrides={"run.duration_s": 4.0})  # fmt: skip
-    log = launch.run_dir / "logs" / "logger.log"
-    assert launch.wait_until(lambda: log.exists() and "data at" in log.read_text(), timeout_s=60)
-    with urllib.request.urlopen(f"http://127.0.0.1:{web_port}/", timeout=10) as page:
+                          overrides={"run.duration_s": 4.0}, progress=said.append)  # fmt: skip
+    address = f"http://127.0.0.1:{web_port}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc_port}%2Fproxy"
+    assert launch.wait_until(lambda: any(address in line for line in said), timeout_s=60), said
+    with urllib.request.urlopen(address, timeout=10) as page:
         assert page.status == 200
         assert b"<html" in page.read(4096).lower()
     web = tmp_path / "web.rrd"
-    with _saving_viewer([f"rerun+http://127.0.0.1:{grpc_port}/proxy", "--port", str(viewer_port)], web):
+    with _saving_viewer([viewer.grpc_address(grpc_port), "--port", str(viewer_port)], web):
         res = launch.wait(timeout_s=120)
         assert res.exit_code == 0
         ticks = res.summary["ticks"]
@@ -108,3 +107,103 @@ def test_served_web_viewer_answers_and_streams(tmp_path: Path, swarm_launch: Cal
     # logger flushes its sinks before it exits.
     for entity in ("/robots/r1/trajectory", "/robots/r3/ekf/target"):
         assert got.get(entity, 0) == ticks, (entity, got.get(entity, 0), ticks)
+    assert sum(address in line for line in said) == 1
+    # Serving the web viewer takes nothing from the file: every tick of every follower.
+    _assert_complete(res)
+
+
+def _assert_complete(res: RunResult) -> None:
+    """Every follower's every tick in the run's recording, and a report drawn from it."""
+    ticks = res.summary["ticks"]
+    assert ticks > 0
+    data = read_recording(res.recording)
+    for rid in (2, 3):
+        for leaf in ("error/formation", "fis/v_n", "trajectory", "wheels/left"):
+            assert len(data[f"/robots/r{rid}/{leaf}"]) == ticks, (rid, leaf)
+    assert (make_report(res.run_dir) / "report.md").is_file()
+
+
+def test_an_absent_live_viewer_is_said_once_and_costs_nothing(swarm_run: Callable[..., RunResult]) -> None:
+    said: list[str] = []
+    short = {"run.duration_s": 4.0}
+    start = time.monotonic()
+    swarm_run(FIG11, overrides=short)
+    alone_s = time.monotonic() - start
+    nobody = f"rerun+http://127.0.0.1:{free_port()}/proxy"
+    start = time.monotonic()
+    res = swarm_run(FIG11, overrides=short, live=nobody, progress=said.append)
+    with_absent_s = time.monotonic() - start
+    assert res.exit_code == 0
+    assert [line for line in said if nobody in line] == [
+        f"[swarm] --live {nobody}: no Rerun viewer answers there (Connection refused); not streaming there, "
+        "the run is recorded to recording.rrd only"
+    ]
+    # Rerun's own sink would hold the logger 5 s at its start and 5 s at its end.
+    assert with_absent_s < alone_s + 4.0, (with_absent_s, alone_s)
+    assert not [e for e in res.summary["events"] if e.get("event") == "killed after stop timeout"]
+    _assert_complete(res)
+
+
+def test_the_logger_alone_leaves_an_absent_viewer_out_at_once(tmp_path: Path) -> None:
+    sc = scenario_mod.load(FIG11)
+    nobody = f"rerun+http://127.0.0.1:{free_port()}/proxy"
+    start = time.monotonic()
+    rec = open_recording("r", tmp_path / "r.rrd", sc, live=nobody)
+    assert time.monotonic() - start < 1.5
+    assert rec.live is None
+    assert rec.dropped == f"no Rerun viewer answers at {nobody} (Connection refused)"
+    assert rec.close() is True
+    assert (tmp_path / "r.rrd").stat().st_size > 0
+
+
+def _named_paths(part: Any) -> set[str]:
+    """Every entity path a blueprint's views name (contents and overrides)."""
+    if isinstance(part, rrb.Blueprint):
+        return _named_paths(part.root_container)
+    if isinstance(part, rrb.Container):
+        return set().union(*(_named_paths(p) for p in part.contents))
+    contents = [part.contents] if isinstance(part.contents, str) else list(part.contents)
+    return {c.removeprefix("+ ") for c in contents} | {str(k) for k in part.visualizer_overrides}
+
+
+def test_every_path_the_viewer_shows_is_in_the_recording(swarm_run: Callable[..., RunResult]) -> None:
+    res = swarm_run(FIG11, overrides={"run.duration_s": 3.0}, faults=["drop obs:2@1s for=1s p=0.3"])
+    assert res.exit_code == 0
+    sc = scenario_mod.load(res.run_dir / "scenario.toml")
+    named = _named_paths(blueprint(sc))
+    timed, static = rrd_rows(res.recording), rrd_rows(res.recording, static=True)
+    ticks = res.summary["ticks"]
+    assert "/robots/r3/error/formation" in named
+    assert "/events/faults" in named
+    assert all("*" not in path for path in named), named  # the viewer matches no wildcard mid-path
+    missing = sorted(path for path in named if path not in timed and path not in static)
+    assert not missing, missing
+    # The fault's start and end, each at its own sim time (2 rows), logged once the run got there.
+    assert _times(res.recording, "/events/faults") == [1.0, 2.0]
+    for path in named:
+        if path.startswith("/robots/"):  # on the timeline; from the ground truth: every tick
+            every_tick = path.endswith(("/pose", "/heading", "/trajectory", "/target/true", "/error/formation"))
+            assert timed[path] == ticks if every_tick else timed[path] > 0, (path, timed[path], ticks)
+
+
+def _times(rrd: Path, entity: str) -> list[float]:
+    from rerun.chunk import RrdReader
+
+    times = []
+    for chunk in RrdReader(str(rrd)).stream():
+        if str(chunk.entity_path) == entity and not chunk.is_static:
+            times += [t / 1e9 for t in chunk.to_record_batch().column("sim_time").cast("int64").to_pylist()]
+    return sorted(times)
+
+
+def test_the_layout_follows_the_scenario() -> None:
+    sc = scenario_mod.load(FIG11, {}, [Fault.coerce("kill agent-3@2s")])
+    named = _named_paths(blueprint(sc))
+    assert {"/events", "/events/faults", "/events/fault_calls", "/world/obstacles"} <= named
+    assert {p.split("/")[2] for p in named if p.startswith("/robots/")} == {"r1", "r2", "r3"}
+    assert "/robots/r1/error/formation" not in named  # the leader has no formation error
+    quiet = _named_paths(blueprint(scenario_mod.load(SCENARIOS / "fig7_turn_vn_dynamic.toml")))
+    assert "/events/faults" not in quiet
+    assert "/world/obstacles" not in quiet
+    assert robot_colour(2) != robot_colour(3)
+    assert robot_colour(1) == robot_colour(9)

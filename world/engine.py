@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import math
 import struct
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -49,6 +50,11 @@ class RobotState:
     answered: bool = False
 
 
+# FollowerMetrics.as_dict's metrics (None for a follower that never acquired its reference).
+METRICS = ("rms_m", "max_m", "turn_rms_m", "straight_rms_m", "turn_max_m", "turn_samples", "turn_mean_lag_m",
+           "max_lag_m", "max_ahead_m")  # fmt: skip
+
+
 @dataclass
 class FollowerMetrics:
     """Formation error of one follower: overall, and split by whether its reference
@@ -65,6 +71,8 @@ class FollowerMetrics:
     turn_along_sum_m: float = 0.0
     max_lag_m: float = 0.0
     max_ahead_m: float = 0.0
+    frames: int = 0  # camera frames taken for it (observation())
+    seen_ticks: int = 0  # of those, the frames that showed its reference (faults applied)
 
     def add(self, err_m: float, along_m: float = 0.0, turning: bool = False) -> None:
         self.sum_sq_m2 += err_m * err_m
@@ -78,12 +86,22 @@ class FollowerMetrics:
             self.turn_samples += 1
             self.turn_along_sum_m += along_m
 
-    def as_dict(self) -> dict[str, float | int]:
+    def as_dict(self) -> dict[str, float | int | bool | None]:
+        """The metrics; all None for a follower whose camera never showed its
+        reference ("acquired": false): it never moved, so its error says
+        nothing. "acquired" is None when no camera frame was taken (an engine
+        driven without observations, in tests)."""
+
         def rms(sq: float, n: int) -> float:
             return math.sqrt(sq / n) if n else math.nan
 
         straight = self.samples - self.turn_samples
+        seen = {"frames": self.frames, "seen_ticks": self.seen_ticks}
+        if self.frames and not self.seen_ticks:
+            return {"acquired": False, **seen, "samples": self.samples, **dict.fromkeys(METRICS)}
         return {
+            "acquired": bool(self.seen_ticks) if self.frames else None,
+            **seen,
             "rms_m": rms(self.sum_sq_m2, self.samples),
             "max_m": self.max_m,
             "samples": self.samples,
@@ -95,6 +113,16 @@ class FollowerMetrics:
             "max_lag_m": self.max_lag_m,
             "max_ahead_m": self.max_ahead_m,
         }
+
+
+def start_poses(sc: Scenario) -> dict[int, Pose]:
+    """Every robot on its slot of the leader's first formation at the path's
+    start, all heading along the path's first leg."""
+    wp = sc.leader.waypoints
+    heading = math.atan2(wp[1][1] - wp[0][1], wp[1][0] - wp[0][0])
+    start = Pose(wp[0][0], wp[0][1], heading)
+    form = sc.formations[sc.leader.formation]
+    return {rid: Pose(*from_body_frame(start, pt.x_m, pt.y_m), heading) for rid, pt in form.slot_positions().items()}
 
 
 @dataclass
@@ -125,15 +153,11 @@ class WorldEngine:
 
     def __post_init__(self) -> None:
         sc = self.scenario
-        wp = sc.leader.waypoints
-        heading = math.atan2(wp[1][1] - wp[0][1], wp[1][0] - wp[0][0])
-        start = Pose(wp[0][0], wp[0][1], heading)
-        form = sc.formations[sc.leader.formation]
         code = sc.code_of(sc.leader.formation)
-        self.robots = {}
-        for rid, pt in form.slot_positions().items():
-            x, y = from_body_frame(start, pt.x_m, pt.y_m)
-            self.robots[rid] = RobotState(Pose(x, y, heading), np.random.default_rng([self.seed, rid]), formation=code)
+        self.robots = {
+            rid: RobotState(pose, np.random.default_rng([self.seed, rid]), formation=code)
+            for rid, pose in start_poses(sc).items()
+        }
         self.metrics = {rid: FollowerMetrics() for rid in sc.follower_ids}
         self.error_windows = {rid: [] for rid in sc.follower_ids}
         self._window_ticks = max(1, round(ERROR_WINDOW_S / sc.dt_s))
@@ -165,6 +189,10 @@ class WorldEngine:
             poses = {i: s.pose for i, s in self.robots.items()}
             seen = self.cameras[rid].apply(self.tick, poses, observe(rid, poses, sc.camera, r.rng))
             readings = [tuple(m) for m in seen]
+            reference = sc.formation_by_code(r.formation).slots[rid].reference
+            metrics = self.metrics[rid]
+            metrics.frames += 1
+            metrics.seen_ticks += any(m[0] == reference for m in seen)
         else:
             for ob in sc.obstacles:
                 xb, yb = to_body_frame(r.pose, ob.x_m, ob.y_m)
@@ -207,9 +235,14 @@ class WorldEngine:
         r.command, r.command_time_s = (0.0, 0.0), -math.inf
 
     def true_target(self, rid: int) -> tuple[float, float]:
-        r = self.robots[rid]
-        slot = self.scenario.formation_by_code(r.formation).slots[rid]
-        return from_body_frame(self.robots[slot.reference].pose, slot.offset[0], slot.offset[1])
+        """Follower ``rid``'s true virtual target now (eq. 2 on true poses), in the
+        formation it flies: the code of its last command, so at a formation
+        switch tick the new formation's slot."""
+        return self._target(rid, self.robots[rid].formation, {i: r.pose for i, r in self.robots.items()})
+
+    def _target(self, rid: int, formation: int, poses: Mapping[int, Pose]) -> tuple[float, float]:
+        slot = self.scenario.formation_by_code(formation).slots[rid]
+        return from_body_frame(poses[slot.reference], slot.offset[0], slot.offset[1])
 
     def step(self, now_s: float) -> None:
         """Integrate tick k to tick k+1.
@@ -247,11 +280,12 @@ class WorldEngine:
             return
         sc = self.scenario
         errors: dict[int, float] = {}
+        poses = {rid: pose for rid, (pose, _, _) in snap.items()}
         for rid, metrics in self.metrics.items():
             pose, _, formation = snap[rid]
-            slot = sc.formation_by_code(formation).slots[rid]
-            ref_pose, ref_command, _ = snap[slot.reference]
-            tx, ty = from_body_frame(ref_pose, slot.offset[0], slot.offset[1])
+            reference = sc.formation_by_code(formation).slots[rid].reference
+            ref_pose, ref_command, _ = snap[reference]
+            tx, ty = self._target(rid, formation, poses)
             ex, ey = tx - pose.x_m, ty - pose.y_m
             along = ex * math.cos(ref_pose.theta_rad) + ey * math.sin(ref_pose.theta_rad)
             turning = abs(ref_command[1] - ref_command[0]) / sc.width_m >= TURN_RATE_RPS
@@ -266,7 +300,7 @@ class WorldEngine:
         self._recorded += 1
         for rec in self.recoveries:
             rec.add(self.tick - 1, errors)  # the snapshot is of the tick before the last step
-        self._contacts({rid: pose for rid, (pose, _, _) in snap.items()})
+        self._contacts(poses)
         h = self._digest
         for rid in sorted(snap):
             h.update(struct.pack("<3d", *snap[rid][0]))

@@ -372,7 +372,7 @@ class World:
         now = self.engine.time_s if self.mode == "lockstep" else self.wall_s
         self.engine.set_command(msg.sender, msg.left_mps, msg.right_mps, msg.formation, now)
 
-    def _publish_tick(self, obs_pubs: dict[int, zenoh.Publisher], truth_pub: BatchPublisher) -> None:
+    def _publish_observations(self, obs_pubs: dict[int, zenoh.Publisher]) -> None:
         eng = self.engine
         tick, t = eng.tick, eng.time_s
         for rid in eng.alive_ids:
@@ -383,9 +383,15 @@ class World:
             seq = self._next_seq(link_name("obs", 0, rid))
             obs_pubs[rid].put(Observation(0, seq, tick, t, pose, tuple(readings), tuple(obstacles)).to_bytes())
             self.counts["obs_sent"] += 1
+
+    def _publish_truth(self, truth_pub: BatchPublisher) -> None:
+        """Ground truth of tick k, once its commands are in: each follower's true
+        target is that of the formation it flies at tick k (a code is flown from
+        the command that carries it), as the world's formation error takes it."""
+        eng = self.engine
         robots = tuple((rid, *r.pose, r.alive) for rid, r in eng.robots.items())
         targets = tuple((rid, *eng.true_target(rid)) for rid in self.sc.follower_ids)
-        truth_pub.put(Truth(0, self._next_seq("truth"), tick, t, robots, targets).to_bytes())
+        truth_pub.put(Truth(0, self._next_seq("truth"), eng.tick, eng.time_s, robots, targets).to_bytes())
         self.counts["truth_sent"] += 1
 
     def _loop(
@@ -411,7 +417,7 @@ class World:
                     self.late_ticks += 1
                 self.wall_s = now - start
             self._process_faults()  # this tick's fault calls and returning agents, before its observations
-            self._publish_tick(obs_pubs, truth_pub)
+            self._publish_observations(obs_pubs)
             eng.record()  # the last tick's metrics, while the agents work on this one
             if self.mode == "lockstep":
                 t_wait = time.perf_counter()
@@ -443,6 +449,7 @@ class World:
             for link in self.cmd_links.values():  # commands held back until this tick
                 for held in link.due(eng.tick):
                     self._apply_command(held)
+            self._publish_truth(truth_pub)
             eng.step(eng.time_s if self.mode == "lockstep" else self.wall_s)
         return 0
 

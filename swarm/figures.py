@@ -1,0 +1,533 @@
+"""The four figures of ``swarm report``, drawn with matplotlib from a run's
+recording (``report.read_recording``) and summary.
+
+Choices a reader should know, also said on the figures themselves:
+
+- Trajectories: formation snapshots at the formation events (a formation
+  code changes) and in the middle of each stretch flown in one formation,
+  each also drawn alone, zoomed, like the paper's Fig. 11 (a-d). A run with
+  no formation change gets evenly timed snapshots on one panel.
+- V_N: FIS-2's output changes every tick (it is what the controller used,
+  unfiltered); drawn faint, with a 1 s centred moving average over it (for
+  the eye only), and beside it the share of ticks at each V_N.
+- Every time axis marks the formation switches (dotted, "-> line") and the
+  faults (dashed instants, shaded windows). Limits are robust: a y axis goes
+  to the 99.5th percentile with a margin, and says where a larger value was
+  cut off.
+- Titles name the scenario and the seed, and "cf. Fig. N" only when the run
+  is a shipped scenario of the paper as shipped (any seed).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from formation_swarm.palette import robot_colour
+
+Series = Any  # report.Series: .t (s) and .v, time-sorted
+Mark = tuple[float, "float | None", str]
+
+VN_SMOOTH_S = 1.0  # the moving average drawn over V_N, display only
+EVENT_GAP_S = 1.0  # formation events closer than this are one switch (leader, then its followers)
+LETTERS = "abcdefghijklmnopqrstuvwxyz"  # panel letters, as the paper's Fig. 11 (a-d)
+MAX_PANELS = 9  # zoomed snapshots on the trajectory figure
+QUANTILE = 99.5  # robust axis limits: this percentile, with a margin
+
+
+@dataclass
+class Context:
+    """What every figure of one run needs besides the recording."""
+
+    scenario: str
+    seed: Any
+    robots: list[int]
+    followers: list[int]
+    dt_s: float = 0.05
+    t_end: float = 0.0
+    paper: Mapping[str, str] = field(default_factory=dict)  # figure stem -> "Fig. 7a", when reproduced
+    fault_marks: list[Mark] = field(default_factory=list)
+    switches: list[tuple[float, str]] = field(default_factory=list)  # (time s, formation)
+    formation_events: list[Mapping[str, Any]] = field(default_factory=list)
+    formations: Mapping[str, Mapping[int, tuple[int, tuple[float, float]]]] = field(default_factory=dict)
+    start_formation: str | None = None
+    obstacles: list[tuple[float, float, float]] = field(default_factory=list)
+    diameter_m: float = 0.4
+
+    def title(self, stem: str, what: str) -> str:
+        cf = f" (cf. paper {self.paper[stem]})" if stem in self.paper else ""
+        return f"{self.scenario}, seed {self.seed}: {what}{cf}"
+
+    def colour(self, rid: int) -> tuple[float, float, float]:
+        """The robot's colour, the same as in the Rerun viewer (formation_swarm.palette)."""
+        return robot_colour(rid)
+
+    def flown(self, rid: int, t: float) -> str | None:
+        """The formation robot ``rid`` flies at time ``t``."""
+        name = self.start_formation
+        for e in self.formation_events:
+            if e.get("robot") == rid and isinstance(e.get("time_s"), (int, float)) and e["time_s"] <= t + 1e-9:
+                name = str(e.get("formation"))
+        return name
+
+
+def switches(events: Sequence[Mapping[str, Any]]) -> list[tuple[float, str]]:
+    """Formation switches of a run: its formation events grouped (a leader's
+    change and its followers' within EVENT_GAP_S), each at its first event."""
+    out: list[tuple[float, str]] = []
+    last = -math.inf
+    for e in sorted((e for e in events if isinstance(e.get("time_s"), (int, float))), key=lambda e: e["time_s"]):
+        t = float(e["time_s"])
+        if t - last > EVENT_GAP_S:
+            out.append((t, str(e.get("formation"))))
+        last = t
+    return out
+
+
+def snapshot_times(switch_times: Sequence[float], t_end: float, evenly: int) -> list[tuple[float, str]]:
+    """When to draw the formation: with switches, the start, each switch and the
+    middle of the stretch after it; without, ``evenly`` times from start to end.
+    Each with its kind: "start", "switch", "held" or "even"."""
+    if not switch_times:
+        return [(float(t), "even") for t in np.linspace(0.0, t_end, evenly)] if evenly else []
+    out = [(0.0, "start")]
+    bounds = [*switch_times, t_end]
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        out += [(a, "switch"), (0.5 * (a + b), "held")]
+    return out
+
+
+def robust_top(arrays: Sequence[np.ndarray], floor: float = 0.0) -> tuple[float, float | None]:
+    """An upper y limit that a few outliers do not blow out: the 99.5th
+    percentile of all the values plus 15%, or their maximum plus 5% when that
+    is not much larger. Also the maximum when it is cut off, else None."""
+    vals = np.concatenate([np.asarray(a, dtype=float).ravel() for a in arrays]) if arrays else np.zeros(0)
+    vals = vals[np.isfinite(vals)]
+    if vals.size == 0:
+        return max(floor, 1.0), None
+    top, q = float(np.max(vals)), float(np.percentile(vals, QUANTILE))
+    if top <= 1.5 * q or q <= 0.0:
+        return max(floor, 1.05 * top if top > 0 else 1.0), None
+    return max(floor, 1.15 * q), top
+
+
+def moving_average(t: np.ndarray, v: np.ndarray, window_s: float, dt_s: float) -> np.ndarray:
+    """Centred moving average over ``window_s`` (in ticks of ``dt_s``); shorter at the ends."""
+    n = max(1, int(round(window_s / dt_s)))
+    if n <= 1 or len(v) < 2:
+        return v.copy()
+    kernel = np.ones(n)
+    num = np.convolve(v, kernel, mode="same")
+    den = np.convolve(np.ones_like(v), kernel, mode="same")
+    return num / den
+
+
+def _time_marks(ax: Any, ctx: Context) -> None:
+    """Formation switches (dotted grey) and faults (dashed instants, shaded windows),
+    each labelled at the top of the axes."""
+    lo, hi = ax.get_xlim()
+    box = {"facecolor": "white", "alpha": 0.85, "edgecolor": "none", "pad": 1.0}
+    for t, name in ctx.switches:  # labelled above the axes, out of the data's way
+        ax.axvline(t, color="0.35", lw=1.0, ls=":", zorder=1)
+        if lo <= t <= hi:
+            ax.text(
+                t,
+                1.005,
+                f"\u2192 {name}",
+                transform=ax.get_xaxis_transform(),
+                va="bottom",
+                ha="center",
+                fontsize=8,
+                color="0.25",
+            )
+    for k, (start, end, label) in enumerate(ctx.fault_marks):
+        color = ("tab:red", "darkred", "0.4")[k % 3]  # none of them a robot's (formation_swarm.palette)
+        if end is None:
+            ax.axvline(start, color=color, lw=1.2, ls="--", zorder=1)
+        else:
+            ax.axvspan(start, min(end, hi), color=color, alpha=0.12, lw=0)
+        ax.text(
+            start,
+            0.02,
+            f" {label}",
+            transform=ax.get_xaxis_transform(),
+            rotation=90,
+            va="bottom",
+            ha="left",
+            fontsize=8,
+            color=color,
+            zorder=5,
+            bbox=box,
+        )
+    ax.set_xlim(lo, hi)
+
+
+def _cut_note(ax: Any, cut: float | None, unit: str = "m") -> None:
+    if cut is not None:
+        ax.text(
+            0.995,
+            0.99,
+            f"axis cut at the {QUANTILE:g}th percentile; max {cut:.2f} {unit}",
+            ha="right",
+            va="top",
+            transform=ax.transAxes,
+            fontsize=7,
+            color="0.3",
+        )
+
+
+def _time_axis(ax: Any, ctx: Context) -> None:
+    ax.set_xlim(0.0, max(ctx.t_end, ctx.dt_s))
+    ax.set_xlabel("time, s")
+    ax.grid(alpha=0.3)
+
+
+def _save(fig: Any, path: Any, dpi: int) -> None:
+    import matplotlib.pyplot as plt
+
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+
+
+# -- trajectories (Fig. 6a/c, 7a, 11) ----------------------------------------------------------------
+
+
+def trajectories(path: Any, data: Mapping[str, Series], ctx: Context, snapshots: int, dpi: int) -> None:
+    import matplotlib.pyplot as plt
+
+    poses = {r: data[f"/robots/r{r}/pose"] for r in ctx.robots if len(data[f"/robots/r{r}/pose"])}
+    snaps = snapshot_times([t for t, _ in ctx.switches], ctx.t_end, snapshots)
+    snaps = snaps if not ctx.switches else snaps[:MAX_PANELS]  # the first switches, when there are many
+    zoomed = [s for s in snaps if s[1] != "even"]
+    lo, hi = _extent(poses, ctx.obstacles)
+    if zoomed:
+        cols = math.ceil(len(zoomed) / 2)
+        fig = plt.figure(figsize=(4.2 + 3.6 * cols, 8.6), layout="constrained")
+        grid = fig.add_gridspec(2, 1 + cols, width_ratios=[1.2] + [1.0] * cols)
+        over = fig.add_subplot(grid[:, 0])
+        panels = [fig.add_subplot(grid[i // cols, 1 + i % cols]) for i in range(len(zoomed))]
+        spare = [grid[i // cols, 1 + i % cols] for i in range(len(zoomed), 2 * cols)]
+    else:
+        span = hi - lo
+        height = float(np.clip(6.0 * span[1] / max(span[0], 1e-9), 4.5, 7.5))
+        fig, over = plt.subplots(figsize=(6.5, height), layout="constrained")
+        panels, spare = [], []
+    _overview(over, poses, ctx, snaps, lo, hi)
+    for k, (ax, (t, kind)) in enumerate(zip(panels, zoomed, strict=True)):
+        _zoom(ax, data, poses, ctx, t, kind, LETTERS[k])
+    handles, labels = over.get_legend_handles_labels()
+    if spare:
+        leg_ax = fig.add_subplot(spare[0])
+        leg_ax.axis("off")
+        leg_ax.legend(handles, labels, loc="center", fontsize=9, frameon=False)
+    else:
+        over.legend(handles, labels, loc="best", fontsize=8)
+    if zoomed:
+        last = LETTERS[len(zoomed) - 1]
+        how = f"snapshots (black) at each formation switch and mid-way through each formation, zoomed in (a)-({last})"
+    else:
+        how = f"formation every {ctx.t_end / max(1, snapshots - 1):.1f} s (no formation switch)"
+    fig.suptitle(ctx.title("trajectories", "trajectories") + f"\n{how}", fontsize=11)
+    _save(fig, path, dpi)
+
+
+def _extent(poses: Mapping[int, Series], obstacles: list[tuple[float, float, float]]) -> tuple[np.ndarray, np.ndarray]:
+    pts = [s.v for s in poses.values()] + [np.array([[x - r, y - r], [x + r, y + r]]) for x, y, r in obstacles]
+    allp = np.concatenate(pts) if pts else np.zeros((1, 2))
+    return np.min(allp, axis=0), np.max(allp, axis=0)
+
+
+def _overview(
+    ax: Any, poses: Mapping[int, Series], ctx: Context, snaps: list[tuple[float, str]], lo: np.ndarray, hi: np.ndarray
+) -> None:
+    import matplotlib.pyplot as plt
+
+    for x, y, r in ctx.obstacles:
+        ax.add_patch(plt.Circle((x, y), r, color="tab:red", alpha=0.35, lw=0))
+    if ctx.obstacles:
+        ax.plot([], [], "o", color="tab:red", alpha=0.35, label="obstacle")
+    for r, s in poses.items():
+        ax.plot(
+            s.v[:, 0],
+            s.v[:, 1],
+            lw=1.8,
+            color=ctx.colour(r),
+            label=f"R{r}" + (" (leader)" if r not in ctx.followers else ""),
+        )
+    letters = iter(LETTERS)
+    for k, (t, kind) in enumerate(snaps):
+        pts = _at(poses, t)
+        _links(ax, ctx, pts, t, lw=0.9, label="formation (follower to its reference)" if k == 0 else None)
+        ax.scatter(*np.array(list(pts.values())).T, s=12, color="k", zorder=4)
+        c = np.mean(np.array(list(pts.values())), axis=0)
+        ax.annotate(
+            f"({next(letters)})" if kind != "even" else f"{t:.1f} s",
+            c,
+            xytext=(14, 0),
+            textcoords="offset points",
+            fontsize=9,
+            va="center",
+            bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none", "pad": 0.5},
+        )
+    # Equal scales; a long thin path gets a wider view rather than a squashed one.
+    centre, span = 0.5 * (lo + hi), np.maximum(hi - lo, 1.0) + 3.0
+    span = np.maximum(span, span.max() / 3.0)
+    ax.set_xlim(centre[0] - span[0] / 2, centre[0] + span[0] / 2)
+    ax.set_ylim(centre[1] - span[1] / 2, centre[1] + span[1] / 2)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("x, m")
+    ax.set_ylabel("y, m")
+    ax.grid(alpha=0.3)
+
+
+def _at(poses: Mapping[int, Series], t: float) -> dict[int, np.ndarray]:
+    return {r: s.v[min(int(np.searchsorted(s.t, t - 1e-9)), len(s) - 1)] for r, s in poses.items()}
+
+
+def _links(ax: Any, ctx: Context, pts: Mapping[int, np.ndarray], t: float, lw: float, label: str | None) -> None:
+    """Each follower joined to its reference in the formation it flies at ``t``."""
+    for r in ctx.followers:
+        slot = ctx.formations.get(ctx.flown(r, t) or "", {}).get(r)
+        if slot is None or r not in pts or slot[0] not in pts:
+            continue
+        (x0, y0), (x1, y1) = pts[slot[0]], pts[r]
+        ax.plot([x0, x1], [y0, y1], color="0.25", lw=lw, ls="--", zorder=3, label=label)
+        label = None
+
+
+def _zoom(
+    ax: Any, data: Mapping[str, Series], poses: Mapping[int, Series], ctx: Context, t: float, kind: str, letter: str
+) -> None:
+    import matplotlib.pyplot as plt
+
+    pts = _at(poses, t)
+    centre = np.mean(np.array(list(pts.values())), axis=0)
+    half = max(4.0, 0.5 * float(np.ptp(np.array(list(pts.values())), axis=0).max()) + 2.0)
+    for x, y, r in ctx.obstacles:
+        ax.add_patch(plt.Circle((x, y), r, color="tab:red", alpha=0.35, lw=0))
+    for r, s in poses.items():
+        near = (s.t >= t - 4.0) & (s.t <= t + 4.0)  # 4 s either side: where it came from, where it goes
+        ax.plot(s.v[near, 0], s.v[near, 1], lw=1.0, color=ctx.colour(r), alpha=0.8)
+        ax.add_patch(plt.Circle(tuple(pts[r]), 0.5 * ctx.diameter_m, color=ctx.colour(r), zorder=4))
+        ax.annotate(f"R{r}", tuple(pts[r]), xytext=(6, 6), textcoords="offset points", fontsize=8, zorder=5)
+    _links(ax, ctx, pts, t, lw=1.0, label=None)
+    for r in ctx.followers:
+        tgt = data.get(f"/robots/r{r}/target/true")
+        if tgt is not None and len(tgt):
+            ax.plot(*_at({r: tgt}, t)[r], marker="x", color=ctx.colour(r), ms=7, mew=1.5, zorder=5)
+    leader = next((r for r in ctx.robots if r not in ctx.followers), None)
+    name = ctx.flown(leader, t) if leader is not None else None
+    what = {"start": f"start, {name}", "switch": f"code \u2192 {name}", "held": f"{name}"}.get(kind, name)
+    ax.set_title(f"({letter}) t = {t:.1f} s: {what}", fontsize=10)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("x, m", fontsize=8)
+    ax.set_ylabel("y, m", fontsize=8)
+    ax.tick_params(labelsize=8)
+    ax.grid(alpha=0.3)
+    if letter == "a":
+        ax.plot([], [], "x", color="0.3", label="true target")
+        ax.plot([], [], "-", color="0.3", lw=1.0, label="path, 4 s either side")
+        ax.legend(fontsize=7, loc="lower right")
+
+
+# -- formation error (Fig. 6b/d, 7b) ---------------------------------------------------------------
+
+
+def formation_error(path: Any, data: Mapping[str, Series], ctx: Context, rms: Mapping[int, Any], dpi: int) -> None:
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(9, 4), layout="constrained")
+    arrays = []
+    for r in ctx.followers:
+        s = data.get(f"/robots/r{r}/error/formation")
+        if s is None or not len(s):
+            continue
+        value = rms.get(r)
+        tag = f" (RMS {value:.2f} m)" if isinstance(value, (int, float)) else " (never acquired its reference)"
+        ax.plot(s.t, s.v, lw=1.5, color=ctx.colour(r), label=f"R{r}{tag}")
+        arrays.append(s.v)
+    top, cut = robust_top(arrays)
+    ax.set_ylim(0.0, top)
+    _time_axis(ax, ctx)
+    ax.set_ylabel("distance to its true target, m")
+    ax.set_title(ctx.title("formation_error", "each follower's formation error"), fontsize=11, pad=16)
+    if arrays:
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    _time_marks(ax, ctx)
+    _cut_note(ax, cut)
+    _save(fig, path, dpi)
+
+
+# -- V_N (Fig. 8) ----------------------------------------------------------------------------------
+
+
+def vn(path: Any, data: Mapping[str, Series], ctx: Context, dpi: int) -> None:
+    import matplotlib.pyplot as plt
+
+    fig, (ax, hist) = plt.subplots(
+        1, 2, figsize=(10, 4.2), sharey=True, layout="constrained", gridspec_kw={"width_ratios": [4, 1]}
+    )
+    drawn: list[tuple[int, np.ndarray]] = []
+    held = 0
+    for r in ctx.followers:
+        s = data.get(f"/robots/r{r}/fis/v_n")
+        if s is None or not len(s):
+            continue
+        flying = s.v > 0.0  # 0: holding at a standing reference (docs/paper.md), not FIS-2's output
+        held += int(np.sum(~flying))
+        t, v = s.t[flying], s.v[flying]
+        if not len(v):
+            continue
+        c = ctx.colour(r)
+        ax.plot(t, v, lw=0.5, color=c, alpha=0.3)
+        smooth = moving_average(t, v, VN_SMOOTH_S, ctx.dt_s)
+        ax.plot(t, smooth, lw=1.8, color=c, label=f"R{r}: {VN_SMOOTH_S:g} s moving average (mean {np.mean(v):.2f} m/s)")
+        drawn.append((r, v))
+    if not drawn:
+        ax.text(0.5, 0.5, "no V_N in this run (l-psi followers have none)", ha="center", transform=ax.transAxes)
+        hist.axis("off")
+    else:
+        lo = min(float(np.min(v)) for _, v in drawn)
+        hi = max(float(np.max(v)) for _, v in drawn)
+        pad = max(0.05, 0.08 * (hi - lo))
+        ax.set_ylim(lo - pad, hi + pad)
+        edges = np.linspace(lo - 1e-9, hi + 1e-9, 11) if hi - lo > 1e-6 else np.array([lo - 0.025, lo + 0.025])
+        width = 0.9 * np.diff(edges) / len(drawn)  # the followers' bars side by side in each band
+        for k, (r, v) in enumerate(drawn):
+            share, _ = np.histogram(v, bins=edges)
+            hist.barh(
+                edges[:-1] + (k + 0.55) * width,
+                100.0 * share / len(v),
+                height=width,
+                color=ctx.colour(r),
+                label=f"R{r}",
+            )
+        hist.set_xlabel("share of ticks, %")
+        hist.set_title("time at each V_N", fontsize=9)
+        hist.grid(alpha=0.3)
+        ax.plot([], [], lw=0.5, color="0.4", alpha=0.5, label="V_N each tick, as the controller used it")
+        ax.legend(fontsize=8, loc="lower left")
+    _time_axis(ax, ctx)
+    ax.set_ylabel("V_N, m/s")
+    note = f"; {held} ticks holding (V_N = 0) not drawn" if held else ""
+    ax.set_title(
+        ctx.title("vn", "FIS-2's normal speed V_N") + f"\nfaint: every tick; bold: {VN_SMOOTH_S:g} s "
+        f"centred moving average, for the eye only (the controller is not filtered){note}",
+        fontsize=10,
+        pad=14,
+    )
+    _time_marks(ax, ctx)
+    _save(fig, path, dpi)
+
+
+# -- targets (Fig. 9-10) ---------------------------------------------------------------------------
+
+# The paper's colours (Fig. 9-10): black dots read, green actual, red EKF.
+MEASURED, TRUE, EKF = "k", "tab:green", "tab:red"
+
+
+def targets(
+    path: Any, data: Mapping[str, Series], ctx: Context, errors: Mapping[int, Mapping[str, Any]], dpi: int
+) -> None:
+    import matplotlib.pyplot as plt
+
+    n = max(1, len(ctx.followers))
+    fig, axes = plt.subplots(
+        n, 3, figsize=(14, 4.4 * n), squeeze=False, layout="constrained", gridspec_kw={"width_ratios": [1.0, 1.0, 1.7]}
+    )
+    for (whole, zoom, err), r in zip(axes, ctx.followers, strict=False):
+        base = f"/robots/r{r}"
+        series = {
+            k: data.get(f"{base}/{p}")
+            for k, p in (("measured", "target/measured"), ("true", "target/true"), ("ekf", "ekf/target"))
+        }
+        true = series["true"]
+        if true is None or not len(true):
+            for ax in (whole, zoom, err):
+                ax.axis("off")
+            continue
+        t_mid = _zoom_time(true, ctx.t_end)
+        for ax in (whole, zoom):
+            _target_xy(ax, series)
+        _xy_limits(whole, true.v, pad=2.0)
+        whole.set_title(f"R{r}: virtual target, whole run", fontsize=10)
+        sel = np.abs(true.t - t_mid) <= 2.0
+        _xy_limits(zoom, true.v[sel], pad=0.6, square=True)
+        whole.add_patch(_box(zoom))
+        zoom.set_title(f"R{r}: t = {t_mid - 2:.0f}-{t_mid + 2:.0f} s (box on the left)", fontsize=10)
+        zoom.legend(fontsize=8, loc="best")
+        _target_errors(err, data, base, ctx, errors.get(r) or {})
+        err.set_title(f"R{r}: distance to the true target", fontsize=10, pad=14)
+    fig.suptitle(
+        ctx.title("targets", "virtual target read by the camera (dots), true (green), EKF estimate (red)"), fontsize=11
+    )
+    _save(fig, path, dpi)
+
+
+def _zoom_time(true: Series, t_end: float) -> float:
+    """The middle of the 4 s where the true target turns most (else mid-run)."""
+    if len(true) < 10:
+        return 0.5 * t_end
+    d = np.diff(true.v, axis=0)
+    heading = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+    turn = np.abs(np.gradient(heading))
+    k = int(np.argmax(np.convolve(turn, np.ones(40), mode="same")))
+    return float(np.clip(true.t[k], 2.0, max(2.0, t_end - 2.0)))
+
+
+def _target_xy(ax: Any, series: Mapping[str, Series | None]) -> None:
+    s = series["measured"]
+    if s is not None and len(s):
+        ax.scatter(s.v[:, 0], s.v[:, 1], s=4, color=MEASURED, alpha=0.5, lw=0, label="read (eq. 1-2)", zorder=2)
+    for key, label, color in (("true", "true", TRUE), ("ekf", "EKF", EKF)):
+        s = series[key]
+        if s is not None and len(s):
+            ax.plot(s.v[:, 0], s.v[:, 1], lw=1.2, color=color, label=label, zorder=3)
+    ax.set_xlabel("x, m")
+    ax.set_ylabel("y, m")
+    ax.grid(alpha=0.3)
+
+
+def _xy_limits(ax: Any, pts: np.ndarray, pad: float, square: bool = False) -> None:
+    """Equal scales around ``pts`` (the true target, so a wild reading does not
+    widen them); a long thin path keeps at least a quarter of its length across."""
+    if len(pts) == 0:
+        return
+    lo, hi = np.percentile(pts, 0.5, axis=0) - pad, np.percentile(pts, 99.5, axis=0) + pad
+    centre, span = 0.5 * (lo + hi), hi - lo
+    span = np.full(2, float(np.max(span))) if square else np.maximum(span, 0.25 * float(np.max(span)))
+    ax.set_xlim(centre[0] - span[0] / 2, centre[0] + span[0] / 2)
+    ax.set_ylim(centre[1] - span[1] / 2, centre[1] + span[1] / 2)
+    ax.set_aspect("equal", adjustable="box")
+
+
+def _box(ax: Any) -> Any:
+    import matplotlib.patches as mpatches
+
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    return mpatches.Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec="0.2", lw=1.0, zorder=5)
+
+
+def _target_errors(ax: Any, data: Mapping[str, Series], base: str, ctx: Context, rms: Mapping[str, Any]) -> None:
+    arrays = []
+    for name, label, color in (("measured", "read", MEASURED), ("ekf", "EKF", EKF)):
+        s = data.get(f"{base}/error/{name}")
+        if s is not None and len(s):
+            value = rms.get(f"{name}_rms_m")
+            tag = f" (RMS {value:.3f} m)" if isinstance(value, (int, float)) else ""
+            ax.plot(s.t, s.v, lw=0.7, color=color, alpha=0.5 if name == "measured" else 0.9, label=label + tag)
+            arrays.append(s.v)
+    top, cut = robust_top(arrays)
+    ax.set_ylim(0.0, top)
+    _time_axis(ax, ctx)
+    ax.set_ylabel("distance, m")
+    if arrays:
+        ax.legend(fontsize=8, loc="upper left")
+    _time_marks(ax, ctx)
+    _cut_note(ax, cut)
