@@ -237,6 +237,17 @@ def _check_sight(ld: Mapping[str, Any], formations: Mapping[str, Formation], cam
             raise ScenarioError(f"leader.avoid_formation: {exc}{hint}") from None
 
 
+def _ranges(ids: list[int]) -> str:
+    """[2, 3, 4, 7] -> "2-4, 7"."""
+    runs: list[list[int]] = []
+    for i in sorted(ids):
+        if runs and i == runs[-1][-1] + 1:
+            runs[-1].append(i)
+        else:
+            runs.append([i])
+    return ", ".join(str(r[0]) if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs)
+
+
 def speed_warnings(leader_speed_mps: float, followers: Mapping[int, FollowerParams]) -> list[str]:
     """Why the leader's cruise speed lies outside the speeds its fuzzy
     followers hold steadily (agents.fuzzy.speed_range), one line per group of
@@ -255,15 +266,22 @@ def speed_warnings(leader_speed_mps: float, followers: Mapping[int, FollowerPara
         groups.setdefault(key, []).append(rid)
     out = []
     for (side, low, high, limit), rids in groups.items():
-        who = f"follower {rids[0]}" if len(rids) == 1 else f"followers {', '.join(map(str, rids))}"
-        what = (
-            f"never drive slower than {limit:g} m/s: they will overrun their targets and may hit their references"
+        one = len(rids) == 1
+        who = (
+            f"follower {rids[0]}'s fuzzy controller holds"
+            if one
+            else f"followers {_ranges(rids)}' fuzzy controllers hold"
+        )
+        they, their = ("it", "its") if one else ("they", "their")
+        drives = ("drives" if one else "drive") + (" slower" if side == "below" else " faster")
+        fate = (
+            f"will overrun {their} target{'' if one else 's'} and may hit {their} reference{'' if one else 's'}"
             if side == "below"
-            else f"never drive faster than {limit:g} m/s: they will fall behind and may lose their references"
+            else f"will fall behind and may lose {their} reference{'' if one else 's'}"
         )
         out.append(
-            f"leader.speed_mps = {leader_speed_mps:g} is {side} the speeds the fuzzy controller of {who} holds"
-            f" steadily, {low:g}-{high:g} m/s (vm -+ a_mps, or a static vn -+ a_mps); they {what}"
+            f"leader.speed_mps = {leader_speed_mps:g} is {side} the speeds {who} steadily, {low:g}-{high:g} m/s"
+            f" (vm -+ a_mps, or a static vn -+ a_mps), and {they} never {drives} than {limit:g} m/s: {they} {fate}"
         )
     return out
 

@@ -335,6 +335,9 @@ def markdown() -> str:
         "override keys by their dotted name (`leader.speed_mps=1.6`) with the same checks.",
         "Deeper checks (for example `d0_m < dn_m <= d1_m < dmax_m`) are made by the objects the",
         "scenario builds, and their errors name the section.",
+        "A scenario that runs but likely not as meant gets a warning (`ScenarioWarning`; `swarm run` prints",
+        "`[swarm] warning: ...`): so far, a `leader.speed_mps` outside the speeds its fuzzy followers hold",
+        "steadily (vm -+ a_mps, or a static vn -+ a_mps: 1.2-2.2 m/s by default; docs/paper.md).",
         "",
     ]
     for name, (keys, what, toml) in SECTIONS.items():

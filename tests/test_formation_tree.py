@@ -27,6 +27,7 @@ from formation_swarm.agents.formation import (
     wedge,
 )
 from formation_swarm.agents.geometry import Point
+from formation_swarm.launcher import Launch
 from formation_swarm.scenario_keys import ScenarioWarning
 from tests.conftest import SCENARIOS
 
@@ -278,11 +279,12 @@ def test_a_slow_leader_is_warned_of() -> None:
             overrides={"leader.speed_mps": 1.0, "run.robots": 10, "formations.two.shape": "line"},
         )
     assert [str(w.message) for w in record] == [
-        "leader.speed_mps = 1 is below the speeds the fuzzy controller of followers 2, 3, 4, 5, 6, 7, 8, 9, 10 holds"
-        " steadily, 1.2-2.2 m/s (vm -+ a_mps, or a static vn -+ a_mps); they never drive slower than 1 m/s: they"
-        " will overrun their targets and may hit their references"
+        "leader.speed_mps = 1 is below the speeds followers 2-10' fuzzy controllers hold steadily, 1.2-2.2 m/s"
+        " (vm -+ a_mps, or a static vn -+ a_mps), and they never drive slower than 1 m/s: they will overrun their"
+        " targets and may hit their references"
     ]
-    with pytest.warns(ScenarioWarning, match="follower 2 holds steadily, 1.5-2.5 m/s .* never drive faster than 2.5"):
+    with pytest.warns(ScenarioWarning, match="follower 2's fuzzy controller holds steadily, 1.5-2.5 m/s .* it never"
+                      " drives faster than 2.5 m/s: it will fall behind and may lose its reference"):  # fmt: skip
         sm.load(SCENARIOS / "fig6_turn_vn_2.toml", overrides={"leader.speed_mps": 2.6})
     # The l-psi baseline is not the fuzzy controller: no warning for it.
     with warnings.catch_warnings():
@@ -310,3 +312,13 @@ def test_a_new_reference_restarts_the_filter() -> None:
     d = f.step((4.4, 0.0, 0.0))  # the new one, 3 m farther: the filter starts on it
     assert f.ekf.initialized
     assert d.rho_m == pytest.approx(3.0, abs=1e-9)
+
+
+def test_swarm_run_prints_the_loaders_warnings_with_its_console_lines() -> None:
+    lines: list[str] = []
+    Launch("fig6_turn_vn_1_5", overrides={"leader.speed_mps": 0.9}, progress=lines.append)
+    assert lines == [
+        "[swarm] warning: leader.speed_mps = 0.9 is below the speeds follower 2's fuzzy controller holds steadily,"
+        " 1-2 m/s (vm -+ a_mps, or a static vn -+ a_mps), and it never drives slower than 1 m/s: it will overrun"
+        " its target and may hit its reference"
+    ]
