@@ -22,11 +22,16 @@ from collections.abc import Callable
 import pytest
 
 from formation_swarm import scenario as sm
+from formation_swarm.agents.follower import Follower
 from formation_swarm.agents.formation import sights
+from formation_swarm.agents.process import Agent
 from formation_swarm.launcher import RunResult
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.protocol.messages import FormationCode, Observation
 from formation_swarm.world.engine import WorldEngine
 from formation_swarm.world.kinematics import Pose
 from tests.conftest import SCENARIOS
+from tests.test_role_inputs import FakePub, FakeRole
 
 TURN = SCENARIOS / "fig7_turn_vn_dynamic.toml"
 DURATION_S = {"wedge": 21.0, "line": 30.0}
@@ -47,6 +52,36 @@ def test_contacts_among_thirty_robots_are_counted_pair_by_pair() -> None:
     s = eng.summary()
     assert s["collisions"] == 6
     assert s["min_distance_m"] == pytest.approx(0.1)
+
+
+def test_a_follower_given_a_new_reference_restarts_its_filter_on_it() -> None:
+    """Fig. 11 with five robots: robot 4 follows robot 2 in the triangle and
+    robot 3 in the line. After the switch its EKF starts from robot 3's
+    reading instead of pulling robot 2's estimate toward it."""
+    sc = sm.load(SCENARIOS / "fig11_obstacles.toml", overrides={"run.robots": 5})
+    assert (sc.formations["triangle"].slots[4].reference, sc.formations["line"].slots[4].reference) == (2, 3)
+    keys = Keys("new-reference-test")
+    agent = Agent(None, sc, 4, keys.run_id, sc.seed, FakeRole())  # type: ignore[arg-type]  # no session needed
+    agent.cmd_pub, agent.tel_pub = FakePub(), FakePub()
+    r2, r3 = (2, 2.2, 0.0, -0.7), (3, 4.1, 0.0, 0.4)  # (robot, rho_m, phi_rad, beta_rad)
+
+    def observe(tick: int) -> None:
+        obs = Observation(0, tick + 1, tick, tick * sc.dt_s, (0.0, 0.0, 1.57), (r2, r3), ())
+        taken = agent._on_message(keys.obs(4), obs.to_bytes())
+        assert taken is not None
+        agent._on_observation(*taken)
+
+    observe(0)
+    assert agent.reference == 2
+    code = FormationCode(1, 100, 0, sc.code_of("line"))
+    agent._on_message(keys.formation(4), code.to_bytes())
+    observe(1)
+    assert agent.reference == 3
+    # Its filter is that of a follower that has only ever seen robot 3 (read, then predicted for tick 2).
+    fresh = Follower(sc.followers[4], sc.formations["line"].slots[4].offset)
+    fresh.step(r3[1:])
+    fresh.prepare()
+    assert agent.follower.ekf.state.tolist() == fresh.ekf.state.tolist()
 
 
 @pytest.mark.slow
