@@ -143,7 +143,7 @@ FORMATION_KEYS = {
         REQUIRED,
         "'wedge' (a V behind the leader; tree depth (n - 1) // 2 + 1), 'line' (single file; depth n - 1, or"
         " (n - 1) // 2 + 1 with follow = 'pairs'), 'abreast' (level with the leader, which flies in the middle;"
-        " depth n // 2), 'grid' (rows behind the leader; depth rows - 1 + (columns + 1) // 2) or 'custom'. The"
+        " depth n // 2), 'grid' (rows behind the leader; depth at most rows - 1 + (columns + 1) // 2) or 'custom'. The"
         " depth is the longest chain of references from a follower to the leader, n the number of robots."
         " Every follower's reference must be within the camera's range less the controller's dmax_m, and within"
         " its field of view less gamma_deg, seen from the follower's slot, and so must a new reference at a"
