@@ -119,6 +119,17 @@ class Follower:
             self.offset = new
             self.changing = True
 
+    def new_reference(self) -> None:
+        """The formation names another reference robot: forget the old one (its
+        EKF estimate, rho, speeds); the next reading of the new one starts afresh."""
+        self.ekf.reset()
+        self._predicted = False
+        self._prev_rho = None
+        self._raw = None
+        self._since_reading_s = math.inf
+        self._speeds.clear()
+        self.holding = False
+
     def prepare(self) -> None:
         """The EKF's prediction for the next tick (from the command just sent),
         run now; ``step`` then only corrects. An agent calls it while it waits

@@ -3,15 +3,22 @@
 An offset is P_vt of eq. 2, in the reference robot's frame (x to its right,
 y ahead), in metres. Robot ids are positive integers; the smallest id leads
 (paper section 2: R1 leads R2, R2 leads R3).
+
+The shapes (line, wedge, abreast, grid) give every follower a reference that
+its camera sees from its slot, close by, and make the references a tree
+rooted at the leader whose depth each shape's docstring states;
+``check_sight`` proves a formation, custom ones included, against a camera.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from formation_swarm.agents.geometry import Point
-from formation_swarm.checks import finite, positive
+from formation_swarm.checks import finite, non_negative, positive
 
 
 @dataclass(frozen=True)
@@ -66,6 +73,22 @@ class Formation:
     def robots(self) -> list[int]:
         return sorted({self.leader, *self.slots})
 
+    def depths(self) -> dict[int, int]:
+        """Per follower, how many references lead from it to the leader."""
+        out: dict[int, int] = {}
+        for rid in sorted(self.slots):
+            n, ref = 1, self.slots[rid].reference
+            while ref in self.slots:
+                n, ref = n + 1, self.slots[ref].reference
+            out[rid] = n
+        return out
+
+    @property
+    def depth(self) -> int:
+        """The depth of the reference tree: the longest chain of references from
+        a follower to the leader (errors add up along it)."""
+        return max(self.depths().values())
+
     def slot_positions(self) -> dict[int, Point]:
         """Every robot's place in the leader's frame when all share its heading."""
         out: dict[int, Point] = {self.leader: Point(0.0, 0.0)}
@@ -82,39 +105,228 @@ class Formation:
         return out
 
 
-def from_slot_positions(name: str, positions: Mapping[int, Point]) -> Formation:
-    """Chain formation (robot i references robot i-1) from places in the leader frame."""
+def from_slot_positions(
+    name: str, positions: Mapping[int, Point], references: Mapping[int, int] | None = None
+) -> Formation:
+    """A formation from places in the leader frame (all robots share the leader's
+    heading). ``references`` names each follower's reference robot; by default a
+    chain, robot i references robot i-1 (in id order)."""
     ids = sorted(positions)
     if len(ids) < 2:
         raise ValueError(f"formation {name!r} needs at least 2 robots, got {len(ids)}")
-    slots = {
-        rid: Slot(prev, Point(positions[rid][0] - positions[prev][0], positions[rid][1] - positions[prev][1]))
-        for prev, rid in zip(ids, ids[1:], strict=False)
-    }
+    refs = dict(zip(ids[1:], ids, strict=False)) if references is None else dict(references)
+    slots = {}
+    for rid, ref in refs.items():
+        if rid not in positions or ref not in positions:
+            raise ValueError(f"formation {name!r}: robot {rid} or its reference {ref} has no place")
+        here, there = positions[rid], positions[ref]
+        slots[rid] = Slot(ref, Point(here[0] - there[0], here[1] - there[1]))
     return Formation(name, slots)
 
 
-def line(n: int, spacing_m: float, first_id: int = 1) -> Formation:
-    """Column behind the leader: each robot ``spacing_m`` behind the previous one."""
+def _check_n(n: int) -> int:
+    if isinstance(n, bool) or not isinstance(n, int) or n < 2:
+        raise ValueError(f"n must be an integer >= 2, got {n!r}")
+    return n
+
+
+LINE_FOLLOW = ("ahead", "pairs")
+
+
+def line(n: int, spacing_m: float, first_id: int = 1, follow: str = "ahead") -> Formation:
+    """Column behind the leader: robot i (i = 1 .. n-1 after the leader)
+    ``i * spacing_m`` behind it.
+
+    ``follow = "ahead"``: each robot references the one ahead of it, one
+    chain of depth n - 1 (the paper's R1 <- R2 <- R3). ``follow = "pairs"``:
+    robots 2 and 3 as before, then each robot references the robot two places
+    ahead (2 * spacing_m): two interleaved chains of depth (n - 1) // 2 + 1
+    with the references of ``wedge`` (and of ``abreast`` from robot 4 on), so
+    that a switch between a wedge and a line changes offsets only, which is
+    what the partition-zone avoidance of eq. 11-13 is made for; from its wedge
+    slot a robot of the "ahead" line would have to find the robot of the other
+    wing, 3 * rank metres away. Nothing but their tracking keeps two
+    neighbours of different chains apart, and the simulated camera sees
+    through the robot in between (a real one needs its marker raised). Both
+    are the same for 3 robots.
+    """
     s = positive("spacing_m", spacing_m)
-    if n < 2:
-        raise ValueError(f"n must be >= 2, got {n!r}")
-    return from_slot_positions("line", {first_id + i: Point(0.0, -s * i) for i in range(n)})
+    _check_n(n)
+    if follow not in LINE_FOLLOW:
+        raise ValueError(f"follow must be one of {LINE_FOLLOW}, got {follow!r}")
+    pos = {first_id + i: Point(0.0, -s * i) for i in range(n)}
+    skip = 1 if follow == "ahead" else 2
+    refs = {first_id + i: first_id + i - (1 if i <= 2 else skip) for i in range(1, n)}
+    return from_slot_positions("line", pos, refs)
 
 
 def wedge(n: int, lateral_m: float, back_m: float, first_id: int = 1) -> Formation:
-    """Triangle (wedge) behind the leader, alternating left and right by rank.
+    """Triangle (wedge, V) behind the leader, alternating left and right by rank.
 
-    Robot 2 goes left-behind, robot 3 right-behind, robot 4 two ranks back on
-    the left, and so on. For n = 3 this is the paper's triangle (Fig. 1, 11).
+    Follower i (i = 1 .. n-1 after the leader) flies in rank r = (i + 1) // 2,
+    r * lateral_m to the side (odd i left, even i right) and r * back_m behind
+    the leader. Two chains of references: the left one starts at the leader
+    (robot 2 references robot 1, robot 4 robot 2, ...), the right one at robot
+    2 (robot 3 references robot 2, two lateral steps to its right, as in the
+    paper's triangle, Fig. 1 and 11; robot 5 references robot 3, ...). Every
+    link but robot 3's is one rank apart, (lateral_m, back_m); robot 3's is
+    (2 * lateral_m, 0). The tree's depth is (n - 1) // 2 + 1: 2, 5 and 15 for
+    3, 10 and 30 robots. For n = 3 this is exactly the chain
+    R1 <- R2 <- R3 of the paper.
     """
     lat = positive("lateral_m", lateral_m)
     back = positive("back_m", back_m)
-    if n < 2:
-        raise ValueError(f"n must be >= 2, got {n!r}")
+    _check_n(n)
     pos = {first_id: Point(0.0, 0.0)}
+    refs = {}
     for i in range(1, n):
         rank = (i + 1) // 2
         side = -1.0 if i % 2 == 1 else 1.0
         pos[first_id + i] = Point(side * lat * rank, -back * rank)
-    return from_slot_positions("triangle", pos)
+        refs[first_id + i] = first_id if i == 1 else first_id + 1 if i == 2 else first_id + i - 2
+    return from_slot_positions("triangle", pos, refs)
+
+
+def abreast(n: int, spacing_m: float, first_id: int = 1) -> Formation:
+    """Line abreast: everyone level with the leader, which flies in the middle.
+
+    Follower i (i = 1 .. n-1) is ``((i + 1) // 2) * spacing_m`` to the leader's
+    left (odd i) or right (even i) and references its neighbour toward the
+    leader, ``spacing_m`` beside it (robots 2 and 3 reference the leader;
+    from robot 4 on, the references of ``wedge``).
+    Two chains: the tree's depth is n // 2 (1, 5 and 15 for 3, 10 and 30
+    robots). The reference is abeam (bearing about 90 deg): the camera's field
+    of view must reach that far to the side.
+    """
+    s = positive("spacing_m", spacing_m)
+    _check_n(n)
+    pos = {first_id: Point(0.0, 0.0)}
+    refs = {}
+    for i in range(1, n):
+        rank = (i + 1) // 2
+        pos[first_id + i] = Point((-1.0 if i % 2 == 1 else 1.0) * s * rank, 0.0)
+        refs[first_id + i] = first_id if rank == 1 else first_id + i - 2
+    return from_slot_positions("abreast", pos, refs)
+
+
+def grid(n: int, columns: int, lateral_m: float, back_m: float, first_id: int = 1) -> Formation:
+    """Rows of ``columns`` robots behind the leader, centred on its track.
+
+    Row k (k = 1, 2, ...) is k * back_m behind the leader, its columns lateral_m
+    apart; robots fill a row from the centre out, left before right, so a short
+    last row stays centred. In each column a robot references the robot ahead
+    of it (back_m ahead). In the first row the centre column (with an even
+    number of columns: the two centre columns) references the leader, the
+    others their neighbour toward the centre (lateral_m beside). The tree's
+    depth is (rows - 1) + (columns + 1) // 2 at most: with 3 columns, 2, 4 and
+    11 for 3, 10 and 30 robots.
+    """
+    if isinstance(columns, bool) or not isinstance(columns, int) or columns < 1:
+        raise ValueError(f"columns must be an integer >= 1, got {columns!r}")
+    lat = positive("lateral_m", lateral_m)
+    back = positive("back_m", back_m)
+    _check_n(n)
+    centre = 0.5 * (columns - 1)
+    # Columns from the centre out, left before right: their x in units of lat.
+    order = sorted(range(columns), key=lambda c: (abs(c - centre), c))
+    pos = {first_id: Point(0.0, 0.0)}
+    refs: dict[int, int] = {}
+    at: dict[tuple[int, int], int] = {}  # (row, column) -> robot id
+    for i in range(n - 1):
+        row, col = 1 + i // columns, order[i % columns]
+        rid = first_id + 1 + i
+        pos[rid] = Point((col - centre) * lat, -back * row)
+        at[row, col] = rid
+        if row > 1:
+            refs[rid] = at[row - 1, col]
+        elif abs(col - centre) <= 0.5:
+            refs[rid] = first_id
+        else:
+            refs[rid] = at[row, col + (1 if col < centre else -1)]
+    return from_slot_positions("grid", pos, refs)
+
+
+class Sight(NamedTuple):
+    """What a follower's camera sees of its reference's marker when both are
+    at their slots with the leader's heading (camera.true_reading)."""
+
+    rho_m: float  # distance to the marker
+    beta_rad: float  # bearing from the follower's heading, positive to its right
+
+
+def sights(form: Formation, marker_offset_m: float) -> dict[int, Sight]:
+    """Per follower, its reference's marker as seen from its slot.
+
+    The follower sits at its reference's centre plus its offset (eq. 2 with
+    phi = 0); the marker ``marker_offset_m`` behind the reference's centre."""
+    d = non_negative("marker_offset_m", marker_offset_m)
+    out = {}
+    for rid, slot in sorted(form.slots.items()):
+        x, y = -slot.offset[0], -slot.offset[1] - d  # follower -> marker, follower frame
+        out[rid] = Sight(math.hypot(x, y), math.atan2(x, y))
+    return out
+
+
+class Camera(NamedTuple):
+    """What the sight checks need of a camera, and the margins they keep (see
+    ``check_sight``)."""
+
+    range_m: float
+    fov_rad: float
+    marker_offset_m: float
+    range_margin_m: float
+    fov_margin_rad: float
+
+
+def _sight_error(cam: Camera, rho_m: float, beta_rad: float) -> tuple[str, str] | None:
+    """Where a marker at (rho_m, beta_rad) is and why it is out of the camera's
+    sight with its margins, or None."""
+    reach = cam.range_m - non_negative("range_margin_m", cam.range_margin_m)
+    half = 0.5 * cam.fov_rad - non_negative("fov_margin_rad", cam.fov_margin_rad)
+    if rho_m > reach:
+        return (
+            f"{rho_m:.1f} m away",
+            f"beyond the camera's {cam.range_m:g} m range (margin {cam.range_margin_m:g} m: at most {reach:g} m)",
+        )
+    if cam.fov_rad < 2.0 * math.pi and abs(beta_rad) > half:
+        return (
+            f"at a bearing of {math.degrees(beta_rad):.1f} deg",
+            f"outside the camera's {math.degrees(cam.fov_rad):g} deg field of view"
+            f" (margin {math.degrees(cam.fov_margin_rad):g} deg: at most {math.degrees(half):g} deg either side)",
+        )
+    return None
+
+
+def check_sight(form: Formation, cam: Camera) -> None:
+    """Raise ValueError unless every follower, at its slot, sees its reference's
+    marker within ``range_m - range_margin_m`` and within ``fov_rad / 2 -
+    fov_margin_rad`` of its heading.
+
+    A follower away from its slot by e sees the marker at most e farther
+    (triangle inequality); the margin is the error up to which it must still
+    see it. The field of view is not checked when it is a full circle.
+    """
+    for rid, sight in sights(form, cam.marker_offset_m).items():
+        if (why := _sight_error(cam, sight.rho_m, sight.beta_rad)) is not None:
+            raise ValueError(
+                f"formation {form.name!r}: robot {rid}'s reference robot {form.slots[rid].reference} is {why[0]}"
+                f" at its slot, {why[1]}"
+            )
+
+
+def check_switch(old: Formation, new: Formation, cam: Camera) -> None:
+    """Raise ValueError unless every follower whose reference changes from
+    ``old`` to ``new`` sees its new reference from its slot in ``old``, where
+    the switch finds it (``check_sight``'s rule, with the new reference at its
+    own slot in ``old``)."""
+    places = old.slot_positions()
+    for rid, slot in sorted(new.slots.items()):
+        if rid not in old.slots or old.slots[rid].reference == slot.reference:
+            continue
+        here, there = places[rid], places[slot.reference]
+        x, y = there.x_m - here.x_m, there.y_m - here.y_m - cam.marker_offset_m
+        if (why := _sight_error(cam, math.hypot(x, y), math.atan2(x, y))) is not None:
+            raise ValueError(
+                f"switching from formation {old.name!r} to {new.name!r}: robot {rid}'s new reference robot"
+                f" {slot.reference} is {why[0]} from its slot in {old.name!r}, {why[1]}"
+            )

@@ -187,3 +187,32 @@ def control(
     dt = positive("dt_s", dt_s)
     vn = fis2(drho / dt, rho, p) if mode.static_vn is None else mode.static_vn
     return vn, fis1(alpha, rho, vn, p)
+
+
+class SpeedRange(NamedTuple):
+    """Forward speeds (m/s) of a follower driving straight (alpha = 0)."""
+
+    steady_low_mps: float  # at a constant distance to its target (drho = 0)
+    steady_high_mps: float
+    floor_mps: float  # the slowest it ever drives
+    ceiling_mps: float  # the fastest
+
+
+def speed_range(p: FuzzyParams, mode: SpeedMode) -> SpeedRange:
+    """The speeds at which a follower can hold its slot behind a reference that
+    drives straight, read off the rule tables.
+
+    Going straight, alpha is Center only, so FIS-1 (Table 1, middle column)
+    gives both wheels V_N - a when the target is Close, V_N when Enough and
+    V_N + a when Far. At a constant distance drho = 0, and FIS-2's Zero row
+    (Table 2) is Middle throughout: V_N = vm. The speeds held steadily are
+    therefore [vm - a, vm + a] (a static V_N: [V_N - a, V_N + a]); with drho
+    away from 0 FIS-2 moves V_N within [vn_min, vn_max], so the follower never
+    drives slower than vn_min - a nor faster than vn_max + a. A reference
+    slower than the steady range is overrun (the target falls behind, rho < 0
+    is Close, and the follower still drives at V_N - a); a faster one is lost.
+    """
+    if mode.static_vn is not None:
+        vn = mode.static_vn
+        return SpeedRange(vn - p.a_mps, vn + p.a_mps, vn - p.a_mps, vn + p.a_mps)
+    return SpeedRange(p.vm - p.a_mps, p.vm + p.a_mps, p.vn_min - p.a_mps, p.vn_max + p.a_mps)

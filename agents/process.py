@@ -352,6 +352,8 @@ class Agent:
             return
         slot = self.sc.formation_by_code(fc.code).slots[self.rid]
         self.code = fc.code
+        if slot.reference != self.reference:
+            self.follower.new_reference()
         self.reference = slot.reference
         self.follower.set_offset(slot.offset)
         self.formation_changes.append({"tick": fc.tick, "code": fc.code, "name": self.sc.formation_names[fc.code]})

@@ -31,6 +31,7 @@ import sys
 import threading
 import time
 import uuid
+import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,6 +50,7 @@ from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import FaultCall, Status
 from formation_swarm.protocol.session import make_config
+from formation_swarm.scenario_keys import ScenarioWarning
 
 STOP_GRACE_S = 2.0
 SECRETS = "secrets"  # the run's credentials (folder 0700, files 0600), deleted when the run ends
@@ -135,7 +137,9 @@ class Launch:
         if seed is not None:
             ov["run.seed"] = seed
         extra = [_as_fault(k, kill=True) for k in kills] + [_as_fault(f, kill=False) for f in faults]
-        self.sc = scenario_mod.load(self.scenario_path, ov, extra)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ScenarioWarning)
+            self.sc = scenario_mod.load(self.scenario_path, ov, extra)
         self.mode = mode
         self.run_id = run_id or f"{_slug(self.sc.name)}-{uuid.uuid4().hex[:8]}"
         Keys(self.run_id)  # validates
@@ -146,6 +150,11 @@ class Launch:
         self.web_ports = web_ports  # (gRPC, web viewer), with serve_web
         self.said_web = False  # the web viewer's address is on the console
         self.progress = progress or (lambda line: print(line, flush=True))
+        for w in caught:  # the loader's warnings go to the console with the run's other lines
+            if issubclass(w.category, ScenarioWarning):
+                self.progress(f"[swarm] warning: {w.message}")
+            else:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         self.python = python
         self.fork = fork  # our roles forked from the spawner, else exec'd (formation_swarm.spawner)
         self.auth = auth  # every process logs in with its own fresh credentials; the world enforces the rules

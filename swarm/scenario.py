@@ -12,6 +12,7 @@ from __future__ import annotations
 import difflib
 import math
 import tomllib
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -19,8 +20,18 @@ from typing import Any
 
 from formation_swarm.agents.ekf import EkfParams
 from formation_swarm.agents.follower import FollowerParams
-from formation_swarm.agents.formation import Formation, Slot, line, wedge
-from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode
+from formation_swarm.agents.formation import (
+    Camera,
+    Formation,
+    Slot,
+    abreast,
+    check_sight,
+    check_switch,
+    grid,
+    line,
+    wedge,
+)
+from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode, speed_range
 from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.lpsi import LpsiParams
 from formation_swarm.faults import Fault, check_against, parse_all
@@ -38,10 +49,12 @@ from formation_swarm.scenario_keys import (
     OBSTACLE_KEYS,
     ROBOT_KEYS,
     RUN_KEYS,
+    SHAPES,
     SLOT_KEYS,
     TOP_KEYS,
     Key,
     ScenarioError,
+    ScenarioWarning,
     type_name,
 )
 from formation_swarm.world.camera import CameraParams
@@ -172,7 +185,11 @@ def _formation(name: str, raw: Any, robots: tuple[int, ...]) -> Formation:
     if shape == "wedge":
         form = _wrap(where, wedge, n, t["lateral_m"], t["back_m"], first_id=robots[0])
     elif shape == "line":
-        form = _wrap(where, line, n, t["spacing_m"], first_id=robots[0])
+        form = _wrap(where, line, n, t["spacing_m"], first_id=robots[0], follow=t["follow"])
+    elif shape == "abreast":
+        form = _wrap(where, abreast, n, t["spacing_m"], first_id=robots[0])
+    elif shape == "grid":
+        form = _wrap(where, grid, n, t["columns"], t["lateral_m"], t["back_m"], first_id=robots[0])
     elif shape == "custom":
         slots = {}
         for rid_text, slot in t["slots"].items():
@@ -186,12 +203,89 @@ def _formation(name: str, raw: Any, robots: tuple[int, ...]) -> Formation:
             slots[int(rid_text)] = Slot(st["reference"], Point(float(off[0]), float(off[1])))
         form = _wrap(where, Formation, name, slots)
     else:
-        raise ScenarioError(f"{where}.shape must be 'wedge', 'line' or 'custom', got {shape!r}" + _suggest(
-            str(shape), ("wedge", "line", "custom")))  # fmt: skip
+        raise ScenarioError(f"{where}.shape must be one of {', '.join(map(repr, SHAPES))}, got {shape!r}"
+                            + _suggest(str(shape), SHAPES))  # fmt: skip
     form = Formation(name, form.slots)
     if sorted(form.robots) != list(robots):
         raise ScenarioError(f"{where} covers robots {form.robots}, the run has {list(robots)}")
     return form
+
+
+def _check_sight(ld: Mapping[str, Any], formations: Mapping[str, Formation], camera: CameraParams,
+                 followers: Mapping[int, FollowerParams], forms_raw: Mapping[str, Any]) -> None:  # fmt: skip
+    """Every follower sees its reference from its slot, and at a switch between
+    the leader's two formations its new reference from its old slot, with a
+    margin: the fuzzy controller's dmax_m in range (a follower that far from
+    its slot is at full "Far" and still sees its reference) and its heading
+    tolerance gamma in the field of view (the largest of the followers')."""
+    cam = Camera(
+        range_m=camera.range_m,
+        fov_rad=camera.fov_rad,
+        marker_offset_m=camera.marker_offset_m,
+        range_margin_m=max(fp.fuzzy.dmax_m for fp in followers.values()),
+        fov_margin_rad=max(fp.fuzzy.gamma_rad for fp in followers.values()),
+    )
+    for name, form in formations.items():
+        _wrap(f"formations.{name}", check_sight, form, cam)
+    if ld["avoid_formation"]:
+        normal, avoid = formations[ld["formation"]], formations[ld["avoid_formation"]]
+        try:
+            check_switch(normal, avoid, cam)
+            check_switch(avoid, normal, cam)
+        except ValueError as exc:
+            pair = (forms_raw[ld["formation"]], forms_raw[ld["avoid_formation"]])
+            ahead = any(t.get("shape") == "line" and t.get("follow", "ahead") == "ahead" for t in pair)
+            hint = "; a line with follow = 'pairs' has the references of a wedge" if ahead else ""
+            raise ScenarioError(f"leader.avoid_formation: {exc}{hint}") from None
+
+
+def _ranges(ids: list[int]) -> str:
+    """[2, 3, 4, 7] -> "2-4, 7"."""
+    runs: list[list[int]] = []
+    for i in sorted(ids):
+        if runs and i == runs[-1][-1] + 1:
+            runs[-1].append(i)
+        else:
+            runs.append([i])
+    return ", ".join(str(r[0]) if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs)
+
+
+def speed_warnings(leader_speed_mps: float, followers: Mapping[int, FollowerParams]) -> list[str]:
+    """Why the leader's cruise speed lies outside the speeds its fuzzy
+    followers hold steadily (agents.fuzzy.speed_range), one line per group of
+    followers with the same range; empty when it lies inside every range."""
+    groups: dict[tuple[str, float, float, float], list[int]] = {}
+    for rid, fp in followers.items():
+        if fp.law != "fuzzy":
+            continue
+        r = speed_range(fp.fuzzy, fp.speed)
+        if leader_speed_mps < r.steady_low_mps - 1e-9:
+            key = ("below", r.steady_low_mps, r.steady_high_mps, r.floor_mps)
+        elif leader_speed_mps > r.steady_high_mps + 1e-9:
+            key = ("above", r.steady_low_mps, r.steady_high_mps, r.ceiling_mps)
+        else:
+            continue
+        groups.setdefault(key, []).append(rid)
+    out = []
+    for (side, low, high, limit), rids in groups.items():
+        one = len(rids) == 1
+        who = (
+            f"follower {rids[0]}'s fuzzy controller holds"
+            if one
+            else f"followers {_ranges(rids)}' fuzzy controllers hold"
+        )
+        they, their = ("it", "its") if one else ("they", "their")
+        drives = ("drives" if one else "drive") + (" slower" if side == "below" else " faster")
+        fate = (
+            f"will overrun {their} target{'' if one else 's'} and may hit {their} reference{'' if one else 's'}"
+            if side == "below"
+            else f"will fall behind and may lose {their} reference{'' if one else 's'}"
+        )
+        out.append(
+            f"leader.speed_mps = {leader_speed_mps:g} is {side} the speeds {who} steadily, {low:g}-{high:g} m/s"
+            f" (vm -+ a_mps, or a static vn -+ a_mps), and {they} never {drives} than {limit:g} m/s: {they} {fate}"
+        )
+    return out
 
 
 def _follower_params(where: str, t: Mapping[str, Any], robot: Mapping[str, Any], dt: float) -> FollowerParams:
@@ -327,6 +421,9 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         followers[rid] = _follower_params(where, _table(merged, where, CONTROLLER_KEYS), robot, dt)
 
     _check_wheel_limit(float(robot["max_wheel_mps"]), float(robot["width_m"]), ld, followers)
+    _check_sight(ld, formations, camera, followers, forms_raw)
+    for text in speed_warnings(float(ld["speed_mps"]), followers):
+        warnings.warn(text, ScenarioWarning, stacklevel=2)
 
     obstacles = []
     obs_raw = raw.get("obstacles", [])

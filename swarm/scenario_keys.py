@@ -28,6 +28,11 @@ class ScenarioError(ValueError):
     """A scenario that cannot run; the message names the key."""
 
 
+class ScenarioWarning(UserWarning):
+    """A scenario that runs, but not as its author likely expects (the loader
+    warns with it through ``warnings.warn``)."""
+
+
 REQUIRED = object()  # the default of a key that must be given
 NUM = (int, float)
 
@@ -131,18 +136,53 @@ LEADER_KEYS = {
     ),
     "code_period_s": positive("otherwise it repeats its current code this often", 0.5, "s"),
 }
+SHAPES = ("wedge", "line", "abreast", "grid", "custom")
 FORMATION_KEYS = {
-    "shape": Key(str, REQUIRED, "'wedge' (a V behind the leader), 'line' (single file) or 'custom'"),
+    "shape": Key(
+        str,
+        REQUIRED,
+        "'wedge' (a V behind the leader; tree depth (n - 1) // 2 + 1), 'line' (single file; depth n - 1, or"
+        " (n - 1) // 2 + 1 with follow = 'pairs'), 'abreast' (level with the leader, which flies in the middle;"
+        " depth n // 2), 'grid' (rows behind the leader; depth at most rows - 1 + (columns + 1) // 2) or 'custom'. The"
+        " depth is the longest chain of references from a follower to the leader, n the number of robots."
+        " Every follower's reference must be within the camera's range less the controller's dmax_m, and within"
+        " its field of view less gamma_deg, seen from the follower's slot, and so must a new reference at a"
+        " switch between leader.formation and leader.avoid_formation, seen from the old slot: the loader"
+        " rejects a formation that is not",
+    ),
     "lateral_m": positive(
         "wedge: followers fly in ranks r = 1, 2, ... (two per rank, the 1st, 3rd, ... on the left), each rank"
-        " r * lateral_m to the side of the leader's track",
+        " r * lateral_m to the side of the leader's track; grid: the distance between columns",
         1.5,
         "m",
     ),
     "back_m": positive(
-        "wedge: and r * back_m behind the leader; each follower steers on the robot before it", 1.5, "m"
+        "wedge: and r * back_m behind the leader; the left ranks each follow the rank before them on the left"
+        " (rank 1: the leader), the right ranks the rank before them on the right (rank 1: the first left"
+        " follower, as in the paper's triangle); grid: the distance between rows",
+        1.5,
+        "m",
     ),
-    "spacing_m": positive("line: distance between consecutive robots", 1.5, "m"),
+    "spacing_m": positive(
+        "line: distance between consecutive robots; abreast: distance between neighbours, each following its"
+        " neighbour toward the leader",
+        1.5,
+        "m",
+    ),
+    "follow": Key(
+        str,
+        "ahead",
+        "line: 'ahead' (each robot follows the one ahead) or 'pairs' (robots 2 and 3 the one ahead, then each"
+        " the one two places ahead: the references of a wedge, so that a switch between a wedge and a line"
+        " changes offsets only; with the default spacings, needed to switch with more than 6 robots)",
+    ),
+    "columns": Key(
+        int,
+        3,
+        "grid: robots per row, filled from the centre out; each follows the robot ahead in its column, the"
+        " first row the leader (centre columns) or its neighbour toward the centre",
+        low=1,
+    ),
     "slots": Key(dict, {}, "custom: per follower id, { reference = ID, offset = [x_m, y_m] } in the reference's frame"),
 }
 SLOT_KEYS = {
@@ -295,6 +335,9 @@ def markdown() -> str:
         "override keys by their dotted name (`leader.speed_mps=1.6`) with the same checks.",
         "Deeper checks (for example `d0_m < dn_m <= d1_m < dmax_m`) are made by the objects the",
         "scenario builds, and their errors name the section.",
+        "A scenario that runs but likely not as meant gets a warning (`ScenarioWarning`; `swarm run` prints",
+        "`[swarm] warning: ...`): so far, a `leader.speed_mps` outside the speeds its fuzzy followers hold",
+        "steadily (vm -+ a_mps, or a static vn -+ a_mps: 1.2-2.2 m/s by default; docs/paper.md).",
         "",
     ]
     for name, (keys, what, toml) in SECTIONS.items():

@@ -47,6 +47,42 @@ MAX_TICK = 2**53
 WORLD_ID = 0
 STARTUP_TIMEOUT_S = 60.0
 
+
+def _places(
+    shape: str, spec: dict[str, Any], first: int, n: int
+) -> tuple[dict[int, tuple[float, float]], dict[int, int]]:
+    """Every robot's place in the leader's frame, and every follower's reference."""
+    lat, back = float(spec.get("lateral_m", 1.5)), float(spec.get("back_m", 1.5))
+    spacing = float(spec.get("spacing_m", 1.5))
+    place, refs = {first: (0.0, 0.0)}, {}
+    if shape == "grid":
+        cols = int(spec.get("columns", 3))
+        c0 = (cols - 1) / 2
+        order = sorted(range(cols), key=lambda c: (abs(c - c0), c))
+        at = {}
+        for k in range(n - 1):
+            row, c = 1 + k // cols, order[k % cols]
+            rid = first + 1 + k
+            place[rid], at[row, c] = ((c - c0) * lat, -back * row), rid
+            if row > 1:
+                refs[rid] = at[row - 1, c]
+            else:
+                refs[rid] = first if abs(c - c0) <= 0.5 else at[1, c + 1 if c < c0 else c - 1]
+        return place, refs
+    for i in range(1, n):
+        rank, side = (i + 1) // 2, (-1.0 if i % 2 == 1 else 1.0)
+        if shape == "line":
+            skip = 2 if spec.get("follow", "ahead") == "pairs" and i > 2 else 1
+            place[first + i], refs[first + i] = (0.0, -spacing * i), first + i - skip
+        elif shape == "abreast":
+            place[first + i] = (side * spacing * rank, 0.0)
+            refs[first + i] = first if rank == 1 else first + i - 2
+        else:  # wedge
+            place[first + i] = (side * lat * rank, -back * rank)
+            refs[first + i] = first if i == 1 else first + 1 if i == 2 else first + i - 2
+    return place, refs
+
+
 # -- the control law ---------------------------------------------------------------
 LOOKAHEAD_M = 0.3
 GAIN_PER_S = 2.0
@@ -158,20 +194,47 @@ def formation_slots(sc: dict[str, Any]) -> list[dict[int, tuple[int, tuple[float
                 for r, s in spec["slots"].items()
             }
         else:
-            if shape == "line":
-                place = {rid: (0.0, -float(spec.get("spacing_m", 1.5)) * i) for i, rid in enumerate(ids)}
-            else:  # wedge
-                lat, back = float(spec.get("lateral_m", 1.5)), float(spec.get("back_m", 1.5))
-                place = {first: (0.0, 0.0)}
-                for i in range(1, len(ids)):
-                    rank, side = (i + 1) // 2, (-1.0 if i % 2 == 1 else 1.0)
-                    place[first + i] = (side * lat * rank, -back * rank)
+            place, refs = _places(shape, spec, first, len(ids))
             slots = {
-                rid: (prev, (place[rid][0] - place[prev][0], place[rid][1] - place[prev][1]))
-                for prev, rid in zip(ids, ids[1:], strict=False)
+                rid: (ref, (place[rid][0] - place[ref][0], place[rid][1] - place[ref][1])) for rid, ref in refs.items()
             }
         out.append(slots)
     return out
+
+
+def _places(
+    shape: str, spec: dict[str, Any], first: int, n: int
+) -> tuple[dict[int, tuple[float, float]], dict[int, int]]:
+    """Every robot's place in the leader's frame, and every follower's reference."""
+    lat, back = float(spec.get("lateral_m", 1.5)), float(spec.get("back_m", 1.5))
+    spacing = float(spec.get("spacing_m", 1.5))
+    place, refs = {first: (0.0, 0.0)}, {}
+    if shape == "grid":
+        cols = int(spec.get("columns", 3))
+        c0 = (cols - 1) / 2
+        order = sorted(range(cols), key=lambda c: (abs(c - c0), c))
+        at = {}
+        for k in range(n - 1):
+            row, c = 1 + k // cols, order[k % cols]
+            rid = first + 1 + k
+            place[rid], at[row, c] = ((c - c0) * lat, -back * row), rid
+            if row > 1:
+                refs[rid] = at[row - 1, c]
+            else:
+                refs[rid] = first if abs(c - c0) <= 0.5 else at[1, c + 1 if c < c0 else c - 1]
+        return place, refs
+    for i in range(1, n):
+        rank, side = (i + 1) // 2, (-1.0 if i % 2 == 1 else 1.0)
+        if shape == "line":
+            skip = 2 if spec.get("follow", "ahead") == "pairs" and i > 2 else 1
+            place[first + i], refs[first + i] = (0.0, -spacing * i), first + i - skip
+        elif shape == "abreast":
+            place[first + i] = (side * spacing * rank, 0.0)
+            refs[first + i] = first if rank == 1 else first + i - 2
+        else:  # wedge
+            place[first + i] = (side * lat * rank, -back * rank)
+            refs[first + i] = first if i == 1 else first + 1 if i == 2 else first + i - 2
+    return place, refs
 
 
 # -- the control law -------------------------------------------------------------

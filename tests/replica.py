@@ -69,6 +69,8 @@ def replay(path: str | Path, seed: int, overrides: Mapping[str, Any] | None = No
                 _, new = pending[rid].pop(0)
                 if new != codes[rid]:
                     slot = sc.formation_by_code(new).slots[rid]
+                    if slot.reference != reference[rid]:
+                        followers[rid].new_reference()
                     codes[rid], reference[rid] = new, slot.reference
                     followers[rid].set_offset(slot.offset)
             reading = None

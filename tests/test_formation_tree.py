@@ -1,0 +1,324 @@
+"""Formations for many robots: each follower's reference within the camera's
+sight from its slot, the references a tree rooted at the leader of a stated
+depth; the loader rejects a formation out of sight and warns of a leader
+faster or slower than its followers' controller holds."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from pathlib import Path
+
+import pytest
+
+from formation_swarm import scenario as sm
+from formation_swarm.agents import fuzzy as fz
+from formation_swarm.agents.follower import Follower, FollowerParams
+from formation_swarm.agents.formation import (
+    Camera,
+    Formation,
+    Slot,
+    abreast,
+    check_sight,
+    check_switch,
+    grid,
+    line,
+    sights,
+    wedge,
+)
+from formation_swarm.agents.geometry import Point
+from formation_swarm.launcher import Launch
+from formation_swarm.scenario_keys import ScenarioWarning
+from tests.conftest import SCENARIOS
+
+MARKER_M = 0.1  # robot.marker_offset_m's default
+# The scenario's defaults: a 10 m camera all around; margins dmax_m = 2 m and gamma = 15 deg.
+DEFAULT_CAMERA = Camera(
+    range_m=10.0, fov_rad=2 * math.pi, marker_offset_m=MARKER_M, range_margin_m=2.0, fov_margin_rad=math.radians(15)
+)
+SHAPES = {
+    "wedge": lambda n: wedge(n, 1.5, 1.5),
+    "line": lambda n: line(n, 1.5),
+    "line_pairs": lambda n: line(n, 1.5, follow="pairs"),
+    "abreast": lambda n: abreast(n, 1.5),
+    "grid": lambda n: grid(n, 3, 1.5, 1.5),
+}
+# The farthest reference marker seen from a slot (1.5 m spacings, marker 0.1 m
+# behind its robot's centre): the wedge's robot 3 sees robot 2 two lateral
+# steps to its left, hypot(3.0, 0.1); the line's is one place, 1.5 - 0.1, ahead
+# (on pairs two places, 3.0 - 0.1, but for 3 robots);
+# abreast and the grid's first row look 1.5 m to the side, hypot(1.5, 0.1).
+WORST_RHO_M = {  # n = 3, 10, 30
+    "wedge": (math.hypot(3.0, 0.1),) * 3,
+    "line": (1.4, 1.4, 1.4),
+    "line_pairs": (1.4, 2.9, 2.9),
+    "abreast": (math.hypot(1.5, 0.1),) * 3,
+    "grid": (math.hypot(1.5, 0.1),) * 3,
+}
+DEPTH = {  # n = 3, 10, 30
+    "wedge": (2, 5, 15),  # (n - 1) // 2 + 1: two chains
+    "line": (2, 9, 29),  # n - 1: one chain
+    "line_pairs": (2, 5, 15),  # (n - 1) // 2 + 1: two interleaved chains
+    "abreast": (1, 5, 15),  # n // 2: two chains from the leader
+    "grid": (2, 4, 11),  # rows - 1 + 2, three columns
+}
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+@pytest.mark.parametrize(("n", "col"), [(3, 0), (10, 1), (30, 2)])
+def test_depth_and_worst_reference_distance_per_shape(shape: str, n: int, col: int) -> None:
+    form = SHAPES[shape](n)
+    assert form.robots == list(range(1, n + 1))
+    assert form.leader == 1
+    assert form.depth == DEPTH[shape][col]
+    worst = max(s.rho_m for s in sights(form, MARKER_M).values())
+    assert worst == pytest.approx(WORST_RHO_M[shape][col], abs=1e-12)
+    # Every shape passes the default camera (10 m, all around) with the default margin (dmax_m = 2).
+    check_sight(form, DEFAULT_CAMERA)
+
+
+def test_the_papers_three_robot_formations_keep_their_references_and_offsets() -> None:
+    assert wedge(3, 1.5, 1.5).slots == {2: Slot(1, Point(-1.5, -1.5)), 3: Slot(2, Point(3.0, 0.0))}
+    assert line(3, 1.5).slots == {2: Slot(1, Point(0.0, -1.5)), 3: Slot(2, Point(0.0, -1.5))}
+
+
+def test_a_wedge_is_two_chains_one_rank_apart() -> None:
+    form = wedge(30, 1.5, 1.0)
+    refs = {rid: s.reference for rid, s in form.slots.items()}
+    assert [refs[r] for r in (2, 4, 6, 28, 30)] == [1, 2, 4, 26, 28]  # the left chain
+    assert [refs[r] for r in (3, 5, 7, 29)] == [2, 3, 5, 27]  # the right chain, off robot 2
+    for rid, slot in form.slots.items():
+        step = Point(3.0, 0.0) if rid == 3 else Point(-1.5 if rid % 2 == 0 else 1.5, -1.0)
+        assert slot.offset == pytest.approx(step)
+    # The places are those of the chain i -> i-1 it replaces: rank r at (-+r * lateral, -r * back).
+    places = form.slot_positions()
+    assert places[30] == pytest.approx((-22.5, -15.0))
+    assert places[29] == pytest.approx((21.0, -14.0))
+
+
+def test_a_grid_fills_rows_from_the_centre_and_follows_down_its_columns() -> None:
+    form = grid(10, 3, 2.0, 1.5)
+    places = form.slot_positions()
+    assert [places[r] for r in (2, 3, 4)] == [(0.0, -1.5), (-2.0, -1.5), (2.0, -1.5)]
+    assert {r: form.slots[r].reference for r in (2, 3, 4, 5, 6, 7, 10)} == {2: 1, 3: 2, 4: 2, 5: 2, 6: 3, 7: 4, 10: 7}
+    even = grid(5, 4, 1.0, 1.0)  # two centre columns, both on the leader
+    assert {r: s.reference for r, s in even.slots.items()} == {2: 1, 3: 1, 4: 2, 5: 3}
+    assert even.slot_positions()[2] == pytest.approx((-0.5, -1.0))
+
+
+def test_a_far_or_abeam_reference_fails_the_camera_with_numbers() -> None:
+    far = Formation("x", {2: Slot(1, Point(0.0, -1.5)), 3: Slot(2, Point(0.0, -8.6))})
+    # 8.6 - 0.1 = 8.5 m: inside the 10 m range, not inside its 2 m margin.
+    with pytest.raises(
+        ValueError,
+        match="formation 'x': robot 3's reference robot 2 is 8.5 m away at its slot,"
+        r" beyond the camera's 10 m range \(margin 2 m: at most 8 m\)",
+    ):
+        check_sight(far, DEFAULT_CAMERA)
+    check_sight(far, DEFAULT_CAMERA._replace(range_margin_m=1.5))
+    half_circle = DEFAULT_CAMERA._replace(fov_rad=math.pi)
+    with pytest.raises(
+        ValueError,
+        match=r"robot 2's reference robot 1 is at a bearing of 93.8 deg at its slot,"
+        r" outside the camera's 180 deg field of view \(margin 15 deg: at most 75 deg either side\)",
+    ):
+        check_sight(abreast(3, 1.5), half_circle)
+    with pytest.raises(ValueError, match="robot 3's reference robot 2 is at a bearing of -91.9 deg"):
+        check_sight(wedge(30, 1.5, 1.5), half_circle)
+    check_sight(line(30, 1.5), half_circle)
+
+
+@pytest.mark.parametrize("n", [3, 10, 30])
+def test_a_wedge_and_a_line_on_pairs_share_their_references(n: int) -> None:
+    """A switch between them changes offsets only: eq. 11-13's partition zones
+    are around the reference the follower already tracks."""
+    w, ln = wedge(n, 1.5, 1.5), line(n, 1.5, follow="pairs")
+    assert {r: s.reference for r, s in w.slots.items()} == {r: s.reference for r, s in ln.slots.items()}
+    check_switch(w, ln, DEFAULT_CAMERA)
+    check_switch(ln, w, DEFAULT_CAMERA)
+    ab = abreast(n, 1.5)  # robot 3 references the leader instead of robot 2: 2.1 m from its wedge slot
+    check_switch(w, ab, DEFAULT_CAMERA)
+    check_switch(ab, w, DEFAULT_CAMERA)
+
+
+def test_a_switch_to_a_reference_out_of_sight_is_refused() -> None:
+    # A line on the robot ahead: from its wedge slot (rank 3, right) robot 7 finds robot 6
+    # (rank 3, left) 9 m away; with 6 robots the farthest, robot 6 -> 5, is 7.6 m.
+    with pytest.raises(
+        ValueError,
+        match="switching from formation 'triangle' to 'line': robot 7's new reference robot 6 is 9.0 m away"
+        r" from its slot in 'triangle', beyond the camera's 10 m range \(margin 2 m: at most 8 m\)",
+    ):
+        check_switch(wedge(7, 1.5, 1.5), line(7, 1.5), DEFAULT_CAMERA)
+    check_switch(wedge(6, 1.5, 1.5), line(6, 1.5), DEFAULT_CAMERA)
+    check_switch(line(6, 1.5), wedge(6, 1.5, 1.5), DEFAULT_CAMERA)
+
+
+def test_the_loader_refuses_the_papers_switch_for_ten_robots_unless_the_line_is_on_pairs() -> None:
+    fig11 = SCENARIOS / "fig11_obstacles.toml"
+    with pytest.raises(sm.ScenarioError) as info:
+        sm.load(fig11, overrides={"run.robots": 10})
+    assert str(info.value) == (
+        f"{fig11}: leader.avoid_formation: switching from formation 'triangle' to 'line': robot 7's new reference"
+        " robot 6 is 9.0 m away from its slot in 'triangle', beyond the camera's 10 m range (margin 2 m: at most"
+        " 8 m); a line with follow = 'pairs' has the references of a wedge"
+    )
+    sc = sm.load(fig11, overrides={"run.robots": 10, "formations.line.follow": "pairs"})
+    assert sc.formations["line"].slots[7].reference == sc.formations["triangle"].slots[7].reference == 5
+    with pytest.raises(sm.ScenarioError, match="follow must be one of \\('ahead', 'pairs'\\), got 'pair'"):
+        sm.load(fig11, overrides={"formations.line.follow": "pair"})
+
+
+CUSTOM = """
+[run]
+robots = 4
+duration_s = 10.0
+[leader]
+waypoints = [[0.0, 0.0], [0.0, 50.0]]
+formation = "x"
+[formations.x]
+shape = "custom"
+[formations.x.slots.2]
+reference = 1
+offset = [0.0, -1.5]
+[formations.x.slots.3]
+reference = 2
+offset = [-1.5, -1.5]
+[formations.x.slots.4]
+reference = 2
+offset = [9.0, -6.0]
+"""
+
+
+def test_the_loader_rejects_a_custom_formation_out_of_camera_range(tmp_path: Path) -> None:
+    path = tmp_path / "far.toml"
+    path.write_text(CUSTOM)
+    with pytest.raises(sm.ScenarioError) as info:
+        sm.load(path)
+    # The marker 0.1 m behind robot 2: hypot(9.0, 5.9) = 10.76 m.
+    assert str(info.value) == (
+        f"{path}: formations.x: formation 'x': robot 4's reference robot 2 is 10.8 m away at its slot,"
+        " beyond the camera's 10 m range (margin 2 m: at most 8 m)"
+    )
+    # A longer camera, or a smaller dmax_m (the margin), lets it through.
+    assert sm.load(path, overrides={"camera.range_m": 13.0}).formations["x"].slots[4].reference == 2
+    with pytest.raises(sm.ScenarioError, match=r"range \(margin 1.5 m: at most 10.5 m\)"):
+        sm.load(path, overrides={"camera.range_m": 12.0, "controller.dmax_m": 1.5})
+
+
+def test_the_loader_rejects_a_shape_outside_a_narrow_field_of_view() -> None:
+    # A 150 deg camera (75 - 15 deg either side) sees a line's references ahead, not abreast's beside.
+    with pytest.raises(
+        sm.ScenarioError,
+        match="formations.line: formation 'line': robot 2's reference robot 1 is at a bearing of 93.8 deg",
+    ):
+        sm.load(
+            SCENARIOS / "fig11_obstacles.toml",
+            overrides={
+                "camera.fov_deg": 150.0,
+                "formations.triangle.shape": "line",
+                "formations.line.shape": "abreast",
+            },
+        )
+    # A wedge's robot 3 looks 91.9 deg aside (at robot 2): a 210 deg camera sees it with 13 deg to spare, not 15.
+    with pytest.raises(sm.ScenarioError, match="robot 3's reference robot 2 is at a bearing of -91.9 deg"):
+        sm.load(SCENARIOS / "fig11_obstacles.toml", overrides={"camera.fov_deg": 210.0})
+    assert sm.load(SCENARIOS / "fig11_obstacles.toml", overrides={"camera.fov_deg": 214.0}).robots == (1, 2, 3)
+
+
+@pytest.mark.parametrize(
+    ("shape", "extra"),
+    [
+        ("wedge", {}),
+        ("line", {}),
+        ("line", {"formations.two.follow": "pairs"}),
+        ("abreast", {}),
+        ("grid", {"formations.two.columns": 4}),
+    ],
+)
+def test_the_loader_builds_every_shape_for_thirty_robots(shape: str, extra: dict) -> None:
+    sc = sm.load(
+        SCENARIOS / "fig7_turn_vn_dynamic.toml", overrides={"run.robots": 30, "formations.two.shape": shape, **extra}
+    )
+    form = sc.formations["two"]
+    assert form.robots == list(range(1, 31))
+    pairs = extra.get("formations.two.follow") == "pairs"
+    assert form.depth == {"wedge": 15, "line": 15 if pairs else 29, "abreast": 15, "grid": 8}[shape]
+
+
+def test_a_misspelt_shape_is_suggested() -> None:
+    with pytest.raises(sm.ScenarioError, match="did you mean 'abreast'"):
+        sm.load(SCENARIOS / "fig11_obstacles.toml", overrides={"formations.line.shape": "abreats"})
+
+
+def test_the_speeds_a_follower_holds_are_read_off_the_rule_tables() -> None:
+    p = fz.FuzzyParams()
+    assert fz.speed_range(p, fz.SpeedMode()) == pytest.approx((1.2, 2.2, 1.0, 2.5))
+    assert fz.speed_range(p, fz.SpeedMode(2.0)) == pytest.approx((1.5, 2.5, 1.5, 2.5))
+    # drho = 0: FIS-2 gives vm whatever rho; going straight FIS-1 then gives vm - a (Close) .. vm + a (Far).
+    for rho in (-1.0, 0.0, 0.3, 0.7, 1.5, 5.0):
+        assert fz.fis2(0.0, rho, p) == pytest.approx(p.vm)
+    assert fz.fis1(0.0, -0.5, p.vm, p) == pytest.approx((1.2, 1.2))
+    assert fz.fis1(0.0, 0.7, p.vm, p) == pytest.approx((1.7, 1.7))
+    assert fz.fis1(0.0, 5.0, p.vm, p) == pytest.approx((2.2, 2.2))
+    # The slowest and fastest commands over any inputs: vn_min - a and vn_max + a.
+    speeds = [
+        sum(fz.control(a, r, d, 0.05, p, fz.SpeedMode())[1]) / 2
+        for a in (-1.0, 0.0, 0.1, 1.0)
+        for r in (-2.0, 0.05, 0.3, 0.7, 1.5, 5.0)
+        for d in (-0.1, -0.01, 0.0, 0.01, 0.1)
+    ]
+    assert min(speeds) == pytest.approx(1.0)
+    assert max(speeds) == pytest.approx(2.5)
+
+
+def test_a_slow_leader_is_warned_of() -> None:
+    with pytest.warns(ScenarioWarning) as record:
+        sm.load(
+            SCENARIOS / "fig7_turn_vn_dynamic.toml",
+            overrides={"leader.speed_mps": 1.0, "run.robots": 10, "formations.two.shape": "line"},
+        )
+    assert [str(w.message) for w in record] == [
+        "leader.speed_mps = 1 is below the speeds followers 2-10' fuzzy controllers hold steadily, 1.2-2.2 m/s"
+        " (vm -+ a_mps, or a static vn -+ a_mps), and they never drive slower than 1 m/s: they will overrun their"
+        " targets and may hit their references"
+    ]
+    with pytest.warns(ScenarioWarning, match="follower 2's fuzzy controller holds steadily, 1.5-2.5 m/s .* it never"
+                      " drives faster than 2.5 m/s: it will fall behind and may lose its reference"):  # fmt: skip
+        sm.load(SCENARIOS / "fig6_turn_vn_2.toml", overrides={"leader.speed_mps": 2.6})
+    # The l-psi baseline is not the fuzzy controller: no warning for it.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ScenarioWarning)
+        sm.load(SCENARIOS / "fig7_turn_vn_dynamic.toml", overrides={"leader.speed_mps": 1.0, "controller.law": "lpsi"})
+
+
+@pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.toml")), ids=lambda p: p.stem)
+def test_no_shipped_scenario_is_warned_of(path: Path) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ScenarioWarning)
+        sm.load(path)
+
+
+def test_a_new_reference_restarts_the_filter() -> None:
+    f = Follower(FollowerParams(), Point(0.0, -1.5))
+    for _ in range(5):
+        d = f.step((1.4, 0.0, 0.0))
+    assert f.ekf.initialized
+    assert d.rho_m == pytest.approx(0.0, abs=0.05)
+    f.new_reference()
+    assert not f.ekf.initialized
+    stopped = f.step(None)  # nothing of the new reference yet: stop, not steer on the old one's estimate
+    assert (stopped.left_mps, stopped.right_mps) == (0.0, 0.0)
+    d = f.step((4.4, 0.0, 0.0))  # the new one, 3 m farther: the filter starts on it
+    assert f.ekf.initialized
+    assert d.rho_m == pytest.approx(3.0, abs=1e-9)
+
+
+def test_swarm_run_prints_the_loaders_warnings_with_its_console_lines() -> None:
+    lines: list[str] = []
+    Launch("fig6_turn_vn_1_5", overrides={"leader.speed_mps": 0.9}, progress=lines.append)
+    assert lines == [
+        "[swarm] warning: leader.speed_mps = 0.9 is below the speeds follower 2's fuzzy controller holds steadily,"
+        " 1-2 m/s (vm -+ a_mps, or a static vn -+ a_mps), and it never drives slower than 1 m/s: it will overrun"
+        " its target and may hit its reference"
+    ]
