@@ -137,8 +137,8 @@ class Launch:
         if seed is not None:
             ov["run.seed"] = seed
         extra = [_as_fault(k, kill=True) for k in kills] + [_as_fault(f, kill=False) for f in faults]
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", ScenarioWarning)
+        with warnings.catch_warnings():  # the loader's warnings are in sc.warnings: printed when the run starts
+            warnings.simplefilter("ignore", ScenarioWarning)
             self.sc = scenario_mod.load(self.scenario_path, ov, extra)
         self.mode = mode
         self.run_id = run_id or f"{_slug(self.sc.name)}-{uuid.uuid4().hex[:8]}"
@@ -150,11 +150,8 @@ class Launch:
         self.web_ports = web_ports  # (gRPC, web viewer), with serve_web
         self.said_web = False  # the web viewer's address is on the console
         self.progress = progress or (lambda line: print(line, flush=True))
-        for w in caught:  # the loader's warnings go to the console with the run's other lines
-            if issubclass(w.category, ScenarioWarning):
-                self.progress(f"[swarm] warning: {w.message}")
-            else:
-                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        for warning in self.sc.warnings:  # the loader's, with the run's other console lines
+            self.progress(f"[swarm] warning: {warning}")
         self.python = python
         self.fork = fork  # our roles forked from the spawner, else exec'd (formation_swarm.spawner)
         self.auth = auth  # every process logs in with its own fresh credentials; the world enforces the rules
@@ -205,8 +202,6 @@ class Launch:
             raise
 
     def _start(self) -> None:
-        for warning in self.sc.warnings:
-            self.progress(f"[swarm] warning: {warning}")
         self.run_dir.mkdir(parents=True, exist_ok=True)
         (self.run_dir / "logs").mkdir(exist_ok=True)
         (self.run_dir / "stats").mkdir(exist_ok=True)

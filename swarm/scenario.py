@@ -110,7 +110,7 @@ class Scenario:
     raw: Mapping[str, Any] = field(repr=False, compare=False)
     faults: tuple[Fault, ...] = ()  # the fault schedule, by start time (formation_swarm.faults)
     wheel_noise_mps: float = 0.0  # robot.wheel_noise_mps: every wheel, every tick
-    # What may make the run say little, found at load (start_warnings); not errors.
+    # What may make the run say little, found at load (speed_warnings); not errors.
     warnings: tuple[str, ...] = field(default=(), compare=False)
 
     @property
@@ -422,8 +422,7 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
 
     _check_wheel_limit(float(robot["max_wheel_mps"]), float(robot["width_m"]), ld, followers)
     _check_sight(ld, formations, camera, followers, forms_raw)
-    for text in speed_warnings(float(ld["speed_mps"]), followers):
-        warnings.warn(text, ScenarioWarning, stacklevel=2)
+    speed = speed_warnings(float(ld["speed_mps"]), followers)
 
     obstacles = []
     obs_raw = raw.get("obstacles", [])
@@ -476,34 +475,10 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         faults=faults,
         wheel_noise_mps=float(robot["wheel_noise_mps"]),
     )
-    return replace(sc, warnings=start_warnings(sc))
-
-
-def start_warnings(sc: Scenario) -> tuple[str, ...]:
-    """A follower whose reference's marker is beyond its camera's range or
-    outside its field of view at the start: it never sees it, never moves,
-    and has no metrics (the summary says "never acquired")."""
-    from formation_swarm.world.camera import true_reading
-    from formation_swarm.world.engine import start_poses
-
-    poses = start_poses(sc)
-    cam = sc.camera
-    out = []
-    for rid, slot in sorted(sc.formations[sc.leader.formation].slots.items()):
-        rho, _, beta = true_reading(poses[rid], poses[slot.reference], cam.marker_offset_m)
-        if rho > cam.range_m:
-            why = f"{rho:.2f} m away, beyond camera.range_m = {cam.range_m:g} m"
-        elif abs(beta) > 0.5 * cam.fov_rad:
-            why = (f"at a bearing of {math.degrees(beta):+.0f} deg, outside camera.fov_deg = "
-                   f"{math.degrees(cam.fov_rad):g} ({rho:.2f} m away)")  # fmt: skip
-        else:
-            continue
-        out.append(
-            f"robot {rid} starts with its reference, robot {slot.reference} (formation "
-            f"{sc.leader.formation!r}), {why}: unless it comes into view, robot {rid} never moves "
-            "and gets no metrics (never acquired)"
-        )
-    return tuple(out)
+    said = tuple(speed)
+    for text in said:  # for a library's user; swarm run prints Scenario.warnings with the run's lines
+        warnings.warn(text, ScenarioWarning, stacklevel=2)
+    return replace(sc, warnings=said)
 
 
 def load(

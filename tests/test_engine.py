@@ -299,9 +299,11 @@ def test_error_windows_give_each_followers_mean_and_largest_error_per_second() -
 
 
 def test_a_follower_that_never_sees_its_reference_has_no_metrics() -> None:
-    """Camera range 1.8 m: R2 starts 2.05 m from R1, R3 3 m from R2. Neither
-    ever sees its reference; R3's (R2) never moves, so its error would be 0."""
-    sc = scenario_mod.load(SCENARIOS / "fig11_obstacles.toml", {"camera.range_m": 1.8})
+    """Cameras that see no farther than 1.8 m (a range fault for the whole run):
+    R2 starts 2.05 m from R1, R3 3 m from R2. Neither ever sees its reference;
+    R3's (R2) never moves, so its error would be 0."""
+    short = ["range 2@0s m=1.8", "range 3@0s m=1.8"]
+    sc = scenario_mod.load(SCENARIOS / "fig11_obstacles.toml", faults=short)
     eng = WorldEngine(sc, 0)
     for _ in range(40):
         for rid in sc.robots:
@@ -313,8 +315,8 @@ def test_a_follower_that_never_sees_its_reference_has_no_metrics() -> None:
         assert m[rid]["acquired"] is False
         assert (m[rid]["frames"], m[rid]["seen_ticks"], m[rid]["samples"]) == (40, 0, 40)
         assert all(m[rid][k] is None for k in ("rms_m", "max_m", "turn_rms_m", "straight_rms_m", "max_ahead_m"))
-    # With 2.5 m, R2 sees R1 from the first frame; R3 (3 m from R2) still never sees R2.
-    eng = WorldEngine(scenario_mod.load(SCENARIOS / "fig11_obstacles.toml", {"camera.range_m": 2.5}), 0)
+    # R3's camera alone at 2.5 m: R2 sees R1 from the first frame; R3 (3 m from R2) still never sees R2.
+    eng = WorldEngine(scenario_mod.load(SCENARIOS / "fig11_obstacles.toml", faults=["range 3@0s m=2.5"]), 0)
     for _ in range(5):
         for rid in sc.robots:
             eng.observation(rid)
@@ -322,19 +324,3 @@ def test_a_follower_that_never_sees_its_reference_has_no_metrics() -> None:
     m = eng.summary()["followers"]
     assert (m["2"]["acquired"], m["2"]["seen_ticks"], m["2"]["rms_m"]) == (True, 5, 0.0)
     assert (m["3"]["acquired"], m["3"]["rms_m"]) == (False, None)
-
-
-def test_a_reference_out_of_view_at_the_start_is_a_warning_at_load() -> None:
-    assert FIG11.warnings == ()
-    far = scenario_mod.load(SCENARIOS / "fig11_obstacles.toml", {"camera.range_m": 2.5})
-    assert far.warnings == (
-        "robot 3 starts with its reference, robot 2 (formation 'triangle'), 3.00 m away, beyond camera.range_m = "
-        "2.5 m: unless it comes into view, robot 3 never moves and gets no metrics (never acquired)",
-    )
-    narrow = scenario_mod.load(SCENARIOS / "fig11_obstacles.toml", {"camera.fov_deg": 60.0})
-    assert [w.split(":")[0] for w in narrow.warnings] == [
-        "robot 2 starts with its reference, robot 1 (formation 'triangle'), at a bearing of +47 deg, outside "
-        "camera.fov_deg = 60 (2.05 m away)",
-        "robot 3 starts with its reference, robot 2 (formation 'triangle'), at a bearing of -92 deg, outside "
-        "camera.fov_deg = 60 (3.00 m away)",
-    ]
