@@ -123,11 +123,13 @@ def test_outliers_replace_a_fraction_p_of_the_readings_within_range_and_view() -
 
 
 def test_outliers_are_drawn_within_a_narrow_field_of_view_and_a_reduced_range() -> None:
-    eng = _engine(["outliers 2@0s p=1", "range 2@0s m=4"], **{"camera.fov_deg": 90.0})
+    # 215 deg: the narrowest view in which fig11's robot 3 still sees robot 2, abeam, with the loader's margin.
+    eng = _engine(["outliers 2@0s p=1", "range 2@0s m=4"], **{"camera.fov_deg": 215.0})
     sc = eng.scenario
     eng.robots[1].pose = Pose(-1.5, 1.0, math.pi / 2)  # 2.4 m ahead of robot 2
+    eng.robots[3].pose = Pose(-1.5, -4.0, math.pi / 2)  # 2.5 m behind robot 2
     for _ in range(200):
-        (seen,) = _readings(eng, 2)  # robot 3 is abeam: out of a 90 deg view
+        (seen,) = _readings(eng, 2)  # robot 3 is right behind: out of a 215 deg view
         assert seen[0] == 1
         assert 0.0 <= seen[1] <= 4.0
         assert abs(seen[3]) <= 0.5 * sc.camera.fov_rad
