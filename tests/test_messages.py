@@ -19,7 +19,15 @@ from formation_swarm.protocol.codec import (
     unpack_batch,
 )
 from formation_swarm.protocol.keys import MAX_ROBOT_ID
-from formation_swarm.protocol.messages import Command, FormationCode, Observation, Status, Telemetry, Truth
+from formation_swarm.protocol.messages import (
+    Command,
+    FaultCall,
+    FormationCode,
+    Observation,
+    Status,
+    Telemetry,
+    Truth,
+)
 from formation_swarm.scenario_keys import MAX_OBSTACLES, MAX_ROBOTS
 
 EXAMPLES = [
@@ -32,6 +40,7 @@ EXAMPLES = [
         2, 12, 3, 0.15, 1, 0, (0.1, 1.2), (0.1, 1.1), (0.01, 0.0, 0.02), 1.1, 0.2, None, 0.5, 0.6, 2, False, 0, 0, 0
     ),  # fmt: skip
     Truth(0, 13, 3, 0.15, ((1, 0.0, 0.0, 1.57, True), (2, -1.5, -1.5, 1.57, False)), ((2, -1.5, -1.4),)),
+    FaultCall(0, 15, 3, 0.15, "freeze", "agent-2", 1),
     Status(0, 14, 3, 0.15, "running", 1120),
 ]
 
@@ -127,8 +136,10 @@ def test_the_largest_messages_a_scenario_allows_fit() -> None:
 def test_the_wire_format_is_pinned() -> None:
     """[tag, version, sender, seq, tick, fields...]: a change is a protocol change."""
     assert msgpack.unpackb(CMD.to_bytes()) == [2, 1, 2, 9, 3, 0.4, -0.1, 1, False]
-    tags = {cls.__name__: cls.TAG for cls in (Observation, Command, FormationCode, Telemetry, Truth, Status)}
-    assert tags == {"Observation": 1, "Command": 2, "FormationCode": 3, "Telemetry": 4, "Truth": 5, "Status": 6}
+    tags = {type(m).__name__: type(m).TAG for m in EXAMPLES}
+    assert tags == {
+        "Observation": 1, "Command": 2, "FormationCode": 3, "Telemetry": 4, "Truth": 5, "Status": 6, "FaultCall": 7
+    }  # fmt: skip
     assert VERSION == 1
 
 
@@ -171,9 +182,10 @@ def test_field_ranges_are_inclusive_and_named() -> None:
     ok = Telemetry(2, 1, 1, 0.0, 1, 0, None, None, None, None, None, None, 0.0, 0.0, 3, False, 0, 0, 0)
     assert Telemetry.from_bytes(ok.to_bytes()).steering_to == 3
     raw = _raw(ok)
-    raw[16] = 4
-    with pytest.raises(DecodeError, match="steering_to=4 not in"):
-        Telemetry.from_bytes(msgpack.packb(raw))
+    for bad in (4, -1):
+        raw[16] = bad
+        with pytest.raises(DecodeError, match=f"steering_to={bad} not in"):
+            Telemetry.from_bytes(msgpack.packb(raw))
 
 
 def test_a_payload_of_exactly_the_limit_is_decoded() -> None:
@@ -213,6 +225,8 @@ def test_the_payload_limit_and_who_sends_telemetry() -> None:
     assert MAX_PAYLOAD_BYTES == 32 * 1024  # under the routed size filter of protocol.session (~40 KiB)
     tel = Telemetry(1, 1, 1, 0.0, 2, 0, None, None, None, None, None, None, 0.0, 0.0, 0, False, 0, 0, 0)
     assert Telemetry.from_bytes(tel.to_bytes()).sender == 1  # robot 1 may follow (when another robot leads)
+    with pytest.raises(DecodeError, match="sender=0 not in"):  # the world flies no robot
+        Telemetry.from_bytes(Telemetry(0, *_raw(tel)[3:]).to_bytes())
 
 
 @pytest.mark.parametrize(
