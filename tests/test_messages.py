@@ -328,3 +328,38 @@ def test_an_int_subclass_is_taken_up_to_both_bounds() -> None:
             check("side", v)
     with pytest.raises(DecodeError, match="wrong type: side must be an integer, got bool"):
         check("side", True)
+
+
+@pytest.mark.parametrize("process", ["logger", "agent-1", f"agent-{MAX_ROBOT_ID}"])
+def test_a_fault_call_hits_the_logger_or_an_agent(process: str) -> None:
+    call = FaultCall(0, 1, 1, 0.05, "kill", process, 0)
+    assert FaultCall.from_bytes(call.to_bytes()).process == process
+
+
+@pytest.mark.parametrize("process", ["world", "router", "zzz", "agent-0", f"agent-{MAX_ROBOT_ID + 1}", "logger2"])
+def test_a_fault_call_for_any_other_process_is_refused(process: str) -> None:
+    with pytest.raises(DecodeError, match="is neither logger nor agent"):
+        FaultCall.from_bytes(FaultCall(0, 1, 1, 0.05, "kill", process, 0).to_bytes())
+
+
+def test_a_refused_process_name_is_quoted_to_40_characters() -> None:
+    with pytest.raises(DecodeError) as info:
+        FaultCall.from_bytes(FaultCall(0, 1, 1, 0.05, "kill", "x" * 39 + "yz", 0).to_bytes())
+    assert str(info.value).endswith(f"process={'x' * 39 + 'y'!r} is neither logger nor agent-<robot id>")
+
+
+def test_a_formation_code_is_a_byte() -> None:
+    for code in (0, 255):
+        assert FormationCode.from_bytes(FormationCode(1, 1, 1, code).to_bytes()).code == code
+    for code in (-1, 256):
+        with pytest.raises(DecodeError, match=f"code={code} not in \\[0, 255\\]"):
+            FormationCode.from_bytes(FormationCode(1, 1, 1, code).to_bytes())
+
+
+def test_a_header_without_fields_has_the_wrong_length() -> None:
+    with pytest.raises(DecodeError, match="wrong length: FormationCode has 4 fields, got 3") as info:
+        FormationCode.from_bytes(msgpack.packb([3, 1, 1, 1, 1]))
+    assert info.value.reason == "wrong length"
+    with pytest.raises(DecodeError, match="a msgpack list with a header") as info:
+        FormationCode.from_bytes(msgpack.packb([3, 1, 1, 1]))
+    assert info.value.reason == "wrong type"
