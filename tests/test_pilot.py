@@ -123,6 +123,7 @@ def test_the_stop_distance_is_half_the_look_ahead() -> None:
     path = ((0.0, 0.0), (0.0, 10.0))
     assert PathPilot(path, 1.0, 0.5, lookahead_m=2.0).step(Pose(0.0, 8.9, NORTH)) != (0.0, 0.0)
     assert PathPilot(path, 1.0, 0.5, lookahead_m=2.0).step(Pose(0.0, 9.1, NORTH)) == (0.0, 0.0)
+    assert PathPilot(path, 1.0, 0.5, lookahead_m=2.0).step(Pose(0.0, 9.0, NORTH)) == (1.0, 1.0)  # 1.0 m: not within
 
 
 def test_a_pilot_started_along_the_path_goes_on_from_there_not_back_to_the_start() -> None:
@@ -161,3 +162,12 @@ def test_a_goal_within_a_micrometre_is_flown_straight_at() -> None:
     no curvature from dividing by ~0, the pilot drives straight on."""
     pilot = PathPilot(((0.0, 0.0), (0.0, 10.0)), speed_mps=1.0, width_m=0.5, lookahead_m=1e-7)
     assert pilot.step(Pose(0.0, 5.0, NORTH)) == (1.0, 1.0)
+
+
+def test_a_path_of_300_waypoints_is_flown_to_its_last_leg() -> None:
+    """Segment indices past 256 (no longer small cached ints) end the look-ahead's advance as the first ones do."""
+    pilot = PathPilot([(0.0, 0.1 * i) for i in range(300)], speed_mps=1.0, width_m=0.5, lookahead_m=1.0)
+    assert pilot.step(Pose(0.0, 29.2, NORTH)) == (1.0, 1.0)  # on segment 292, the end 0.7 m ahead
+    assert pilot._seg == 298
+    assert pilot.step(Pose(0.0, 29.5, NORTH)) == (0.0, 0.0)
+    assert pilot.finished
