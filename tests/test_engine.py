@@ -271,6 +271,18 @@ def test_a_killed_reference_stands_with_its_command_zeroed() -> None:
     assert (f["samples"], f["turn_samples"]) == (5, 0)
 
 
+def test_a_revived_reference_stands_until_its_first_command() -> None:
+    eng = WorldEngine(TURN, 0)
+    eng.set_command(1, 1.0, 1.5, 0, 0.0)
+    eng.kill(1)
+    eng.revive(1)
+    assert eng.robots[1].command == (0.0, 0.0)
+    pose = eng.robots[1].pose
+    _drive(eng, 3, {2: (1.0, 1.0)})
+    assert eng.robots[1].pose == pose
+    assert eng.summary()["followers"]["2"]["turn_samples"] == 0
+
+
 def test_a_recovery_gets_each_tick_under_its_own_number() -> None:
     eng = WorldEngine(TURN, 0)
     tx, ty = eng.true_target(2)
