@@ -10,6 +10,7 @@ import pytest
 from formation_swarm import scenario as scenario_mod
 from formation_swarm.world.engine import TURN_RATE_RPS, WorldEngine
 from formation_swarm.world.kinematics import Pose, from_body_frame
+from formation_swarm.world.recovery import Recovery
 from tests.conftest import SCENARIOS
 
 FIG11 = scenario_mod.load(SCENARIOS / "fig11_obstacles.toml")  # three robots: 1 leads 2, 2 leads 3
@@ -259,6 +260,40 @@ def test_a_killed_robot_stops_for_good() -> None:
     assert s["final_poses"]["1"][1] > pose.y_m  # the other one flew on
 
 
+def test_a_killed_reference_stands_with_its_command_zeroed() -> None:
+    """A dead reference commands nothing: its follower's samples are not "in a turn"."""
+    eng = WorldEngine(TURN, 0)
+    eng.set_command(1, 1.0, 1.5, 0, 0.0)  # turning when it dies
+    eng.kill(1)
+    assert eng.robots[1].command == (0.0, 0.0)
+    _drive(eng, 5, {2: (1.0, 1.0)})
+    f = eng.summary()["followers"]["2"]
+    assert (f["samples"], f["turn_samples"]) == (5, 0)
+
+
+def test_a_revived_reference_stands_until_its_first_command() -> None:
+    eng = WorldEngine(TURN, 0)
+    eng.set_command(1, 1.0, 1.5, 0, 0.0)
+    eng.kill(1)
+    eng.revive(1)
+    assert eng.robots[1].command == (0.0, 0.0)
+    pose = eng.robots[1].pose
+    _drive(eng, 3, {2: (1.0, 1.0)})
+    assert eng.robots[1].pose == pose
+    assert eng.summary()["followers"]["2"]["turn_samples"] == 0
+
+
+def test_a_recovery_gets_each_tick_under_its_own_number() -> None:
+    eng = WorldEngine(TURN, 0)
+    tx, ty = eng.true_target(2)
+    pose = eng.robots[2].pose
+    rec = Recovery(robot=2, event="thawed", fault=None, since_tick=0, watched=(2,), dt_s=TURN.dt_s)
+    eng.recoveries.append(rec)
+    _drive(eng, 3, {1: (1.0, 1.0), 2: (1.0, 1.0)})
+    eng.record()
+    assert rec.error_at_start_m == pytest.approx(math.hypot(tx - pose.x_m, ty - pose.y_m))  # tick 0's error
+
+
 def test_a_stale_reversing_command_is_counted_too() -> None:
     eng = WorldEngine(TURN, 0)
     eng.set_command(1, -0.5, 0.2, 0, 0.0)
@@ -279,6 +314,9 @@ def test_follower_metrics_from_samples() -> None:
     assert d == pytest.approx({"rms_m": math.sqrt(26 / 3), "max_m": 4.0, "samples": 3, "turn_rms_m": math.sqrt(12.5),
                                "straight_rms_m": 1.0, "turn_max_m": 4.0, "turn_samples": 2, "turn_mean_lag_m": 0.75,
                                "max_lag_m": 2.0, "max_ahead_m": 0.5})  # fmt: skip
+    solo = FollowerMetrics()
+    solo.add(1.0)  # no along-heading error given: neither behind nor ahead
+    assert (solo.max_lag_m, solo.max_ahead_m) == (0.0, 0.0)
     empty = FollowerMetrics().as_dict()
     assert (empty["max_m"], empty["turn_max_m"], empty["max_lag_m"], empty["max_ahead_m"]) == (0.0, 0.0, 0.0, 0.0)
     assert all(math.isnan(empty[k]) for k in ("rms_m", "turn_rms_m", "straight_rms_m", "turn_mean_lag_m"))

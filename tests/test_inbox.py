@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from formation_swarm.agents.inbox import InboxChecks
+from formation_swarm.agents.inbox import ANGLE_LIMIT_RAD, InboxChecks
 from formation_swarm.protocol.messages import FormationCode, Observation
 
 RANGE_M, SIGMA_M, SENSING_M, DT_S = 10.0, 0.05, 6.0, 0.05
@@ -37,6 +37,8 @@ def test_observations_must_be_newer_than_the_last_taken() -> None:
         ((1, -1e-9, 0.0, 0.0), "reading out of bounds"),
         ((1, 0.0, 0.0, 0.0), None),
         ((1, 2.0, math.pi, -math.pi), None),
+        ((1, 2.0, ANGLE_LIMIT_RAD, -ANGLE_LIMIT_RAD), None),  # the bound itself is in
+        ((1, 2.0, -ANGLE_LIMIT_RAD, ANGLE_LIMIT_RAD), None),
         ((1, 2.0, math.pi + 1e-6, 0.0), "reading out of bounds"),
         ((1, 2.0, 0.0, -math.pi - 1e-6), "reading out of bounds"),
         ((1, 1e200, 0.0, 0.0), "reading out of bounds"),
@@ -59,6 +61,8 @@ def test_a_reading_the_camera_cannot_make_is_refused(reading: tuple, why: str | 
         ((2.0, 0.0, 0.0), "obstacle out of bounds"),
         ((2.0, 0.0, -1.0), "obstacle out of bounds"),
         ((0.0, 0.0, 0.5), None),  # touching it
+        ((2.0, ANGLE_LIMIT_RAD, 1.0), None),  # the bound itself is in
+        ((2.0, -ANGLE_LIMIT_RAD, 1.0), None),
         ((2.0, math.pi + 1e-6, 1.0), "obstacle out of bounds"),
         ((2.0, -math.pi - 1e-6, 1.0), "obstacle out of bounds"),
     ],

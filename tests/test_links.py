@@ -6,6 +6,7 @@ are placed on the message's tick and draw from (seed, link, seq, fault index).""
 from __future__ import annotations
 
 import collections
+import dataclasses
 import math
 import random
 
@@ -216,6 +217,7 @@ def test_held_messages_come_out_with_due_when_nothing_arrives() -> None:
 def test_a_delay_in_ms_is_rounded_up_to_whole_ticks() -> None:
     assert whole_ticks(100.0, "ms", 0.05) == 2
     assert whole_ticks(101.0, "ms", 0.05) == 3
+    assert whole_ticks(100.02, "ms", 0.05) == 3  # a hair over two ticks of 50 ms
     assert whole_ticks(1.0, "ms", 0.05) == 1
     assert whole_ticks(0.0, "ms", 0.05) == 0
     assert whole_ticks(2.0, "ticks", 0.05) == 2
@@ -372,3 +374,18 @@ def test_a_faults_draws_do_not_depend_on_the_other_faults_of_the_schedule() -> N
     assert alone.dropped == beside.dropped > 0
     twice = Link("obs:0>2", 0.0, 7, faults_on((drop, drop), "obs", 2), DT)
     assert list(twice.keys.values()) == [f"{drop}~0", f"{drop}~1"]
+
+
+def test_a_links_rules_are_fixed_when_it_is_made() -> None:
+    link: Link[int] = Link("obs:0>2", 0.0, 0, [(0, Fault.parse("drop obs:2@0s p=0.5"))], DT)
+    (rule,) = link.rules
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        rule.p = 0.0  # type: ignore[misc]
+    assert (rule.kind, rule.start, rule.end, rule.p) == ("drop", 0, None, 0.5)
+
+
+def test_messages_released_at_the_same_tick_come_in_their_order_of_arrival() -> None:
+    link: Link[str] = Link("obs:0>2", 0.0, 0, [(0, Fault.parse("delay obs:2@0s ticks=2"))], DT)
+    assert link.deliver(1, 0, "b") + link.deliver(2, 0, "a") + link.due(1) == []
+    assert link.due(2) == ["b", "a"]  # not sorted by content
+    assert (link.delayed, link.held) == (2, 0)

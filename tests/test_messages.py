@@ -19,7 +19,15 @@ from formation_swarm.protocol.codec import (
     unpack_batch,
 )
 from formation_swarm.protocol.keys import MAX_ROBOT_ID
-from formation_swarm.protocol.messages import Command, FormationCode, Observation, Status, Telemetry, Truth
+from formation_swarm.protocol.messages import (
+    Command,
+    FaultCall,
+    FormationCode,
+    Observation,
+    Status,
+    Telemetry,
+    Truth,
+)
 from formation_swarm.scenario_keys import MAX_OBSTACLES, MAX_ROBOTS
 
 EXAMPLES = [
@@ -32,6 +40,7 @@ EXAMPLES = [
         2, 12, 3, 0.15, 1, 0, (0.1, 1.2), (0.1, 1.1), (0.01, 0.0, 0.02), 1.1, 0.2, None, 0.5, 0.6, 2, False, 0, 0, 0
     ),  # fmt: skip
     Truth(0, 13, 3, 0.15, ((1, 0.0, 0.0, 1.57, True), (2, -1.5, -1.5, 1.57, False)), ((2, -1.5, -1.4),)),
+    FaultCall(0, 15, 3, 0.15, "freeze", "agent-2", 1),
     Status(0, 14, 3, 0.15, "running", 1120),
 ]
 
@@ -127,8 +136,10 @@ def test_the_largest_messages_a_scenario_allows_fit() -> None:
 def test_the_wire_format_is_pinned() -> None:
     """[tag, version, sender, seq, tick, fields...]: a change is a protocol change."""
     assert msgpack.unpackb(CMD.to_bytes()) == [2, 1, 2, 9, 3, 0.4, -0.1, 1, False]
-    tags = {cls.__name__: cls.TAG for cls in (Observation, Command, FormationCode, Telemetry, Truth, Status)}
-    assert tags == {"Observation": 1, "Command": 2, "FormationCode": 3, "Telemetry": 4, "Truth": 5, "Status": 6}
+    tags = {type(m).__name__: type(m).TAG for m in EXAMPLES}
+    assert tags == {
+        "Observation": 1, "Command": 2, "FormationCode": 3, "Telemetry": 4, "Truth": 5, "Status": 6, "FaultCall": 7
+    }  # fmt: skip
     assert VERSION == 1
 
 
@@ -171,9 +182,10 @@ def test_field_ranges_are_inclusive_and_named() -> None:
     ok = Telemetry(2, 1, 1, 0.0, 1, 0, None, None, None, None, None, None, 0.0, 0.0, 3, False, 0, 0, 0)
     assert Telemetry.from_bytes(ok.to_bytes()).steering_to == 3
     raw = _raw(ok)
-    raw[16] = 4
-    with pytest.raises(DecodeError, match="steering_to=4 not in"):
-        Telemetry.from_bytes(msgpack.packb(raw))
+    for bad in (4, -1):
+        raw[16] = bad
+        with pytest.raises(DecodeError, match=f"steering_to={bad} not in"):
+            Telemetry.from_bytes(msgpack.packb(raw))
 
 
 def test_a_payload_of_exactly_the_limit_is_decoded() -> None:
@@ -213,6 +225,8 @@ def test_the_payload_limit_and_who_sends_telemetry() -> None:
     assert MAX_PAYLOAD_BYTES == 32 * 1024  # under the routed size filter of protocol.session (~40 KiB)
     tel = Telemetry(1, 1, 1, 0.0, 2, 0, None, None, None, None, None, None, 0.0, 0.0, 0, False, 0, 0, 0)
     assert Telemetry.from_bytes(tel.to_bytes()).sender == 1  # robot 1 may follow (when another robot leads)
+    with pytest.raises(DecodeError, match="sender=0 not in"):  # the world flies no robot
+        Telemetry.from_bytes(Telemetry(0, *_raw(tel)[3:]).to_bytes())
 
 
 @pytest.mark.parametrize(
@@ -314,3 +328,38 @@ def test_an_int_subclass_is_taken_up_to_both_bounds() -> None:
             check("side", v)
     with pytest.raises(DecodeError, match="wrong type: side must be an integer, got bool"):
         check("side", True)
+
+
+@pytest.mark.parametrize("process", ["logger", "agent-1", f"agent-{MAX_ROBOT_ID}"])
+def test_a_fault_call_hits_the_logger_or_an_agent(process: str) -> None:
+    call = FaultCall(0, 1, 1, 0.05, "kill", process, 0)
+    assert FaultCall.from_bytes(call.to_bytes()).process == process
+
+
+@pytest.mark.parametrize("process", ["world", "router", "zzz", "agent-0", f"agent-{MAX_ROBOT_ID + 1}", "logger2"])
+def test_a_fault_call_for_any_other_process_is_refused(process: str) -> None:
+    with pytest.raises(DecodeError, match="is neither logger nor agent"):
+        FaultCall.from_bytes(FaultCall(0, 1, 1, 0.05, "kill", process, 0).to_bytes())
+
+
+def test_a_refused_process_name_is_quoted_to_40_characters() -> None:
+    with pytest.raises(DecodeError) as info:
+        FaultCall.from_bytes(FaultCall(0, 1, 1, 0.05, "kill", "x" * 39 + "yz", 0).to_bytes())
+    assert str(info.value).endswith(f"process={'x' * 39 + 'y'!r} is neither logger nor agent-<robot id>")
+
+
+def test_a_formation_code_is_a_byte() -> None:
+    for code in (0, 255):
+        assert FormationCode.from_bytes(FormationCode(1, 1, 1, code).to_bytes()).code == code
+    for code in (-1, 256):
+        with pytest.raises(DecodeError, match=f"code={code} not in \\[0, 255\\]"):
+            FormationCode.from_bytes(FormationCode(1, 1, 1, code).to_bytes())
+
+
+def test_a_header_without_fields_has_the_wrong_length() -> None:
+    with pytest.raises(DecodeError, match="wrong length: FormationCode has 4 fields, got 3") as info:
+        FormationCode.from_bytes(msgpack.packb([3, 1, 1, 1, 1]))
+    assert info.value.reason == "wrong length"
+    with pytest.raises(DecodeError, match="a msgpack list with a header") as info:
+        FormationCode.from_bytes(msgpack.packb([3, 1, 1, 1]))
+    assert info.value.reason == "wrong type"

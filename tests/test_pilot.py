@@ -123,6 +123,7 @@ def test_the_stop_distance_is_half_the_look_ahead() -> None:
     path = ((0.0, 0.0), (0.0, 10.0))
     assert PathPilot(path, 1.0, 0.5, lookahead_m=2.0).step(Pose(0.0, 8.9, NORTH)) != (0.0, 0.0)
     assert PathPilot(path, 1.0, 0.5, lookahead_m=2.0).step(Pose(0.0, 9.1, NORTH)) == (0.0, 0.0)
+    assert PathPilot(path, 1.0, 0.5, lookahead_m=2.0).step(Pose(0.0, 9.0, NORTH)) == (1.0, 1.0)  # 1.0 m: not within
 
 
 def test_a_pilot_started_along_the_path_goes_on_from_there_not_back_to_the_start() -> None:
@@ -140,3 +141,33 @@ def test_a_pilot_started_along_the_path_goes_on_from_there_not_back_to_the_start
     # A closed loop: its start is also its last segment's end; the first segment wins.
     loop = PathPilot(((0.0, 0.0), (0.0, 10.0), (10.0, 10.0), (0.0, 0.0)), speed_mps=1.0, width_m=0.5)
     assert loop.nearest_segment(0.0, 0.0) == 0
+
+
+def test_the_nearest_segment_of_a_diagonal_path_and_beside_a_corner() -> None:
+    zigzag = PathPilot(((0.0, 0.0), (4.0, 4.0), (8.0, 0.0)), speed_mps=1.0, width_m=0.5)
+    assert zigzag.nearest_segment(3.0, 3.2) == 0  # 0.14 m from the first leg, 1.28 m from the second's start
+    assert zigzag.nearest_segment(5.0, 3.2) == 1
+    # Past the end of the first leg, beside where the second leg would be if it went on backwards:
+    # nearest the first leg's end (2.0 m), not 0.1 m from a leg that does not reach there.
+    corner = PathPilot(((0.0, 0.0), (4.0, 0.0), (4.0, -4.0)), speed_mps=1.0, width_m=0.5)
+    assert corner.nearest_segment(4.1, 2.0) == 0
+    # A hairpin: 0.1 m below its first leg, 1.9 m above its way back.
+    hairpin = PathPilot(((0.0, 0.0), (10.0, 0.0), (10.0, -2.0), (0.0, -2.0)), speed_mps=1.0, width_m=0.5)
+    assert hairpin.nearest_segment(5.0, -0.1) == 0
+    assert hairpin.nearest_segment(5.0, -1.9) == 2
+
+
+def test_a_goal_within_a_micrometre_is_flown_straight_at() -> None:
+    """With a look-ahead under a micrometre the goal is about where the robot is:
+    no curvature from dividing by ~0, the pilot drives straight on."""
+    pilot = PathPilot(((0.0, 0.0), (0.0, 10.0)), speed_mps=1.0, width_m=0.5, lookahead_m=1e-7)
+    assert pilot.step(Pose(0.0, 5.0, NORTH)) == (1.0, 1.0)
+
+
+def test_a_path_of_300_waypoints_is_flown_to_its_last_leg() -> None:
+    """Segment indices past 256 (no longer small cached ints) end the look-ahead's advance as the first ones do."""
+    pilot = PathPilot([(0.0, 0.1 * i) for i in range(300)], speed_mps=1.0, width_m=0.5, lookahead_m=1.0)
+    assert pilot.step(Pose(0.0, 29.2, NORTH)) == (1.0, 1.0)  # on segment 292, the end 0.7 m ahead
+    assert pilot._seg == 298
+    assert pilot.step(Pose(0.0, 29.5, NORTH)) == (0.0, 0.0)
+    assert pilot.finished

@@ -121,6 +121,20 @@ def test_lockstep_world_takes_an_answer_only_for_the_tick_it_published() -> None
     assert world.stats(1.0)["late_answers"] == 1
 
 
+def test_the_world_rejects_and_counts_a_command_for_an_unknown_formation() -> None:
+    world = _world()
+    eng = world.engine
+    n = len(FIG11.formation_names)
+    world._on_command(Command(2, 1, 0, 1.0, 1.0, n, False))  # one past the last code
+    world._on_command(Command(3, 1, 0, 1.0, 1.0, 255, False))
+    assert world.rejections.by_reason == {"unknown formation": 2}
+    assert [eng.robots[r].answered for r in (2, 3)] == [False, False]
+    assert eng.robots[2].command == eng.robots[3].command == (0.0, 0.0)
+    world._on_command(Command(2, 2, 0, 1.0, 1.0, n - 1, False))  # the last code: taken
+    assert eng.robots[2].command == (1.0, 1.0)
+    assert world.rejections.by_reason == {"unknown formation": 2}
+
+
 def test_realtime_world_takes_the_latest_command_whatever_its_tick() -> None:
     world = _world("realtime")
     for _ in range(5):

@@ -25,6 +25,21 @@ def test_a_command_beyond_the_motors_is_clamped_and_counted() -> None:
     assert eng.summary()["clamped_commands"] == 2
 
 
+def test_a_command_at_the_limit_is_not_clamped_and_one_below_it_is_clamped_to_it() -> None:
+    sc = sm.load("fig11_obstacles")
+    eng = WorldEngine(sc, seed=1)
+    lim = sc.max_wheel_mps
+    for cmd in ((lim, -lim), (-lim, lim), (0.0, -lim), (-lim, 0.0)):
+        eng.set_command(3, *cmd, 0, now_s=0.0)
+        assert eng.robots[3].command == cmd
+    assert eng.clamped_commands == 0
+    eng.set_command(3, -1e9, 0.0, 0, now_s=0.0)
+    assert eng.robots[3].command == (-lim, 0.0)
+    eng.set_command(3, 0.0, -1e9, 0, now_s=0.0)
+    assert eng.robots[3].command == (0.0, -lim)
+    assert eng.clamped_commands == 2
+
+
 def test_a_scenario_whose_controller_outruns_the_motors_is_refused() -> None:
     with pytest.raises(sm.ScenarioError, match=r"follower 2's fuzzy controller commands up to 2.5 m/s"):
         sm.load("fig11_obstacles", {"robot.max_wheel_mps": 2.4})
