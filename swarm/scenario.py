@@ -34,6 +34,7 @@ from formation_swarm.agents.formation import (
 from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode, speed_range
 from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.lpsi import LpsiParams
+from formation_swarm.agents.pilot import turn_room
 from formation_swarm.faults import Fault, check_against, parse_all
 from formation_swarm.protocol.keys import MAX_ROBOT_ID
 from formation_swarm.scenario_files import deep_set, resolve
@@ -384,6 +385,13 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         for p in wps
     ):
         raise ScenarioError(f"leader.waypoints must be at least 2 points [x_m, y_m], got {wps!r}")
+    radius = float(ld["speed_mps"]) / float(ld["turn_rate_rps"])
+    if problems := turn_room(wps, radius):
+        raise ScenarioError(
+            f"leader.waypoints: the leader cannot turn these corners at leader.speed_mps = {ld['speed_mps']:g}"
+            f" and leader.turn_rate_rps = {ld['turn_rate_rps']:g} (turn radius R = {radius:.4g} m): "
+            + "; ".join(problems)
+        )
 
     forms_raw = raw.get("formations")
     if not isinstance(forms_raw, dict) or not forms_raw:

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from formation_swarm.agents.pilot import PathPilot
+from formation_swarm.agents.pilot import PathPilot, turn_room
 from formation_swarm.sim import PAPER_TURNING_PATH
 from formation_swarm.world.kinematics import Pose, step
 
@@ -140,3 +140,79 @@ def test_a_pilot_started_along_the_path_goes_on_from_there_not_back_to_the_start
     # A closed loop: its start is also its last segment's end; the first segment wins.
     loop = PathPilot(((0.0, 0.0), (0.0, 10.0), (10.0, 10.0), (0.0, 0.0)), speed_mps=1.0, width_m=0.5)
     assert loop.nearest_segment(0.0, 0.0) == 0
+
+
+def _fly(path, speed_mps: float, turn_rate_rps: float, limit_s: float) -> tuple[PathPilot, float, float]:
+    """Fly the leader alone (world/kinematics.py): the pilot, its time to the end, its largest cross-track error."""
+    pilot = PathPilot(path, speed_mps=speed_mps, width_m=0.5, max_turn_rate_rps=turn_rate_rps)
+    pose = Pose(float(path[0][0]), float(path[0][1]), math.atan2(path[1][1] - path[0][1], path[1][0] - path[0][0]))
+    worst, ticks = 0.0, 0
+    while ticks * 0.05 < limit_s:
+        left, right = pilot.step(pose)
+        if pilot.finished:
+            break
+        pose = step(pose, left, right, 0.5, 0.05)
+        ticks += 1
+        worst = max(worst, _cross_track(path, pose))
+    return pilot, ticks * 0.05, worst
+
+
+def _cross_track(path, pose: Pose) -> float:
+    best = math.inf
+    for (ax, ay), (bx, by) in zip(path[:-1], path[1:], strict=True):
+        dx, dy = bx - ax, by - ay
+        t = max(0.0, min(1.0, ((pose.x_m - ax) * dx + (pose.y_m - ay) * dy) / (dx * dx + dy * dy)))
+        best = min(best, math.hypot(ax + t * dx - pose.x_m, ay + t * dy - pose.y_m))
+    return best
+
+
+SPEEDS_MPS = (1.0, 1.25, 1.5, 1.6, 1.75, 2.0, 2.25, 2.5)
+TURN_RATES_RPS = (0.15, 0.2, 0.25, 0.3, 0.4, 0.5)
+
+
+@pytest.mark.parametrize("speed", SPEEDS_MPS)
+@pytest.mark.parametrize("turn_rate", TURN_RATES_RPS)
+def test_the_leader_finishes_the_paper_path_at_any_speed_and_turn_rate(speed: float, turn_rate: float) -> None:
+    # Before, it circled for ever in 24 of these 48 cases (from 1.6 m/s at 0.25 rad/s, 1.25 m/s at 0.2 rad/s).
+    radius = speed / turn_rate
+    corners = len(PAPER_TURNING_PATH) - 2
+    # The path at the cruise speed, and at worst a full circle at each corner.
+    bound_s = 60.0 / speed + corners * 2.0 * math.pi / turn_rate
+    pilot, took_s, worst_m = _fly(PAPER_TURNING_PATH, speed, turn_rate, 2.0 * bound_s)
+    assert pilot.finished
+    assert took_s <= bound_s
+    assert worst_m <= 2.0 * radius + pilot.lookahead_m  # measured: at most 1.73 R (2.5 m/s, 0.15 rad/s)
+
+
+def test_where_the_plain_pursuit_finished_the_leader_flies_it_unchanged() -> None:
+    # 1.5 m/s at 0.25 rad/s, the shipped scenarios: the overshoot of the late turn, and no wide steering.
+    pilot, took_s, worst_m = _fly(PAPER_TURNING_PATH, 1.5, 0.25, 100.0)
+    assert pilot.finished
+    assert not pilot.wide
+    assert took_s == pytest.approx(44.95)
+    assert worst_m == pytest.approx(5.05, abs=0.01)
+
+
+def test_a_leader_that_would_circle_steers_wide_and_finishes() -> None:
+    pilot, took_s, worst_m = _fly(PAPER_TURNING_PATH, 1.6, 0.25, 200.0)
+    assert pilot.finished  # passes the second corner >1 m away, moves on since it passed it
+    assert not pilot.wide
+    assert took_s == pytest.approx(44.3)
+    pilot, took_s, _ = _fly(PAPER_TURNING_PATH, 1.75, 0.25, 200.0)
+    assert pilot.finished  # circled its end point before
+    assert pilot.wide
+    assert took_s == pytest.approx(69.6)
+
+
+def test_turn_room_says_which_segment_is_too_short() -> None:
+    # 90 deg corners take R tan(45 deg) = R from each side; the middle segment (20 m) holds two.
+    assert turn_room(PAPER_TURNING_PATH, 10.0) == []
+    (why,) = turn_room(PAPER_TURNING_PATH, 12.5)
+    assert why == (
+        "segment (0.0, 20.0) -> (20.0, 20.0) is 20 m long, its corners take 25 m"
+        " (R tan(theta / 2) per corner, R = 12.5 m)"
+    )
+    assert turn_room(((0.0, 0.0), (0.0, 5.0), (0.0, 0.0)), 1.0) == [
+        "the path reverses at (0.0, 5.0): no turn circle fits a 180 deg turn"
+    ]
+    assert turn_room(((0.0, 0.0), (0.0, 50.0)), 100.0) == []
