@@ -126,6 +126,13 @@ LEADER_KEYS = {
     "speed_mps": positive("cruise speed along the path", 1.5, "m/s"),
     "turn_rate_rps": positive("the pilot's largest turn rate", 0.25, "rad/s"),
     "lookahead_m": positive("pure pursuit: the pilot steers toward the point this far ahead on the path", 1.0, "m"),
+    "corners": Key(
+        str,
+        "pursuit",
+        "'pursuit': pure pursuit of the waypoints' polyline, turning at the look-ahead and overshooting a corner"
+        " by about speed_mps / turn_rate_rps (the shipped scenarios); 'arcs': each corner flown on a circle of"
+        " that radius, started before the corner",
+    ),
     "waypoints": Key(list, REQUIRED, "the path, at least two points [x_m, y_m]; the run starts at the first", "m"),
     "sensing_range_m": positive("the leader switches to avoid_formation when an obstacle is this close", 6.0, "m"),
     "formation": Key(str, REQUIRED, "the formation flown at the start and when the way is clear (a [formations] name)"),
