@@ -36,6 +36,9 @@ from formation_swarm.agents.lpsi import control as lpsi_control
 from formation_swarm.checks import finite, non_negative, positive
 
 LAWS = ("fuzzy", "lpsi")
+# Eq. 6 where the signed rho of eq. 5 changes sign (docs/paper.md, eq. 5): "signed", as printed, takes the
+# jump of 2 |rho|; "distance" takes the change of |rho| there, which is what the follower moved.
+DRHO_AT_SIGN_CHANGE = ("signed", "distance")
 
 
 @dataclass(frozen=True)
@@ -51,6 +54,7 @@ class FollowerParams:
     ekf: EkfParams = field(default_factory=EkfParams)
     use_ekf: bool = True
     law: str = "fuzzy"  # or "lpsi", the baseline
+    drho_at_sign_change: str = "signed"  # or "distance" (DRHO_AT_SIGN_CHANGE)
     lpsi: LpsiParams = field(default_factory=LpsiParams)
     # The hold at a standing reference (not the paper's; docs/paper.md): the
     # reference stands still once the mean of the EKF's estimate of its speed
@@ -63,6 +67,10 @@ class FollowerParams:
     def __post_init__(self) -> None:
         if self.law not in LAWS:
             raise ValueError(f"law must be one of {LAWS}, got {self.law!r}")
+        if self.drho_at_sign_change not in DRHO_AT_SIGN_CHANGE:
+            raise ValueError(
+                f"drho_at_sign_change must be one of {DRHO_AT_SIGN_CHANGE}, got {self.drho_at_sign_change!r}"
+            )
         positive("width_m", self.width_m)
         non_negative("marker_offset_m", self.marker_offset_m)
         positive("dt_s", self.dt_s)
@@ -192,6 +200,8 @@ class Follower:
         # A switch of target makes rho jump; eq. 6 restarts from the new target.
         prev_rho = self._prev_rho if choice == self._prev_choice else None
         err = errors(goal, prev_rho, phi)
+        if p.drho_at_sign_change == "distance" and prev_rho is not None and prev_rho * err.rho_m < 0.0:
+            err = err._replace(drho_m=abs(err.rho_m) - abs(prev_rho))  # level with the target: no jump
         if self.changing and change_over(choice, err.rho_m, p.fuzzy):
             self.changing = False  # track T0 from now on
         self._prev_rho = err.rho_m

@@ -323,6 +323,7 @@ def _follower_params(where: str, t: Mapping[str, Any], robot: Mapping[str, Any],
         ekf=ekf,
         use_ekf=t["use_ekf"],
         law=t["law"],
+        drho_at_sign_change=t["drho_at_sign_change"],
         lpsi=_wrap(
             where,
             LpsiParams,

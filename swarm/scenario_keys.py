@@ -260,6 +260,12 @@ CONTROLLER_KEYS = {
     ),
     "ekf": Key(dict, {}, "the EKF's noise model: a table of the [controller.ekf] keys below"),
     "law": Key(str, "fuzzy", "'fuzzy' (the paper's controller) or 'lpsi' (the l-psi baseline of Desai et al.)"),
+    "drho_at_sign_change": Key(
+        str,
+        "signed",
+        "eq. 6 where the signed rho changes sign (a follower level with its target, to its side): 'signed' takes"
+        " the jump of 2 |rho| (FIS-2 sees it as a fast approach), 'distance' the change of |rho|",
+    ),
     "lpsi_l_gain": positive("l-psi: distance gain a1", 1.0, "1/s"),
     "lpsi_psi_gain": positive("l-psi: bearing gain a2", 1.0, "1/s"),
     "lpsi_d_m": positive("l-psi: the controlled point, ahead of the axle", 0.25, "m"),

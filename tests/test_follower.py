@@ -310,3 +310,23 @@ def test_a_formation_change_ends_within_d1_of_t3(from_t3_m: float, over: bool) -
     assert change_over(Choice.T3, -from_t3_m, p.fuzzy) is over  # past T3 the same
     assert change_over(Choice.T0, from_t3_m + 5.0, p.fuzzy)
     assert not change_over(Choice.T1, 0.0, p.fuzzy)
+
+
+@pytest.mark.parametrize(("mode", "vn", "wheels"), [("signed", 1.5, (1.0, 1.0)), ("distance", 1.7, (1.2, 1.2))])
+def test_drho_at_sign_change_distance_removes_fis2s_kick_not_fis1s_jump(mode: str, vn: float, wheels: tuple) -> None:
+    # Raw mode, the reference straight ahead; the target 0.5 m to the right, 1 mm ahead, then 1 mm behind.
+    p = FollowerParams(use_ekf=False, drho_at_sign_change=mode)
+    f = Follower(p, Point(0.5, -2.0 + 0.001))
+    ahead = f.step((2.0 - p.marker_offset_m, 0.0, 0.0))
+    assert ahead.rho_m == pytest.approx(0.5, abs=1e-5)
+    assert (ahead.left_mps, ahead.right_mps) == pytest.approx((1.7, 1.2))
+    behind = f.step((2.0 - 0.002 - p.marker_offset_m, 0.0, 0.0))
+    assert behind.rho_m == pytest.approx(-0.5, abs=1e-5)
+    assert behind.drho_m == pytest.approx(-1.0 if mode == "signed" else 0.0, abs=1e-5)
+    assert behind.vn == pytest.approx(vn)
+    assert (behind.left_mps, behind.right_mps) == pytest.approx(wheels)  # Close either way: no steering
+
+
+def test_drho_at_sign_change_is_checked() -> None:
+    with pytest.raises(ValueError, match="drho_at_sign_change must be one of"):
+        FollowerParams(drho_at_sign_change="abs")
