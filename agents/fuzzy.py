@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from formation_swarm.checks import finite, positive
+from formation_swarm.world.kinematics import wrap_angle
 
 # Table 1, rows Close / Enough / Far, columns alpha = Left / Center / Right.
 # "Left" means the follower's heading is too far left of the target, i.e. the
@@ -182,6 +183,10 @@ def control(
     Inputs are validated here, once per tick, so the inner functions stay lean.
     """
     alpha = finite("alpha_rad", alpha_rad)
+    if abs(alpha) > math.pi:
+        # Wrapped, not saturated: alpha = pi + 0.3 is a target behind-left (Right), not Left.
+        # Eq. 4's atan2 stays in [-pi, pi], so the shipped runs never get here.
+        alpha = wrap_angle(alpha)
     rho = finite("rho_m", rho_m)  # signed: < 0 when the target is behind (eq. 5)
     drho = finite("drho_m", drho_m)
     dt = positive("dt_s", dt_s)

@@ -125,7 +125,9 @@ class Agent:
         self._hold_span: list[int] | None = None  # the hold under way, if it is recorded
         if self.is_leader:
             ld = sc.leader
-            self.pilot = PathPilot(ld.waypoints, ld.speed_mps, sc.width_m, ld.lookahead_m, ld.turn_rate_rps)
+            self.pilot = PathPilot(
+                ld.waypoints, ld.speed_mps, sc.width_m, ld.lookahead_m, ld.turn_rate_rps, corners=ld.corners
+            )
             avoid = None if ld.avoid_formation is None else sc.code_of(ld.avoid_formation)
             self.switch = FormationSwitch(self.code, avoid, ld.clear_after_s, sc.dt_s)
             self.repeats = CodeRepeats(ld.code_burst_s, ld.code_period_s, sc.dt_s)

@@ -34,6 +34,7 @@ from formation_swarm.agents.formation import (
 from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode, speed_range
 from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.lpsi import LpsiParams
+from formation_swarm.agents.pilot import CORNERS, turn_room
 from formation_swarm.faults import Fault, check_against, parse_all
 from formation_swarm.protocol.keys import MAX_ROBOT_ID
 from formation_swarm.scenario_files import deep_set, resolve
@@ -73,6 +74,7 @@ class LeaderSpec:
     speed_mps: float
     turn_rate_rps: float
     lookahead_m: float
+    corners: str
     waypoints: tuple[tuple[float, float], ...]
     sensing_range_m: float
     formation: str
@@ -321,6 +323,7 @@ def _follower_params(where: str, t: Mapping[str, Any], robot: Mapping[str, Any],
         ekf=ekf,
         use_ekf=t["use_ekf"],
         law=t["law"],
+        drho_at_sign_change=t["drho_at_sign_change"],
         lpsi=_wrap(
             where,
             LpsiParams,
@@ -384,6 +387,15 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         for p in wps
     ):
         raise ScenarioError(f"leader.waypoints must be at least 2 points [x_m, y_m], got {wps!r}")
+    if ld["corners"] not in CORNERS:
+        raise ScenarioError(f"leader.corners must be one of {', '.join(map(repr, CORNERS))}, got {ld['corners']!r}")
+    radius = float(ld["speed_mps"]) / float(ld["turn_rate_rps"])
+    if problems := turn_room(wps, radius):
+        raise ScenarioError(
+            f"leader.waypoints: the leader cannot turn these corners at leader.speed_mps = {ld['speed_mps']:g}"
+            f" and leader.turn_rate_rps = {ld['turn_rate_rps']:g} (turn radius R = {radius:.4g} m): "
+            + "; ".join(problems)
+        )
 
     forms_raw = raw.get("formations")
     if not isinstance(forms_raw, dict) or not forms_raw:
@@ -459,6 +471,7 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
             speed_mps=float(ld["speed_mps"]),
             turn_rate_rps=float(ld["turn_rate_rps"]),
             lookahead_m=float(ld["lookahead_m"]),
+            corners=ld["corners"],
             waypoints=tuple((float(p[0]), float(p[1])) for p in wps),
             sensing_range_m=float(ld["sensing_range_m"]),
             formation=ld["formation"],

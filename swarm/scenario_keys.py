@@ -126,6 +126,13 @@ LEADER_KEYS = {
     "speed_mps": positive("cruise speed along the path", 1.5, "m/s"),
     "turn_rate_rps": positive("the pilot's largest turn rate", 0.25, "rad/s"),
     "lookahead_m": positive("pure pursuit: the pilot steers toward the point this far ahead on the path", 1.0, "m"),
+    "corners": Key(
+        str,
+        "pursuit",
+        "'pursuit': pure pursuit of the waypoints' polyline, turning at the look-ahead and overshooting a corner"
+        " by about speed_mps / turn_rate_rps (the shipped scenarios); 'arcs': each corner flown on a circle of"
+        " that radius, started before the corner",
+    ),
     "waypoints": Key(list, REQUIRED, "the path, at least two points [x_m, y_m]; the run starts at the first", "m"),
     "sensing_range_m": positive("the leader switches to avoid_formation when an obstacle is this close", 6.0, "m"),
     "formation": Key(str, REQUIRED, "the formation flown at the start and when the way is clear (a [formations] name)"),
@@ -253,6 +260,12 @@ CONTROLLER_KEYS = {
     ),
     "ekf": Key(dict, {}, "the EKF's noise model: a table of the [controller.ekf] keys below"),
     "law": Key(str, "fuzzy", "'fuzzy' (the paper's controller) or 'lpsi' (the l-psi baseline of Desai et al.)"),
+    "drho_at_sign_change": Key(
+        str,
+        "signed",
+        "eq. 6 where the signed rho changes sign (a follower level with its target, to its side): 'signed' takes"
+        " the jump of 2 |rho| (FIS-2 sees it as a fast approach), 'distance' the change of |rho|",
+    ),
     "lpsi_l_gain": positive("l-psi: distance gain a1", 1.0, "1/s"),
     "lpsi_psi_gain": positive("l-psi: bearing gain a2", 1.0, "1/s"),
     "lpsi_d_m": positive("l-psi: the controlled point, ahead of the axle", 0.25, "m"),

@@ -32,7 +32,7 @@ def replay(path: str | Path, seed: int, overrides: Mapping[str, Any] | None = No
     eng = WorldEngine(sc, seed)
     ld = sc.leader
     lead = ld.robot_id
-    pilot = PathPilot(ld.waypoints, ld.speed_mps, sc.width_m, ld.lookahead_m, ld.turn_rate_rps)
+    pilot = PathPilot(ld.waypoints, ld.speed_mps, sc.width_m, ld.lookahead_m, ld.turn_rate_rps, corners=ld.corners)
     code = sc.code_of(ld.formation)
     avoid = None if ld.avoid_formation is None else sc.code_of(ld.avoid_formation)
     switch = FormationSwitch(code, avoid, ld.clear_after_s, sc.dt_s)

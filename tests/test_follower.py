@@ -16,7 +16,7 @@ import pytest
 from formation_swarm import scenario as scenario_mod
 from formation_swarm.agents import fuzzy as fz
 from formation_swarm.agents.avoidance import Choice
-from formation_swarm.agents.follower import Decision, Follower, FollowerParams
+from formation_swarm.agents.follower import Decision, Follower, FollowerParams, change_over
 from formation_swarm.agents.geometry import Point, errors, leader_point, target_from_reading, target_point
 from formation_swarm.agents.lpsi import control as lpsi_control
 from formation_swarm.world import kinematics
@@ -291,3 +291,42 @@ def test_the_hold_needs_a_full_window_after_the_filter_starts() -> None:
 def test_the_hold_parameters_are_checked(kwargs: dict[str, float], message: str) -> None:
     with pytest.raises(ValueError, match=re.escape(message)):
         FollowerParams(**kwargs)
+
+
+@pytest.mark.parametrize(("from_t3_m", "over"), [(0.3, True), (0.75, True), (0.99, True), (1.01, False), (1.5, False)])
+def test_a_formation_change_ends_within_d1_of_t3(from_t3_m: float, over: bool) -> None:
+    # Raw mode, the reference straight ahead: T3 = c behind its centre. The new slot, 4 m further back and
+    # 1.5 m aside, is the farther, so eq. 13 picks T3; the change ends within d1 = 1 m of it, not dn = 0.5 m.
+    p = FollowerParams(use_ekf=False)
+    f = Follower(p, Point(1.5, -1.5))
+    f.set_offset(Point(1.5, -4.0))
+    assert f.changing
+    centre_y = from_t3_m + p.clearance_m
+    d = f.step((centre_y - p.marker_offset_m, 0.0, 0.0))
+    assert d.steering_to is Choice.T3
+    assert d.rho_m == pytest.approx(from_t3_m)
+    assert f.changing is not over
+    assert change_over(Choice.T3, from_t3_m, p.fuzzy) is over
+    assert change_over(Choice.T3, -from_t3_m, p.fuzzy) is over  # past T3 the same
+    assert change_over(Choice.T0, from_t3_m + 5.0, p.fuzzy)
+    assert not change_over(Choice.T1, 0.0, p.fuzzy)
+
+
+@pytest.mark.parametrize(("mode", "vn", "wheels"), [("signed", 1.5, (1.0, 1.0)), ("distance", 1.7, (1.2, 1.2))])
+def test_drho_at_sign_change_distance_removes_fis2s_kick_not_fis1s_jump(mode: str, vn: float, wheels: tuple) -> None:
+    # Raw mode, the reference straight ahead; the target 0.5 m to the right, 1 mm ahead, then 1 mm behind.
+    p = FollowerParams(use_ekf=False, drho_at_sign_change=mode)
+    f = Follower(p, Point(0.5, -2.0 + 0.001))
+    ahead = f.step((2.0 - p.marker_offset_m, 0.0, 0.0))
+    assert ahead.rho_m == pytest.approx(0.5, abs=1e-5)
+    assert (ahead.left_mps, ahead.right_mps) == pytest.approx((1.7, 1.2))
+    behind = f.step((2.0 - 0.002 - p.marker_offset_m, 0.0, 0.0))
+    assert behind.rho_m == pytest.approx(-0.5, abs=1e-5)
+    assert behind.drho_m == pytest.approx(-1.0 if mode == "signed" else 0.0, abs=1e-5)
+    assert behind.vn == pytest.approx(vn)
+    assert (behind.left_mps, behind.right_mps) == pytest.approx(wheels)  # Close either way: no steering
+
+
+def test_drho_at_sign_change_is_checked() -> None:
+    with pytest.raises(ValueError, match="drho_at_sign_change must be one of"):
+        FollowerParams(drho_at_sign_change="abs")

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from formation_swarm.agents import fuzzy as fz
 from formation_swarm.agents import geometry as g
 from formation_swarm.agents.avoidance import Choice, Zone, select_target, zone_of
 from formation_swarm.agents.formation import Formation, Slot, line, wedge
@@ -215,3 +216,30 @@ def test_rho_sign_by_default_takes_the_reference_along_the_followers_heading() -
     # Behind-left of the follower, slightly behind: "ahead of the target" along phi = 0.
     assert g.errors(Point(-1.0, -0.2), None).rho_m < 0.0
     assert g.errors(Point(-1.0, -0.2), None, phi_rad=1.0).rho_m > 0.0
+
+
+def test_the_signed_rho_jumps_where_a_follower_is_level_with_its_target_to_its_side() -> None:
+    # Eq. 5's sign (docs/paper.md): the target 0.5 m to the follower's right, 1 mm ahead of it, then 1 mm behind.
+    p = fz.FuzzyParams()
+    ahead = g.errors(Point(0.5, 0.001), None)
+    behind = g.errors(Point(0.5, -0.001), ahead.rho_m)
+    assert ahead.rho_m == pytest.approx(0.5, abs=1e-5)
+    assert behind.rho_m == pytest.approx(-0.5, abs=1e-5)
+    assert behind.drho_m / 0.05 == pytest.approx(-20.0, abs=1e-3)  # FIS-2's input, m/s
+    vn_ahead, wheels_ahead = fz.control(ahead.alpha_rad, ahead.rho_m, 0.0, 0.05, p, fz.SpeedMode())
+    vn_behind, wheels_behind = fz.control(behind.alpha_rad, behind.rho_m, behind.drho_m, 0.05, p, fz.SpeedMode())
+    assert vn_ahead == pytest.approx(1.7)  # Middle
+    assert (wheels_ahead.left_mps, wheels_ahead.right_mps) == pytest.approx((1.7, 1.2))  # turns right, to it
+    assert vn_behind == pytest.approx(1.5)  # the -20 m/s forces Low
+    assert (wheels_behind.left_mps, wheels_behind.right_mps) == pytest.approx((1.0, 1.0))  # Close: straight on
+    # Without the kick of delta-rho V_N would stay Middle, wheels (1.2, 1.2): the sign alone ends the steering.
+    assert fz.fis2(0.0, behind.rho_m, p) == pytest.approx(1.7)
+
+
+def test_an_alpha_beyond_pi_is_wrapped_not_saturated() -> None:
+    # atan2 keeps eq. 4's alpha in [-pi, pi]; an input beyond it is the same direction, wrapped.
+    p = fz.FuzzyParams()
+    beyond = fz.control(math.pi + 0.3, 1.5, 0.0, 0.05, p, fz.SpeedMode(1.5))
+    assert beyond == fz.control(-math.pi + 0.3, 1.5, 0.0, 0.05, p, fz.SpeedMode(1.5))
+    assert beyond[1].left_mps < beyond[1].right_mps  # the target is behind-left: turn left
+    assert fz.control(math.pi, 1.5, 0.0, 0.05, p, fz.SpeedMode(1.5))[1].left_mps > 1.5  # pi itself unchanged: Left

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from formation_swarm.agents.pilot import PathPilot
+from formation_swarm.agents.pilot import PathPilot, round_corners, turn_room
 from formation_swarm.sim import PAPER_TURNING_PATH
 from formation_swarm.world.kinematics import Pose, step
 
@@ -171,3 +171,132 @@ def test_a_path_of_300_waypoints_is_flown_to_its_last_leg() -> None:
     assert pilot._seg == 298
     assert pilot.step(Pose(0.0, 29.5, NORTH)) == (0.0, 0.0)
     assert pilot.finished
+
+
+def _fly(path, speed_mps: float, turn_rate_rps: float, limit_s: float) -> tuple[PathPilot, float, float, Pose]:
+    """Fly the leader alone (world/kinematics.py): the pilot, its time to the end, its largest cross-track error,
+    its last pose."""
+    pilot = PathPilot(path, speed_mps=speed_mps, width_m=0.5, max_turn_rate_rps=turn_rate_rps)
+    pose = Pose(float(path[0][0]), float(path[0][1]), math.atan2(path[1][1] - path[0][1], path[1][0] - path[0][0]))
+    worst, ticks = 0.0, 0
+    while ticks * 0.05 < limit_s:
+        left, right = pilot.step(pose)
+        if pilot.finished:
+            break
+        pose = step(pose, left, right, 0.5, 0.05)
+        ticks += 1
+        worst = max(worst, _cross_track(path, pose))
+    return pilot, ticks * 0.05, worst, pose
+
+
+def _cross_track(path, pose: Pose) -> float:
+    best = math.inf
+    for (ax, ay), (bx, by) in zip(path[:-1], path[1:], strict=True):
+        dx, dy = bx - ax, by - ay
+        t = max(0.0, min(1.0, ((pose.x_m - ax) * dx + (pose.y_m - ay) * dy) / (dx * dx + dy * dy)))
+        best = min(best, math.hypot(ax + t * dx - pose.x_m, ay + t * dy - pose.y_m))
+    return best
+
+
+SPEEDS_MPS = (1.0, 1.25, 1.5, 1.6, 1.75, 2.0, 2.25, 2.5)
+TURN_RATES_RPS = (0.15, 0.2, 0.25, 0.3, 0.4, 0.5)
+
+
+@pytest.mark.parametrize("speed", SPEEDS_MPS)
+@pytest.mark.parametrize("turn_rate", TURN_RATES_RPS)
+def test_the_leader_finishes_the_paper_path_at_any_speed_and_turn_rate(speed: float, turn_rate: float) -> None:
+    # Before, it circled for ever in 24 of these 48 cases (from 1.6 m/s at 0.25 rad/s, 1.25 m/s at 0.2 rad/s).
+    radius = speed / turn_rate
+    corners = len(PAPER_TURNING_PATH) - 2
+    # The path at the cruise speed, and at worst a full circle at each corner.
+    bound_s = 60.0 / speed + corners * 2.0 * math.pi / turn_rate
+    pilot, took_s, worst_m, pilot_end = _fly(PAPER_TURNING_PATH, speed, turn_rate, 2.0 * bound_s)
+    assert pilot.finished
+    assert took_s <= bound_s
+    assert worst_m <= 2.0 * radius + pilot.lookahead_m  # measured: at most 1.73 R (2.5 m/s, 0.15 rad/s)
+    # Steering wide it ends where it passes the last waypoint, which may lie inside its turning circle:
+    # measured up to 1.30 R from it (R = 10 m) on paths the loader takes, 1.73 R on the others; else within 0.5 m.
+    end_m = math.hypot(pilot_end[0] - 20.0, pilot_end[1] - 40.0)
+    assert end_m <= (2.0 * radius if pilot.wide else 0.5 * pilot.lookahead_m)
+
+
+def test_where_the_plain_pursuit_finished_the_leader_flies_it_unchanged() -> None:
+    # 1.5 m/s at 0.25 rad/s, the shipped scenarios: the overshoot of the late turn, and no wide steering.
+    pilot, took_s, worst_m, _ = _fly(PAPER_TURNING_PATH, 1.5, 0.25, 100.0)
+    assert pilot.finished
+    assert not pilot.wide
+    assert took_s == pytest.approx(44.95)
+    assert worst_m == pytest.approx(5.05, abs=0.01)
+
+
+def test_a_leader_that_would_circle_steers_wide_and_finishes() -> None:
+    pilot, took_s, _, _ = _fly(PAPER_TURNING_PATH, 1.6, 0.25, 200.0)
+    assert pilot.finished  # passes the second corner >1 m away, moves on since it passed it
+    assert not pilot.wide
+    assert took_s == pytest.approx(44.3)
+    pilot, took_s, _, _ = _fly(PAPER_TURNING_PATH, 1.75, 0.25, 200.0)
+    assert pilot.finished  # circled its end point before
+    assert pilot.wide
+    assert took_s == pytest.approx(69.6)
+
+
+def test_turn_room_says_which_segment_is_too_short() -> None:
+    # 90 deg corners take R tan(45 deg) = R from each side; the middle segment (20 m) holds two.
+    assert turn_room(PAPER_TURNING_PATH, 10.0) == []
+    (why,) = turn_room(PAPER_TURNING_PATH, 12.5)
+    assert why == (
+        "segment (0.0, 20.0) -> (20.0, 20.0) is 20 m long, its corners take 25 m"
+        " (R tan(theta / 2) per corner, R = 12.5 m)"
+    )
+    assert turn_room(((0.0, 0.0), (0.0, 5.0), (0.0, 0.0)), 1.0) == [
+        "the path reverses at (0.0, 5.0): no turn circle fits a 180 deg turn"
+    ]
+    assert turn_room(((0.0, 0.0), (0.0, 50.0)), 100.0) == []
+
+
+def _length(path) -> float:
+    return sum(math.hypot(b[0] - a[0], b[1] - a[1]) for a, b in zip(path[:-1], path[1:], strict=True))
+
+
+@pytest.mark.parametrize("speed", SPEEDS_MPS)
+@pytest.mark.parametrize("turn_rate", TURN_RATES_RPS)
+def test_on_arcs_the_leader_flies_every_path_the_loader_takes(speed: float, turn_rate: float) -> None:
+    radius = speed / turn_rate
+    if turn_room(PAPER_TURNING_PATH, radius):
+        # The middle 20 m segment holds two 90 deg corners up to R = 10 m: 7 of the 48 are refused.
+        assert radius > 10.0
+        with pytest.raises(ValueError, match="corners = 'arcs': segment"):
+            PathPilot(PAPER_TURNING_PATH, speed, 0.5, max_turn_rate_rps=turn_rate, corners="arcs")
+        return
+    rounded = round_corners(PAPER_TURNING_PATH, radius)
+    pilot = PathPilot(PAPER_TURNING_PATH, speed, 0.5, max_turn_rate_rps=turn_rate, corners="arcs")
+    pose = Pose(0.0, 0.0, NORTH)
+    ticks, off_arcs, off_corners = 0, 0.0, 0.0
+    while ticks < 4000:
+        left, right = pilot.step(pose)
+        if pilot.finished:
+            break
+        pose = step(pose, left, right, 0.5, 0.05)
+        ticks += 1
+        off_arcs = max(off_arcs, _cross_track(rounded, pose))
+        off_corners = max(off_corners, _cross_track(PAPER_TURNING_PATH, pose))
+    assert pilot.finished
+    assert not pilot.wide
+    assert math.hypot(pose.x_m - 20.0, pose.y_m - 40.0) < 0.5
+    # The rounded path at the cruise speed; measured: 0.53 s sooner (it stops 0.5 m short) to 0.03 s later.
+    assert ticks * 0.05 <= _length(rounded) / speed + 0.5
+    # Measured: 0.07-0.10 m off the arcs, 0.44-0.48 m at R = 10 m where the two arcs meet with no straight.
+    assert off_arcs <= 0.5
+    assert off_corners <= radius * (1.0 - math.cos(math.pi / 4)) + 0.5  # the arc's middle, inside each corner
+
+
+def test_round_corners_puts_each_arc_on_its_circle_tangent_to_both_segments() -> None:
+    pts = round_corners(PAPER_TURNING_PATH, 6.0)
+    first = [p for p in pts if p[1] <= 20.0 and p[0] <= 6.0 and p[1] >= 14.0]
+    assert first[0] == pytest.approx((0.0, 14.0))  # R tan(45 deg) = 6 m before the corner
+    assert first[-1] == pytest.approx((6.0, 20.0))  # and 6 m after it
+    assert max(abs(math.hypot(x - 6.0, y - 14.0) - 6.0) for x, y in first) < 1e-12  # on the circle about (6, 14)
+    assert pts[-1] == (20.0, 40.0)
+    assert max(math.dist(a, b) for a, b in zip(pts[1:-2], pts[2:-1], strict=True)) <= 8.0  # only straights are long
+    with pytest.raises(ValueError, match="corners must be one of 'pursuit', 'arcs', got 'round'"):
+        PathPilot(PAPER_TURNING_PATH, 1.5, 0.5, corners="round")

@@ -94,3 +94,24 @@ def test_docs_scenario_md_is_generated_from_the_schema() -> None:
             for key in keys:
                 if section not in ("formations", "followers"):
                     assert f"| `{key}` |" in doc, f"{section}.{key}"
+
+
+def test_a_path_whose_corners_do_not_fit_the_turn_radius_is_refused_with_the_numbers() -> None:
+    turn = SCENARIOS / "fig7_turn_vn_dynamic.toml"
+    # R = 2.0 / 0.2 = 10 m: the 20 m middle segment holds its two 90 deg corners (R each), just.
+    assert sm.load(turn, {"leader.speed_mps": 2.0, "leader.turn_rate_rps": 0.2}).leader.speed_mps == 2.0
+    with pytest.raises(sm.ScenarioError) as err:
+        sm.load(turn, {"leader.speed_mps": 2.5, "leader.turn_rate_rps": 0.2})
+    assert str(err.value).endswith(
+        "leader.waypoints: the leader cannot turn these corners at leader.speed_mps = 2.5 and"
+        " leader.turn_rate_rps = 0.2 (turn radius R = 12.5 m): segment (0.0, 20.0) -> (20.0, 20.0) is 20 m long,"
+        " its corners take 25 m (R tan(theta / 2) per corner, R = 12.5 m)"
+    )
+
+
+def test_leader_corners_is_pursuit_by_default_and_checked() -> None:
+    turn = SCENARIOS / "fig7_turn_vn_dynamic.toml"
+    assert sm.load(turn).leader.corners == "pursuit"
+    assert sm.load(turn, {"leader.corners": "arcs", "leader.speed_mps": 1.6}).leader.corners == "arcs"
+    with pytest.raises(sm.ScenarioError, match="leader.corners must be one of 'pursuit', 'arcs', got 'round'"):
+        sm.load(turn, {"leader.corners": "round"})
