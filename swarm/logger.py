@@ -80,6 +80,7 @@ class Logger:
         self.done = False
         self.last_tick: dict[int, int] = {}  # per sender (WORLD_ID: truth), the last tick taken
         self.end_note = "not started"  # why the loop ended, for the last report line
+        self.loop_cpu_s = 0.0
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         key, payload = str(sample.key_expr), sample.payload.to_bytes()
@@ -103,6 +104,7 @@ class Logger:
         gc.freeze()  # start-up objects (numpy, scipy, zenoh) leave the collector's scans
         token = s.liveliness().declare_token(k.alive("logger", 0))
         last_send = last_flush = time.monotonic()
+        cpu0 = time.process_time()
         try:
             # Messages are handled in one go per send, not as they come: the
             # logger then wakes 4 times a second instead of at every batch,
@@ -139,6 +141,7 @@ class Logger:
             self.recorder.send(final=True)
             self.recorder.flush(timeout_s=1.0)
         finally:
+            self.loop_cpu_s = time.process_time() - cpu0
             token.undeclare()
         return self._exit_code()
 
@@ -208,6 +211,8 @@ class Logger:
             "last_sim_time_s": recorded["last_sim_time_s"],
             "target_errors": recorded["target_errors"],
             "rejected": dict(self.rejections.by_reason),
+            "cpu_s": time.process_time(),  # the process's CPU time so far (user + system, all threads)
+            "loop_cpu_s": self.loop_cpu_s,  # of it, over the loop
         }
 
 
