@@ -10,6 +10,9 @@ check the changed code against it:
     python tools/digests.py --check /tmp/digests.txt
 
 ``--check`` prints every case that differs and exits 1 if one does.
+``tools/digests.txt`` is the list recorded on the development machine
+(Python 3.11, numpy 2.4) before the world's cameras went to numpy; another
+machine's libm may give other digests: record a list there first.
 """
 
 from __future__ import annotations
