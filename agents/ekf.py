@@ -65,7 +65,7 @@ class _Filter(ExtendedKalmanFilter):
 
     def predict_x(self, u: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
         v_f, dth, dt = u
-        x, y, phi, v, w = self.x[:, 0]
+        x, y, phi, v, w = self.x[:, 0].tolist()
         # The follower's own displacement over the step, on its arc (eq. 7).
         if abs(dth) < 1e-9:
             tx, ty = 0.0, v_f * dt
@@ -79,17 +79,31 @@ class _Filter(ExtendedKalmanFilter):
         # The follower turns by dth: points rotate by -dth in its frame.
         c = math.cos(dth)
         s = math.sin(dth)
-        self.x = np.array([[c * x1 + s * y1], [-s * x1 + c * y1], [wrap_angle(phi + w * dt - dth)], [v], [w]])
+        # In place: filterpy keeps copies (x_prior, x_post), never this array.
+        state = self.x
+        state[0, 0] = c * x1 + s * y1
+        state[1, 0] = -s * x1 + c * y1
+        state[2, 0] = wrap_angle(phi + w * dt - dth)
 
 
-def _hx(state: np.ndarray, d: float) -> np.ndarray:
+def _hx(state: np.ndarray, d: float, out: np.ndarray | None = None) -> np.ndarray:
+    """Eq. 1, h(x) = (rho_r, beta, phi), written into ``out`` (3 x 1) if given."""
+    if out is None:
+        out = np.zeros((3, 1))
     x, y, phi = state[0, 0], state[1, 0], state[2, 0]
     mx = x + d * math.sin(phi)
     my = y - d * math.cos(phi)
-    return np.array([[math.hypot(mx, my)], [math.atan2(mx, my)], [phi]])
+    out[0, 0] = math.hypot(mx, my)
+    out[1, 0] = math.atan2(mx, my)
+    out[2, 0] = phi
+    return out
 
 
-def _h_jacobian(state: np.ndarray, d: float) -> np.ndarray:
+def _h_jacobian(state: np.ndarray, d: float, out: np.ndarray | None = None) -> np.ndarray:
+    """The Jacobian of eq. 1, written into ``out`` if given (3 x 5, holding
+    the constant entries, 0 and 1, of :func:`jacobian_template`)."""
+    if out is None:
+        out = jacobian_template()
     x, y, phi = state[0, 0], state[1, 0], state[2, 0]
     mx = x + d * math.sin(phi)
     my = y - d * math.cos(phi)
@@ -97,13 +111,20 @@ def _h_jacobian(state: np.ndarray, d: float) -> np.ndarray:
     r = math.sqrt(r2)
     dmx_dphi = d * math.cos(phi)
     dmy_dphi = d * math.sin(phi)
-    return np.array(
-        [
-            [mx / r, my / r, (mx * dmx_dphi + my * dmy_dphi) / r, 0.0, 0.0],
-            [my / r2, -mx / r2, (my * dmx_dphi - mx * dmy_dphi) / r2, 0.0, 0.0],
-            [0.0, 0.0, 1.0, 0.0, 0.0],
-        ]
-    )
+    out[0, 0] = mx / r
+    out[0, 1] = my / r
+    out[0, 2] = (mx * dmx_dphi + my * dmy_dphi) / r
+    out[1, 0] = my / r2
+    out[1, 1] = -mx / r2
+    out[1, 2] = (my * dmx_dphi - mx * dmy_dphi) / r2
+    return out
+
+
+def jacobian_template() -> np.ndarray:
+    """A 3 x 5 array with the constant entries of :func:`_h_jacobian`."""
+    h = np.zeros((3, 5))
+    h[2, 2] = 1.0
+    return h
 
 
 # Beyond these the filter has diverged: no camera sees a marker a kilometre
@@ -125,6 +146,12 @@ class TargetEKF:
         self._kf.R = np.diag([params.sigma_rho_m**2, params.sigma_beta_rad**2, params.sigma_phi_rad**2])
         self._q_dt = math.nan
         self._q = np.zeros((5, 5))
+        # Filled in place every tick (filterpy reads them, keeps no reference):
+        # the motion Jacobian F, the measurement Jacobian H, h(x) and z.
+        self._kf.F = np.eye(5)
+        self._h = jacobian_template()
+        self._hx = np.zeros((3, 1))
+        self._z = np.zeros((3, 1))
         self.initialized = False
         self.resets = 0  # divergences: a state or covariance no longer finite and bounded
 
@@ -157,7 +184,7 @@ class TargetEKF:
         v_f, w_f = body_twist(finite("v_left_mps", v_left_mps), finite("v_right_mps", v_right_mps), self.width_m)
         dth = w_f * dt
         kf = self._kf
-        _, _, phi, v, w = kf.x[:, 0]
+        _, _, phi, v, w = kf.x[:, 0].tolist()
         c = math.cos(dth)
         s = math.sin(dth)
         phi_m = phi + 0.5 * w * dt
@@ -168,15 +195,12 @@ class TargetEKF:
         # J rows 0-1: d(x1, y1)/d(x, y, phi, v, w); J rows 2-4: phi += w dt, v, w.
         j0 = (-v * dt * cp, -dt * sp, -0.5 * v * dt * dt * cp)
         j1 = (-v * dt * sp, dt * cp, -0.5 * v * dt * dt * sp)
-        kf.F = np.array(
-            [
-                [c, s, c * j0[0] + s * j1[0], c * j0[1] + s * j1[1], c * j0[2] + s * j1[2]],
-                [-s, c, -s * j0[0] + c * j1[0], -s * j0[1] + c * j1[1], -s * j0[2] + c * j1[2]],
-                [0.0, 0.0, 1.0, 0.0, dt],
-                [0.0, 0.0, 0.0, 1.0, 0.0],
-                [0.0, 0.0, 0.0, 0.0, 1.0],
-            ]
-        )
+        f = kf.F  # rows 2-4 are the identity's but for F[2, 4] = dt
+        f[0, 0], f[0, 1], f[0, 2] = c, s, c * j0[0] + s * j1[0]
+        f[0, 3], f[0, 4] = c * j0[1] + s * j1[1], c * j0[2] + s * j1[2]
+        f[1, 0], f[1, 1], f[1, 2] = -s, c, -s * j0[0] + c * j1[0]
+        f[1, 3], f[1, 4] = -s * j0[1] + c * j1[1], -s * j0[2] + c * j1[2]
+        f[2, 4] = dt
         kf.Q = self._process_noise(dt)
         kf.predict(u=(v_f, dth, dt))
         self._check()
@@ -201,10 +225,11 @@ class TargetEKF:
         if not self.initialized:
             self._initialize(rho, phi, beta)
             return
-        z = np.array([[rho], [beta], [phi]])
+        z = self._z
+        z[0, 0], z[1, 0], z[2, 0] = rho, beta, phi
         d = self.marker_offset_m
         try:
-            self._kf.update(z, _h_jacobian, _hx, args=(d,), hx_args=(d,), residual=_residual)
+            self._kf.update(z, _h_jacobian, _hx, args=(d, self._h), hx_args=(d, self._hx), residual=_residual)
         except (ValueError, np.linalg.LinAlgError):  # a singular or non-finite innovation covariance
             self._kf.x[0, 0] = math.inf  # counted and reset by _check
         self._check()

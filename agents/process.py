@@ -113,6 +113,7 @@ class Agent:
         self.end_note = "not started"  # why the loop ended, for the last report line
         self.answered = 0
         self.busy_s = 0.0  # time handling messages in the loop, summed
+        self.loop_cpu_s = 0.0  # CPU time of this process over the loop (all its threads)
         self.formation_changes: list[dict[str, Any]] = []
         # Codes taken, each with the tick it is stamped with or, if the link held it, released at.
         self.pending_codes: collections.deque[tuple[int, FormationCode]] = collections.deque(maxlen=PENDING_CODES)
@@ -262,6 +263,14 @@ class Agent:
         # The handler, not the subscriber: closing the subscriber from another
         # thread must not wait for this recv.
         channel = inbox.handler
+        cpu0 = time.process_time()
+        try:
+            self._serve(channel)
+        finally:
+            self.loop_cpu_s = time.process_time() - cpu0
+        return self._exit_code()
+
+    def _serve(self, channel: Any) -> None:
         while not self.stop.is_set() and not self.done:
             try:
                 sample = channel.recv()
@@ -291,7 +300,6 @@ class Agent:
             if self.stats_path and time.monotonic() - self.stats_written_at >= STATS_PERIOD_S:
                 write_json(self.stats_path, self.stats())
                 self.stats_written_at = time.monotonic()
-        return self._exit_code()
 
     def _exit_code(self) -> int:
         code, self.end_note = self.role.follower_end(self.keys.run_id, self.done, self.started)
@@ -455,6 +463,8 @@ class Agent:
             "held_ticks": self.held_ticks,  # a follower's ticks held at a standing reference
             "holds": self.holds,  # [first, last] tick of each hold, the first MAX_HOLDS
             "busy_s": self.busy_s,
+            "cpu_s": time.process_time(),  # the process's CPU time so far (user + system, all threads)
+            "loop_cpu_s": self.loop_cpu_s,
             "formation": self.sc.formation_names[self.code],
             "formation_changes": self.formation_changes,
             "world_back_after_s": self.world_back_after_s,  # per loss of the world's token mid-run (None: never)

@@ -274,6 +274,7 @@ def build(
         "lockstep_misses": world.get("lockstep_misses"),
         "late_ticks": world.get("late_ticks"),
         "max_tick_lateness_s": world.get("max_tick_lateness_s"),
+        "p99_tick_lateness_s": world.get("p99_tick_lateness_s"),
         "stale_stops": world.get("stale_stops"),
         "formation_events": world.get("formation_events", []),
         "sensor_faults": world.get("sensor_faults", {}),

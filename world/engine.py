@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from formation_swarm.world.camera import observe
+from formation_swarm.world.camera import CameraFrame
 from formation_swarm.world.hardware_faults import SENSOR_EFFECT, CameraFaults, Wheels, counts_table
 from formation_swarm.world.kinematics import Pose, _step_unchecked, from_body_frame, to_body_frame
 from formation_swarm.world.recovery import Recovery
@@ -147,6 +147,7 @@ class WorldEngine:
     # Formation errors after a robot's return (world.recovery), fed by record().
     recoveries: list[Recovery] = field(init=False, default_factory=list)
     _touching: set[tuple[int, int]] = field(init=False, default_factory=set)
+    _pair_index: tuple[np.ndarray, np.ndarray] = field(init=False, default=(np.zeros(0, int), np.zeros(0, int)))
     _digest: hashlib._Hash = field(init=False)
     # The state of the last tick stepped from, until record() takes its metrics.
     _pending: dict[int, tuple[Pose, tuple[float, float], int]] | None = field(init=False, default=None)
@@ -180,26 +181,39 @@ class WorldEngine:
 
     def observation(self, rid: int) -> tuple[tuple[float, float, float], list, list]:
         """(own pose, marker readings, obstacles in range) for robot ``rid`` now."""
+        return self.observations([rid])[rid]
+
+    def observations(self, rids: list[int]) -> dict[int, tuple[tuple[float, float, float], list, list]]:
+        """:meth:`observation` of each robot of ``rids``, every camera of the tick
+        taken at once (world.camera.CameraFrame: the same readings, the same draws)."""
         sc = self.scenario
-        r = self.robots[rid]
-        readings: list = []
-        obstacles = []
-        if rid != sc.leader.robot_id:
-            # The leader uses no camera: it flies its path and senses obstacles.
-            poses = {i: s.pose for i, s in self.robots.items()}
-            seen = self.cameras[rid].apply(self.tick, poses, observe(rid, poses, sc.camera, r.rng))
-            readings = [tuple(m) for m in seen]
-            reference = sc.formation_by_code(r.formation).slots[rid].reference
-            metrics = self.metrics[rid]
-            metrics.frames += 1
-            metrics.seen_ticks += any(m[0] == reference for m in seen)
-        else:
-            for ob in sc.obstacles:
-                xb, yb = to_body_frame(r.pose, ob.x_m, ob.y_m)
-                dist = math.hypot(xb, yb)
-                if dist - ob.radius_m <= sc.leader.sensing_range_m:
-                    obstacles.append((dist, math.atan2(xb, yb), ob.radius_m))
-        return tuple(r.pose), readings, obstacles
+        leader = sc.leader.robot_id
+        frame = None
+        poses: dict[int, Pose] = {}
+        out = {}
+        for rid in rids:
+            r = self.robots[rid]
+            readings: list = []
+            obstacles = []
+            if rid != leader:
+                # The leader uses no camera: it flies its path and senses obstacles.
+                if frame is None:
+                    poses = {i: s.pose for i, s in self.robots.items()}
+                    frame = CameraFrame(poses, sc.camera)
+                seen = self.cameras[rid].apply(self.tick, poses, frame.observe(rid, r.rng))
+                readings = [tuple(m) for m in seen]
+                reference = sc.formation_by_code(r.formation).slots[rid].reference
+                metrics = self.metrics[rid]
+                metrics.frames += 1
+                metrics.seen_ticks += any(m[0] == reference for m in seen)
+            else:
+                for ob in sc.obstacles:
+                    xb, yb = to_body_frame(r.pose, ob.x_m, ob.y_m)
+                    dist = math.hypot(xb, yb)
+                    if dist - ob.radius_m <= sc.leader.sensing_range_m:
+                        obstacles.append((dist, math.atan2(xb, yb), ob.radius_m))
+            out[rid] = (tuple(r.pose), readings, obstacles)
+        return out
 
     def set_command(self, rid: int, left_mps: float, right_mps: float, formation: int, now_s: float) -> None:
         r = self.robots[rid]
@@ -306,24 +320,43 @@ class WorldEngine:
             h.update(struct.pack("<3d", *snap[rid][0]))
 
     def _contacts(self, poses: dict[int, Pose]) -> None:
+        """Collisions (robot pairs, robots and obstacles) and the minimum distance
+        of one tick. numpy measures every pair at once; the pairs it finds near
+        the minimum or near touching (within CameraFrame.SLACK) are measured
+        again with math.hypot, which decides, as the pair loop did."""
         sc = self.scenario
         ids = sorted(poses)
+        xy = np.array([(poses[i][0], poses[i][1]) for i in ids], dtype=float).reshape(-1, 2)
+        slack = CameraFrame.SLACK
         touching: set[tuple[int, int]] = set()
-        for i, a in enumerate(ids):
-            pa = poses[a]
-            for b in ids[i + 1 :]:
-                pb = poses[b]
-                d = math.hypot(pa.x_m - pb.x_m, pa.y_m - pb.y_m)
-                self.min_distance_m = min(self.min_distance_m, d)
-                if d < sc.diameter_m:
+        if len(ids) > 1:
+            ia, ib = self._pairs(len(ids))
+            d = np.hypot(xy[ia, 0] - xy[ib, 0], xy[ia, 1] - xy[ib, 1])
+            near = (d <= d.min() * (1.0 + slack) + slack) | (d < sc.diameter_m * (1.0 + slack) + slack)
+            for k in np.flatnonzero(near).tolist():
+                a, b = ids[ia[k]], ids[ib[k]]
+                pa, pb = poses[a], poses[b]
+                dist = math.hypot(pa.x_m - pb.x_m, pa.y_m - pb.y_m)
+                self.min_distance_m = min(self.min_distance_m, dist)
+                if dist < sc.diameter_m:
                     touching.add((a, b))
-            for k, ob in enumerate(sc.obstacles):
-                if math.hypot(pa.x_m - ob.x_m, pa.y_m - ob.y_m) < ob.radius_m + 0.5 * sc.diameter_m:
-                    touching.add((a, -1 - k))
+        for k, ob in enumerate(sc.obstacles):
+            reach = ob.radius_m + 0.5 * sc.diameter_m
+            d = np.hypot(xy[:, 0] - ob.x_m, xy[:, 1] - ob.y_m)
+            for i in np.flatnonzero(d < reach * (1.0 + slack) + slack).tolist():
+                p = poses[ids[i]]
+                if math.hypot(p.x_m - ob.x_m, p.y_m - ob.y_m) < reach:
+                    touching.add((ids[i], -1 - k))
         new = touching - self._touching
         self.collisions += sum(1 for _, b in new if b > 0)
         self.obstacle_collisions += sum(1 for _, b in new if b < 0)
         self._touching = touching
+
+    def _pairs(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """Row and column of every pair i < j of ``n`` robots (cached: n rarely changes)."""
+        if self._pair_index[0].size != n * (n - 1) // 2:
+            self._pair_index = np.triu_indices(n, 1)
+        return self._pair_index
 
     def digest(self) -> str:
         self.record()

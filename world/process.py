@@ -69,6 +69,14 @@ LINGER_S = 2.0  # after "done", at most this long for the others to leave
 CMD_CAPACITY = 1024
 
 
+def percentile(values: list[float], q: float) -> float:
+    """The ``q``-th percentile of ``values`` (nearest rank); NaN when there are none."""
+    if not values:
+        return math.nan
+    ranked = sorted(values)
+    return ranked[min(len(ranked) - 1, max(0, math.ceil(q / 100.0 * len(ranked)) - 1))]
+
+
 class Alarm:
     """Calls ``wake`` at a time of ``time.monotonic()``, from a thread of its own.
 
@@ -156,6 +164,8 @@ class World:
         self.late_answers = 0
         self.late_ticks = 0
         self.max_tick_lateness_s = 0.0
+        self.lateness_s: list[float] = []  # real time: each tick's lateness, for its percentiles
+        self.loop_cpu_s = 0.0  # CPU time of this process over the loop (all its threads)
         self.agents_seen: set[int] = set()
         self.logger_seen = False
         self.present: set[str] = set()  # alive keys of the agents and the logger
@@ -208,8 +218,10 @@ class World:
             )
             gc.freeze()  # start-up objects leave the collector's scans
             self.t0 = time.monotonic()
+            cpu0 = time.process_time()
             code = self._loop(obs_pubs, truth_pub, status_pub)
             self.loop_wall_s = time.monotonic() - self.t0
+            self.loop_cpu_s = time.process_time() - cpu0
             self.ended_at_s = self.engine.time_s
             if code == 0:
                 self.end_reason = summary_mod.LEADER_FINISHED if self.leader_done else summary_mod.DURATION_REACHED
@@ -375,11 +387,9 @@ class World:
     def _publish_observations(self, obs_pubs: dict[int, zenoh.Publisher]) -> None:
         eng = self.engine
         tick, t = eng.tick, eng.time_s
-        for rid in eng.alive_ids:
-            if not self.faults.observed(rid):
-                continue  # frozen (lockstep): no observation, not waited for
+        observed = [rid for rid in eng.alive_ids if self.faults.observed(rid)]  # frozen (lockstep): not waited for
+        for rid, (pose, readings, obstacles) in eng.observations(observed).items():
             eng.robots[rid].answered = False
-            pose, readings, obstacles = eng.observation(rid)
             seq = self._next_seq(link_name("obs", 0, rid))
             obs_pubs[rid].put(Observation(0, seq, tick, t, pose, tuple(readings), tuple(obstacles)).to_bytes())
             self.counts["obs_sent"] += 1
@@ -413,6 +423,7 @@ class World:
                     now = time.monotonic()
                 lateness = now - tick_start
                 self.max_tick_lateness_s = max(self.max_tick_lateness_s, lateness)
+                self.lateness_s.append(lateness)
                 if lateness > 0.5 * period:
                     self.late_ticks += 1
                 self.wall_s = now - start
@@ -424,10 +435,15 @@ class World:
                 deadline = time.monotonic() + sc.lockstep_deadline_s
                 # A robot just thawed may wait for its SIGCONT: its first answer gets longer.
                 thaw_deadline = time.monotonic() + self.role.peers_timeout_s
+                # Robots only leave this list while the world waits (they answer, die or
+                # freeze; none is revived before the next tick): it is filtered, not rebuilt.
+                waiting = eng.alive_ids
                 while not self.stop.is_set():
+                    robots = eng.robots
                     waiting = [
-                        rid for rid in eng.alive_ids if not eng.robots[rid].answered and self.faults.observed(rid)
-                    ]
+                        rid for rid in waiting
+                        if not robots[rid].answered and robots[rid].alive and self.faults.observed(rid)
+                    ]  # fmt: skip
                     if not waiting:
                         break
                     if time.monotonic() >= (until := self._answer_deadline(waiting, deadline, thaw_deadline)):
@@ -454,7 +470,8 @@ class World:
         return 0
 
     def _answer_deadline(self, waiting: list[int], deadline: float, thaw_deadline: float) -> float:
-        return thaw_deadline if any(rid in self.faults.thawing for rid in waiting) else deadline
+        thawing = self.faults.thawing
+        return thaw_deadline if thawing and any(rid in thawing for rid in waiting) else deadline
 
     def _process_faults(self) -> None:
         """The fault calls of this tick, published before its observations and
@@ -514,6 +531,9 @@ class World:
                 "late_ticks": self.late_ticks,
                 "wake_ups": self.wakes,  # deadlines, clock ticks, liveliness, stop: not commands
                 "max_tick_lateness_s": self.max_tick_lateness_s,
+                "p99_tick_lateness_s": percentile(self.lateness_s, 99.0),
+                "cpu_s": time.process_time(),  # the process's CPU time so far (user + system, all threads)
+                "loop_cpu_s": self.loop_cpu_s,
                 **self.faults.stats(),  # deaths, fault_log, rejoins, recoveries
                 "leader_done": self.leader_done,
                 "end_reason": self.end_reason,

@@ -1,0 +1,123 @@
+"""How a run scales with its number of robots: N robots in a line on fig11's
+path (``run.robots=N``, ``leader.formation=line``; a wedge of 10 or more
+strands robots), the logger on, in real time and in lockstep.
+
+Per N and mode it prints:
+
+- ``start``: wall seconds from the launch to the first tick (every process
+  forked, connected and ready);
+- real time: the ticks late by more than half a period, and the 99th
+  percentile and the largest lateness of a tick (ms);
+- lockstep: the world's ticks per wall second;
+- CPU per tick, in microseconds: of an agent (the mean and the largest over the
+  followers, from each agent's CPU time over its loop, ``loop_cpu_s``, divided
+  by the observations it answered), of the world and of the logger;
+- PSS per agent (MB, shared pages counted once), sampled a second into the run.
+
+The machine's load average is printed before and after: other work on the
+machine shows in every figure.
+
+    python bench/scale.py [--robots 10 50 100 200] [--modes realtime lockstep]
+                          [--duration 20] [--lockstep-duration 10] [--no-logger]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from formation_swarm.launcher import Launch  # noqa: E402
+
+SCENARIO = ROOT / "scenarios" / "fig11_obstacles.toml"
+STRAIGHT = [[0.0, 0.0], [0.0, 1000.0]]  # --straight: a path that never ends within the duration
+
+
+def pss_mb(pid: int) -> float:
+    """A process's proportional set size, MB (NaN when it is gone)."""
+    try:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            if line.startswith("Pss:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return float("nan")
+
+
+def one(n: int, mode: str, duration_s: float, logger: bool, straight: bool, tmp: Path) -> dict[str, Any]:
+    overrides: dict[str, Any] = {"run.robots": n, "leader.formation": "line", "run.duration_s": duration_s}
+    if straight:
+        overrides["leader.waypoints"] = STRAIGHT
+    t0 = time.monotonic()
+    with Launch(SCENARIO, mode=mode, out=tmp / f"{mode}-{n}-{time.time_ns()}", overrides=overrides,
+                logger=logger, progress=lambda _l: None) as launch:  # fmt: skip
+        if not launch.wait_until(lambda: launch.sim_time() >= 0.0, timeout_s=900.0):
+            raise SystemExit(f"{n} robots, {mode}: no first tick within 900 s ({launch.run_dir})")
+        start_s = time.monotonic() - t0
+        launch.wait_until(lambda: launch.sim_time() >= min(1.0, 0.5 * duration_s), timeout_s=60.0)
+        pss = [pss_mb(pid) for name, pid in launch.pids().items() if name.startswith("agent-")]
+        res = launch.wait(timeout_s=max(600.0, 20 * duration_s))
+    s = res.summary
+    parts = s.get("parts", {})
+    world = parts.get("world", {})
+    followers = [p for name, p in parts.items() if name.startswith("agent-") and p.get("role") == "follower"]
+    per_tick = [1e6 * p["loop_cpu_s"] / p["answered"] for p in followers if p.get("answered")]
+    ticks = max(1, int(s.get("ticks") or 0))
+    return {
+        "exit": res.exit_code,
+        "start_s": start_s,
+        "ticks": ticks,
+        "late": s.get("late_ticks"),
+        "p99_ms": 1e3 * (world.get("p99_tick_lateness_s") or float("nan")),
+        "max_ms": 1e3 * (s.get("max_tick_lateness_s") or 0.0),
+        "ticks_per_s": s.get("ticks_per_s"),
+        "agent_us": statistics.mean(per_tick) if per_tick else float("nan"),
+        "agent_max_us": max(per_tick, default=float("nan")),
+        "world_us": 1e6 * world.get("loop_cpu_s", float("nan")) / ticks,
+        "logger_us": 1e6 * parts.get("logger", {}).get("loop_cpu_s", float("nan")) / ticks,
+        "pss_mb": statistics.mean(p for p in pss if p == p) if any(p == p for p in pss) else float("nan"),
+        "misses": s.get("lockstep_misses"),
+    }
+
+
+def line(n: int, mode: str, r: dict[str, Any]) -> str:
+    head = f"{n:4d} robots {mode:8s} start {r['start_s']:6.2f} s"
+    if mode == "realtime":
+        timing = f"late {r['late']:4d}/{r['ticks']:<5d} p99 {r['p99_ms']:7.1f} ms max {r['max_ms']:7.1f} ms"
+    else:
+        timing = f"{r['ticks_per_s']:7.1f} ticks/s ({r['ticks']} ticks, misses {r['misses']})"
+    cpu = (f"CPU/tick: agent {r['agent_us']:6.0f} us (max {r['agent_max_us']:6.0f}), world {r['world_us']:7.0f} us, "
+           f"logger {r['logger_us']:6.0f} us")  # fmt: skip
+    bad = "" if r["exit"] == 0 else f"  EXIT {r['exit']}"
+    return f"{head}  {timing}  {cpu}  PSS/agent {r['pss_mb']:5.1f} MB{bad}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--robots", type=int, nargs="+", default=[10, 50, 100])
+    ap.add_argument("--modes", nargs="+", choices=("realtime", "lockstep"), default=["realtime", "lockstep"])
+    ap.add_argument("--duration", type=float, default=20.0, help="sim seconds of a real-time run (default 20)")
+    ap.add_argument("--lockstep-duration", type=float, default=10.0, help="sim seconds of a lockstep run (default 10)")
+    ap.add_argument("--no-logger", action="store_true", help="without the logger")
+    ap.add_argument("--straight", action="store_true", help="a straight path, for durations beyond fig11's 56 s")
+    args = ap.parse_args()
+    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}", flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        for n in args.robots:
+            for mode in args.modes:
+                duration = args.duration if mode == "realtime" else args.lockstep_duration
+                r = one(n, mode, duration, not args.no_logger, args.straight, Path(tmp))
+                print(line(n, mode, r), f"load {os.getloadavg()[0]:.2f}", flush=True)
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
