@@ -79,7 +79,11 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
         changes = [f"R{e.get('robot')} {e.get('formation')} at {_num(e.get('time_s'), '.2f')} s"
                    for e in s.get("formation_events") or []]  # fmt: skip
         w(f"  formation changes: {', '.join(changes) or 'none'}\n")
-        w(f"  lockstep misses {s.get('lockstep_misses')}, drops {s.get('drops_total')}, ")
+        if s.get("mode") == "realtime":
+            late_ms = _num(1e3 * s["max_tick_lateness_s"] if s.get("max_tick_lateness_s") is not None else None, ".1f")
+            w(f"  late ticks {s.get('late_ticks')} (worst {late_ms} ms), drops {s.get('drops_total')}, ")
+        else:
+            w(f"  lockstep misses {s.get('lockstep_misses')}, drops {s.get('drops_total')}, ")
         w(f"rejected {s.get('rejected_total')}\n")
     for f in s.get("faults") or []:
         w(f"  fault: {describe_fault(f)}\n")

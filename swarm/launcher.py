@@ -148,6 +148,10 @@ class Launch:
         self.live = live
         self.serve_web = serve_web
         self.web_ports = web_ports  # (gRPC, web viewer), with serve_web
+        if serve_web:  # checked now: a logger that cannot serve would fail the run after it started
+            for flag, p in zip(("--grpc-port", "--web-port"), web_ports, strict=True):
+                if (why := viewer.port_taken(p)) is not None:
+                    raise ValueError(f"{flag} {p}: cannot serve the web viewer there ({why}); choose another port")
         self.said_web = False  # the web viewer's address is on the console
         self.progress = progress or (lambda line: print(line, flush=True))
         for warning in self.sc.warnings:  # the loader's, with the run's other console lines

@@ -11,7 +11,8 @@ Entity paths mirror the key space::
     robots/r<id>/target/measured         the target from the raw reading (eq. 1-2)
     robots/r<id>/ekf/target, /ekf/cov    EKF estimate and its 2-sigma ellipse
     robots/r<id>/error/formation         |follower - true target|, m
-    robots/r<id>/error/ekf, /error/measured   |estimate or reading - true target|, m
+    robots/r<id>/error/ekf, /error/measured   |estimate or reading - true target|, m (the target
+                                         of the formation the follower's telemetry says it flew)
     robots/r<id>/fis/rho, /fis/alpha, /fis/v_n, robots/r<id>/wheels/left, /wheels/right
     robots/r<id>/formation               formation code flown
     events                               the run's start and each follower's formation changes, as text
@@ -44,7 +45,7 @@ import rerun.blueprint as rrb
 
 from formation_swarm import viewer
 from formation_swarm.palette import OBSTACLE, PATH, lighter, robot_colour
-from formation_swarm.world.kinematics import Pose
+from formation_swarm.world.kinematics import Pose, from_body_frame
 
 if TYPE_CHECKING:
     from formation_swarm.protocol.messages import FaultCall, Telemetry, Truth
@@ -375,7 +376,7 @@ class Recorder:
         for tel in self.tels:
             pose = self.poses.get(tel.tick, {}).get(tel.sender)
             if pose is not None:
-                ready[tel.sender].append((tel, pose, self.targets[tel.tick].get(tel.sender)))
+                ready[tel.sender].append((tel, pose, self._flown_target(tel)))
             elif tel.tick > newest - HISTORY_TICKS and not final:
                 waiting.append(tel)
             else:
@@ -385,6 +386,20 @@ class Recorder:
             del self.poses[old], self.targets[old]
         for rid, rows in ready.items():
             self._send_follower(rid, rows)
+
+    def _flown_target(self, tel: Telemetry) -> tuple[float, float] | None:
+        """The true target of the slot the follower flew at its tick: in the
+        formation its telemetry names, from its reference's true pose. In real
+        time a follower may apply a new formation code a tick before the world
+        has its command naming it; the world's own target (``Truth``) would
+        then be the old formation's slot, and its reading of the new one would
+        count as metres of error for that tick."""
+        poses = self.poses.get(tel.tick, {})
+        try:
+            slot = self.sc.formation_by_code(tel.formation).slots[tel.sender]
+            return from_body_frame(poses[slot.reference], slot.offset[0], slot.offset[1])
+        except (IndexError, KeyError):  # an unknown code or slot, a reference without a pose
+            return self.targets.get(tel.tick, {}).get(tel.sender)
 
     def _send_follower(self, rid: int, rows: list[tuple[Telemetry, Pose, tuple[float, float] | None]]) -> None:
         nan = math.nan

@@ -286,6 +286,11 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     assert "formation changes: R2 None at - s" in out.getvalue()
     md = report._markdown({**ticked, "parts": None}, [2])
     assert "| R2 | - | - |" in md
+    out = io.StringIO()  # real time: its late ticks, not lockstep's misses
+    realtime = {**ticked, "mode": "realtime", "late_ticks": 3, "max_tick_lateness_s": 0.0551, "lockstep_misses": 0}
+    print_result(RunResult(tmp_path, realtime, 1), out)
+    assert "late ticks 3 (worst 55.1 ms), drops None" in out.getvalue()
+    assert "lockstep misses" not in out.getvalue()
 
 
 def test_version() -> None:

@@ -89,3 +89,46 @@ def test_why_a_run_ended_in_words() -> None:
     ]
     assert describe_end("role_failed", 4.5, events) == "a process failed at t=4.50 s (world exited with code 1)"
     assert describe_end("role_failed", None, []) == "a process failed"
+
+
+def test_the_target_error_is_against_the_formation_the_follower_flew() -> None:
+    """In real time a follower may fly a new formation a tick before the world
+    has its command naming it: the world's truth still holds the old slot's
+    target. The follower's reading of its new slot is measured against the new
+    slot's true target (its telemetry says which), not metres off the old one."""
+    import rerun as rr
+
+    from formation_swarm.protocol.messages import Telemetry, Truth
+    from formation_swarm.recording import Recorder
+    from formation_swarm.world.kinematics import Pose, from_body_frame, to_body_frame
+
+    sc = scenario_mod.load("fig11_obstacles")
+    rec = rr.RecordingStream("formation-swarm-test", recording_id="flown-target")
+    rec.memory_recording()
+    recorder = Recorder(rec, sc)
+    poses = {1: Pose(0.0, 0.0, math.pi / 2), 2: Pose(-1.5, -1.5, math.pi / 2), 3: Pose(1.5, -1.5, math.pi / 2)}
+    line, triangle = sc.code_of("line"), sc.code_of("triangle")
+    old = sc.formations["triangle"].slots[3]
+    new = sc.formations["line"].slots[3]
+    world_target = from_body_frame(poses[old.reference], *old.offset)  # the truth's: still the triangle's
+    flown_target = from_body_frame(poses[new.reference], *new.offset)
+    assert math.dist(world_target, flown_target) > 3.0
+    robots = tuple((rid, p.x_m, p.y_m, p.theta_rad, True) for rid, p in poses.items())
+    recorder.add_truths([Truth(0, 1, 7, 0.35, robots, ((3, *world_target),))])
+    seen = to_body_frame(poses[3], *flown_target)  # a perfect reading of the line slot's target
+    tel = Telemetry(3, 1, 7, 0.35, new.reference, line, seen, seen, (0.01, 0.0, 0.01), 1.5, 0.0, 1.5, 1.5, 1.5,
+                    new.reference, True, 0, 0, 0)  # fmt: skip
+    recorder.add_telemetry([tel])
+    recorder.send(final=True)
+    errors = recorder.stats()["target_errors"]["3"]
+    assert errors["ekf_rms_m"] == pytest.approx(0.0, abs=1e-9)
+    assert errors["measured_rms_m"] == pytest.approx(0.0, abs=1e-9)
+    # A code it does not know falls back to the world's target.
+    assert (triangle, line) == (0, 1)
+    unknown = Recorder(rec, sc)
+    unknown.add_truths([Truth(0, 1, 7, 0.35, robots, ((3, *world_target),))])
+    unknown.add_telemetry([Telemetry(3, 1, 7, 0.35, new.reference, 9, seen, seen, None, 1.5, 0.0, 1.5, 1.5, 1.5,
+                                     new.reference, True, 0, 0, 0)])  # fmt: skip
+    unknown.send(final=True)
+    far = math.dist(world_target, flown_target)
+    assert unknown.stats()["target_errors"]["3"]["ekf_rms_m"] == pytest.approx(far, rel=1e-6)

@@ -16,6 +16,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import pytest
 import rerun.blueprint as rrb
 
 from formation_swarm import scenario as scenario_mod
@@ -207,3 +208,26 @@ def test_the_layout_follows_the_scenario() -> None:
     assert "/world/obstacles" not in quiet
     assert robot_colour(2) != robot_colour(3)
     assert robot_colour(1) == robot_colour(9)
+
+
+def test_serve_web_on_a_taken_port_is_refused_before_anything_starts(tmp_path: Path) -> None:
+    import socket
+    import sys
+
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        taken, free = busy.getsockname()[1], free_port()
+        with pytest.raises(ValueError, match=f"^--web-port {taken}: cannot serve the web viewer there \\("):
+            Launch(FIG11, serve_web=True, web_ports=(free, taken), out=tmp_path / "a")
+        proc = subprocess.run(
+            [sys.executable, "-m", "formation_swarm.cli", "run", str(FIG11), "--serve-web", "--grpc-port", str(taken),
+             "--web-port", str(free), "--out", str(tmp_path / "b")],
+            capture_output=True, text=True, timeout=120, check=False,
+        )  # fmt: skip
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stdout == ""
+    assert proc.stderr.startswith(f"swarm run: --grpc-port {taken}: cannot serve the web viewer there (")
+    assert len(proc.stderr.splitlines()) == 1
+    assert not (tmp_path / "a").exists()  # nothing started, nothing made
+    assert not (tmp_path / "b").exists()
