@@ -291,13 +291,16 @@ def test_every_process_exits_within_2s_of_sigterm(swarm_launch: Callable[..., La
     long_run = {"run.duration_s": 600.0, "leader.waypoints": [[0.0, 0.0], [0.0, 1000.0]]}
     launch = swarm_launch(FIG11, mode=mode, overrides=long_run)
     assert launch.wait_until(lambda: launch.sim_time() >= 1.0, timeout_s=60)
+    stopping = time.monotonic()
     launch.stop(graceful_first=False)
     for name, child in launch.children.items():
         assert child.proc is not None, name
         assert child.proc.returncode is not None, name
-        assert child.stop_sent_at is not None, name
         assert child.exited_at is not None, name
-        assert child.exited_at - child.stop_sent_at <= 2.0, (name, child.exited_at - child.stop_sent_at)
+        assert child.exited_at >= stopping, name  # it ran until the stop
+        # The world goes first; an agent may leave on its "done" before its own SIGTERM is sent.
+        sent = child.stop_sent_at if child.stop_sent_at is not None else stopping
+        assert child.exited_at - sent <= 2.0, (name, child.exited_at - sent)
         assert child.proc.returncode in (0, 128 + signal.SIGTERM), (name, child.proc.returncode)
 
 
