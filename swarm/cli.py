@@ -153,6 +153,7 @@ DELEGATED = {
     "router": ("formation_swarm.router", "role: a Zenoh router for agents on other machines"),
     "secure": ("formation_swarm.secure", "credentials and access rules for a run spread over machines"),
     "host": ("formation_swarm.host", "serve this machine to runs started elsewhere (swarm run --hosts)"),
+    "doctor": ("formation_swarm.doctor", "check that the hosts of a run spread over machines are there and fit"),
 }
 
 RUN_EPILOG = """\
@@ -268,7 +269,7 @@ def build_parser() -> Parser:
     for name in ("report", "export", "compare", "sweep", "results"):
         sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
     _add_sim(sub)
-    for name in ("world", "agent", "logger", "router", "secure", "host"):
+    for name in ("world", "agent", "logger", "router", "secure", "host", "doctor"):
         sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
     return parser
 

@@ -38,7 +38,7 @@ from typing import Any
 
 import zenoh
 
-from formation_swarm import __version__, cliargs
+from formation_swarm import __version__, cliargs, spawner
 from formation_swarm.children import Child
 from formation_swarm.proc import install_stop_handlers
 from formation_swarm.protocol import hostmsg, session, trust
@@ -47,6 +47,11 @@ from formation_swarm.protocol.hostmsg import HostReply, HostRequest
 from formation_swarm.protocol.keys import HostKeys, Keys, check_host_name
 
 STOP_GRACE_S = 3.0  # SIGTERM -> SIGKILL
+# A client whose router vanished is told its tokens went only later (seconds,
+# measured with Zenoh 1.10): the host also asks for the launcher's token this
+# often, and takes two empty answers in a row for its end.
+CHECK_PERIOD_S = 0.5
+CHECK_TIMEOUT_S = 0.5
 LAUNCHER_WAIT_S = 60.0
 ACTIONS = {"kill": signal.SIGKILL, "freeze": signal.SIGSTOP, "thaw": signal.SIGCONT, "term": signal.SIGTERM}
 AGENT = "formation_swarm.agents.process"
@@ -92,6 +97,8 @@ class HostRun:
     frozen: set[str] = field(default_factory=set)
     launcher: str = "unseen"  # unseen -> present -> gone (set by the liveliness callback)
     watcher: Any = None
+    checked_at: float = 0.0
+    misses: int = 0  # launcher token checks in a row that found none
 
 
 class Host:
@@ -264,6 +271,13 @@ class Host:
                 self.end(run, "its launcher's token went: the launcher died or its machine left")
             elif run.launcher == "unseen" and now - run.started_at > self.launcher_wait_s:
                 self.end(run, f"no launcher of it appeared within {self.launcher_wait_s:g} s")
+            elif run.launcher == "present" and now - run.checked_at > CHECK_PERIOD_S:
+                run.checked_at = now
+                key = Keys(run.run).alive("launcher", 0)
+                found = any(r.ok is not None for r in self.session.liveliness().get(key, timeout=CHECK_TIMEOUT_S))
+                run.misses = 0 if found else run.misses + 1
+                if run.misses >= 2:
+                    run.launcher = "gone"
             else:
                 for c in run.children.values():
                     c.poll()
@@ -317,6 +331,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(str(exc))
     workdir = Path(args.workdir) if args.workdir else Path.home() / ".cache" / "swarm-host" / name
     stop = install_stop_handlers()
+    spawner.warm()  # the agents' modules imported once, before any launcher waits for a start
     try:
         sess = zenoh.open(conf)
     except zenoh.ZError as exc:

@@ -167,16 +167,22 @@ def two_hosts(tmp_path: Path) -> Iterator[Hosts]:
         hosts.close()
 
 
-def _pids_with(text: str) -> list[int]:
-    out = []
+def _parents() -> dict[int, int]:
+    out = {}
     for entry in Path("/proc").iterdir():
         if entry.name.isdigit():
             try:
-                if text.encode() in (entry / "cmdline").read_bytes():
-                    out.append(int(entry.name))
-            except OSError:
+                out[int(entry.name)] = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
                 continue
     return out
+
+
+def _agents(host_pid: int) -> list[int]:
+    """The processes a host forked (through its spawner's fork server): its agents."""
+    parents = _parents()
+    servers = {p for p, pp in parents.items() if pp == host_pid}
+    return sorted(p for p, pp in parents.items() if pp in servers)
 
 
 @pytest.mark.slow
@@ -231,7 +237,7 @@ def test_a_host_that_dies_mid_run_has_its_robots_counted_dead_and_fails_the_run(
     reader.start()
     try:
         assert started.wait(120), "".join(lines)
-        b_agents = _pids_with(str(tmp_path / "work-b"))
+        b_agents = _agents(two_hosts.procs["b"].pid)
         assert b_agents, "no agent of host b found"
         os.kill(two_hosts.procs["b"].pid, signal.SIGKILL)  # the host, not its agents
         code = proc.wait(timeout=180)
@@ -262,3 +268,71 @@ def _alive(pid: int) -> bool:
     except OSError:
         return False
     return state != "Z"
+
+
+@pytest.mark.slow
+def test_process_faults_on_a_remote_agent_are_executed_by_its_host(two_hosts: Hosts, tmp_path: Path) -> None:
+    out = tmp_path / "faults"
+    argv = [*two_hosts.run_argv(out, "a,b"), "--fault", "restart agent-2@5s after=1s",
+            "--fault", "freeze agent-3@10s for=1s"]  # fmt: skip
+    run = subprocess.run(argv, capture_output=True, text=True, timeout=300, check=False)
+    assert run.returncode == 0, run.stdout + run.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    done = [(e["event"], e["process"]) for e in summary["events"] if e["event"] in ("killed", "started", "frozen",
+                                                                                     "thawed")]  # fmt: skip
+    assert done == [("killed", "agent-2"), ("started", "agent-2.2"), ("frozen", "agent-3"), ("thawed", "agent-3")]
+    assert summary["processes"]["agent-2.2"]["host"] == "b"  # restarted where it ran
+    assert "exit code 0" in (out / "logs" / "agent-2.2.log").read_text().splitlines()[-1]
+    assert json.loads((out / "stats" / "agent-2.2.json").read_text())["answered"] > 0
+    assert "run " in two_hosts.log("b")
+    assert "started agent-2.2" in two_hosts.log("b")
+
+
+@pytest.mark.slow
+def test_the_hosts_stop_a_run_s_agents_when_its_launcher_dies(two_hosts: Hosts, tmp_path: Path) -> None:
+    out = tmp_path / "orphan"
+    argv = [*two_hosts.run_argv(out, "a,b"), "--mode", "realtime"]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert proc.stdout is not None
+        deadline = time.monotonic() + 120
+        for line in proc.stdout:  # the run is going once the launcher says a tick
+            if "[swarm] tick " in line or time.monotonic() > deadline:
+                break
+        agents = _agents(two_hosts.procs["a"].pid) + _agents(two_hosts.procs["b"].pid)
+        assert len(agents) == 3, agents
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    deadline = time.monotonic() + 20
+    while [p for p in agents if _alive(p)] and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not [p for p in agents if _alive(p)]
+    for n in ("a", "b"):
+        while "its launcher's token went" not in two_hosts.log(n) and time.monotonic() < deadline + 10:
+            time.sleep(0.05)
+        assert "its launcher's token went" in two_hosts.log(n), two_hosts.log(n)
+        assert two_hosts.procs[n].poll() is None  # still serving
+
+
+def test_doctor_hears_the_hosts_then_names_the_one_that_went(two_hosts: Hosts, tmp_path: Path) -> None:
+    argv = [*PY, "doctor", "--listen", two_hosts.endpoint, "--hosts", "a,b", "--scenario", "fig11_obstacles",
+            "--host-logins", str(tmp_path / "sec" / "hosts.txt"), "--timeout", "30"]  # fmt: skip
+    ok = subprocess.run(argv, capture_output=True, text=True, timeout=120, check=False)
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+    lines = ok.stdout.splitlines()
+    for h in ("a", "b"):
+        line = next(x for x in lines if x.startswith(f"  host {h}: heard; round trip "))
+        assert f"version {__version__}" in line
+        assert abs(float(line.split("clock ")[1].split(" ms")[0])) < 1000  # one machine, one clock
+    assert "  placement: robot 1 -> a, robot 2 -> b, robot 3 -> a" in lines
+    assert lines[-1] == "verdict: OK: a run on hosts a, b would start"
+    two_hosts.procs["b"].terminate()
+    two_hosts.procs["b"].wait(timeout=10)
+    argv[argv.index("--timeout") + 1] = "3"
+    bad = subprocess.run(argv, capture_output=True, text=True, timeout=120, check=False)
+    assert bad.returncode == 1, bad.stdout + bad.stderr
+    assert bad.stdout.splitlines()[-1] == "verdict: FAIL: host b not heard"
