@@ -48,10 +48,11 @@ from formation_swarm.protocol.keys import HostKeys, Keys, check_host_name
 
 STOP_GRACE_S = 3.0  # SIGTERM -> SIGKILL
 # A client whose router vanished is told its tokens went only later (seconds,
-# measured with Zenoh 1.10): the host also asks for the launcher's token this
-# often, and takes two empty answers in a row for its end.
+# measured with Zenoh 1.10). The launcher of a run on hosts is its router, so
+# the host also looks this often at the router it is connected to, and takes
+# that router gone (or another in its place) twice in a row for the
+# launcher's end. A local look: no query that a loaded machine could delay.
 CHECK_PERIOD_S = 0.5
-CHECK_TIMEOUT_S = 0.5
 LAUNCHER_WAIT_S = 60.0
 ACTIONS = {"kill": signal.SIGKILL, "freeze": signal.SIGSTOP, "thaw": signal.SIGCONT, "term": signal.SIGTERM}
 AGENT = "formation_swarm.agents.process"
@@ -98,7 +99,8 @@ class HostRun:
     launcher: str = "unseen"  # unseen -> present -> gone (set by the liveliness callback)
     watcher: Any = None
     checked_at: float = 0.0
-    misses: int = 0  # launcher token checks in a row that found none
+    routers: frozenset[str] = frozenset()  # the router(s) the host was connected to when the launcher came
+    misses: int = 0  # looks in a row that found none of them
 
 
 class Host:
@@ -273,9 +275,10 @@ class Host:
                 self.end(run, f"no launcher of it appeared within {self.launcher_wait_s:g} s")
             elif run.launcher == "present" and now - run.checked_at > CHECK_PERIOD_S:
                 run.checked_at = now
-                key = Keys(run.run).alive("launcher", 0)
-                found = any(r.ok is not None for r in self.session.liveliness().get(key, timeout=CHECK_TIMEOUT_S))
-                run.misses = 0 if found else run.misses + 1
+                routers = frozenset(str(z) for z in self.session.info.routers_zid())
+                if not run.routers:
+                    run.routers = routers
+                run.misses = 0 if routers & run.routers else run.misses + 1
                 if run.misses >= 2:
                     run.launcher = "gone"
             else:

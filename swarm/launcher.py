@@ -145,6 +145,7 @@ class Launch:
         listen: str | None = None,
         host_logins: str | Path | None = None,
         hosts_timeout_s: float = 30.0,
+        tls: trust.Tls | None = None,
     ) -> None:
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be 'lockstep' or 'realtime', got {mode!r}")
@@ -170,6 +171,7 @@ class Launch:
             self.progress(f"[swarm] warning: {warning}")
         self.python = python
         self.fork = fork  # our roles forked from the spawner, else exec'd (formation_swarm.spawner)
+        self.tls = tls  # with hosts: the router's TLS identity on --listen (its local endpoint stays on loopback)
         self.auth = auth  # every process logs in with its own fresh credentials; the world enforces the rules
         self.port = 0
         self.children: dict[str, Child] = {}
@@ -209,6 +211,8 @@ class Launch:
             raise ValueError("--hosts needs --listen ENDPOINT: where the world listens for the hosts' agents, "
                              "e.g. tcp/192.168.1.10:7447 (an address every host reaches)")  # fmt: skip
         self.host_logins = None
+        if self.tls is not None and not (self.hosts and self.auth and listen and listen.startswith("tls/")):
+            raise ValueError("TLS files are for --hosts with --listen tls/ADDRESS:PORT and logins")
         if self.hosts and self.auth:
             if host_logins is None:
                 raise ValueError("--hosts needs --host-logins FILE: the hosts' logins the run's router lets in "
@@ -226,14 +230,9 @@ class Launch:
 
     @property
     def endpoint(self) -> str:
-        """Where this machine's processes reach the world."""
-        if self.listen:
-            return self.listen.replace("/0.0.0.0:", "/127.0.0.1:")
+        """Where this machine's processes reach the router (the world, or with
+        hosts the launcher, which listens on ``listen`` for the hosts too)."""
         return f"tcp/127.0.0.1:{self.port}"
-
-    @property
-    def world_listen(self) -> str:
-        return self.listen or self.endpoint
 
     # -- lifecycle ----------------------------------------------------------------
     def __enter__(self) -> Launch:
@@ -272,6 +271,7 @@ class Launch:
                 self.sc.leader.robot_id,
                 world_is_router=not self.hosts,
                 host_logins=self.host_logins,
+                tls=self.tls,
             )  # fmt: skip
             if self.auth
             else {}
@@ -287,10 +287,12 @@ class Launch:
         # With hosts, the launcher is the router (it outlives the world: the hosts are
         # reached through it until their agents' logs are fetched); else the world is.
         zenoh_role = ["--zenoh-mode", "client", "--connect", self.endpoint, *auth("world")] if self.hosts else \
-            ["--zenoh-mode", "router", "--listen", self.world_listen, *auth("router")]  # fmt: skip
+            ["--zenoh-mode", "router", "--listen", self.endpoint, *auth("router")]  # fmt: skip
         if self.hosts:
+            assert self.listen is not None
             settings = trust.read_settings(secrets["router"]) if secrets else None
-            self.session = zenoh.open(make_config("router", listen=[self.world_listen], settings=settings))
+            conf = make_config("router", listen=[self.listen, self.endpoint], settings=settings)
+            self.session = zenoh.open(conf)
         specs = {
             "world": [*py("world.process"), *common, "--mode", self.mode, "--stats", str(stats / "world.json"),
                       *zenoh_role, *["--expect-logger"] * self.logger, *["--process-faults"] * self.process_faults],
@@ -339,7 +341,7 @@ class Launch:
         for h, client in self.clients.items():
             if not client.present.wait(max(0.0, deadline - time.monotonic())):
                 raise remote.HostError(
-                    f"host {h} did not connect to {self.world_listen} within {self.hosts_timeout_s:g} s: start "
+                    f"host {h} did not connect to {self.listen} within {self.hosts_timeout_s:g} s: start "
                     f"'swarm host --connect <this address> --name {h} --auth host-{h}.json' there, and check "
                     "its --connect, its login and the network"
                 )

@@ -1,6 +1,8 @@
 """One command, three machines: ``swarm run --hosts`` in a network namespace
 (launcher, router, world and logger), a ``swarm host`` in each of two others,
-joined to the first by a veth pair each, every link with its login.
+joined to the first by a veth pair each, every link with its login and TLS
+(a CA made here with openssl; the router's certificate names the address
+each host reaches it at).
 
 The run spreads Fig. 11's agents over both hosts, ends in lockstep with the
 trajectory digest of a local run with the same seed, and leaves a run folder
@@ -8,7 +10,7 @@ trajectory digest of a local run with the same seed, and leaves a run folder
 host`` is killed): those robots are reported dead, the run exits non-zero
 naming the host, and no agent is left on either host.
 
-Needs root and iproute2 (``ip netns``); skipped with the reason otherwise.
+Needs root, iproute2 (``ip netns``) and openssl; skipped with the reason otherwise.
 """
 
 from __future__ import annotations
@@ -29,6 +31,25 @@ import pytest
 
 PY = [sys.executable, "-m", "formation_swarm.cli"]
 PORT = 7447  # in a namespace of its own: free
+
+
+def _tls_files(folder: Path, ips: list[str]) -> tuple[Path, Path, Path]:
+    """A throw-away CA and a router certificate naming ``ips``."""
+    if shutil.which("openssl") is None:
+        pytest.skip("needs openssl to make the test's TLS certificates")
+    folder.mkdir()
+    ca, ca_key, cert, key = (folder / n for n in ("ca.pem", "ca.key", "router.pem", "router.key"))
+    ext = folder / "ext.cnf"
+    ext.write_text("subjectAltName=" + ",".join(f"IP:{ip}" for ip in ips) + "\n")
+    ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"]
+    for argv in (
+        ["req", "-x509", *ec, "-keyout", ca_key, "-out", ca, "-days", "1", "-subj", "/CN=swarm test CA"],
+        ["req", *ec, "-keyout", key, "-out", folder / "router.csr", "-subj", "/CN=router"],
+        ["x509", "-req", "-in", folder / "router.csr", "-CA", ca, "-CAkey", ca_key, "-CAcreateserial",
+         "-out", cert, "-days", "1", "-extfile", ext],
+    ):  # fmt: skip
+        subprocess.run(["openssl", *map(str, argv)], check=True, capture_output=True, timeout=30)
+    return ca, cert, key
 
 
 def _ip(*args: str) -> None:
@@ -105,14 +126,15 @@ def site() -> Iterator[Site]:
 
 
 def _start_hosts(site: Site, tmp_path: Path) -> dict[str, subprocess.Popen[bytes]]:
-    made = subprocess.run([*PY, "secure", "--hosts", "a,b", "--out", str(tmp_path / "sec")], capture_output=True,
-                          text=True, timeout=60, check=False)  # fmt: skip
+    ca, _cert, _key = _tls_files(tmp_path / "tls", list(site.router_ip.values()))
+    made = subprocess.run([*PY, "secure", "--hosts", "a,b", "--out", str(tmp_path / "sec"), "--tls-ca", str(ca)],
+                          capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
     assert made.returncode == 0, made.stderr
     procs = {}
     for h in ("a", "b"):
         log = open(tmp_path / f"host-{h}.log", "wb")  # noqa: SIM115 - closed with the process
         auth = tmp_path / "sec" / f"host-{h}.json"
-        argv = [*site.exec(h), *PY, "host", "--name", h, "--connect", f"tcp/{site.router_ip[h]}:{PORT}",
+        argv = [*site.exec(h), *PY, "host", "--name", h, "--connect", f"tls/{site.router_ip[h]}:{PORT}",
                 "--auth", str(auth), "--workdir", str(tmp_path / f"work-{h}")]  # fmt: skip
         procs[h] = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         log.close()
@@ -120,9 +142,14 @@ def _start_hosts(site: Site, tmp_path: Path) -> dict[str, subprocess.Popen[bytes
 
 
 def _run_argv(site: Site, tmp_path: Path, out: Path) -> list[str]:
+    tls = {
+        "ca": tmp_path / "tls" / "ca.pem",
+        "cert": tmp_path / "tls" / "router.pem",
+        "key": tmp_path / "tls" / "router.key",
+    }
     return [*site.exec("run"), *PY, "run", "fig11_obstacles", "--seed", "7", "--out", str(out), "--hosts", "a,b",
-            "--listen", f"tcp/0.0.0.0:{PORT}", "--host-logins", str(tmp_path / "sec" / "hosts.txt"),
-            "--timeout", "240"]  # fmt: skip
+            "--listen", f"tls/0.0.0.0:{PORT}", "--host-logins", str(tmp_path / "sec" / "hosts.txt"),
+            "--timeout", "240", *(f for n in ("ca", "cert", "key") for f in (f"--tls-{n}", str(tls[n])))]  # fmt: skip
 
 
 def _stop(procs: dict[str, subprocess.Popen[bytes]]) -> None:
