@@ -248,11 +248,14 @@ class Launch:
             return
         try:
             self._start()
-        except BaseException:
+        except BaseException as exc:
             self._watch()  # a child that already failed (the world, say) explains itself
             self.stop(graceful_first=False)
+            host_failed = isinstance(exc, (remote.HostError, ValueError))  # a host missing, refusing, unfit
+            if host_failed:
+                self.events.append({"event": "start failed", "why": str(exc)})
             if self.run_dir.exists():
-                self._summary(130, interrupted=True, timed_out=False)
+                self._summary(1 if host_failed else 130, interrupted=not host_failed, timed_out=False)
             raise
 
     def _start(self) -> None:
@@ -413,7 +416,8 @@ class Launch:
                 robots = [r for r, ph in self.placement.items() if ph == h]
                 self.events.append({"event": "host lost", "host": h, "robots": robots, "sim_time_s": t,
                                     "wall_s": time.monotonic() - self.started_at})  # fmt: skip
-                self.progress(f"[swarm] host {h} was lost at sim t={t:.2f} s (its token went): robots "
+                wall = time.monotonic() - self.started_at
+                self.progress(f"[swarm] host {h} was lost {wall:.1f} s into the run (its token went): robots "
                               f"{', '.join(map(str, robots))} counted dead")  # fmt: skip
         for child in self.children.values():
             code = child.poll()

@@ -336,3 +336,20 @@ def test_doctor_hears_the_hosts_then_names_the_one_that_went(two_hosts: Hosts, t
     bad = subprocess.run(argv, capture_output=True, text=True, timeout=120, check=False)
     assert bad.returncode == 1, bad.stdout + bad.stderr
     assert bad.stdout.splitlines()[-1] == "verdict: FAIL: host b not heard"
+
+
+def test_a_run_whose_host_never_comes_stops_at_the_deadline_naming_it(two_hosts: Hosts, tmp_path: Path) -> None:
+    two_hosts.procs["b"].terminate()
+    two_hosts.procs["b"].wait(timeout=10)
+    out = tmp_path / "missing"
+    started = time.monotonic()
+    run = subprocess.run([*two_hosts.run_argv(out, "a,b"), "--hosts-timeout", "3"], capture_output=True, text=True,
+                         timeout=120, check=False)  # fmt: skip
+    assert run.returncode == 1, run.stdout + run.stderr
+    assert "swarm run: host b did not connect to " in run.stderr
+    assert "within 3 s" in run.stderr
+    assert time.monotonic() - started < 60
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["exit_code"] == 1
+    assert any(e["event"] == "start failed" and "host b did not connect" in e["why"] for e in summary["events"])
+    assert "started agent" not in two_hosts.log("a")  # every host is waited for before any agent starts
