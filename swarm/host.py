@@ -184,7 +184,8 @@ class Host:
 
     def start(self, req: HostRequest, ok: dict[str, Any]) -> HostReply:
         robot = hostmsg.process_robot(req.process)
-        assert robot is not None  # checked by the decoder
+        if robot is None:  # the decoder refuses such a name already
+            return self.refuse(f"{req.process!r} is not agent-N")
         if self.robots is not None and robot not in self.robots:
             return self.refuse(f"host {self.name} may run robots {', '.join(map(str, self.robots))}, not {robot}")
         if req.user != trust.agent_user(robot):

@@ -353,3 +353,44 @@ def test_a_run_whose_host_never_comes_stops_at_the_deadline_naming_it(two_hosts:
     assert summary["exit_code"] == 1
     assert any(e["event"] == "start failed" and "host b did not connect" in e["why"] for e in summary["events"])
     assert "started agent" not in two_hosts.log("a")  # every host is waited for before any agent starts
+
+
+def test_a_host_refuses_another_version_bad_requests_and_robots_it_may_not_run(tmp_path: Path) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    log = open(tmp_path / "host.log", "wb")  # noqa: SIM115 - closed with the process
+    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "a", "--robots", "2,3",
+                             "--workdir", str(tmp_path / "work")], stdout=log, stderr=subprocess.STDOUT)  # fmt: skip
+    log.close()
+    router = zenoh.open(make_config("router", listen=[endpoint]))
+    try:
+
+        def ask(payload: bytes) -> HostReply:
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline:
+                got = [r.ok for r in router.get(HostKeys("a").ctl, payload=payload, timeout=2.0) if r.ok is not None]
+                if got:
+                    return HostReply.from_bytes(got[0].payload.to_bytes())
+            raise AssertionError("host a never answered")
+
+        info = ask(HostRequest("info", __version__).to_bytes())
+        assert info.ok
+        assert info.robots == (2, 3)
+        assert info.cores == os.cpu_count()
+        other = ask(HostRequest("info", "0.0.1").to_bytes())
+        assert not other.ok
+        assert other.error == (f"host a runs formation_swarm {__version__}, the launcher 0.0.1: install the same "
+                               "version on every machine of a run")  # fmt: skip
+        bad = ask(msgpack.packb({"op": "start"}))
+        assert not bad.ok
+        assert bad.error.startswith("bad request: missing field")
+        start = HostRequest("start", __version__, run="r1", process="agent-1", scenario="x = 1", user="agent-1",
+                            password="p" * 24)  # fmt: skip
+        assert ask(start.to_bytes()).error == "host a may run robots 2, 3, not 1"
+        wrong_login = HostRequest("start", __version__, run="r1", process="agent-2", scenario="x = 1",
+                                  user="agent-3", password="p" * 24)  # fmt: skip
+        assert "must be agent-2" in ask(wrong_login.to_bytes()).error
+        assert "started" not in (tmp_path / "host.log").read_text()
+    finally:
+        router.close()
+        host.terminate()
+        assert host.wait(timeout=20) == 0
