@@ -197,15 +197,16 @@ class Launch:
         self.hosts = [check_host_name(h) for h in hosts]
         if len(set(self.hosts)) != len(self.hosts):
             raise ValueError(f"--hosts names a host twice: {','.join(self.hosts)}")
-        self.explicit = dict(placement or {})
+        # The scenario's [placement], then --place; a run on this machine alone ignores both.
+        self.explicit = {**dict(self.sc.placement), **dict(placement or {})} if self.hosts else {}
+        if placement and not self.hosts:
+            raise ValueError("a placement needs --hosts")
         for rid, h in self.explicit.items():
             if rid not in self.sc.robots:
                 robots = ", ".join(map(str, self.sc.robots))
                 raise ValueError(f"placement {rid}={h}: no robot {rid}; robots are {robots}")
             if h not in self.hosts:
                 raise ValueError(f"placement {rid}={h}: {h} is not one of --hosts {','.join(self.hosts)}")
-        if self.explicit and not self.hosts:
-            raise ValueError("a placement needs --hosts")
         self.listen = listen
         if self.hosts and not listen:
             raise ValueError("--hosts needs --listen ENDPOINT: where the world listens for the hosts' agents, "

@@ -394,3 +394,24 @@ def test_a_host_refuses_another_version_bad_requests_and_robots_it_may_not_run(t
         router.close()
         host.terminate()
         assert host.wait(timeout=20) == 0
+
+
+def test_a_scenario_s_placement_is_checked_and_place_wins_over_it(tmp_path: Path) -> None:
+    from formation_swarm.launcher import Launch
+    from formation_swarm.scenario import ScenarioError, load
+
+    sc = load("fig11_obstacles", {"placement": {"1": "b", "3": "c"}})
+    assert sc.placement == ((1, "b"), (3, "c"))
+    with pytest.raises(ScenarioError, match="'9' is not a robot of this run"):
+        load("fig11_obstacles", {"placement": {"9": "b"}})
+    with pytest.raises(ScenarioError, match="placement.1: host name must be"):
+        load("fig11_obstacles", {"placement": {"1": "B C"}})
+    logins = trust.write_host_logins(tmp_path / "sec", ["b", "c"])[trust.HOST_LOGINS]
+    common = {"listen": "tcp/127.0.0.1:7447", "host_logins": logins, "out": tmp_path / "run"}
+    launch = Launch("fig11_obstacles", overrides={"placement": {"1": "b", "3": "c"}}, hosts=["b", "c"],
+                    placement={3: "b"}, **common)  # fmt: skip
+    assert launch.explicit == {1: "b", 3: "b"}
+    alone = Launch("fig11_obstacles", overrides={"placement": {"1": "b"}}, out=tmp_path / "alone")
+    assert alone.explicit == {}  # a run on this machine alone ignores it
+    with pytest.raises(ValueError, match="c is not one of --hosts b"):
+        Launch("fig11_obstacles", overrides={"placement": {"1": "c"}}, hosts=["b"], **common)
