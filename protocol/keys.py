@@ -12,6 +12,11 @@ All keys start with ``swarm/<run>`` so that runs never cross-talk::
     swarm/<run>/alive/<role>/<id>     liveliness tokens (role: world, agent, logger, launcher)
     swarm/<run>/robot/wake/cmd        world -> itself   wakes its command loop (local only)
 
+A machine's ``swarm host`` serves every run, so its keys are outside any run's::
+
+    swarmhost/<host>/ctl              launcher -> host  HostRequest queries (info, start, signal, poll, collect, end)
+    swarmhost/<host>/alive            liveliness token of the host
+
 An agent reads its inbox ``swarm/<run>/robot/<id>/*`` with one subscriber so
 that the order in which observations and formation codes arrive is kept.
 docs/protocol.md says who publishes and who subscribes to each key
@@ -24,6 +29,8 @@ import re
 from typing import NamedTuple
 
 ROOT = "swarm"
+HOST_ROOT = "swarmhost"
+_HOST = re.compile(r"^[a-z][a-z0-9-]{0,26}$")  # a host's login is host-<name>: 32 characters at most
 MAX_ROBOT_ID = 10_000
 _RUN_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 ROBOT_KINDS = ("obs", "cmd", "formation", "telemetry")
@@ -43,6 +50,31 @@ def check_robot_id(robot_id: int) -> int:
     if isinstance(robot_id, bool) or not isinstance(robot_id, int) or not 1 <= robot_id <= MAX_ROBOT_ID:
         raise ValueError(f"robot id must be an integer in [1, {MAX_ROBOT_ID}], got {robot_id!r}")
     return robot_id
+
+
+def check_host_name(name: str) -> str:
+    if not isinstance(name, str) or not _HOST.match(name):
+        raise ValueError(
+            f"host name must be 1-27 lowercase letters, digits or '-' starting with a letter, got {name!r}"
+        )
+    return name
+
+
+class HostKeys:
+    """The key expressions of one machine's ``swarm host``."""
+
+    def __init__(self, name: str) -> None:
+        self.name = check_host_name(name)
+        self.prefix = f"{HOST_ROOT}/{name}"
+
+    @property
+    def ctl(self) -> str:
+        """The host's queryable: every request of protocol.hostmsg."""
+        return f"{self.prefix}/ctl"
+
+    @property
+    def alive(self) -> str:
+        return f"{self.prefix}/alive"
 
 
 class RobotKey(NamedTuple):

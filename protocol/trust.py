@@ -9,7 +9,15 @@ that deny everything not granted (``default_permission: deny``):
               formation codes); subscribes to robot N's inbox and the run status
     logger    subscribes to the world's streams and the telemetry; publishes nothing
     launcher  subscribes to the run status and the world's fault calls (it executes
-              process faults: kill, start, freeze, thaw) and holds its token
+              process faults: kill, start, freeze, thaw) and holds its token; in a
+              run placed on machines, queries those hosts and watches their tokens
+    host-NAME a machine's ``swarm host``, in a run placed on it: answers queries on
+              its own key (swarmhost/NAME/ctl) and nothing else, holds its own
+              token, watches the launcher's token; it publishes and subscribes
+              nothing (the agents it starts log in with their own agent-N login)
+
+A host's login outlives runs (``swarm secure --hosts``): the launcher adds it
+to the run's password list and rules (``host_logins``).
 
 Each role may also hold its own liveliness token and watch the tokens it
 needs. A client without credentials cannot connect at all; one holding a
@@ -34,7 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from formation_swarm.protocol.keys import Keys, check_robot_id
+from formation_swarm.protocol.keys import HostKeys, Keys, check_host_name, check_robot_id
 
 _USER = re.compile(r"^[a-z][a-z0-9-]{0,31}$")
 PASSWORDS = "passwords.txt"  # the router's list of user:password, one per line
@@ -64,14 +72,21 @@ class Grants:
     subscribe: tuple[str, ...] = ()
     tokens: tuple[str, ...] = ()
     watch: tuple[str, ...] = ()
+    serve: tuple[str, ...] = ()  # queryables it declares and answers
+    ask: tuple[str, ...] = ()  # queryables it queries
 
 
 def agent_user(robot_id: int) -> str:
     return f"agent-{check_robot_id(robot_id)}"
 
 
-def grants(run_id: str, robots: Sequence[int], leader_id: int) -> dict[str, Grants]:
-    """Every identity of a run and what it may do."""
+def host_user(name: str) -> str:
+    return f"host-{check_host_name(name)}"
+
+
+def grants(run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[str] = ()) -> dict[str, Grants]:
+    """Every identity of a run and what it may do (``hosts``: the machines'
+    ``swarm host`` the run's agents are placed on)."""
     k = Keys(run_id)
     followers = [r for r in robots if r != leader_id]
     out = {
@@ -87,9 +102,16 @@ def grants(run_id: str, robots: Sequence[int], leader_id: int) -> dict[str, Gran
             watch=(k.alive("world", 0),),
         ),
         "launcher": Grants(
-            subscribe=(k.status, k.faults), tokens=(k.alive("launcher", 0),), watch=(f"{k.prefix}/alive/*/*",)
+            subscribe=(k.status, k.faults),
+            tokens=(k.alive("launcher", 0),),
+            watch=(f"{k.prefix}/alive/*/*", *(HostKeys(h).alive for h in hosts)),
+            ask=tuple(HostKeys(h).ctl for h in hosts),
         ),
     }
+    for h in hosts:
+        out[host_user(h)] = Grants(
+            tokens=(HostKeys(h).alive,), watch=(k.alive("launcher", 0),), serve=(HostKeys(h).ctl,)
+        )
     for rid in robots:
         codes = tuple(k.formation(f) for f in followers) if rid == leader_id else ()
         out[agent_user(rid)] = Grants(
@@ -105,7 +127,7 @@ def _rule(rule_id: str, flow: str, messages: list[str], keys: Iterable[str]) -> 
     return {"id": rule_id, "permission": "allow", "flows": [flow], "messages": messages, "key_exprs": list(keys)}
 
 
-def access_control(run_id: str, robots: Sequence[int], leader_id: int) -> dict[str, Any]:
+def access_control(run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[str] = ()) -> dict[str, Any]:
     """The router's ``access_control`` section for one run: deny by default,
     each identity granted exactly its role's keys."""
     k = Keys(run_id)
@@ -115,7 +137,7 @@ def access_control(run_id: str, robots: Sequence[int], leader_id: int) -> dict[s
     ]
     subjects: list[dict[str, Any]] = []
     policies: list[dict[str, Any]] = []
-    for user, g in grants(run_id, robots, leader_id).items():
+    for user, g in grants(run_id, robots, leader_id, hosts).items():
         own: list[dict[str, Any]] = []
         if g.publish:
             own.append(_rule(f"{user}-put", "ingress", ["put"], g.publish))
@@ -128,6 +150,12 @@ def access_control(run_id: str, robots: Sequence[int], leader_id: int) -> dict[s
             watching = ["declare_liveliness_subscriber", "liveliness_query"]
             own.append(_rule(f"{user}-watch", "ingress", watching, g.watch))
             own.append(_rule(f"{user}-seen", "egress", ["liveliness_token", "reply"], g.watch))
+        if g.serve:  # declare its queryable, receive the queries, answer them
+            own.append(_rule(f"{user}-serve", "ingress", ["declare_queryable", "reply"], g.serve))
+            own.append(_rule(f"{user}-queries", "egress", ["query"], g.serve))
+        if g.ask:  # learn the queryable, query it, receive the answers
+            own.append(_rule(f"{user}-ask", "ingress", ["query"], g.ask))
+            own.append(_rule(f"{user}-answers", "egress", ["declare_queryable", "reply"], g.ask))
         rules += own
         subjects.append({"id": user, "usernames": [user]})
         policies.append({"id": user, "rules": ["learn-subscribers", *(r["id"] for r in own)], "subjects": [user]})
@@ -183,6 +211,7 @@ def write_run_secrets(
     leader_id: int,
     world_is_router: bool = True,
     tls: Tls | None = None,
+    host_logins: dict[str, Credential] | None = None,
 ) -> dict[str, Path]:
     """Fresh credentials for every role of a run, in ``folder`` (0700, files 0600):
     ``<user>.json`` for each client, ``router.json`` for the router, which
@@ -190,12 +219,16 @@ def write_run_secrets(
     run) it logs in as nobody, so no "world" login exists to be stolen. With
     ``tls``, the CA, the router's certificate and key are copied in too. Files
     name each other relative to the folder, so it can be copied as a whole.
+    ``host_logins`` (host name -> its lasting login, :func:`read_host_logins`)
+    are let in too, with their rules; they get no file here (each host has its own).
     Returns the settings file of each user and of "router"."""
     folder.mkdir(mode=0o700, parents=True, exist_ok=True)
     os.chmod(folder, 0o700)
+    hosts = sorted(host_logins or {})
     users = [u for u in grants(run_id, robots, leader_id) if not (world_is_router and u == "world")]
     creds = new_credentials(users)
-    _write_private(folder / PASSWORDS, "".join(f"{c.user}:{c.password}\n" for c in creds.values()))
+    logins = [*creds.values(), *(host_logins or {}).values()]
+    _write_private(folder / PASSWORDS, "".join(f"{c.user}:{c.password}\n" for c in logins))
     if tls is not None:
         for name, src in ((CA, tls.ca), (CERTIFICATE, tls.certificate), (PRIVATE_KEY, tls.private_key)):
             _write_private(folder / name, Path(src).read_text())
@@ -205,10 +238,52 @@ def write_run_secrets(
         _write_private(out[user], json.dumps(client_settings(cred, CA if tls else None), indent=1))
     out["router"] = folder / "router.json"
     router = router_settings(
-        PASSWORDS, access_control(run_id, robots, leader_id), (CERTIFICATE, PRIVATE_KEY) if tls else None
+        PASSWORDS, access_control(run_id, robots, leader_id, hosts), (CERTIFICATE, PRIVATE_KEY) if tls else None
     )
     _write_private(out["router"], json.dumps(router, indent=1))
     return out
+
+
+HOST_LOGINS = "hosts.txt"  # swarm secure --hosts: the hosts' logins, user:password a line, for swarm run
+
+
+def write_host_logins(folder: Path, names: Sequence[str], tls_ca: Path | None = None) -> dict[str, Path]:
+    """A lasting login for each machine's ``swarm host``: ``host-NAME.json``
+    (its --auth) and ``hosts.txt``, the list ``swarm run --host-logins`` takes
+    (the run's router lets them in). Files 0600, the folder 0700."""
+    folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+    os.chmod(folder, 0o700)
+    creds = new_credentials(host_user(n) for n in names)
+    _write_private(folder / HOST_LOGINS, "".join(f"{c.user}:{c.password}\n" for c in creds.values()))
+    if tls_ca is not None:
+        _write_private(folder / CA, Path(tls_ca).read_text())
+    out = {HOST_LOGINS: folder / HOST_LOGINS}
+    for cred in creds.values():
+        out[cred.user] = folder / f"{cred.user}.json"
+        _write_private(out[cred.user], json.dumps(client_settings(cred, CA if tls_ca else None), indent=1))
+    return out
+
+
+def read_host_logins(path: str | Path, names: Sequence[str]) -> dict[str, Credential]:
+    """The logins of the hosts ``names`` from a ``hosts.txt`` (user:password a
+    line, 0600); ValueError naming a host that has none."""
+    p = Path(path)
+    try:
+        mode = p.stat().st_mode
+        lines = p.read_text().splitlines()
+    except OSError as exc:
+        raise ValueError(f"cannot read the hosts' logins {p}: {exc}") from None
+    if mode & 0o077:
+        raise ValueError(f"{p} is readable by other users (mode {mode & 0o777:o}): chmod 600 {p}")
+    known: dict[str, Credential] = {}
+    for line in lines:
+        user, sep, password = line.strip().partition(":")
+        if sep:
+            known[user] = Credential(user, password)
+    missing = [n for n in names if host_user(n) not in known]
+    if missing:
+        raise ValueError(f"{p} has no login for host {', '.join(missing)} (swarm secure --hosts writes them)")
+    return {n: known[host_user(n)] for n in names}
 
 
 def read_settings(path: str | Path) -> dict[str, Any]:

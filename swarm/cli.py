@@ -21,6 +21,7 @@ import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from formation_swarm import __version__
 from formation_swarm.cliargs import USAGE_ERROR, Parser, make_folder, port, rerun_url, seconds, seed
@@ -78,6 +79,21 @@ def _run_flag_conflicts(args: argparse.Namespace) -> str | None:
     return None
 
 
+def _tls(args: argparse.Namespace) -> Any:
+    """--tls-ca/--tls-cert/--tls-key as a trust.Tls (all three or none)."""
+    from formation_swarm.protocol.trust import Tls
+
+    files = (args.tls_ca, args.tls_cert, args.tls_key)
+    if not any(files):
+        return None
+    if not all(files):
+        raise ValueError("--tls-ca, --tls-cert and --tls-key: give all three or none")
+    for flag, path in zip(("--tls-ca", "--tls-cert", "--tls-key"), files, strict=True):
+        if not Path(path).is_file():
+            raise ValueError(f"{flag}: no such file: {path}")
+    return Tls(Path(args.tls_ca), Path(args.tls_cert), Path(args.tls_key))
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     if conflict := _run_flag_conflicts(args):
         print(f"swarm run: {conflict}", file=sys.stderr)
@@ -86,16 +102,20 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     from formation_swarm.launcher import KillAt, Launch, print_result
     from formation_swarm.proc import interrupt_on_stop_signals
+    from formation_swarm.remote import HostError, parse_placement
     from formation_swarm.scenario import ScenarioError
     from formation_swarm.scenario_files import parse_override
 
     try:
         kills = [KillAt.parse(spec) for spec in args.kill]
         overrides = dict(parse_override(text) for text in args.set)
+        hosts = [h.strip() for h in (args.hosts or "").split(",") if h.strip()]
         launch = Launch(
             args.scenario, mode=args.mode, seed=args.seed, out=args.out, overrides=overrides, logger=not args.no_logger,
             live=args.live, serve_web=args.serve_web, kills=kills, faults=args.fault,
-            web_ports=(args.grpc_port or GRPC_PORT, args.web_port or WEB_PORT),
+            web_ports=(args.grpc_port or GRPC_PORT, args.web_port or WEB_PORT), hosts=hosts,
+            placement=parse_placement(args.place or ""), listen=args.listen, host_logins=args.host_logins,
+            hosts_timeout_s=args.hosts_timeout, tls=_tls(args),
         )  # fmt: skip
         if args.out is not None and not args.out.strip():
             raise ValueError("--out '': an empty name")
@@ -116,6 +136,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except zenoh.ZError as exc:  # the world never listened (start() has reaped every process): its log says why
         print(f"swarm run: cannot reach the world at {launch.endpoint}: {exc}; see {launch.run_dir / 'logs'}",
               file=sys.stderr)  # fmt: skip
+        return 1
+    except (HostError, ValueError) as exc:  # a host missing, refusing or unable to run a robot: every process reaped
+        print(f"swarm run: {exc}; nothing left running; folder {launch.run_dir}", file=sys.stderr)
         return 1
     with launch:
         result = launch.wait(timeout_s=args.timeout)
@@ -145,6 +168,8 @@ DELEGATED = {
     "logger": ("formation_swarm.logger", "role: the Rerun logger alone (to a file or a viewer)"),
     "router": ("formation_swarm.router", "role: a Zenoh router for agents on other machines"),
     "secure": ("formation_swarm.secure", "credentials and access rules for a run spread over machines"),
+    "host": ("formation_swarm.host", "serve this machine to runs started elsewhere (swarm run --hosts)"),
+    "doctor": ("formation_swarm.doctor", "check that the hosts of a run spread over machines are there and fit"),
 }
 
 RUN_EPILOG = """\
@@ -210,6 +235,29 @@ def _add_run(sub: argparse._SubParsersAction[Parser]) -> None:
     run.add_argument("--web-port", type=port, default=None, metavar="PORT",
                      help="with --serve-web: the port of the viewer's page, http://127.0.0.1:PORT "
                      f"(default: {WEB_PORT})")  # fmt: skip
+    group = run.add_argument_group("agents on other machines (deploy/README.md)")
+    group.add_argument("--hosts", default=None, metavar="NAME[,NAME...]",
+                       help="run the agents on these machines, each serving with swarm host --name NAME; the "
+                       "world and the logger stay here (default: everything here)")  # fmt: skip
+    group.add_argument("--place", default=None, metavar="ROBOT=HOST[,...]",
+                       help="with --hosts: put these robots on these hosts, e.g. 1=a,2=b; the others go "
+                       "round-robin over the hosts (default: all round-robin)")  # fmt: skip
+    group.add_argument("--listen", default=None, metavar="ENDPOINT",
+                       help="with --hosts: where the world listens for the hosts' agents, an address they reach, "
+                       "e.g. tcp/192.168.1.10:7447")  # fmt: skip
+    group.add_argument("--host-logins", default=None, metavar="FILE",
+                       help="with --hosts: the hosts' logins, hosts.txt of swarm secure --hosts; the run's router "
+                       "lets them in")  # fmt: skip
+    group.add_argument("--hosts-timeout", type=seconds(), default=30.0, metavar="SECONDS",
+                       help="with --hosts: how long to wait for every host to connect (default: 30)")  # fmt: skip
+    group.add_argument("--tls-ca", metavar="FILE",
+                       help="with --hosts and --listen tls/...: the CA the hosts check this router "
+                       "against (PEM)")  # fmt: skip
+    group.add_argument("--tls-cert", metavar="FILE",
+                       help="with --listen tls/...: this router's certificate, naming the address the "
+                       "hosts use (PEM)")  # fmt: skip
+    group.add_argument("--tls-key", metavar="FILE",
+                       help="with --listen tls/...: this router's private key (PEM)")  # fmt: skip
     run.set_defaults(func=_cmd_run, parser=run)
 
 
@@ -245,7 +293,7 @@ def build_parser() -> Parser:
     for name in ("report", "export", "compare", "sweep", "results"):
         sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
     _add_sim(sub)
-    for name in ("world", "agent", "logger", "router", "secure"):
+    for name in ("world", "agent", "logger", "router", "secure", "host", "doctor"):
         sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
     return parser
 

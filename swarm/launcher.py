@@ -17,6 +17,16 @@ The launcher executes the scenario's process faults on the world's calls
 SIGKILL, a fresh agent for the same robot (its log ``logs/agent-N.2.log``,
 its stats ``stats/agent-N.2.json``), SIGSTOP, SIGCONT. Each execution is an
 event of the summary with the call's tick and sim time and the wall time.
+
+With ``hosts`` (``swarm run --hosts a,b``) the agents run on other machines,
+each started by that machine's ``swarm host`` (formation_swarm.host); the
+world listens on ``listen``, an address the hosts reach, and is their router.
+The launcher waits (with a deadline) for each host's token, checks its
+version and the robots it may run, places the robots (``placement``, the
+others round-robin), and starts them there; process faults on a remote agent
+are executed by its host. At the end it fetches each remote agent's log and
+stats into logs/ and stats/, and the summary says where each agent ran. A
+host that goes mid-run has its robots counted dead, and the run fails naming it.
 """
 
 from __future__ import annotations
@@ -39,15 +49,16 @@ from typing import Any
 
 import zenoh
 
+from formation_swarm import __version__, remote, scenario_files, viewer
 from formation_swarm import scenario as scenario_mod
-from formation_swarm import scenario_files, viewer
 from formation_swarm import summary as summary_mod
 from formation_swarm.children import Child, describe_exit, free_port, log_tail
 from formation_swarm.console import print_result as print_result  # re-exported: the API of swarm run
 from formation_swarm.faults import Fault
 from formation_swarm.protocol import trust
 from formation_swarm.protocol.codec import Rejections
-from formation_swarm.protocol.keys import Keys
+from formation_swarm.protocol.hostmsg import HostReply, HostRequest
+from formation_swarm.protocol.keys import Keys, check_host_name
 from formation_swarm.protocol.messages import FaultCall, Status
 from formation_swarm.protocol.session import make_config
 from formation_swarm.scenario_keys import ScenarioWarning
@@ -129,6 +140,12 @@ class Launch:
         python: str = sys.executable,
         auth: bool = True,
         fork: bool = True,
+        hosts: Sequence[str] = (),
+        placement: Mapping[int, str] | None = None,
+        listen: str | None = None,
+        host_logins: str | Path | None = None,
+        hosts_timeout_s: float = 30.0,
+        tls: trust.Tls | None = None,
     ) -> None:
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be 'lockstep' or 'realtime', got {mode!r}")
@@ -158,6 +175,7 @@ class Launch:
             self.progress(f"[swarm] warning: {warning}")
         self.python = python
         self.fork = fork  # our roles forked from the spawner, else exec'd (formation_swarm.spawner)
+        self.tls = tls  # with hosts: the router's TLS identity on --listen (its local endpoint stays on loopback)
         self.auth = auth  # every process logs in with its own fresh credentials; the world enforces the rules
         self.port = 0
         self.children: dict[str, Child] = {}
@@ -176,12 +194,49 @@ class Launch:
             if f.process is not None and f.process not in self._names():
                 raise ValueError(f"cannot {f.kind} {f.process!r}: processes are {', '.join(self._names()[1:])}")
         self.process_faults = any(f.process is not None for f in self.sc.faults)
+        self._setup_hosts(hosts, placement, listen, host_logins, hosts_timeout_s)
+
+    def _setup_hosts(self, hosts: Sequence[str], placement: Mapping[int, str] | None, listen: str | None,
+                     host_logins: str | Path | None, timeout_s: float) -> None:  # fmt: skip
+        self.hosts = [check_host_name(h) for h in hosts]
+        if len(set(self.hosts)) != len(self.hosts):
+            raise ValueError(f"--hosts names a host twice: {','.join(self.hosts)}")
+        # The scenario's [placement], then --place; a run on this machine alone ignores both.
+        self.explicit = {**dict(self.sc.placement), **dict(placement or {})} if self.hosts else {}
+        if placement and not self.hosts:
+            raise ValueError("a placement needs --hosts")
+        for rid, h in self.explicit.items():
+            if rid not in self.sc.robots:
+                robots = ", ".join(map(str, self.sc.robots))
+                raise ValueError(f"placement {rid}={h}: no robot {rid}; robots are {robots}")
+            if h not in self.hosts:
+                raise ValueError(f"placement {rid}={h}: {h} is not one of --hosts {','.join(self.hosts)}")
+        self.listen = listen
+        if self.hosts and not listen:
+            raise ValueError("--hosts needs --listen ENDPOINT: where the world listens for the hosts' agents, "
+                             "e.g. tcp/192.168.1.10:7447 (an address every host reaches)")  # fmt: skip
+        self.host_logins = None
+        if self.tls is not None and not (self.hosts and self.auth and listen and listen.startswith("tls/")):
+            raise ValueError("TLS files are for --hosts with --listen tls/ADDRESS:PORT and logins")
+        if self.hosts and self.auth:
+            if host_logins is None:
+                raise ValueError("--hosts needs --host-logins FILE: the hosts' logins the run's router lets in "
+                                 "(swarm secure --hosts NAMES writes it)")  # fmt: skip
+            self.host_logins = trust.read_host_logins(host_logins, self.hosts)
+        self.hosts_timeout_s = timeout_s
+        self.clients: dict[str, remote.HostClient] = {}
+        self.poller: remote.Poller | None = None
+        self.placement: dict[int, str] = {}
+        self.host_infos: dict[str, HostReply] = {}
+        self.lost_hosts: list[str] = []
 
     def _names(self) -> list[str]:
         return ["world", *(["logger"] if self.logger else []), *(f"agent-{r}" for r in self.sc.robots)]
 
     @property
     def endpoint(self) -> str:
+        """Where this machine's processes reach the router (the world, or with
+        hosts the launcher, which listens on ``listen`` for the hosts too)."""
         return f"tcp/127.0.0.1:{self.port}"
 
     # -- lifecycle ----------------------------------------------------------------
@@ -198,11 +253,14 @@ class Launch:
             return
         try:
             self._start()
-        except BaseException:
+        except BaseException as exc:
             self._watch()  # a child that already failed (the world, say) explains itself
             self.stop(graceful_first=False)
+            host_failed = isinstance(exc, (remote.HostError, ValueError))  # a host missing, refusing, unfit
+            if host_failed:
+                self.events.append({"event": "start failed", "why": str(exc)})
             if self.run_dir.exists():
-                self._summary(130, interrupted=True, timed_out=False)
+                self._summary(1 if host_failed else 130, interrupted=not host_failed, timed_out=False)
             raise
 
     def _start(self) -> None:
@@ -214,7 +272,15 @@ class Launch:
         self.port = free_port()
         common = ["--scenario", str(scenario_file), "--run", self.run_id]
         secrets = (
-            trust.write_run_secrets(self.run_dir / SECRETS, self.run_id, self.sc.robots, self.sc.leader.robot_id)
+            trust.write_run_secrets(
+                self.run_dir / SECRETS,
+                self.run_id,
+                self.sc.robots,
+                self.sc.leader.robot_id,
+                world_is_router=not self.hosts,
+                host_logins=self.host_logins,
+                tls=self.tls,
+            )  # fmt: skip
             if self.auth
             else {}
         )
@@ -226,10 +292,18 @@ class Launch:
             return [self.python, "-m", f"formation_swarm.{module}"]
 
         stats = self.run_dir / "stats"
+        # With hosts, the launcher is the router (it outlives the world: the hosts are
+        # reached through it until their agents' logs are fetched); else the world is.
+        zenoh_role = ["--zenoh-mode", "client", "--connect", self.endpoint, *auth("world")] if self.hosts else \
+            ["--zenoh-mode", "router", "--listen", self.endpoint, *auth("router")]  # fmt: skip
+        if self.hosts:
+            assert self.listen is not None
+            settings = trust.read_settings(secrets["router"]) if secrets else None
+            conf = make_config("router", listen=[self.listen, self.endpoint], settings=settings)
+            self.session = zenoh.open(conf)
         specs = {
             "world": [*py("world.process"), *common, "--mode", self.mode, "--stats", str(stats / "world.json"),
-                      "--zenoh-mode", "router", "--listen", self.endpoint, *["--expect-logger"] * self.logger,
-                      *["--process-faults"] * self.process_faults, *auth("router")],
+                      *zenoh_role, *["--expect-logger"] * self.logger, *["--process-faults"] * self.process_faults],
         }  # fmt: skip
         if self.logger:
             extra = ["--live", self.live] if self.live else []
@@ -243,7 +317,7 @@ class Launch:
             specs["logger"] = [*py("logger"), *common, "--out", str(self.run_dir / "recording.rrd"),
                                "--stats", str(stats / "logger.json"), "--connect", self.endpoint, *extra,
                                *auth("logger")]  # fmt: skip
-        for rid in self.sc.robots:
+        for rid in [] if self.hosts else self.sc.robots:
             agent_stats = str(stats / f"agent-{rid}.json")
             specs[f"agent-{rid}"] = [*py("agents.process"), "--id", str(rid), *common,
                                      "--stats", agent_stats, "--connect", self.endpoint,
@@ -255,14 +329,52 @@ class Launch:
             self.children[name] = child
             self.current[name] = name
             child.start()
-        settings = trust.read_settings(secrets["launcher"]) if secrets else None
-        conf = make_config("client", [self.endpoint], connect_timeout_s=30.0, settings=settings)
-        self.session = zenoh.open(conf)
+        if self.session is None:
+            settings = trust.read_settings(secrets["launcher"]) if secrets else None
+            conf = make_config("client", [self.endpoint], connect_timeout_s=30.0, settings=settings)
+            self.session = zenoh.open(conf)
         keys = Keys(self.run_id)
         self.session.declare_subscriber(keys.status, lambda s: self.status_q.put(s.payload.to_bytes()))
         self.session.declare_subscriber(keys.faults, lambda s: self.calls_q.put(s.payload.to_bytes()))
         # After the subscriber: with process faults the world waits for this token before tick 0.
         self.token = self.session.liveliness().declare_token(keys.alive("launcher", 0))
+        if self.hosts:
+            self._start_remote(secrets)
+
+    def _start_remote(self, secrets: Mapping[str, Path]) -> None:
+        """Wait for the hosts, check them, place the robots, start their agents."""
+        assert self.session is not None
+        self.clients = {h: remote.HostClient(self.session, h) for h in self.hosts}
+        deadline = time.monotonic() + self.hosts_timeout_s
+        for h, client in self.clients.items():
+            if not client.present.wait(max(0.0, deadline - time.monotonic())):
+                raise remote.HostError(
+                    f"host {h} did not connect to {self.listen} within {self.hosts_timeout_s:g} s: start "
+                    f"'swarm host --connect <this address> --name {h} --auth host-{h}.json' there, and check "
+                    "its --connect, its login and the network"
+                )
+            client.info = self.host_infos[h] = client.ask(HostRequest("info", __version__))
+        allowed = {h: info.robots for h, info in self.host_infos.items()}
+        self.placement = remote.place(self.sc.robots, self.hosts, allowed, self.explicit)
+        scenario_text = (self.run_dir / "scenario.toml").read_text()
+        for rid, h in self.placement.items():
+            self.progress(f"[swarm] agent-{rid} on host {h}")
+            self._start_agent_on(f"agent-{rid}", h, scenario_text, secrets)
+        self.poller = remote.Poller(list(self.clients.values()), self.run_id)
+
+    def _start_agent_on(self, name: str, host: str, scenario_text: str, secrets: Mapping[str, Path]) -> str:
+        rid = int(name.split(".")[0].removeprefix("agent-"))
+        user, password = trust.agent_user(rid), ""
+        if secrets:
+            password = trust.read_settings(secrets[user])["transport/auth/usrpwd"]["password"]
+        req = HostRequest("start", __version__, run=self.run_id, process=name, scenario=scenario_text, user=user,
+                          password=password, world_grace_s=AGENT_WORLD_GRACE_S)  # fmt: skip
+        child = remote.RemoteChild(name, [], self.run_dir / "logs" / f"{name}.log", client=self.clients[host],
+                                   run=self.run_id, request=req)  # fmt: skip
+        self.children[name] = child
+        self.current[name.split(".")[0]] = name
+        child.start()
+        return name
 
     def pids(self) -> dict[str, int]:
         return {n: c.pid for n, c in self.children.items() if c.pid is not None}
@@ -302,6 +414,16 @@ class Launch:
             self.said_web = True
             self.progress(f"[swarm] watch the run in a browser: {viewer.web_address(*self.web_ports)}")
         self._execute_calls()
+        for h, client in self.clients.items():
+            if client.lost and not client.reported:
+                client.reported = True
+                self.lost_hosts.append(h)
+                robots = [r for r, ph in self.placement.items() if ph == h]
+                self.events.append({"event": "host lost", "host": h, "robots": robots, "sim_time_s": t,
+                                    "wall_s": time.monotonic() - self.started_at})  # fmt: skip
+                wall = time.monotonic() - self.started_at
+                self.progress(f"[swarm] host {h} was lost {wall:.1f} s into the run (its token went): robots "
+                              f"{', '.join(map(str, robots))} counted dead")  # fmt: skip
         for child in self.children.values():
             code = child.poll()
             if code is not None and not child.reported:
@@ -347,6 +469,15 @@ class Launch:
         """A fresh process for ``process`` (an agent), as the first was started
         but with its own log and stats file; its name (agent-3.2, ...)."""
         old = self.children[self.current[process]]
+        if isinstance(old, remote.RemoteChild):
+            old.signal(signal.SIGKILL)
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                old.proc.wait(timeout=5.0)  # type: ignore[union-attr]
+            n = 2
+            while f"{process}.{n}" in self.children:
+                n += 1
+            return self._start_agent_on(f"{process}.{n}", old.host, (self.run_dir / "scenario.toml").read_text(),
+                                        self._secrets())  # fmt: skip
         if old.proc is not None:  # SIGKILLed at the kill call: reaped first, so its token is gone
             old.signal(signal.SIGKILL)
             with contextlib.suppress(subprocess.TimeoutExpired):
@@ -366,6 +497,10 @@ class Launch:
     def _exited(self, child: Child, code: int, t: float) -> None:
         """A child that ended on its own, with an error: an event, and on the
         console which one, how, and the last lines of its log."""
+        if isinstance(child, remote.RemoteChild) and child.host in self.lost_hosts:
+            self.events.append({"event": "exited", "process": child.name, "code": code, "sim_time_s": t,
+                                "host_lost": child.host})  # fmt: skip
+            return
         kill = next((e for e in self.events if e["event"] == "killed" and e["process"] == child.name), None)
         if kill is not None:
             # By fault injection, already said; it died at the kill (the status may lag behind).
@@ -422,6 +557,11 @@ class Launch:
         if code == 0 and (lost := summary_mod.robots_lost(world_stats, self.sc)):
             self.progress(f"[swarm] the run failed: {lost}")
             code = 1  # it ran to its end, but not as a formation: not a success
+        if code in (0, 1) and self.lost_hosts:
+            for h in self.lost_hosts:
+                robots = ", ".join(str(r) for r, ph in self.placement.items() if ph == h)
+                self.progress(f"[swarm] the run failed: host {h} was lost; its robots ({robots}) were counted dead")
+            code = 1
         summary = self._summary(code, interrupted, timed_out)
         return RunResult(self.run_dir, summary, code, self.pids())
 
@@ -451,11 +591,33 @@ class Launch:
                     c.proc.wait(timeout=5.0)
                 c.poll()
             c.close()
+        self._stop_remote()
         if self.session is not None:
             self.session.close()
             self.session = None
         # Every process that held a password is gone: they are of no use now.
         shutil.rmtree(self.run_dir / SECRETS, ignore_errors=True)
+
+    def _secrets(self) -> dict[str, Path]:
+        folder = self.run_dir / SECRETS
+        return {p.stem: p for p in folder.glob("*.json")} if self.auth else {}
+
+    def _stop_remote(self) -> None:
+        """Fetch the remote agents' logs and stats, end the run on every host."""
+        if not self.clients:
+            return
+        if self.poller is not None:
+            self.poller.close()
+            self.poller = None
+        for c in self.children.values():
+            if isinstance(c, remote.RemoteChild) and (why := c.fetch(self.run_dir / "stats")) is not None:
+                self.events.append({"event": "not fetched", "process": c.name, "host": c.host, "why": why})
+        for client in self.clients.values():
+            if not client.lost:
+                with contextlib.suppress(remote.HostError):
+                    client.ask(HostRequest("end", __version__, run=self.run_id))
+            client.close()
+        self.clients = {}
 
     def _wait_exit(self, seconds: float) -> None:
         deadline = time.monotonic() + seconds
@@ -501,6 +663,16 @@ class Launch:
             events=self.events,
             recording="recording.rrd" if self.logger else None,
         )
+        if self.hosts:
+            summary["placement"] = {f"agent-{r}": h for r, h in self.placement.items()}
+            summary["hosts"] = {
+                h: {"hostname": i.hostname, "cores": i.cores, "free_mem_mb": i.free_mem_mb, "version": i.version,
+                    "lost": h in self.lost_hosts}
+                for h, i in self.host_infos.items()
+            }  # fmt: skip
+            for name, proc in summary.get("processes", {}).items():
+                child = self.children.get(name)
+                proc["host"] = child.host if isinstance(child, remote.RemoteChild) else "local"
         summary_mod.write(self.run_dir, summary)
         return summary
 

@@ -36,7 +36,7 @@ from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.lpsi import LpsiParams
 from formation_swarm.agents.pilot import CORNERS, turn_room
 from formation_swarm.faults import Fault, check_against, parse_all
-from formation_swarm.protocol.keys import MAX_ROBOT_ID
+from formation_swarm.protocol.keys import MAX_ROBOT_ID, check_host_name
 from formation_swarm.scenario_files import deep_set, resolve
 from formation_swarm.scenario_keys import (
     CAMERA_KEYS,
@@ -114,6 +114,7 @@ class Scenario:
     wheel_noise_mps: float = 0.0  # robot.wheel_noise_mps: every wheel, every tick
     # What may make the run say little, found at load (speed_warnings); not errors.
     warnings: tuple[str, ...] = field(default=(), compare=False)
+    placement: tuple[tuple[int, str], ...] = ()  # [placement]: (robot, host) for runs on hosts
 
     @property
     def formation_names(self) -> tuple[str, ...]:
@@ -454,7 +455,9 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         check_against(faults, robots, ld["id"], duration, dt)
     except ValueError as exc:
         raise ScenarioError(str(exc)) from None
+    placement = _placement(raw.get("placement", {}), robots)
     sc = Scenario(
+        placement=placement,
         name=run["name"],
         seed=run["seed"],
         dt_s=dt,
@@ -492,6 +495,22 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
     for text in said:  # for a library's user; swarm run prints Scenario.warnings with the run's lines
         warnings.warn(text, ScenarioWarning, stacklevel=2)
     return replace(sc, warnings=said)
+
+
+def _placement(table: Any, robots: Sequence[int]) -> tuple[tuple[int, str], ...]:
+    """``[placement]``: robot id = host name, for runs spread over hosts."""
+    if not isinstance(table, Mapping):
+        raise ScenarioError('placement must be a table of robot id = host name, e.g. [placement] 1 = "b"')
+    out = []
+    for key, host in table.items():
+        if not str(key).isdigit() or int(key) not in robots:
+            raise ScenarioError(f"placement: {key!r} is not a robot of this run; robots are "
+                                f"{', '.join(map(str, robots))}")  # fmt: skip
+        try:
+            out.append((int(key), check_host_name(host)))
+        except ValueError as exc:
+            raise ScenarioError(f"placement.{key}: {exc}") from None
+    return tuple(sorted(out))
 
 
 def load(

@@ -304,7 +304,8 @@ SECTIONS: dict[str, tuple[Mapping[str, Key], str, str]] = {
     "links": (LINK_KEYS, "faults of the one-way links: each message is dropped with this probability", "[links]"),
 }
 TOP_KEYS = (
-    "run", "robot", "camera", "leader", "formations", "controller", "followers", "obstacles", "links", "faults"
+    "run", "robot", "camera", "leader", "formations", "controller", "followers", "obstacles", "links", "faults",
+    "placement",
 )  # fmt: skip
 
 
@@ -371,6 +372,12 @@ def markdown() -> str:
         "The fault schedule: kills, restarts, freezes, link, sensor and actuator faults at given times.",
         "Each entry is a table (`kind`, `target`, `at_s`, `for_s` and the kind's parameters) or a string",
         'such as `"kill agent-3@20s"`; [faults.md](faults.md) describes every kind.',
+        "",
+        "## `[placement]`",
+        "",
+        "Which machine runs which robot's agent when the run is spread over hosts (`swarm run --hosts`,",
+        'deploy/README.md): robot id = host name, e.g. `1 = "b"`; robots left out go round-robin over the',
+        "hosts, and `--place` wins over this table. A run on one machine ignores it.",
         "",
     ]
     return "\n".join(out)

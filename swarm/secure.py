@@ -8,12 +8,13 @@ folder 0700. Copy to each machine the files its processes need.
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
 from formation_swarm import cliargs
 from formation_swarm.protocol import trust
-from formation_swarm.protocol.keys import check_run_id
+from formation_swarm.protocol.keys import check_host_name, check_run_id
 
 DESCRIPTION = """\
 Make the credentials and access rules of one run spread over machines: a
@@ -48,8 +49,12 @@ folder that already holds files (nothing written)."""
 
 def build_parser() -> cliargs.Parser:
     ap = cliargs.Parser(prog="swarm secure", description=DESCRIPTION, epilog=EPILOG)
-    ap.add_argument("scenario", metavar="SCENARIO", help="a shipped scenario's name or a scenario file (TOML)")
-    ap.add_argument("--run", required=True, metavar="ID", help="the run id every process of the run will use")
+    ap.add_argument("scenario", metavar="SCENARIO", nargs="?",
+                    help="a shipped scenario's name or a scenario file (TOML)")  # fmt: skip
+    ap.add_argument("--run", metavar="ID", help="the run id every process of the run will use")
+    ap.add_argument("--hosts", metavar="NAME[,NAME...]",
+                    help="instead of a run's logins: a lasting login per machine's swarm host (host-NAME.json, "
+                    "its --auth) and hosts.txt, swarm run --hosts's --host-logins")  # fmt: skip
     ap.add_argument("--out", required=True, metavar="DIR", help="the folder to write (created; must be empty)")
     ap.add_argument("--tls-ca", metavar="FILE", help="TLS: the CA certificate clients check the router against (PEM)")
     ap.add_argument("--tls-cert", metavar="FILE", help="TLS: the router's certificate, naming its host (PEM)")
@@ -62,6 +67,10 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     from formation_swarm import scenario as scenario_mod
 
+    if args.hosts is not None:
+        return _hosts(ap, args)
+    if args.scenario is None or args.run is None:
+        ap.error("give a SCENARIO and --run ID (or --hosts NAMES for the hosts' logins)")
     try:
         check_run_id(args.run)
     except ValueError as exc:
@@ -94,6 +103,28 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  agent {rid}:  --connect {scheme}/ROUTER:7447 --auth {files[trust.agent_user(rid)]}")
     if not tls:
         print("  links are plain TCP: the run's data crosses the network unencrypted; see deploy/README.md for TLS")
+    return 0
+
+
+def _hosts(ap: cliargs.Parser, args: argparse.Namespace) -> int:
+    names = [n.strip() for n in args.hosts.split(",") if n.strip()]
+    try:
+        for n in names:
+            check_host_name(n)
+    except ValueError as exc:
+        ap.error(f"argument --hosts: {exc}")
+    if not names or len(set(names)) != len(names):
+        ap.error(f"argument --hosts: distinct host names separated by commas, got {args.hosts!r}")
+    if args.scenario or args.run or args.tls_cert or args.tls_key:
+        ap.error("argument --hosts: takes no SCENARIO, --run, --tls-cert or --tls-key (only --tls-ca)")
+    out = Path(args.out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        ap.error(f"argument --out: {out} already holds files; secrets are never overwritten: give a new folder")
+    files = trust.write_host_logins(out, names, Path(args.tls_ca) if args.tls_ca else None)
+    print(f"swarm secure: logins for hosts {', '.join(names)}: wrote {out}/")
+    for n in names:
+        print(f"  host {n}:  swarm host --name {n} --connect tcp/ROUTER:7447 --auth {files[trust.host_user(n)]}")
+    print(f"  swarm run S --hosts {','.join(names)} --listen tcp/ROUTER:7447 --host-logins {files[trust.HOST_LOGINS]}")
     return 0
 
 

@@ -57,6 +57,15 @@ def _forkserver() -> Any:
         return _context
 
 
+def warm() -> None:
+    """Start the fork server now, so that the first role forked later does not
+    wait for it (a ``swarm host`` does this before it announces itself)."""
+    import multiprocessing.forkserver
+
+    _forkserver()
+    multiprocessing.forkserver.ensure_running()
+
+
 class Forked:
     """A forked role, with the part of ``subprocess.Popen`` the launcher uses."""
 
