@@ -21,10 +21,19 @@ import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 from formation_swarm import __version__
-from formation_swarm.cliargs import USAGE_ERROR, Parser, make_folder, port, rerun_url, seconds, seed
+from formation_swarm.cliargs import (
+    USAGE_ERROR,
+    Parser,
+    add_tls_arguments,
+    make_folder,
+    port,
+    rerun_url,
+    seconds,
+    seed,
+    tls,
+)
 
 GRPC_PORT, WEB_PORT = 9876, 9090  # --serve-web's defaults: Rerun's own
 SIM_MAX_S = 3600.0  # the paper's path takes 40 s; the recorded arrays grow with the duration
@@ -79,21 +88,6 @@ def _run_flag_conflicts(args: argparse.Namespace) -> str | None:
     return None
 
 
-def _tls(args: argparse.Namespace) -> Any:
-    """--tls-ca/--tls-cert/--tls-key as a trust.Tls (all three or none)."""
-    from formation_swarm.protocol.trust import Tls
-
-    files = (args.tls_ca, args.tls_cert, args.tls_key)
-    if not any(files):
-        return None
-    if not all(files):
-        raise ValueError("--tls-ca, --tls-cert and --tls-key: give all three or none")
-    for flag, path in zip(("--tls-ca", "--tls-cert", "--tls-key"), files, strict=True):
-        if not Path(path).is_file():
-            raise ValueError(f"{flag}: no such file: {path}")
-    return Tls(Path(args.tls_ca), Path(args.tls_cert), Path(args.tls_key))
-
-
 def _cmd_run(args: argparse.Namespace) -> int:
     if conflict := _run_flag_conflicts(args):
         print(f"swarm run: {conflict}", file=sys.stderr)
@@ -115,7 +109,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             live=args.live, serve_web=args.serve_web, kills=kills, faults=args.fault,
             web_ports=(args.grpc_port or GRPC_PORT, args.web_port or WEB_PORT), hosts=hosts,
             placement=parse_placement(args.place or ""), listen=args.listen, host_logins=args.host_logins,
-            hosts_timeout_s=args.hosts_timeout, tls=_tls(args),
+            hosts_timeout_s=args.hosts_timeout, tls=tls(args),
         )  # fmt: skip
         if args.out is not None and not args.out.strip():
             raise ValueError("--out '': an empty name")
@@ -250,14 +244,7 @@ def _add_run(sub: argparse._SubParsersAction[Parser]) -> None:
                        "lets them in")  # fmt: skip
     group.add_argument("--hosts-timeout", type=seconds(), default=30.0, metavar="SECONDS",
                        help="with --hosts: how long to wait for every host to connect (default: 30)")  # fmt: skip
-    group.add_argument("--tls-ca", metavar="FILE",
-                       help="with --hosts and --listen tls/...: the CA the hosts check this router "
-                       "against (PEM)")  # fmt: skip
-    group.add_argument("--tls-cert", metavar="FILE",
-                       help="with --listen tls/...: this router's certificate, naming the address the "
-                       "hosts use (PEM)")  # fmt: skip
-    group.add_argument("--tls-key", metavar="FILE",
-                       help="with --listen tls/...: this router's private key (PEM)")  # fmt: skip
+    add_tls_arguments(group)
     run.set_defaults(func=_cmd_run, parser=run)
 
 

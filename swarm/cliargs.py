@@ -15,9 +15,12 @@ import textwrap
 import urllib.parse
 from collections.abc import Callable
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 from formation_swarm.checks import SEED_MAX
+
+if TYPE_CHECKING:
+    from formation_swarm.protocol.trust import Tls
 
 USAGE_ERROR = 2  # exit code of every rejected command line, as argparse's own
 
@@ -124,3 +127,30 @@ def make_folder(what: str, path: str | Path) -> Path:
     except OSError as exc:
         raise ValueError(f"{what} {path}: cannot create a writable folder there ({exc.strerror or exc})") from None
     return path
+
+
+def add_tls_arguments(group: argparse._ArgumentGroup) -> None:
+    """--tls-ca/--tls-cert/--tls-key: the TLS identity of a router that hosts
+    reach on --listen tls/... (swarm run --hosts, swarm doctor); read with :func:`tls`."""
+    group.add_argument("--tls-ca", metavar="FILE",
+                       help="with --listen tls/...: the CA the hosts check this router against (PEM)")  # fmt: skip
+    group.add_argument("--tls-cert", metavar="FILE",
+                       help="with --listen tls/...: this router's certificate, naming the address the "
+                       "hosts use (PEM)")  # fmt: skip
+    group.add_argument("--tls-key", metavar="FILE",
+                       help="with --listen tls/...: this router's private key (PEM)")  # fmt: skip
+
+
+def tls(args: argparse.Namespace) -> Tls | None:
+    """--tls-ca/--tls-cert/--tls-key as a trust.Tls (all three or none)."""
+    from formation_swarm.protocol.trust import Tls
+
+    files = (args.tls_ca, args.tls_cert, args.tls_key)
+    if not any(files):
+        return None
+    if not all(files):
+        raise ValueError("--tls-ca, --tls-cert and --tls-key: give all three or none")
+    for flag, path in zip(("--tls-ca", "--tls-cert", "--tls-key"), files, strict=True):
+        if not Path(path).is_file():
+            raise ValueError(f"{flag}: no such file: {path}")
+    return Tls(Path(args.tls_ca), Path(args.tls_cert), Path(args.tls_key))

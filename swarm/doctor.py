@@ -1,18 +1,20 @@
 """``swarm doctor``: would a run on these hosts start? Asked before it is.
 
     swarm doctor --listen tcp/0.0.0.0:7447 --hosts a,b --host-logins hosts.txt [--scenario S]
+    swarm doctor --listen tls/0.0.0.0:7447 --hosts a,b --host-logins hosts.txt --tls-ca CA --tls-cert CERT --tls-key KEY
     swarm doctor --connect tcp/ROUTER:7447 --hosts a,b [--auth launcher.json]
 
 With ``--listen`` it is the router, as ``swarm run --hosts --listen`` will be,
-with the same rules and the hosts' logins: a host it hears has reached this
-address and had its login accepted. With ``--connect`` it asks through a
-router that runs already. For each host: is its token there (it reached the
-router), the round trip of a query (the best of three), its clock against
-this one (the host's time in its answer against the middle of the round
-trip), its package version against this one, its cores, free memory and the
-robots it may run; with ``--scenario``, whether the hosts may run every robot
-of it. One line per host, then a verdict; exit 0 when a run would start, 1
-when it would not (2 for bad flags).
+with the same rules, the hosts' logins and (``--tls-ca/--tls-cert/--tls-key``,
+as ``swarm run`` takes them) the same TLS identity: a host it hears has reached
+this address, trusted its certificate and had its login accepted. With
+``--connect`` it asks through a router that runs already. For each host: is
+its token there (it reached the router), the round trip of a query (the best
+of three), its clock against this one (the host's time in its answer against
+the middle of the round trip), its package version against this one, its
+cores, free memory and the robots it may run; with ``--scenario``, whether
+the hosts may run every robot of it. One line per host, then a verdict; exit
+0 when a run would start, 1 when it would not (2 for bad flags).
 """
 
 from __future__ import annotations
@@ -41,6 +43,8 @@ per host and a verdict; exits 1 when a run would fail."""
 EPILOG = """\
 examples:
   swarm doctor --listen tcp/0.0.0.0:7447 --hosts a,b --host-logins secure/hosts.txt --scenario fig11_obstacles
+  swarm doctor --listen tls/0.0.0.0:7447 --hosts a,b --host-logins secure/hosts.txt
+               --tls-ca ca.pem --tls-cert router.pem --tls-key router.key
   swarm doctor --connect tcp/192.168.1.10:7447 --hosts a,b
 
 exit codes: 0 a run would start; 1 it would not (the verdict says why); 2 bad flags."""
@@ -58,6 +62,7 @@ def build_parser() -> cliargs.Parser:
     ap.add_argument("--timeout", type=cliargs.seconds(600), default=15.0, metavar="SECONDS",
                     help="how long to wait for the hosts to appear, in s (default: 15)")  # fmt: skip
     session.add_arguments(ap)
+    cliargs.add_tls_arguments(ap.add_argument_group("TLS on --listen tls/... (the files swarm run --hosts takes)"))
     return ap
 
 
@@ -77,14 +82,17 @@ def main(argv: list[str] | None = None) -> int:
             sc = scenario_mod.load(args.scenario)
             robots = tuple(sc.robots)
         logins = trust.read_host_logins(args.host_logins, hosts) if args.host_logins else None
+        tls = cliargs.tls(args)
+        if tls is not None and not (logins and any(ep.startswith("tls/") for ep in args.listen)):
+            raise ValueError("TLS files are for --listen tls/ADDRESS:PORT with --host-logins")
     except ValueError as exc:
         ap.error(str(exc))
     with tempfile.TemporaryDirectory(prefix="swarm-doctor-") as tmp:
         if args.listen:
             settings = None
             if logins is not None:  # the rules of a run: the hosts' logins let in, each on its own key
-                files = trust.write_run_secrets(Path(tmp) / "s", f"doctor-{uuid.uuid4().hex[:8]}", robots,
-                                                robots[0], world_is_router=False, host_logins=logins)  # fmt: skip
+                files = trust.write_run_secrets(Path(tmp) / "s", f"doctor-{uuid.uuid4().hex[:8]}", robots, robots[0],
+                                                world_is_router=False, tls=tls, host_logins=logins)  # fmt: skip
                 settings = trust.read_settings(files["router"])
             conf = session.make_config("router", listen=args.listen, config_file=args.config, settings=settings)
             where = f"listening on {', '.join(args.listen)}"

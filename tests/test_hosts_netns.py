@@ -6,7 +6,10 @@ each host reaches it at).
 
 The run spreads Fig. 11's agents over both hosts, ends in lockstep with the
 trajectory digest of a local run with the same seed, and leaves a run folder
-``swarm report`` draws. A second run loses one host mid-run (its ``swarm
+``swarm report`` draws. ``swarm doctor``, the hosts' router in its turn (the
+same TLS files and logins), hears both with their round trips; with host b's
+link down it exits 1 within its --timeout naming b, and hears b again once
+the link is back. A second run loses one host mid-run (its ``swarm
 host`` is killed): those robots are reported dead, the run exits non-zero
 naming the host, and no agent is left on either host.
 
@@ -141,15 +144,39 @@ def _start_hosts(site: Site, tmp_path: Path) -> dict[str, subprocess.Popen[bytes
     return procs
 
 
-def _run_argv(site: Site, tmp_path: Path, out: Path) -> list[str]:
+def _router_flags(site: Site, tmp_path: Path) -> list[str]:
+    """Where the router listens for the hosts, their logins and its TLS files: a run's and the doctor's."""
     tls = {
         "ca": tmp_path / "tls" / "ca.pem",
         "cert": tmp_path / "tls" / "router.pem",
         "key": tmp_path / "tls" / "router.key",
     }
-    return [*site.exec("run"), *PY, "run", "fig11_obstacles", "--seed", "7", "--out", str(out), "--hosts", "a,b",
-            "--listen", f"tls/0.0.0.0:{PORT}", "--host-logins", str(tmp_path / "sec" / "hosts.txt"),
-            "--timeout", "240", *(f for n in ("ca", "cert", "key") for f in (f"--tls-{n}", str(tls[n])))]  # fmt: skip
+    return ["--hosts", "a,b", "--listen", f"tls/0.0.0.0:{PORT}", "--host-logins", str(tmp_path / "sec" / "hosts.txt"),
+            *(f for n in ("ca", "cert", "key") for f in (f"--tls-{n}", str(tls[n])))]  # fmt: skip
+
+
+def _run_argv(site: Site, tmp_path: Path, out: Path) -> list[str]:
+    return [*site.exec("run"), *PY, "run", "fig11_obstacles", "--seed", "7", "--out", str(out), "--timeout", "240",
+            *_router_flags(site, tmp_path)]  # fmt: skip
+
+
+DOCTOR_TIMEOUT_S = 8
+
+
+def _doctor(site: Site, tmp_path: Path) -> tuple[int, list[str], float]:
+    """``swarm doctor`` as the hosts' router in the run's namespace: its exit code, its lines, its wall time in s."""
+    argv = [*site.exec("run"), *PY, "doctor", "--timeout", str(DOCTOR_TIMEOUT_S), *_router_flags(site, tmp_path)]
+    t0 = time.monotonic()
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+    took = time.monotonic() - t0
+    print(f"doctor: exit {done.returncode} after {took:.1f} s\n{done.stdout}{done.stderr}")
+    return done.returncode, done.stdout.splitlines(), took
+
+
+def _round_trip_ms(lines: list[str], host: str) -> float:
+    line = next((x for x in lines if x.startswith(f"  host {host}: heard; round trip ")), None)
+    assert line is not None, "\n".join(lines)
+    return float(line.split("round trip ")[1].split(" ms;")[0])
 
 
 def _stop(procs: dict[str, subprocess.Popen[bytes]]) -> None:
@@ -190,6 +217,31 @@ def test_one_command_spreads_fig11_over_two_hosts_and_survives_losing_one(site: 
         assert (out / "report" / "trajectories.png").stat().st_size > 10_000
         for h in ("a", "b"):  # nothing of the run is left on a host: only the host itself
             assert _pids(site.ns[h]) == {hosts[h].pid} | _children(hosts[h].pid), h
+
+        # The doctor, the hosts' router as the run was: it hears both, then with host b's link down names b.
+        code, lines, _ = _doctor(site, tmp_path)
+        assert code == 0, "\n".join(lines)
+        assert lines[-1] == "verdict: OK: a run on hosts a, b would start"
+        for h in ("a", "b"):
+            assert 0 < _round_trip_ms(lines, h) < 1000, h
+        b_end = f"sw{site.tag}bh"
+        _ip("netns", "exec", site.ns["b"], "ip", "link", "set", b_end, "down")
+        try:
+            code, lines, took = _doctor(site, tmp_path)
+        finally:
+            _ip("netns", "exec", site.ns["b"], "ip", "link", "set", b_end, "up")
+        assert code == 1, "\n".join(lines)
+        not_heard = (
+            "  host b: NOT HEARD: its token did not reach the router (check its --connect, the network and its login)"
+        )
+        assert not_heard in lines, "\n".join(lines)
+        assert lines[-1] == "verdict: FAIL: host b not heard"
+        assert 0 < _round_trip_ms(lines, "a") < 1000
+        assert DOCTOR_TIMEOUT_S <= took < DOCTOR_TIMEOUT_S + 10  # the wait, plus starting and closing the session
+        deadline = time.monotonic() + 20  # host b back: it reconnects on its own
+        while (code := _doctor(site, tmp_path)[0]) != 0 and time.monotonic() < deadline:
+            pass
+        assert code == 0, "host b did not come back after its link did"
 
         # 2. The same hosts, a second run; host b dies mid-run.
         out = tmp_path / "lost"
