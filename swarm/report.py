@@ -15,7 +15,6 @@ What each figure shows and why: formation_swarm.figures. A title says
 
 from __future__ import annotations
 
-import json
 import math
 import sys
 import tomllib
@@ -25,7 +24,7 @@ from typing import Any
 
 from formation_swarm import figures
 from formation_swarm.cliargs import USAGE_ERROR, Parser, integer
-from formation_swarm.data import Series, read_recording, robots_in
+from formation_swarm.data import Series, read_folder, robots_in
 
 FIGURES = ("trajectories", "formation_error", "vn", "targets")
 FORMATS = ("png", "svg", "pdf")
@@ -50,23 +49,8 @@ def make_report(run_dir: str | Path, snapshots: int = 6, fmt: str = "png", dpi: 
         raise ValueError(f"snapshots must be in [0, {MAX_SNAPSHOTS}], got {snapshots!r}")
     if fmt not in FORMATS:
         raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
-    summary_path, rrd = run_dir / "summary.json", run_dir / "recording.rrd"
-    if not run_dir.is_dir():
-        raise ValueError(f"{run_dir}: no such folder")
-    if not summary_path.is_file():
-        raise ValueError(f"{run_dir} is not a run folder: no summary.json")
-    try:
-        summary = json.loads(summary_path.read_text())
-    except ValueError as exc:
-        raise ValueError(f"{summary_path} is not valid JSON: {exc}") from None
-    if not isinstance(summary, dict):
-        raise ValueError(f"{summary_path} is not a run summary (a JSON object)")
-    if not rrd.is_file():
-        raise ValueError(f"{run_dir} has no recording.rrd: run it with its logger (without --no-logger)")
-    try:
-        data = read_recording(rrd)
-    except RuntimeError as exc:  # rerun's reader: a file cut before its first chunk, or not a recording
-        raise ValueError(f"cannot read {rrd}: {exc}") from None
+    run_dir, summary, data = read_folder(run_dir)
+    rrd = run_dir / "recording.rrd"
     robots = robots_in(data)
     if not robots:
         raise ValueError(f"{rrd} holds no robot poses: " + _ended_early(summary))
