@@ -29,6 +29,7 @@ from formation_swarm.protocol.hostmsg import MAX_HOST_MESSAGE_BYTES, HostReply, 
 from formation_swarm.protocol.keys import HostKeys
 from formation_swarm.protocol.session import make_config
 from formation_swarm.remote import place
+from tests.conftest import processes
 
 PY = [sys.executable, "-m", "formation_swarm.cli"]
 
@@ -415,3 +416,52 @@ def test_a_scenario_s_placement_is_checked_and_place_wins_over_it(tmp_path: Path
     assert alone.explicit == {}  # a run on this machine alone ignores it
     with pytest.raises(ValueError, match="c is not one of --hosts b"):
         Launch("fig11_obstacles", overrides={"placement": {"1": "c"}}, hosts=["b"], **common)
+
+
+def test_a_relative_auth_path_gives_the_agents_absolute_existing_files(tmp_path: Path) -> None:
+    """``swarm host --auth host-a.json`` run from the folder of that file: the CA
+    it names (relative to it) reaches the agents' logins as an absolute path."""
+    ca = tmp_path / "made-ca.pem"
+    ca.write_text("-----BEGIN CERTIFICATE-----\n-----END CERTIFICATE-----\n")  # only read on a tls/ link
+    sec = tmp_path / "sec"
+    trust.write_host_logins(sec, ["a"], tls_ca=ca)
+    settings = json.loads((sec / "host-a.json").read_text())
+    assert settings["transport/link/tls/root_ca_certificate"] == trust.CA  # relative to the file, as written
+    run = f"rel-{uuid.uuid4().hex[:8]}"
+    files = trust.write_run_secrets(tmp_path / "run", run, (1, 2), 1, world_is_router=False,
+                                    host_logins=trust.read_host_logins(sec / trust.HOST_LOGINS, ["a"]))  # fmt: skip
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    router = zenoh.open(make_config("router", listen=[endpoint], settings=trust.read_settings(files["router"])))
+    log = open(tmp_path / "host.log", "wb")  # noqa: SIM115 - closed with the process
+    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "a", "--auth", "host-a.json",
+                             "--workdir", str(tmp_path / "work")], cwd=sec, stdout=log,
+                            stderr=subprocess.STDOUT)  # fmt: skip
+    log.close()
+    launcher = zenoh.open(make_config("client", [endpoint], settings=trust.read_settings(files["launcher"])))
+    try:
+        agent = trust.read_settings(files["agent-2"])["transport/auth/usrpwd"]
+        start = HostRequest("start", __version__, run=run, process="agent-2", scenario="x = 1", user="agent-2",
+                            password=agent["password"])  # fmt: skip
+        reply = None
+        deadline = time.monotonic() + 60
+        while reply is None and time.monotonic() < deadline:
+            got = [r.ok for r in launcher.get(HostKeys("a").ctl, payload=start.to_bytes(), timeout=2.0) if r.ok]
+            reply = HostReply.from_bytes(got[0].payload.to_bytes()) if got else None
+        assert reply is not None, (tmp_path / "host.log").read_text()
+        assert reply.ok, reply.error
+        written = json.loads((tmp_path / "work" / run / "secrets" / "agent-2.json").read_text())
+        named = Path(written["transport/link/tls/root_ca_certificate"])
+        assert named.is_absolute()
+        assert named == sec / trust.CA
+        assert named.read_text() == ca.read_text()
+        assert written["transport/auth/usrpwd"]["user"] == "agent-2"
+    finally:
+        launcher.close()
+        host.terminate()
+        assert host.wait(timeout=20) == 0
+        router.close()
+    # Its fork server (whose path names the folder it ran in) leaves once the host has gone.
+    deadline = time.monotonic() + 10
+    while processes(lambda cmd: str(sec) in cmd) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not processes(lambda cmd: str(sec) in cmd)
