@@ -375,6 +375,8 @@ def test_a_host_refuses_another_version_bad_requests_and_robots_it_may_not_run(t
 
         info = ask(HostRequest("info", __version__).to_bytes())
         assert info.ok
+        said = (tmp_path / "host.log").read_text()
+        assert f"host a: connected to a router at {endpoint}; serving robots 2, 3" in said
         assert info.robots == (2, 3)
         assert info.cores == os.cpu_count()
         other = ask(HostRequest("info", "0.0.1").to_bytes())
@@ -465,3 +467,25 @@ def test_a_relative_auth_path_gives_the_agents_absolute_existing_files(tmp_path:
     while processes(lambda cmd: str(sec) in cmd) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not processes(lambda cmd: str(sec) in cmd)
+
+
+def test_a_host_waiting_for_its_router_says_so_and_stops_at_once_on_sigterm(tmp_path: Path) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"  # nothing listens there
+    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "b", "--workdir", str(tmp_path / "work")],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
+    try:
+        assert host.stdout is not None
+        first = host.stdout.readline()  # said before it waits
+        assert first.startswith(f"host b: waiting for a router at {endpoint} (retrying)"), first
+        time.sleep(1.0)  # well into its retries: the case that hung
+        host.send_signal(signal.SIGTERM)
+        sent = time.monotonic()
+        code = host.wait(timeout=20)
+        took = time.monotonic() - sent
+    finally:
+        if host.poll() is None:
+            host.kill()
+            host.wait()
+    assert code in (0, 143)
+    assert took < 5.0, took
+    assert "stopped before a router answered" in host.stdout.read()
