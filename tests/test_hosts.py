@@ -512,3 +512,22 @@ def test_a_lost_host_and_its_agents_are_told_in_sentences_and_name_the_failure()
                                 timed_out=False, processes={}, events=events, recording=None)  # fmt: skip
     assert summary["failure"] == "host c lost at t=5.30 s: robot 2 counted dead"
     assert "255" not in summary["ended"]
+
+
+def test_secure_hosts_with_a_ca_suggests_tls_endpoints_and_says_to_copy_the_ca(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from formation_swarm import secure
+
+    ca = tmp_path / "my-ca.pem"
+    ca.write_text("-----BEGIN CERTIFICATE-----\n-----END CERTIFICATE-----\n")
+    assert secure.main(["--hosts", "b,c", "--out", str(tmp_path / "tls"), "--tls-ca", str(ca)]) == 0
+    said = capsys.readouterr().out
+    assert f"swarm host --name b --connect tls/ROUTER:7447 --auth {tmp_path / 'tls' / 'host-b.json'}" in said
+    assert "--listen tls/0.0.0.0:7447" in said
+    assert "tcp/" not in said
+    assert f"copy {tmp_path / 'tls' / trust.CA} beside each host-NAME.json" in said
+    assert secure.main(["--hosts", "b", "--out", str(tmp_path / "plain")]) == 0
+    plain = capsys.readouterr().out
+    assert "--connect tcp/ROUTER:7447" in plain
+    assert "tls/" not in plain
