@@ -302,6 +302,19 @@ def _robot_ids(text: str) -> tuple[int, ...]:
     return ids
 
 
+def _check_login(settings: dict[str, Any], name: str, path: str | None) -> None:
+    """A login must be this host's (``host-NAME``): the run's router would let
+    another one in only on another host's key, where no launcher asks for it."""
+    login = settings.get("transport/auth/usrpwd")
+    user = login.get("user") if isinstance(login, dict) else None
+    if user is not None and user != trust.host_user(name):
+        whose = f"host {user[5:]}" if str(user).startswith("host-") else f"user {user!r}, not a host's"
+        raise ValueError(
+            f"--auth {path}: this login is for {whose}, not for host {name} (--name): give the file of "
+            f"host {name} (host-{name}.json of swarm secure --hosts) or --name to match"
+        )
+
+
 def open_session(conf: zenoh.Config, stop: StopEvent) -> zenoh.Session | None:
     """``zenoh.open(conf)``, or None once ``stop`` is set first. A client's open
     returns only when a router answered (here it retries for ever) and no signal
@@ -355,6 +368,7 @@ def main(argv: list[str] | None = None) -> int:
         name = check_host_name(args.name or default_name())
         robots = _robot_ids(args.robots) if args.robots else None
         settings = trust.read_settings(args.auth) if args.auth else {}
+        _check_login(settings, name, args.auth)
         if not args.connect and args.config is None:
             raise ValueError("--connect ENDPOINT: the router to serve runs through (scouting is off)")
         conf = session.make_config("client", args.connect, (), args.config, settings=settings)

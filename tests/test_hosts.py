@@ -531,3 +531,13 @@ def test_secure_hosts_with_a_ca_suggests_tls_endpoints_and_says_to_copy_the_ca(
     plain = capsys.readouterr().out
     assert "--connect tcp/ROUTER:7447" in plain
     assert "tls/" not in plain
+
+
+def test_a_host_whose_login_is_another_host_s_says_so_at_start(tmp_path: Path) -> None:
+    trust.write_host_logins(tmp_path / "sec", ["c"])
+    argv = [*PY, "host", "--connect", f"tcp/127.0.0.1:{free_port()}", "--name", "cc", "--auth",
+            str(tmp_path / "sec" / "host-c.json"), "--workdir", str(tmp_path / "work")]  # fmt: skip
+    res = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert "this login is for host c, not for host cc (--name)" in res.stderr
+    assert "waiting for a router" not in res.stdout  # refused before it connects
