@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -541,3 +542,50 @@ def test_a_host_whose_login_is_another_host_s_says_so_at_start(tmp_path: Path) -
     assert res.returncode == 2, res.stdout + res.stderr
     assert "this login is for host c, not for host cc (--name)" in res.stderr
     assert "waiting for a router" not in res.stdout  # refused before it connects
+
+
+@pytest.mark.slow
+def test_a_run_over_tls_on_a_host_started_with_a_relative_auth_path(tmp_path: Path) -> None:
+    """The case a relative --auth broke: the host's agents found no CA and never reached the TLS router."""
+    if shutil.which("openssl") is None:
+        pytest.skip("needs openssl to make the test's TLS certificates")
+    tls = tmp_path / "tls"
+    tls.mkdir()
+    (tls / "ext.cnf").write_text("subjectAltName=IP:127.0.0.1\n")
+    ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"]
+    for argv in (  # the guide's commands (deploy/README.md, "Steps")
+        ["req", "-x509", *ec, "-keyout", "ca.key", "-out", "ca.pem", "-days", "1", "-subj", "/CN=swarm test CA"],
+        ["req", *ec, "-keyout", "router.key", "-out", "router.csr", "-subj", "/CN=router"],
+        ["x509", "-req", "-in", "router.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial",
+         "-out", "router.pem", "-days", "1", "-extfile", "ext.cnf"],
+    ):  # fmt: skip
+        subprocess.run(["openssl", *argv], cwd=tls, check=True, capture_output=True, timeout=30)
+    sec = tmp_path / "sec"
+    made = subprocess.run([*PY, "secure", "--hosts", "a", "--out", str(sec), "--tls-ca", str(tls / "ca.pem")],
+                          capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+    assert made.returncode == 0, made.stderr
+    endpoint = f"tls/127.0.0.1:{free_port()}"
+    log = open(tmp_path / "host-a.log", "wb")  # noqa: SIM115 - closed with the process
+    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "a", "--auth", "host-a.json",
+                             "--workdir", str(tmp_path / "work")], cwd=sec, stdout=log,
+                            stderr=subprocess.STDOUT)  # fmt: skip
+    log.close()
+    try:
+        out = tmp_path / "run"
+        argv = [*PY, "run", "fig11_obstacles", "--seed", "5", "--no-logger", "--out", str(out), "--hosts", "a",
+                "--listen", endpoint, "--host-logins", str(sec / "hosts.txt"), "--tls-ca", str(tls / "ca.pem"),
+                "--tls-cert", str(tls / "router.pem"), "--tls-key", str(tls / "router.key")]  # fmt: skip
+        run = subprocess.run(argv, capture_output=True, text=True, timeout=300, check=False)
+        assert run.returncode == 0, run.stdout + run.stderr + (tmp_path / "host-a.log").read_text()
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["placement"] == {"agent-1": "a", "agent-2": "a", "agent-3": "a"}
+        assert summary["failure"] is None
+        for name in ("agent-1", "agent-2", "agent-3"):
+            assert "exit code 0" in (out / "logs" / f"{name}.log").read_text().splitlines()[-1], name
+    finally:
+        host.terminate()
+        assert host.wait(timeout=20) == 0
+    deadline = time.monotonic() + 10  # its fork server (whose path names sec/) leaves after it
+    while processes(lambda cmd: str(sec) in cmd) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not processes(lambda cmd: str(sec) in cmd)
