@@ -299,10 +299,11 @@ def read_settings(path: str | Path) -> dict[str, Any]:
         raise ValueError(f"{p} is readable by other users (mode {mode & 0o777:o}): chmod 600 {p}")
     if not isinstance(data, dict) or not all(isinstance(key, str) for key in data):
         raise ValueError(f"{p} must hold a JSON object of Zenoh settings")
-    return _resolve_files(data, p.parent)
+    # Absolute: a process may hand these settings on (a host to its agents, whose files are elsewhere).
+    return _resolve_files(data, p.absolute().parent)
 
 
-# Settings that name a file: a relative name is taken from the settings file's folder.
+# Settings that name a file: a relative name is taken from the settings file's folder, made absolute.
 _FILE_SETTINGS = ("dictionary_file", "root_ca_certificate", "listen_certificate", "listen_private_key")
 
 

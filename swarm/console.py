@@ -32,6 +32,10 @@ def describe_event(ev: Mapping[str, Any]) -> str:
         tick = f" (tick {ev['tick']})" if isinstance(ev.get("tick"), int) else ""
         why = f"'{ev['fault']}'" if ev.get("fault") else "fault injection"
         return f"{ev['event']} {ev.get('process')} {when}{tick} ({why})"
+    if ev.get("event") == "host lost":
+        return summary_mod.describe_host_lost(ev)
+    if ev.get("event") == "exited" and ev.get("host_lost"):  # its exit code stayed on that host
+        return f"{ev.get('process')} lost with host {ev['host_lost']} {when}"
     if ev.get("event") == "exited" and isinstance(ev.get("code"), int):
         return f"{ev.get('process')} {describe_exit(ev['code'])} {when}"
     return ", ".join(f"{k} {v}" for k, v in ev.items() if k != "log_tail")

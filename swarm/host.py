@@ -31,6 +31,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,7 +41,7 @@ import zenoh
 
 from formation_swarm import __version__, cliargs, spawner
 from formation_swarm.children import Child
-from formation_swarm.proc import install_stop_handlers
+from formation_swarm.proc import SIGNAL_CHECK_S, StopEvent, install_stop_handlers
 from formation_swarm.protocol import hostmsg, session, trust
 from formation_swarm.protocol.codec import DecodeError, Rejections
 from formation_swarm.protocol.hostmsg import HostReply, HostRequest
@@ -301,6 +302,48 @@ def _robot_ids(text: str) -> tuple[int, ...]:
     return ids
 
 
+def _check_login(settings: dict[str, Any], name: str, path: str | None) -> None:
+    """A login must be this host's (``host-NAME``): the run's router would let
+    another one in only on another host's key, where no launcher asks for it."""
+    login = settings.get("transport/auth/usrpwd")
+    user = login.get("user") if isinstance(login, dict) else None
+    if user is not None and user != trust.host_user(name):
+        whose = f"host {user[5:]}" if str(user).startswith("host-") else f"user {user!r}, not a host's"
+        raise ValueError(
+            f"--auth {path}: this login is for {whose}, not for host {name} (--name): give the file of "
+            f"host {name} (host-{name}.json of swarm secure --hosts) or --name to match"
+        )
+
+
+def open_session(conf: zenoh.Config, stop: StopEvent) -> zenoh.Session | None:
+    """``zenoh.open(conf)``, or None once ``stop`` is set first. A client's open
+    returns only when a router answered (here it retries for ever) and no signal
+    handler runs meanwhile, so it runs on a thread of its own; one left behind
+    by a stop is a daemon, ended with the process."""
+    done = threading.Event()
+    out: list[zenoh.Session] = []
+    failed: list[zenoh.ZError] = []
+
+    def run() -> None:
+        try:
+            out.append(zenoh.open(conf))
+        except zenoh.ZError as exc:
+            failed.append(exc)
+        finally:
+            done.set()
+
+    threading.Thread(target=run, name="zenoh-open", daemon=True).start()
+    while not stop.is_set() and not done.is_set():
+        done.wait(SIGNAL_CHECK_S)
+    if failed:
+        raise failed[0]
+    if out and not stop.is_set():
+        return out[0]
+    if out:  # opened as the stop came
+        out[0].close()
+    return None
+
+
 def build_parser() -> cliargs.Parser:
     ap = cliargs.Parser(prog="swarm host", description=DESCRIPTION, epilog=EPILOG)
     ap.add_argument("--name", default=None, metavar="NAME",
@@ -325,6 +368,7 @@ def main(argv: list[str] | None = None) -> int:
         name = check_host_name(args.name or default_name())
         robots = _robot_ids(args.robots) if args.robots else None
         settings = trust.read_settings(args.auth) if args.auth else {}
+        _check_login(settings, name, args.auth)
         if not args.connect and args.config is None:
             raise ValueError("--connect ENDPOINT: the router to serve runs through (scouting is off)")
         conf = session.make_config("client", args.connect, (), args.config, settings=settings)
@@ -336,18 +380,22 @@ def main(argv: list[str] | None = None) -> int:
     workdir = Path(args.workdir) if args.workdir else Path.home() / ".cache" / "swarm-host" / name
     stop = install_stop_handlers()
     spawner.warm()  # the agents' modules imported once, before any launcher waits for a start
+    where = ", ".join(args.connect) or args.config
+    print(f"host {name}: waiting for a router at {where} (retrying); stop it with Ctrl-C or SIGTERM", flush=True)
     try:
-        sess = zenoh.open(conf)
+        sess = open_session(conf, stop)
     except zenoh.ZError as exc:
         print(f"host {name}: cannot open a Zenoh session: {exc}", file=sys.stderr, flush=True)
         return 1
+    if sess is None:
+        print(f"host {name}: stopped before a router answered", flush=True)
+        return 0
     with sess:
         host = Host(sess, name, robots, list(args.connect), settings, workdir, args.launcher_wait)
         queryable = sess.declare_queryable(host.keys.ctl)
         token = sess.liveliness().declare_token(host.keys.alive)
-        where = ", ".join(args.connect) or args.config
-        host.say(f"serving robots {', '.join(map(str, robots)) if robots else 'any'} through {where} "
-                 f"(formation_swarm {__version__}); stop it with Ctrl-C or SIGTERM")  # fmt: skip
+        host.say(f"connected to a router at {where}; serving robots {', '.join(map(str, robots)) if robots else 'any'} "
+                 f"(formation_swarm {__version__})")  # fmt: skip
         try:
             while not stop.is_set():
                 query = queryable.try_recv()

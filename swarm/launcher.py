@@ -498,8 +498,8 @@ class Launch:
         """A child that ended on its own, with an error: an event, and on the
         console which one, how, and the last lines of its log."""
         if isinstance(child, remote.RemoteChild) and child.host in self.lost_hosts:
-            self.events.append({"event": "exited", "process": child.name, "code": code, "sim_time_s": t,
-                                "host_lost": child.host})  # fmt: skip
+            # Its exit code stayed on that host (remote.LOST_CODE stands for it here): none is made up.
+            self.events.append({"event": "exited", "process": child.name, "sim_time_s": t, "host_lost": child.host})
             return
         kill = next((e for e in self.events if e["event"] == "killed" and e["process"] == child.name), None)
         if kill is not None:
@@ -649,6 +649,8 @@ class Launch:
                 exit_after_stop = max(0.0, c.exited_at - c.stop_sent_at)
             procs[name] = {"pid": c.pid, "exit_code": None if c.proc is None else c.proc.returncode,
                            "exit_after_stop_s": exit_after_stop}  # fmt: skip
+            if isinstance(c, remote.RemoteChild) and c.host in self.lost_hosts:
+                procs[name].update(exit_code=None, lost_with_host=c.host)
         summary = summary_mod.build(
             run_id=self.run_id,
             sc=self.sc,

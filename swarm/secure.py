@@ -120,11 +120,18 @@ def _hosts(ap: cliargs.Parser, args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         ap.error(f"argument --out: {out} already holds files; secrets are never overwritten: give a new folder")
+    if args.tls_ca and not Path(args.tls_ca).is_file():
+        ap.error(f"argument --tls-ca: no such file: {args.tls_ca}")
     files = trust.write_host_logins(out, names, Path(args.tls_ca) if args.tls_ca else None)
+    scheme = "tls" if args.tls_ca else "tcp"
     print(f"swarm secure: logins for hosts {', '.join(names)}: wrote {out}/")
     for n in names:
-        print(f"  host {n}:  swarm host --name {n} --connect tcp/ROUTER:7447 --auth {files[trust.host_user(n)]}")
-    print(f"  swarm run S --hosts {','.join(names)} --listen tcp/ROUTER:7447 --host-logins {files[trust.HOST_LOGINS]}")
+        print(f"  host {n}:  swarm host --name {n} --connect {scheme}/ROUTER:7447 --auth {files[trust.host_user(n)]}")
+    tls = " --tls-ca CA --tls-cert CERT --tls-key KEY" if args.tls_ca else ""
+    print(f"  swarm run S --hosts {','.join(names)} --listen {scheme}/0.0.0.0:7447 --host-logins "
+          f"{files[trust.HOST_LOGINS]}{tls}")  # fmt: skip
+    if args.tls_ca:
+        print(f"  copy {out / trust.CA} beside each host-NAME.json: the login names it relative to itself")
     return 0
 
 

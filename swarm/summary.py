@@ -115,6 +115,15 @@ def read_parts(stats_dir: Path) -> dict[str, Any]:
     return parts
 
 
+def describe_host_lost(ev: Mapping[str, Any]) -> str:
+    """A "host lost" event of a run on hosts (its token went mid-run) as a sentence."""
+    t = ev.get("sim_time_s")
+    when = f"at t={t:.2f} s" if isinstance(t, (int, float)) and t >= 0 else "before the run started"
+    robots = [str(r) for r in ev.get("robots") or []]
+    dead = f"robot{'s' if len(robots) > 1 else ''} {', '.join(robots)} counted dead" if robots else "it ran no robot"
+    return f"host {ev.get('host')} lost {when}: {dead}"
+
+
 def robots_lost(world: Mapping[str, Any], sc: Scenario) -> str | None:
     """Why a run that ran to its end still failed: its leader lost its agent
     (the formation could not fly its path), or every follower did, for good
@@ -243,7 +252,8 @@ def build(
     if end_reason not in END_REASONS:
         raise ValueError(f"end_reason must be one of {END_REASONS}, got {end_reason!r}")
     world = parts.get("world", {})
-    failure = robots_lost(world, sc)
+    hosts_lost = [describe_host_lost(e) for e in events if e.get("event") == "host lost"]
+    failure = "; ".join(hosts_lost) or robots_lost(world, sc)  # a lost host fails the run, its robots with it
     rejected = {name: part.get("rejected", {}) for name, part in parts.items() if part.get("rejected")}
     links = _links(parts)
     link_totals, link_faults = _link_sums(links, sc)

@@ -46,3 +46,22 @@ def test_the_router_configuration_loads_in_zenoh() -> None:
     conf = zenoh.Config.from_file(str(DEPLOY / "router.json5"))
     assert '"router"' in conf.get_json("mode")
     assert "tcp/0.0.0.0:7447" in conf.get_json("listen/endpoints")
+
+
+@pytest.mark.parametrize("unit", UNITS)
+def test_a_unit_runs_as_a_user_the_guide_creates_and_names_no_missing_file(unit: str) -> None:
+    text = (DEPLOY / unit).read_text()
+    assert "User=swarm" in text
+    assert "useradd --system" in text
+    assert "Documentation=" not in text  # pip install puts no deploy/README.md under /opt/formation-swarm
+    guide = (DEPLOY / "README.md").read_text()
+    assert "sudo useradd --system --user-group --no-create-home --shell /usr/sbin/nologin swarm" in guide
+
+
+def test_the_guide_gives_the_openssl_commands_and_the_ca_beside_each_host_login() -> None:
+    guide = (DEPLOY / "README.md").read_text()
+    assert "see\n   `tests/test_multihost.py`" not in guide
+    assert guide.count("openssl req ") == 2
+    assert guide.count("openssl x509 -req ") == 1
+    assert "-extfile router-ext.cnf" in guide
+    assert "copy `ca.pem` from the\n   same folder beside each of them" in guide

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -29,6 +30,7 @@ from formation_swarm.protocol.hostmsg import MAX_HOST_MESSAGE_BYTES, HostReply, 
 from formation_swarm.protocol.keys import HostKeys
 from formation_swarm.protocol.session import make_config
 from formation_swarm.remote import place
+from tests.conftest import processes
 
 PY = [sys.executable, "-m", "formation_swarm.cli"]
 
@@ -254,6 +256,11 @@ def test_a_host_that_dies_mid_run_has_its_robots_counted_dead_and_fails_the_run(
     assert summary["hosts"]["b"]["lost"] is True
     assert any(e["event"] == "host lost" and e["host"] == "b" and e["robots"] == [2] for e in summary["events"])
     assert [d["robot"] for d in summary["deaths"]] == [2]  # the world saw robot 2's agent go
+    assert summary["failure"].startswith("host b lost at t=")
+    assert summary["failure"].endswith(": robot 2 counted dead")
+    assert summary["processes"]["agent-2"]["exit_code"] is None  # it stayed on host b
+    assert summary["processes"]["agent-2"]["lost_with_host"] == "b"
+    assert "agent-2 exited with code 255" not in text
     # Its agents died with it (they are forked by its spawner, which dies with it).
     deadline = time.monotonic() + 10
     while any(Path(f"/proc/{p}").exists() and _alive(p) for p in b_agents) and time.monotonic() < deadline:
@@ -374,6 +381,8 @@ def test_a_host_refuses_another_version_bad_requests_and_robots_it_may_not_run(t
 
         info = ask(HostRequest("info", __version__).to_bytes())
         assert info.ok
+        said = (tmp_path / "host.log").read_text()
+        assert f"host a: connected to a router at {endpoint}; serving robots 2, 3" in said
         assert info.robots == (2, 3)
         assert info.cores == os.cpu_count()
         other = ask(HostRequest("info", "0.0.1").to_bytes())
@@ -415,3 +424,168 @@ def test_a_scenario_s_placement_is_checked_and_place_wins_over_it(tmp_path: Path
     assert alone.explicit == {}  # a run on this machine alone ignores it
     with pytest.raises(ValueError, match="c is not one of --hosts b"):
         Launch("fig11_obstacles", overrides={"placement": {"1": "c"}}, hosts=["b"], **common)
+
+
+def test_a_relative_auth_path_gives_the_agents_absolute_existing_files(tmp_path: Path) -> None:
+    """``swarm host --auth host-a.json`` run from the folder of that file: the CA
+    it names (relative to it) reaches the agents' logins as an absolute path."""
+    ca = tmp_path / "made-ca.pem"
+    ca.write_text("-----BEGIN CERTIFICATE-----\n-----END CERTIFICATE-----\n")  # only read on a tls/ link
+    sec = tmp_path / "sec"
+    trust.write_host_logins(sec, ["a"], tls_ca=ca)
+    settings = json.loads((sec / "host-a.json").read_text())
+    assert settings["transport/link/tls/root_ca_certificate"] == trust.CA  # relative to the file, as written
+    run = f"rel-{uuid.uuid4().hex[:8]}"
+    files = trust.write_run_secrets(tmp_path / "run", run, (1, 2), 1, world_is_router=False,
+                                    host_logins=trust.read_host_logins(sec / trust.HOST_LOGINS, ["a"]))  # fmt: skip
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    router = zenoh.open(make_config("router", listen=[endpoint], settings=trust.read_settings(files["router"])))
+    log = open(tmp_path / "host.log", "wb")  # noqa: SIM115 - closed with the process
+    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "a", "--auth", "host-a.json",
+                             "--workdir", str(tmp_path / "work")], cwd=sec, stdout=log,
+                            stderr=subprocess.STDOUT)  # fmt: skip
+    log.close()
+    launcher = zenoh.open(make_config("client", [endpoint], settings=trust.read_settings(files["launcher"])))
+    try:
+        agent = trust.read_settings(files["agent-2"])["transport/auth/usrpwd"]
+        start = HostRequest("start", __version__, run=run, process="agent-2", scenario="x = 1", user="agent-2",
+                            password=agent["password"])  # fmt: skip
+        reply = None
+        deadline = time.monotonic() + 60
+        while reply is None and time.monotonic() < deadline:
+            got = [r.ok for r in launcher.get(HostKeys("a").ctl, payload=start.to_bytes(), timeout=2.0) if r.ok]
+            reply = HostReply.from_bytes(got[0].payload.to_bytes()) if got else None
+        assert reply is not None, (tmp_path / "host.log").read_text()
+        assert reply.ok, reply.error
+        written = json.loads((tmp_path / "work" / run / "secrets" / "agent-2.json").read_text())
+        named = Path(written["transport/link/tls/root_ca_certificate"])
+        assert named.is_absolute()
+        assert named == sec / trust.CA
+        assert named.read_text() == ca.read_text()
+        assert written["transport/auth/usrpwd"]["user"] == "agent-2"
+    finally:
+        launcher.close()
+        host.terminate()
+        assert host.wait(timeout=20) == 0
+        router.close()
+    # Its fork server (whose path names the folder it ran in) leaves once the host has gone.
+    deadline = time.monotonic() + 10
+    while processes(lambda cmd: str(sec) in cmd) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not processes(lambda cmd: str(sec) in cmd)
+
+
+def test_a_host_waiting_for_its_router_says_so_and_stops_at_once_on_sigterm(tmp_path: Path) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"  # nothing listens there
+    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "b", "--workdir", str(tmp_path / "work")],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
+    try:
+        assert host.stdout is not None
+        first = host.stdout.readline()  # said before it waits
+        assert first.startswith(f"host b: waiting for a router at {endpoint} (retrying)"), first
+        time.sleep(1.0)  # well into its retries: the case that hung
+        host.send_signal(signal.SIGTERM)
+        sent = time.monotonic()
+        code = host.wait(timeout=20)
+        took = time.monotonic() - sent
+    finally:
+        if host.poll() is None:
+            host.kill()
+            host.wait()
+    assert code in (0, 143)
+    assert took < 5.0, took
+    assert "stopped before a router answered" in host.stdout.read()
+
+
+def test_a_lost_host_and_its_agents_are_told_in_sentences_and_name_the_failure() -> None:
+    from formation_swarm import summary as summary_mod
+    from formation_swarm.console import describe_event
+    from formation_swarm.scenario import load
+
+    lost = {"event": "host lost", "host": "c", "robots": [2], "sim_time_s": 5.300000000000001, "wall_s": 8.33}
+    assert describe_event(lost) == "host c lost at t=5.30 s: robot 2 counted dead"
+    assert describe_event({**lost, "robots": [2, 3]}) == "host c lost at t=5.30 s: robots 2, 3 counted dead"
+    agent = {"event": "exited", "process": "agent-2", "sim_time_s": 5.3, "host_lost": "c"}
+    assert describe_event(agent) == "agent-2 lost with host c at sim t=5.30 s"
+    events = [lost, agent]
+    summary = summary_mod.build(run_id="r1", sc=load("fig11_obstacles"), mode="lockstep", parts={}, exit_code=1,
+                                end_reason=summary_mod.ROLE_FAILED, ended_at_s=5.3, interrupted=False,
+                                timed_out=False, processes={}, events=events, recording=None)  # fmt: skip
+    assert summary["failure"] == "host c lost at t=5.30 s: robot 2 counted dead"
+    assert "255" not in summary["ended"]
+
+
+def test_secure_hosts_with_a_ca_suggests_tls_endpoints_and_says_to_copy_the_ca(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from formation_swarm import secure
+
+    ca = tmp_path / "my-ca.pem"
+    ca.write_text("-----BEGIN CERTIFICATE-----\n-----END CERTIFICATE-----\n")
+    assert secure.main(["--hosts", "b,c", "--out", str(tmp_path / "tls"), "--tls-ca", str(ca)]) == 0
+    said = capsys.readouterr().out
+    assert f"swarm host --name b --connect tls/ROUTER:7447 --auth {tmp_path / 'tls' / 'host-b.json'}" in said
+    assert "--listen tls/0.0.0.0:7447" in said
+    assert "tcp/" not in said
+    assert f"copy {tmp_path / 'tls' / trust.CA} beside each host-NAME.json" in said
+    assert secure.main(["--hosts", "b", "--out", str(tmp_path / "plain")]) == 0
+    plain = capsys.readouterr().out
+    assert "--connect tcp/ROUTER:7447" in plain
+    assert "tls/" not in plain
+
+
+def test_a_host_whose_login_is_another_host_s_says_so_at_start(tmp_path: Path) -> None:
+    trust.write_host_logins(tmp_path / "sec", ["c"])
+    argv = [*PY, "host", "--connect", f"tcp/127.0.0.1:{free_port()}", "--name", "cc", "--auth",
+            str(tmp_path / "sec" / "host-c.json"), "--workdir", str(tmp_path / "work")]  # fmt: skip
+    res = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert "this login is for host c, not for host cc (--name)" in res.stderr
+    assert "waiting for a router" not in res.stdout  # refused before it connects
+
+
+@pytest.mark.slow
+def test_a_run_over_tls_on_a_host_started_with_a_relative_auth_path(tmp_path: Path) -> None:
+    """The case a relative --auth broke: the host's agents found no CA and never reached the TLS router."""
+    if shutil.which("openssl") is None:
+        pytest.skip("needs openssl to make the test's TLS certificates")
+    tls = tmp_path / "tls"
+    tls.mkdir()
+    (tls / "ext.cnf").write_text("subjectAltName=IP:127.0.0.1\n")
+    ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"]
+    for argv in (  # the guide's commands (deploy/README.md, "Steps")
+        ["req", "-x509", *ec, "-keyout", "ca.key", "-out", "ca.pem", "-days", "1", "-subj", "/CN=swarm test CA"],
+        ["req", *ec, "-keyout", "router.key", "-out", "router.csr", "-subj", "/CN=router"],
+        ["x509", "-req", "-in", "router.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial",
+         "-out", "router.pem", "-days", "1", "-extfile", "ext.cnf"],
+    ):  # fmt: skip
+        subprocess.run(["openssl", *argv], cwd=tls, check=True, capture_output=True, timeout=30)
+    sec = tmp_path / "sec"
+    made = subprocess.run([*PY, "secure", "--hosts", "a", "--out", str(sec), "--tls-ca", str(tls / "ca.pem")],
+                          capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+    assert made.returncode == 0, made.stderr
+    endpoint = f"tls/127.0.0.1:{free_port()}"
+    log = open(tmp_path / "host-a.log", "wb")  # noqa: SIM115 - closed with the process
+    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "a", "--auth", "host-a.json",
+                             "--workdir", str(tmp_path / "work")], cwd=sec, stdout=log,
+                            stderr=subprocess.STDOUT)  # fmt: skip
+    log.close()
+    try:
+        out = tmp_path / "run"
+        argv = [*PY, "run", "fig11_obstacles", "--seed", "5", "--no-logger", "--out", str(out), "--hosts", "a",
+                "--listen", endpoint, "--host-logins", str(sec / "hosts.txt"), "--tls-ca", str(tls / "ca.pem"),
+                "--tls-cert", str(tls / "router.pem"), "--tls-key", str(tls / "router.key")]  # fmt: skip
+        run = subprocess.run(argv, capture_output=True, text=True, timeout=300, check=False)
+        assert run.returncode == 0, run.stdout + run.stderr + (tmp_path / "host-a.log").read_text()
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["placement"] == {"agent-1": "a", "agent-2": "a", "agent-3": "a"}
+        assert summary["failure"] is None
+        for name in ("agent-1", "agent-2", "agent-3"):
+            assert "exit code 0" in (out / "logs" / f"{name}.log").read_text().splitlines()[-1], name
+    finally:
+        host.terminate()
+        assert host.wait(timeout=20) == 0
+    deadline = time.monotonic() + 10  # its fork server (whose path names sec/) leaves after it
+    while processes(lambda cmd: str(sec) in cmd) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not processes(lambda cmd: str(sec) in cmd)
