@@ -1,5 +1,5 @@
 """The four figures of ``swarm report``, drawn with matplotlib from a run's
-recording (``report.read_recording``) and summary.
+recording (``data.read_recording``) and summary.
 
 Choices a reader should know, also said on the figures themselves:
 
@@ -29,7 +29,7 @@ import numpy as np
 
 from formation_swarm.palette import robot_colour
 
-Series = Any  # report.Series: .t (s) and .v, time-sorted
+Series = Any  # data.Series: .t (s) and .v, time-sorted
 Mark = tuple[float, "float | None", str]
 
 VN_SMOOTH_S = 1.0  # the moving average drawn over V_N, display only

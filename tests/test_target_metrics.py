@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from formation_swarm import scenario as scenario_mod
+from formation_swarm.data import read_recording
 from formation_swarm.launcher import RunResult
-from formation_swarm.report import read_recording
 
 
 def test_true_target_at_a_switch_tick_is_the_new_formations(swarm_run: Callable[..., RunResult]) -> None:

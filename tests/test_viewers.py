@@ -21,11 +21,12 @@ import rerun.blueprint as rrb
 
 from formation_swarm import scenario as scenario_mod
 from formation_swarm import viewer
+from formation_swarm.data import read_recording
 from formation_swarm.faults import Fault
 from formation_swarm.launcher import Launch, RunResult, free_port
 from formation_swarm.palette import robot_colour
 from formation_swarm.recording import blueprint, open_recording
-from formation_swarm.report import make_report, read_recording
+from formation_swarm.report import make_report
 from tests.conftest import RERUN, SCENARIOS, rrd_rows, wait_listening
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"
