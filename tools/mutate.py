@@ -87,7 +87,16 @@ MODULES = (
         (T + "test_geometry.py", T + "test_ekf.py", T + "test_follower.py", T + "test_avoidance.py", PUBLISHED),
     ),
     Module("agents/ekf.py", (T + "test_ekf.py", T + "test_follower.py", T + "test_closed_loop.py", PUBLISHED)),
-    Module("agents/fuzzy.py", (T + "test_fuzzy.py", T + "test_follower.py", T + "test_closed_loop.py", PUBLISHED)),
+    Module(
+        "agents/fuzzy.py",
+        (
+            T + "test_fuzzy.py",
+            T + "test_follower.py",
+            T + "test_closed_loop.py",
+            T + "test_formation_tree.py",
+            PUBLISHED,
+        ),
+    ),
     Module("agents/avoidance.py", (T + "test_geometry.py", T + "test_avoidance.py", T + "test_follower.py", PUBLISHED)),
     Module(
         "agents/follower.py",
@@ -97,10 +106,13 @@ MODULES = (
             T + "test_avoidance.py",
             T + "test_ekf.py",
             T + "test_lpsi.py",
+            T + "test_formation_tree.py",
             PUBLISHED,
         ),
     ),
-    Module("agents/formation.py", (T + "test_geometry.py", T + "test_scenario.py", PUBLISHED)),
+    Module(
+        "agents/formation.py", (T + "test_formation_tree.py", T + "test_geometry.py", T + "test_scenario.py", PUBLISHED)
+    ),
     Module("agents/leader.py", (T + "test_leader.py", PUBLISHED)),
     Module("agents/lpsi.py", (T + "test_lpsi.py", T + "test_follower.py", PUBLISHED)),
     Module("agents/pilot.py", (T + "test_pilot.py", T + "test_closed_loop.py", PUBLISHED)),
@@ -108,12 +120,13 @@ MODULES = (
         "world/kinematics.py",
         (T + "test_kinematics.py", T + "test_camera.py", T + "test_geometry.py", T + "test_engine.py", PUBLISHED),
     ),
-    Module("world/camera.py", (T + "test_camera.py", T + "test_geometry.py", PUBLISHED)),
+    Module("world/camera.py", (T + "test_camera.py", T + "test_camera_frame.py", T + "test_geometry.py", PUBLISHED)),
     Module(
         "world/engine.py",
         (
             T + "test_engine.py",
             T + "test_world_engine.py",
+            T + "test_camera_frame.py",
             T + "test_sensor_actuator_faults.py",
             T + "test_avoidance.py",
             PUBLISHED,
