@@ -48,41 +48,6 @@ WORLD_ID = 0
 STARTUP_TIMEOUT_S = 60.0
 
 
-def _places(
-    shape: str, spec: dict[str, Any], first: int, n: int
-) -> tuple[dict[int, tuple[float, float]], dict[int, int]]:
-    """Every robot's place in the leader's frame, and every follower's reference."""
-    lat, back = float(spec.get("lateral_m", 1.5)), float(spec.get("back_m", 1.5))
-    spacing = float(spec.get("spacing_m", 1.5))
-    place, refs = {first: (0.0, 0.0)}, {}
-    if shape == "grid":
-        cols = int(spec.get("columns", 3))
-        c0 = (cols - 1) / 2
-        order = sorted(range(cols), key=lambda c: (abs(c - c0), c))
-        at = {}
-        for k in range(n - 1):
-            row, c = 1 + k // cols, order[k % cols]
-            rid = first + 1 + k
-            place[rid], at[row, c] = ((c - c0) * lat, -back * row), rid
-            if row > 1:
-                refs[rid] = at[row - 1, c]
-            else:
-                refs[rid] = first if abs(c - c0) <= 0.5 else at[1, c + 1 if c < c0 else c - 1]
-        return place, refs
-    for i in range(1, n):
-        rank, side = (i + 1) // 2, (-1.0 if i % 2 == 1 else 1.0)
-        if shape == "line":
-            skip = 2 if spec.get("follow", "ahead") == "pairs" and i > 2 else 1
-            place[first + i], refs[first + i] = (0.0, -spacing * i), first + i - skip
-        elif shape == "abreast":
-            place[first + i] = (side * spacing * rank, 0.0)
-            refs[first + i] = first if rank == 1 else first + i - 2
-        else:  # wedge
-            place[first + i] = (side * lat * rank, -back * rank)
-            refs[first + i] = first if i == 1 else first + 1 if i == 2 else first + i - 2
-    return place, refs
-
-
 # -- the control law ---------------------------------------------------------------
 LOOKAHEAD_M = 0.3
 GAIN_PER_S = 2.0
