@@ -79,3 +79,46 @@ def _no_process_left_behind(tmp_path_factory: pytest.TempPathFactory) -> object:
     yield
     left = [(pid, cmd) for pid, cmd in processes(lambda cmd: base in cmd) if pid not in before]
     assert not left, f"processes left behind by the suite: {left}"
+
+
+class Console:
+    """A command started with its console (stdout and stderr) read on a thread:
+    ``seen`` is set once a line holding ``marker`` has come."""
+
+    def __init__(self, argv: list[str], marker: str) -> None:
+        import subprocess
+        import threading
+
+        self.proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        self.lines: list[str] = []
+        self.seen = threading.Event()
+        self._marker = marker
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self.lines.append(line)
+            if self._marker in line:
+                self.seen.set()
+
+    def wait(self, timeout_s: float) -> int:
+        """The exit code, the process killed and reaped if it outlives ``timeout_s``."""
+        try:
+            return self.proc.wait(timeout=timeout_s)
+        finally:
+            if self.proc.poll() is None:
+                self.proc.kill()
+                self.proc.wait()
+            self._reader.join(timeout=5)
+
+    def close(self) -> None:
+        """Kill and reap it if it still runs (after a failed assertion)."""
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+    @property
+    def text(self) -> str:
+        return "".join(self.lines)

@@ -12,7 +12,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import threading
 import time
 import uuid
 from collections.abc import Iterator
@@ -30,7 +29,7 @@ from formation_swarm.protocol.hostmsg import MAX_HOST_MESSAGE_BYTES, HostReply, 
 from formation_swarm.protocol.keys import HostKeys
 from formation_swarm.protocol.session import make_config
 from formation_swarm.remote import place
-from tests.conftest import processes
+from tests.conftest import Console, processes
 
 PY = [sys.executable, "-m", "formation_swarm.cli"]
 
@@ -223,32 +222,16 @@ def test_a_host_that_dies_mid_run_has_its_robots_counted_dead_and_fails_the_run(
     two_hosts: Hosts, tmp_path: Path
 ) -> None:
     out = tmp_path / "lost"
-    proc = subprocess.Popen(two_hosts.run_argv(out, "a,b"), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True)  # fmt: skip
-    lines: list[str] = []
-    started = threading.Event()
-
-    def read() -> None:
-        assert proc.stdout is not None
-        for line in proc.stdout:
-            lines.append(line)
-            if "[swarm] tick " in line:
-                started.set()
-
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
+    run = Console(two_hosts.run_argv(out, "a,b"), "[swarm] tick ")
     try:
-        assert started.wait(120), "".join(lines)
+        assert run.seen.wait(120), run.text
         b_agents = _agents(two_hosts.procs["b"].pid)
         assert b_agents, "no agent of host b found"
         os.kill(two_hosts.procs["b"].pid, signal.SIGKILL)  # the host, not its agents
-        code = proc.wait(timeout=180)
+        code = run.wait(180)
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    reader.join(timeout=5)
-    text = "".join(lines)
+        run.close()
+    text = run.text
     assert code == 1, text
     assert "host b was lost" in text, text
     assert "robots (2) were counted dead" in text, text

@@ -24,13 +24,14 @@ import shutil
 import signal
 import subprocess
 import sys
-import threading
 import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+
+from tests.conftest import Console
 
 PY = [sys.executable, "-m", "formation_swarm.cli"]
 PORT = 7447  # in a namespace of its own: free
@@ -245,31 +246,15 @@ def test_one_command_spreads_fig11_over_two_hosts_and_survives_losing_one(site: 
 
         # 2. The same hosts, a second run; host b dies mid-run.
         out = tmp_path / "lost"
-        proc = subprocess.Popen(_run_argv(site, tmp_path, out), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                text=True)  # fmt: skip
-        lines: list[str] = []
-        ticking = threading.Event()
-
-        def read() -> None:
-            assert proc.stdout is not None
-            for line in proc.stdout:
-                lines.append(line)
-                if "[swarm] tick " in line:
-                    ticking.set()
-
-        reader = threading.Thread(target=read, daemon=True)
-        reader.start()
+        run = Console(_run_argv(site, tmp_path, out), "[swarm] tick ")
         try:
-            assert ticking.wait(120), "".join(lines)
+            assert run.seen.wait(120), run.text
             hosts["b"].kill()
             hosts["b"].wait(timeout=10)
-            code = proc.wait(timeout=240)
+            code = run.wait(240)
         finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-        reader.join(timeout=5)
-        text = "".join(lines)
+            run.close()
+        text = run.text
         assert code == 1, text
         assert "host b was lost" in text, text
         assert "robots (2) were counted dead" in text, text
