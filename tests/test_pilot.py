@@ -198,8 +198,8 @@ def _cross_track(path, pose: Pose) -> float:
     return best
 
 
-SPEEDS_MPS = (1.0, 1.25, 1.5, 1.6, 1.75, 2.0, 2.25, 2.5)
-TURN_RATES_RPS = (0.15, 0.2, 0.25, 0.3, 0.4, 0.5)
+SPEEDS_MPS = (0.5, 0.75, 1.0, 1.25, 1.5, 1.6, 1.75, 2.0, 2.25, 2.5)
+TURN_RATES_RPS = (0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5)
 
 
 @pytest.mark.parametrize("speed", SPEEDS_MPS)
