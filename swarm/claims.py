@@ -10,6 +10,8 @@ reads their rows.
 
 from __future__ import annotations
 
+import math
+import statistics
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -55,6 +57,17 @@ def _m(rows: Sequence[Mapping[str, Any]], key: str, sign: str = "") -> str:
     return _span(rows, key, sign=sign, unit="m")
 
 
+def _ci(rows: Sequence[Mapping[str, Any]], key: str, fmt: str = ".3f") -> str:
+    """``"mean 0.727 ± 0.004"``: the mean over the seeds and its 95% confidence half-width (Student t)."""
+    from formation_swarm.sweep import t975
+
+    vals = [float(r[key]) for r in rows]
+    mean = statistics.fmean(vals)
+    if len(vals) < 2:
+        return f"mean {mean:{fmt}}"
+    return f"mean {mean:{fmt}} ± {t975(len(vals)) * statistics.stdev(vals) / math.sqrt(len(vals)):{fmt}}"
+
+
 def _count(n: int, test: Callable[[int], bool]) -> int:
     return sum(1 for i in range(n) if test(i))
 
@@ -64,7 +77,8 @@ def claim_a(rows: Rows) -> Claim:
     n = len(dyn)
     ok = _count(n, lambda i: all(dyn[i][k] < other[i][k] for other in (s15, s2) for k in ("r2_rms_m", "r2_max_m")))
     text = (
-        f"RMS: dynamic {_m(dyn, 'r2_rms_m')}, static 1.5 {_m(s15, 'r2_rms_m')}, static 2 {_m(s2, 'r2_rms_m')}. "
+        f"RMS: dynamic {_m(dyn, 'r2_rms_m')} ({_ci(dyn, 'r2_rms_m')}), static 1.5 {_m(s15, 'r2_rms_m')} "
+        f"({_ci(s15, 'r2_rms_m')}), static 2 {_m(s2, 'r2_rms_m')} ({_ci(s2, 'r2_rms_m')}). "
         f"Max: dynamic {_m(dyn, 'r2_max_m')}, static 1.5 {_m(s15, 'r2_max_m')}, static 2 {_m(s2, 'r2_max_m')}. "
         f"Both lower in {ok} of {n} seeds."
     )
@@ -80,7 +94,8 @@ def claim_b_behind(rows: Rows) -> Claim:
     ok = sum(b and a for b, a in zip(is_behind, is_never_ahead, strict=True))
     text = (
         f"RMS in turns {_m(s15, 'r2_turn_rms_m')} vs {_m(s15, 'r2_straight_rms_m')} on straights; mean lag in "
-        f"turns {_m(s15, 'r2_turn_mean_lag_m', '+')}: behind in {behind} of {n} seeds. Never ahead of its "
+        f"turns {_m(s15, 'r2_turn_mean_lag_m', '+')} ({_ci(s15, 'r2_turn_mean_lag_m')}): behind in {behind} "
+        f"of {n} seeds. Never ahead of its "
         f"target in {never_ahead} of {n} seeds (ahead by up to {_m(s15, 'r2_max_ahead_m')})."
     )
     return Claim("b. static 1.5 falls behind in the turns", text, ok, n)
@@ -92,7 +107,8 @@ def claim_b_overshoot(rows: Rows) -> Claim:
     ok = _count(n, lambda i: s2[i]["r2_max_ahead_m"] > 0.25 and s2[i]["r2_max_ahead_m"] > s15[i]["r2_max_ahead_m"]
                 and s2[i]["r2_max_ahead_m"] > dyn[i]["r2_max_ahead_m"])  # fmt: skip
     text = (
-        f"gets {_m(s2, 'r2_max_ahead_m')} ahead of its target (static 1.5 {_m(s15, 'r2_max_ahead_m')}, dynamic "
+        f"gets {_m(s2, 'r2_max_ahead_m')} ({_ci(s2, 'r2_max_ahead_m')}) ahead of its target (static 1.5 "
+        f"{_m(s15, 'r2_max_ahead_m')}, dynamic "
         f"{_m(dyn, 'r2_max_ahead_m')}); more than 0.25 m and than both in {ok} of {n} seeds. Mean lag in turns "
         f"{_m(s2, 'r2_turn_mean_lag_m', '+')}; RMS on straights {_m(s2, 'r2_straight_rms_m')}."
     )
@@ -105,7 +121,7 @@ def claim_c(rows: Rows) -> Claim:
     ok = _count(n, lambda i: ekf[i]["r2_ekf_rms_m"] <= 0.5 * ekf[i]["r2_measured_rms_m"])
     text = (
         f"`fig9_ekf_noise`: EKF RMS {_m(ekf, 'r2_ekf_rms_m')} vs measured {_m(ekf, 'r2_measured_rms_m')}, "
-        f"ratio {_span(ekf, 'r2_ekf_ratio', '.2f')}; at most half in {ok} of {n} seeds."
+        f"ratio {_span(ekf, 'r2_ekf_ratio', '.2f')} ({_ci(ekf, 'r2_ekf_ratio')}); at most half in {ok} of {n} seeds."
     )
     return Claim("c. the EKF's target error is at most half the raw error", text, ok, n)
 
@@ -143,7 +159,7 @@ def table(rows: Rows, settings: str) -> str:
         f"The paper's claims with {settings or 'the scenarios as shipped'}: lockstep runs, seeds 0-{n - 1}; "
         "the criteria of tests/test_claims.py, evaluated seed by seed.",
         "",
-        f"| claim | measured (min-max over {n} seeds) | holds |",
+        f"| claim | measured (min-max over {n} seeds; mean ± 95% confidence half-width) | holds |",
         "|---|---|---|",
     ]
     lines += [f"| {c.name} | {c.measured} | {c.verdict} |" for c in measure(rows)]

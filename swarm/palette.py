@@ -23,6 +23,11 @@ def robot_colour(robot_id: int) -> RGB:
     return _ROBOTS[(robot_id - 1) % len(_ROBOTS)]
 
 
+def series_colour(index: int) -> RGB:
+    """The colour of a figure's ``index``-th line when its lines are not robots (controllers, claims)."""
+    return _ROBOTS[index % len(_ROBOTS)]
+
+
 def lighter(colour: RGB, amount: float = 0.5) -> RGB:
     """``colour`` mixed with white: a robot's second series (raw vs EKF, right wheel)."""
     r, g, b = colour

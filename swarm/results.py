@@ -1,6 +1,7 @@
 """The baseline comparison: fuzzy static / fuzzy dynamic / l-psi, under
 observation drops and two camera-noise levels, on the paper's turning path;
-or, with --claims, the paper's claims a-d measured seed by seed.
+or, with --claims, the paper's claims a-d measured seed by seed; or, with
+--sensitivity, those claims at every value of one setting at a time.
 
 Runs the grid through swarm sweep (resumable: rerunning reuses finished runs),
 then prints a markdown table of the follower's RMS and max formation error
@@ -21,7 +22,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from formation_swarm import claims
+from formation_swarm import claims, sensitivity
 from formation_swarm.cliargs import USAGE_ERROR, Parser, integer, make_folder
 from formation_swarm.proc import interrupt_on_stop_signals
 from formation_swarm.scenario_files import parse_override
@@ -167,58 +168,107 @@ def build_parser() -> Parser:
     ap.add_argument("--claims", action="store_true",
                     help=f"measure the paper's claims a-d instead ({len(claims.SWEEPS)} runs per seed, of the "
                     "scenarios of tests/test_claims.py)")  # fmt: skip
+    ap.add_argument("--sensitivity", action="store_true",
+                    help="measure the claims at every value of one setting at a time (the leader's speed, the "
+                    "camera's noise, the wheels' noise and bias), with l-psi and static V_N 1.7 and 1.8 beside; "
+                    "writes a figure per setting into --figures and, with --write, its section between "
+                    f"{markers('sensitivity', 'leader_speed')[0]} ... markers")  # fmt: skip
+    ap.add_argument("--axis", action="append", default=[], choices=list(sensitivity.AXIS_NAMES),
+                    help="with --sensitivity: only this setting (repeatable; default: all)")  # fmt: skip
+    ap.add_argument("--figures", default="docs/figures", metavar="DIR",
+                    help="with --sensitivity: where the figures go, sensitivity-<setting>.png "
+                    "(default: docs/figures)")  # fmt: skip
     return ap
 
 
 def claim_sweeps(seeds: Sequence[int], settings: Mapping[str, Any], out: Path, workers: int | None) -> dict[str, Sweep]:
     """One sweep per scenario the claims are measured on, each in its own folder under ``out``."""
-    label = settings_text(settings)
-    return {
-        name: Sweep(
-            ROOT / "scenarios" / file,
-            [Job(label, dict(settings), s) for s in seeds],
-            out / Path(file).stem,
-            workers=workers,
-            logger=logger,
-        )  # fmt: skip
-        for name, (file, logger) in claims.SWEEPS.items()
-    }
+    return sensitivity.plan(seeds, settings, [], out, workers)
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    out = Path(args.out or ("sweeps/claims" if args.claims else "sweeps/results"))
-    try:
-        settings = dict(parse_override(text) for text in args.set)
-        begin, end = markers("claims" if args.claims else "results table", settings_text(settings))
-        for target in args.write:
-            check_markers(Path(target), begin, end)  # before the runs, not after
-        if args.claims:
-            sweeps = claim_sweeps(range(args.seeds), settings, out, args.jobs)
-        else:
-            sweeps = {"": Sweep(SCENARIO, jobs(range(args.seeds), settings), out, workers=args.jobs)}
-        make_folder("--out", out)  # last: nothing made for a bad input
-    except ValueError as exc:
-        print(f"swarm results: {exc}", file=sys.stderr)
-        return USAGE_ERROR
-    interrupt_on_stop_signals()
-    rows: dict[str, list[dict[str, Any]]] = {}
-    try:
-        for name, sweep in sweeps.items():
-            rows[name] = sweep.run()
-    except KeyboardInterrupt:
-        return 130
+def run_sweeps(sweeps: Mapping[str, Sweep], out: Path) -> dict[str, list[dict[str, Any]]] | None:
+    """Every sweep's rows; None, having said why, when a run cannot enter a table."""
+    rows = {name: sweep.run() for name, sweep in sweeps.items()}
     unfit = [why for r in rows.values() for why in unfit_runs(r)]
     if unfit:
         # A failed run is run again by the next sweep; one with misses is kept, so it must be deleted.
         print(f"swarm results: {len(unfit)} runs cannot enter the table; delete their folders under "
               f"{out} and run again:\n  " + "\n  ".join(unfit[:10]), file=sys.stderr)  # fmt: skip
+        return None
+    return rows
+
+
+def run_sensitivity(axes: Sequence[sensitivity.Axis], seeds: int, out: Path, workers: int | None,
+                    figures: Path, writes: Sequence[Path]) -> int:  # fmt: skip
+    """Each axis's points, then its figure and its section (printed, and written into ``writes``)."""
+    for n, axis in enumerate(axes, 1):
+        points = []
+        for k, value in enumerate(axis.values, 1):
+            print(f"[sensitivity] {axis.title} = {axis.label(value)}: value {k} of {len(axis.values)}, "
+                  f"axis {n} of {len(axes)}", flush=True)  # fmt: skip
+            settings, faults = axis.point(value)
+            sweeps = sensitivity.plan(range(seeds), settings, faults, out, workers, axis.extras)
+            rows = run_sweeps(sweeps, out)
+            if rows is None:
+                return 1
+            points.append(sensitivity.measure(value, rows))
+        png = figures / f"sensitivity-{axis.name}.png"
+        sensitivity.write_figure(png, axis, points)
+        rel = png.relative_to(figures.parent) if figures.name == "figures" else png
+        text = sensitivity.markdown(axis, points, str(rel))
+        print(text)
+        begin, end = markers("sensitivity", axis.name)
+        for target in writes:
+            try:
+                write_into(target, text, begin, end)
+            except (OSError, ValueError) as exc:
+                print(f"swarm results: {exc}", file=sys.stderr)
+                return 1
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    out = Path(args.out or ("sweeps/claims" if args.claims or args.sensitivity else "sweeps/results"))
+    writes = [Path(t) for t in args.write]
+    try:
+        if args.sensitivity and (args.claims or args.set):
+            raise ValueError("--sensitivity varies its own settings: it takes neither --claims nor --set")
+        if args.axis and not args.sensitivity:
+            raise ValueError("--axis needs --sensitivity")
+        settings = dict(parse_override(text) for text in args.set)
+        if args.sensitivity:
+            axes = [sensitivity.AXIS_NAMES[a] for a in args.axis] or list(sensitivity.AXES)
+            for target in writes:  # before the runs, not after
+                for axis in axes:
+                    check_markers(target, *markers("sensitivity", axis.name))
+            make_folder("--figures", Path(args.figures))
+        else:
+            begin, end = markers("claims" if args.claims else "results table", settings_text(settings))
+            for target in writes:
+                check_markers(target, begin, end)  # before the runs, not after
+            if args.claims:
+                sweeps = claim_sweeps(range(args.seeds), settings, out, args.jobs)
+            else:
+                sweeps = {"": Sweep(SCENARIO, jobs(range(args.seeds), settings), out, workers=args.jobs)}
+        make_folder("--out", out)  # last: nothing made for a bad input
+    except ValueError as exc:
+        print(f"swarm results: {exc}", file=sys.stderr)
+        return USAGE_ERROR
+    interrupt_on_stop_signals()
+    try:
+        if args.sensitivity:
+            return run_sensitivity(axes, args.seeds, out, args.jobs, Path(args.figures), writes)
+        rows = run_sweeps(sweeps, out)
+    except KeyboardInterrupt:
+        return 130
+    if rows is None:
         return 1
     text = claims.table(rows, settings_text(settings)) if args.claims else table(rows[""], args.seeds, settings)
     print(text)
-    for target in args.write:
+    for target in writes:
         try:
-            write_into(Path(target), text, begin, end)
+            write_into(target, text, begin, end)
         except (OSError, ValueError) as exc:
             print(f"swarm results: {exc}", file=sys.stderr)
             return 1

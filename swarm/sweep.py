@@ -113,6 +113,11 @@ def metrics(summary: Mapping[str, Any]) -> dict[str, Any]:
     return row
 
 
+def t975(n: int) -> float:
+    """The 97.5% quantile of Student's t for the mean of ``n`` >= 2 values (the normal's beyond 31)."""
+    return _T975[n - 2] if n - 2 < len(_T975) else 1.96
+
+
 def aggregate(rows: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """Per combination and numeric metric: n, mean, std and the 95% CI of the mean."""
     by_label: dict[str, list[Mapping[str, Any]]] = {}
@@ -129,7 +134,7 @@ def aggregate(rows: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
             n = len(vals)
             mean = statistics.fmean(vals)
             std = statistics.stdev(vals) if n > 1 else 0.0
-            half = (_T975[n - 2] if n - 2 < len(_T975) else 1.96) * std / math.sqrt(n) if n > 1 else math.nan
+            half = t975(n) * std / math.sqrt(n) if n > 1 else math.nan
             out.append({"combination": label, "metric": k, "n": n, "mean": mean, "std": std, "ci95_low": mean - half,
                         "ci95_high": mean + half, "min": min(vals), "max": max(vals)})  # fmt: skip
     return out

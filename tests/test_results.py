@@ -214,6 +214,8 @@ def test_the_claims_hold_seed_by_seed_on_the_criteria_of_test_claims() -> None:
     rows["static 1.5"][2] = {**rows["static 1.5"][2], "r2_max_ahead_m": 0.01}
     rows["ekf"] = [{**r, "r2_ekf_rms_m": 0.2, "r2_ekf_ratio": 0.87} for r in rows["ekf"]]  # no seed halves it
     rows["obstacles"][0] = {**rows["obstacles"][0], "collisions": 1}
+    rows["dynamic"][0] = {**rows["dynamic"][0], "r2_rms_m": 0.70}
+    rows["dynamic"][2] = {**rows["dynamic"][2], "r2_rms_m": 0.74}
     got = {c.name[:12]: c for c in claims.measure(rows)}
     assert got["a. dynamic V"].verdict == "in 2 of 3 seeds"
     assert "Both lower in 2 of 3 seeds" in got["a. dynamic V"].measured
@@ -225,4 +227,5 @@ def test_the_claims_hold_seed_by_seed_on_the_criteria_of_test_claims() -> None:
     assert got["d. the obsta"].verdict == "in 2 of 3 seeds"
     text = claims.table(rows, "robot.wheel_noise_mps=0.1")
     assert text.startswith("The paper's claims with robot.wheel_noise_mps=0.1: lockstep runs, seeds 0-2")
-    assert "| b. static 2 overshoots | gets 0.550 m ahead of its target" in text
+    assert "| b. static 2 overshoots | gets 0.550 m (mean 0.550 ± 0.000) ahead of its target" in text
+    assert "RMS: dynamic 0.700-0.740 m (mean 0.720 ± 0.050)" in text  # t(2) 4.303 x 0.02 / sqrt 3
