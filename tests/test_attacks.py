@@ -198,7 +198,7 @@ def test_without_the_router_the_receivers_still_refuse_what_could_not_be_true(
     # agent 2's inbox (robot/2/*) also hears the forged cmd and telemetry of robot 2: not its to take
     assert rejected["agent-2"] == {"tick ahead of the world": 4, "reading out of bounds": 4, "unexpected key": 8}
     assert rejected["agent-3"] == {"replayed or reordered": 4, "unexpected key": 4}  # and robot 3's forged cmd
-    assert rejected["logger"] == {"tick ahead of the world": 8}
+    assert rejected["logger"] == {"tick past the run's end": 8}
     assert s["parts"]["logger"]["messages"]["truth"] == 1061  # the fake one never entered the recording
 
 

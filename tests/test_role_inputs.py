@@ -150,3 +150,22 @@ def test_only_the_leader_ends_the_run() -> None:
     assert not world.leader_done
     world._on_command(Command(1, 2, 0, 0.0, 0.0, 0, True))
     assert world.leader_done
+
+
+def test_the_logger_takes_telemetry_far_ahead_of_its_truth_but_nothing_past_the_runs_end() -> None:
+    from types import SimpleNamespace
+
+    from formation_swarm.logger import Logger
+    from formation_swarm.protocol.codec import WORLD_ID
+
+    log = Logger(None, FIG11, RUN, None, FakeRole())  # type: ignore[arg-type]  # _fresh needs neither
+    assert log._fresh(SimpleNamespace(sender=WORLD_ID, tick=10))
+    # A loaded machine: a follower's telemetry batch 500 ticks ahead of the world's truth batch.
+    assert log._fresh(SimpleNamespace(sender=2, tick=510))
+    last = FIG11.ticks  # 1120: 56 s at 20 Hz
+    assert log._fresh(SimpleNamespace(sender=3, tick=last + 2))  # a follower's last telemetry, after "done"
+    assert not log._fresh(SimpleNamespace(sender=2, tick=last + 3))
+    assert not log._fresh(SimpleNamespace(sender=2, tick=2**53))
+    assert not log._fresh(SimpleNamespace(sender=2, tick=510))
+    assert log._fresh(SimpleNamespace(sender=2, tick=511))  # a huge tick refused did not mute the robot
+    assert log.rejections.by_reason == {"tick past the run's end": 2, "replayed or reordered": 1}
