@@ -10,10 +10,12 @@ reads their rows.
 
 from __future__ import annotations
 
+import csv
 import math
 import statistics
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 # What each claim is measured on: (sweep name, scenario file, needs the logger).
@@ -164,3 +166,46 @@ def table(rows: Rows, settings: str) -> str:
     ]
     lines += [f"| {c.name} | {c.measured} | {c.verdict} |" for c in measure(rows)]
     return "\n".join(lines)
+
+
+def write_rows(path: Path, rows: Rows) -> None:
+    """Every run's row, named by its sweep, into a CSV (written whole, then moved into place)."""
+    flat = [{"sweep": name, **r} for name, runs in rows.items() for r in runs]
+    cols: list[str] = []
+    for r in flat:
+        cols += [k for k in r if k not in cols]
+    tmp = path.with_name(path.name + ".tmp")
+    with tmp.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=cols)
+        w.writeheader()
+        w.writerows(flat)
+    tmp.replace(path)
+
+
+def read_rows(path: Path) -> dict[str, list[dict[str, Any]]]:
+    """``write_rows``'s CSV back, numbers as numbers, per sweep in seed order."""
+    out: dict[str, list[dict[str, Any]]] = {}
+    with path.open(newline="") as f:
+        for r in csv.DictReader(f):
+            row: dict[str, Any] = {}
+            for k, v in r.items():
+                if k == "sweep" or v is None:
+                    continue
+                row[k] = _number(v)
+            out.setdefault(r["sweep"], []).append(row)
+    for runs in out.values():
+        runs.sort(key=lambda r: r["seed"])
+    return out
+
+
+def _number(text: str) -> Any:
+    if text == "":
+        return None
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    try:
+        return float(text)
+    except ValueError:
+        return text

@@ -168,6 +168,9 @@ def build_parser() -> Parser:
     ap.add_argument("--claims", action="store_true",
                     help=f"measure the paper's claims a-d instead ({len(claims.SWEEPS)} runs per seed, of the "
                     "scenarios of tests/test_claims.py)")  # fmt: skip
+    ap.add_argument("--rows", metavar="CSV", default=None,
+                    help="with --claims: also write every run's row (sweep, seed and its metrics) to this CSV, "
+                    "the data tests/test_claims.py checks the claims over")  # fmt: skip
     ap.add_argument("--sensitivity", action="store_true",
                     help="measure the claims at every value of one setting at a time (the leader's speed, the "
                     "camera's noise, the wheels' noise and bias), with l-psi and static V_N 1.7 and 1.8 beside; "
@@ -236,6 +239,8 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("--sensitivity varies its own settings: it takes neither --claims nor --set")
         if args.axis and not args.sensitivity:
             raise ValueError("--axis needs --sensitivity")
+        if args.rows and not args.claims:
+            raise ValueError("--rows needs --claims")
         settings = dict(parse_override(text) for text in args.set)
         if args.sensitivity:
             axes = [sensitivity.AXIS_NAMES[a] for a in args.axis] or list(sensitivity.AXES)
@@ -266,6 +271,8 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     text = claims.table(rows, settings_text(settings)) if args.claims else table(rows[""], args.seeds, settings)
     print(text)
+    if args.rows:
+        claims.write_rows(Path(args.rows), rows)
     for target in writes:
         try:
             write_into(target, text, begin, end)

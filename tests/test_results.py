@@ -229,3 +229,18 @@ def test_the_claims_hold_seed_by_seed_on_the_criteria_of_test_claims() -> None:
     assert text.startswith("The paper's claims with robot.wheel_noise_mps=0.1: lockstep runs, seeds 0-2")
     assert "| b. static 2 overshoots | gets 0.550 m (mean 0.550 ± 0.000) ahead of its target" in text
     assert "RMS: dynamic 0.700-0.740 m (mean 0.720 ± 0.050)" in text  # t(2) 4.303 x 0.02 / sqrt 3
+
+
+def test_claim_rows_go_to_csv_and_back_exactly(tmp_path: Path) -> None:
+    rows = _claim_rows()
+    rows["dynamic"][1] = {**rows["dynamic"][1], "r2_rms_m": 0.1 + 0.2, "note": None}  # 0.30000000000000004
+    path = tmp_path / "claims.csv"
+    claims.write_rows(path, rows)
+    back = claims.read_rows(path)
+    assert list(back) == list(rows)
+    assert back["dynamic"][1]["r2_rms_m"] == 0.1 + 0.2  # every digit of the float
+    assert back["dynamic"][1]["note"] is None
+    assert back["obstacles"][2]["r1_formations"] == "line>triangle"
+    assert back["obstacles"][2]["collisions"] == 0
+    assert [c.verdict for c in claims.measure(back)] == [c.verdict for c in claims.measure(rows)]
+    assert not list(tmp_path.glob("*.tmp"))
