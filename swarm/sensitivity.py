@@ -146,6 +146,9 @@ METRICS: tuple[tuple[str, str, tuple[str, ...], float | None], ...] = (
 )
 
 
+LOG_SCALE = ("r2_rms_m", "r2_max_m")
+
+
 @dataclass
 class Point:
     value: float
@@ -249,6 +252,9 @@ def figure(axis: Axis, points: Sequence[Point]) -> Figure:
                         label=LINES.get(name, "fuzzy, dynamic V_N (claim c's run)"))  # fmt: skip
         if thr is not None:
             ax.axhline(thr, color="0.3", ls="--", lw=1.0)
+        if key in LOG_SCALE:
+            ax.set_yscale("log")  # l-psi's 0.1 m and a static V_N's 10 m on one panel
+            title += ", log scale"
         ax.set_title(title, fontsize=10)
     share = axes[5]
     n = len(points[0].claims)
