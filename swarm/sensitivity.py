@@ -253,7 +253,7 @@ def figure(axis: Axis, points: Sequence[Point]) -> Figure:
         if thr is not None:
             ax.axhline(thr, color="0.3", ls="--", lw=1.0)
         if key in LOG_SCALE:
-            ax.set_yscale("log")  # l-psi's 0.1 m and a static V_N's 10 m on one panel
+            _log_axis(ax)  # l-psi's 0.1 m and a static V_N's 10 m on one panel
             title += ", log scale"
         ax.set_title(title, fontsize=10)
     share = axes[5]
@@ -279,6 +279,19 @@ def figure(axis: Axis, points: Sequence[Point]) -> Figure:
     fig.suptitle(f"The paper's claims against the {axis.title}: mean and 95% interval over {seeds} seeds per "
                  f"value{shipped}; dashed: the claim's threshold")  # fmt: skip
     return fig
+
+
+def _log_axis(ax: Any) -> None:
+    """A log y axis labelled in plain numbers: 0.1, 0.2, 0.5, 1, 2, 5, ..."""
+    from matplotlib.ticker import FuncFormatter
+
+    ax.set_yscale("log")
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+
+    def minor(v: float, _pos: int) -> str:
+        return f"{v:g}" if v > 0 and round(v / 10 ** math.floor(math.log10(v))) in (2, 5) else ""
+
+    ax.yaxis.set_minor_formatter(FuncFormatter(minor))
 
 
 def write_figure(path: Path, axis: Axis, points: Sequence[Point], dpi: int = 110) -> Path:
