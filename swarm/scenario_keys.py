@@ -242,6 +242,13 @@ CONTROLLER_KEYS = {
     "hold_after_s": positive(
         "the window of that mean: how long the reference must stand still", _FOLLOWER.hold_after_s, "s"
     ),
+    "wait_ahead": Key(
+        bool,
+        _FOLLOWER.wait_ahead,
+        "the wait ahead of the target (not the paper's; docs/paper.md, formations of many robots): a fuzzy"
+        " follower more than dn_m ahead of its target stops until the target is within d0_m (false: it drives on"
+        " at V_N - a, as the paper's does)",
+    ),
     "gamma_deg": Key(
         NUM, math.degrees(_FZ.gamma_rad), "FIS-1 heading tolerance", "deg", low=0.0, high=180.0, open_low=True
     ),
