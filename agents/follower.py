@@ -16,6 +16,15 @@ reference stands still, the follower stops at its target, and goes on when
 the reference moves again. It is decided from the follower's own estimate
 only, so a lockstep run stays reproducible; raw mode (no EKF) has no speed
 estimate and no hold.
+
+Under the fuzzy law a second rule of ours: the wait ahead of the target. A
+follower ahead of its target (signed rho < 0) is Close for FIS-1, which
+drives both wheels at V_N - a >= 1 m/s straight on and does not steer; when
+the target moves slower than that or elsewhere (the inner side of a turn, a
+reference whose heading swings) the follower drives on, away from it. So a
+follower more than dn ahead of its target stops and lets the target come,
+and drives on with the law once the target is within d0 (docs/paper.md,
+"Beyond the paper: formations of many robots").
 """
 
 from __future__ import annotations
@@ -63,6 +72,9 @@ class FollowerParams:
     hold_speed_mps: float = 0.1
     resume_speed_mps: float = 0.3
     hold_after_s: float = 0.5
+    # The wait ahead of the target (not the paper's; docs/paper.md): off, the
+    # paper's follower drives on at V_N - a when it is ahead of its target.
+    wait_ahead: bool = False
 
     def __post_init__(self) -> None:
         if self.law not in LAWS:
@@ -99,6 +111,7 @@ class Decision(NamedTuple):
     steering_to: Choice
     changing: bool
     holding: bool = False  # stopped at its standing reference (vn is then 0)
+    waiting: bool = False  # stopped more than dn ahead of its target, for it to come (vn is then 0)
 
 
 def change_over(choice: Choice, rho_m: float, fuzzy: fz.FuzzyParams) -> bool:
@@ -132,6 +145,7 @@ class Follower:
         window = max(1, round(params.hold_after_s / params.dt_s))
         self._speeds: collections.deque[float] = collections.deque(maxlen=window)
         self.holding = False
+        self.waiting = False
 
     def set_offset(self, offset: Point) -> None:
         """A new formation slot: start the collision-avoiding change (sec. 2.2)."""
@@ -150,6 +164,7 @@ class Follower:
         self._since_reading_s = math.inf
         self._speeds.clear()
         self.holding = False
+        self.waiting = False
 
     def prepare(self) -> None:
         """The EKF's prediction for the next tick (from the command just sent),
@@ -210,6 +225,10 @@ class Follower:
             self._last_cmd = (0.0, 0.0)
             return Decision(0.0, 0.0, 0.0, err.alpha_rad, err.rho_m, err.drho_m, measured, estimate, cov, choice,
                             self.changing, holding=True)  # fmt: skip
+        if p.wait_ahead and not self.changing and self._wait(err.rho_m):
+            self._last_cmd = (0.0, 0.0)
+            return Decision(0.0, 0.0, 0.0, err.alpha_rad, err.rho_m, err.drho_m, measured, estimate, cov, choice,
+                            self.changing, waiting=True)  # fmt: skip
         vn, wheels = fz.control(err.alpha_rad, err.rho_m, err.drho_m, p.dt_s, p.fuzzy, p.speed)
         self._last_cmd = (wheels.left_mps, wheels.right_mps)
         return Decision(
@@ -251,6 +270,22 @@ class Follower:
             )
         return self.holding
 
+    def _wait(self, rho_m: float) -> bool:
+        """Whether to wait for the target this tick (the fuzzy law only; the
+        l-psi law slows down by itself).
+
+        rho < 0 is Close for FIS-1: both wheels at V_N - a, at least
+        vn_min - a (1 m/s), no steering, so a follower ahead of its target
+        gets farther ahead of any target slower than that. More than dn ahead
+        (beyond Close's "minimum error" band, which the paper's follower
+        drives through) it stops; it drives on once the target is within d0
+        (the paper's minimum error). The band between them keeps the
+        estimate's noise from starting and ending a wait every tick.
+        """
+        fzp = self.p.fuzzy
+        self.waiting = rho_m < -fzp.d0_m if self.waiting else rho_m < -fzp.dn_m
+        return self.waiting
+
     def _lpsi(self, leader: Point, phi: float, measured: Point | None, estimate: Point,
               cov: np.ndarray | None) -> Decision:  # fmt: skip
         p = self.p
@@ -270,6 +305,7 @@ class Follower:
     def _stop(self, measured: Point | None) -> Decision:
         self._last_cmd = (0.0, 0.0)
         self.holding = False
+        self.waiting = False
         self._prev_rho = None
         nan = math.nan
         return Decision(0.0, 0.0, nan, nan, nan, nan, measured, None, None, Choice.T0, self.changing)

@@ -139,24 +139,24 @@ def line(n: int, spacing_m: float, first_id: int = 1, follow: str = "ahead") -> 
 
     ``follow = "ahead"``: each robot references the one ahead of it, one
     chain of depth n - 1 (the paper's R1 <- R2 <- R3). ``follow = "pairs"``:
-    robots 2 and 3 as before, then each robot references the robot two places
-    ahead (2 * spacing_m): two interleaved chains of depth (n - 1) // 2 + 1
-    with the references of ``wedge`` (and of ``abreast`` from robot 4 on), so
+    robot 2 references the leader, and every other robot the robot two places
+    ahead (2 * spacing_m; robot 3 the leader): two interleaved chains of depth
+    n // 2 with the references of ``wedge`` and ``abreast``, so
     that a switch between a wedge and a line changes offsets only, which is
     what the partition-zone avoidance of eq. 11-13 is made for; from its wedge
     slot a robot of the "ahead" line would have to find the robot of the other
     wing, 3 * rank metres away. Nothing but their tracking keeps two
     neighbours of different chains apart, and the simulated camera sees
-    through the robot in between (a real one needs its marker raised). Both
-    are the same for 3 robots.
+    through the robot in between (a real one needs its marker raised). For 3
+    robots both are the paper's chain, as the wedge's references are then.
     """
     s = positive("spacing_m", spacing_m)
     _check_n(n)
     if follow not in LINE_FOLLOW:
         raise ValueError(f"follow must be one of {LINE_FOLLOW}, got {follow!r}")
     pos = {first_id + i: Point(0.0, -s * i) for i in range(n)}
-    skip = 1 if follow == "ahead" else 2
-    refs = {first_id + i: first_id + i - (1 if i <= 2 else skip) for i in range(1, n)}
+    skip = 1 if follow == "ahead" or n == 3 else 2
+    refs = {first_id + i: first_id + max(0, i - skip) for i in range(1, n)}
     return from_slot_positions("line", pos, refs)
 
 
@@ -165,14 +165,16 @@ def wedge(n: int, lateral_m: float, back_m: float, first_id: int = 1) -> Formati
 
     Follower i (i = 1 .. n-1 after the leader) flies in rank r = (i + 1) // 2,
     r * lateral_m to the side (odd i left, even i right) and r * back_m behind
-    the leader. Two chains of references: the left one starts at the leader
-    (robot 2 references robot 1, robot 4 robot 2, ...), the right one at robot
-    2 (robot 3 references robot 2, two lateral steps to its right, as in the
-    paper's triangle, Fig. 1 and 11; robot 5 references robot 3, ...). Every
-    link but robot 3's is one rank apart, (lateral_m, back_m); robot 3's is
-    (2 * lateral_m, 0). The tree's depth is (n - 1) // 2 + 1: 2, 5 and 15 for
-    3, 10 and 30 robots. For n = 3 this is exactly the chain
-    R1 <- R2 <- R3 of the paper.
+    the leader. Two chains of references, one per wing, each rank on the rank
+    before it on its side (lateral_m, back_m): the left one starts at the
+    leader (robot 2 references robot 1, robot 4 robot 2, ...), and so does the
+    right one (robot 3 references robot 1, robot 5 robot 3, ...), so that one
+    wing's errors do not pass into the other. The tree's depth is n // 2: 5
+    and 15 for 10 and 30 robots. Three robots keep the paper's triangle
+    (Fig. 1 and 11): robot 3 references robot 2, two lateral steps to its
+    right (2 * lateral_m, 0), the chain R1 <- R2 <- R3 of depth 2. (Measured,
+    a 30-robot wedge on the paper's turning path with the right wing on
+    robot 2 instead: its two rank-2 robots touch; docs/paper.md.)
     """
     lat = positive("lateral_m", lateral_m)
     back = positive("back_m", back_m)
@@ -183,7 +185,7 @@ def wedge(n: int, lateral_m: float, back_m: float, first_id: int = 1) -> Formati
         rank = (i + 1) // 2
         side = -1.0 if i % 2 == 1 else 1.0
         pos[first_id + i] = Point(side * lat * rank, -back * rank)
-        refs[first_id + i] = first_id if i == 1 else first_id + 1 if i == 2 else first_id + i - 2
+        refs[first_id + i] = first_id + 1 if (i, n) == (2, 3) else first_id + max(0, i - 2)
     return from_slot_positions("triangle", pos, refs)
 
 

@@ -122,6 +122,7 @@ class Agent:
         self.superseded = 0  # observations skipped because a newer one was already there
         # The follower's holds at a standing reference: ticks held, and [first, last] tick of each hold.
         self.held_ticks = 0
+        self.waited_ticks = 0  # ticks stopped ahead of its target (controller.wait_ahead)
         self.holds: list[list[int]] = []
         self._hold_span: list[int] | None = None  # the hold under way, if it is recorded
         if self.is_leader:
@@ -414,6 +415,7 @@ class Agent:
         d: Decision = self.follower.step(reading)
         self._send_cmd(obs.tick, d.left_mps, d.right_mps)
         self._count_hold(obs.tick, d.holding)
+        self.waited_ticks += d.waiting
         cov = None if d.estimate_cov is None else (
             float(d.estimate_cov[0, 0]), float(d.estimate_cov[0, 1]), float(d.estimate_cov[1, 1]))  # fmt: skip
         self.seq += 1
@@ -462,6 +464,7 @@ class Agent:
             "ekf_resets": 0 if self.is_leader else self.follower.ekf.resets,
             "held_ticks": self.held_ticks,  # a follower's ticks held at a standing reference
             "holds": self.holds,  # [first, last] tick of each hold, the first MAX_HOLDS
+            "waited_ticks": self.waited_ticks,  # a follower's ticks stopped ahead of its target
             "busy_s": self.busy_s,
             "cpu_s": time.process_time(),  # the process's CPU time so far (user + system, all threads)
             "loop_cpu_s": self.loop_cpu_s,

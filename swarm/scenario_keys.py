@@ -148,8 +148,8 @@ FORMATION_KEYS = {
     "shape": Key(
         str,
         REQUIRED,
-        "'wedge' (a V behind the leader; tree depth (n - 1) // 2 + 1), 'line' (single file; depth n - 1, or"
-        " (n - 1) // 2 + 1 with follow = 'pairs'), 'abreast' (level with the leader, which flies in the middle;"
+        "'wedge' (a V behind the leader; tree depth n // 2, 2 for 3 robots), 'line' (single file; depth n - 1,"
+        " or that of the wedge with follow = 'pairs'), 'abreast' (level with the leader, which flies in the middle;"
         " depth n // 2), 'grid' (rows behind the leader; depth at most rows - 1 + (columns + 1) // 2) or 'custom'. The"
         " depth is the longest chain of references from a follower to the leader, n the number of robots."
         " Every follower's reference must be within the camera's range less the controller's dmax_m, and within"
@@ -164,9 +164,9 @@ FORMATION_KEYS = {
         "m",
     ),
     "back_m": positive(
-        "wedge: and r * back_m behind the leader; the left ranks each follow the rank before them on the left"
-        " (rank 1: the leader), the right ranks the rank before them on the right (rank 1: the first left"
-        " follower, as in the paper's triangle); grid: the distance between rows",
+        "wedge: and r * back_m behind the leader; the ranks of each wing each follow the rank before them on"
+        " their side (rank 1: the leader; with 3 robots the right one follows the left one, as in the paper's"
+        " triangle); grid: the distance between rows",
         1.5,
         "m",
     ),
@@ -179,9 +179,10 @@ FORMATION_KEYS = {
     "follow": Key(
         str,
         "ahead",
-        "line: 'ahead' (each robot follows the one ahead) or 'pairs' (robots 2 and 3 the one ahead, then each"
-        " the one two places ahead: the references of a wedge, so that a switch between a wedge and a line"
-        " changes offsets only; with the default spacings, needed to switch with more than 6 robots)",
+        "line: 'ahead' (each robot follows the one ahead) or 'pairs' (robot 2 the leader, then each the one"
+        " two places ahead, robot 3 the leader; with 3 robots the one ahead: the references of a wedge, so that"
+        " a switch between a wedge and a line changes offsets only; with the default spacings, needed to switch"
+        " with more than 6 robots)",
     ),
     "columns": Key(
         int,
@@ -241,6 +242,13 @@ CONTROLLER_KEYS = {
     ),
     "hold_after_s": positive(
         "the window of that mean: how long the reference must stand still", _FOLLOWER.hold_after_s, "s"
+    ),
+    "wait_ahead": Key(
+        bool,
+        _FOLLOWER.wait_ahead,
+        "the wait ahead of the target (not the paper's; docs/paper.md, formations of many robots): a fuzzy"
+        " follower more than dn_m ahead of its target stops until the target is within d0_m (false: it drives on"
+        " at V_N - a, as the paper's does)",
     ),
     "gamma_deg": Key(
         NUM, math.degrees(_FZ.gamma_rad), "FIS-1 heading tolerance", "deg", low=0.0, high=180.0, open_low=True

@@ -293,6 +293,38 @@ def test_the_hold_parameters_are_checked(kwargs: dict[str, float], message: str)
         FollowerParams(**kwargs)
 
 
+# -- the wait ahead of the target (controller.wait_ahead; docs/paper.md, many robots) -------
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_ahead_of_a_slow_target_it_waits_for_it_instead_of_driving_away(seed: int) -> None:
+    """A reference at 0.5 m/s, slower than the 1 m/s below which FIS-1 never
+    drives. The paper's follower passes its target and drives on, straight
+    (Close does not steer): 11.3-11.4 m ahead of it after 30 s (seeds 0-2).
+    With the wait it stops more than dn ahead and drives on once the target is
+    within d0: never more than 0.62 m from its target after the first 5 s. A
+    reference that moves is no standing one: it never holds."""
+    paper = _fly(FollowerParams(), lambda k: 0.5, 600, seed=seed)
+    assert paper[-1][1] > 10.0
+    assert not any(d.waiting for d, _, _ in paper)
+    run = _fly(FollowerParams(wait_ahead=True), lambda k: 0.5, 600, seed=seed)
+    assert max(err for _, err, _ in run[100:]) < 0.7
+    waits = [k for k, (d, _, _) in enumerate(run) if d.waiting]
+    assert len(waits) > 200  # about half the time: it drives at 1 m/s or more, the target at 0.5
+    assert all((d.left_mps, d.right_mps, d.vn) == (0.0, 0.0, 0.0) for d, _, _ in (run[k] for k in waits))
+    assert all(d.rho_m < -FollowerParams().fuzzy.d0_m for d, _, _ in (run[k] for k in waits))
+    assert not any(d.holding for d, _, _ in run)
+
+
+def test_the_wait_is_the_fuzzy_laws_only() -> None:
+    """l-psi slows down by itself: wait_ahead changes nothing in its run."""
+    free = _fly(FollowerParams(law="lpsi"), lambda k: 0.5, 200)
+    waiting = _fly(FollowerParams(law="lpsi", wait_ahead=True), lambda k: 0.5, 200)
+    assert [(d.left_mps, d.right_mps, d.waiting) for d, _, _ in waiting] == [
+        (d.left_mps, d.right_mps, False) for d, _, _ in free
+    ]
+
+
 @pytest.mark.parametrize(("from_t3_m", "over"), [(0.3, True), (0.75, True), (0.99, True), (1.01, False), (1.5, False)])
 def test_a_formation_change_ends_within_d1_of_t3(from_t3_m: float, over: bool) -> None:
     # Raw mode, the reference straight ahead: T3 = c behind its centre. The new slot, 4 m further back and

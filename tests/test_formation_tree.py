@@ -44,21 +44,22 @@ SHAPES = {
     "grid": lambda n: grid(n, 3, 1.5, 1.5),
 }
 # The farthest reference marker seen from a slot (1.5 m spacings, marker 0.1 m
-# behind its robot's centre): the wedge's robot 3 sees robot 2 two lateral
-# steps to its left, hypot(3.0, 0.1); the line's is one place, 1.5 - 0.1, ahead
+# behind its robot's centre): for 3 robots the wedge's robot 3 sees robot 2 two
+# lateral steps to its left, hypot(3.0, 0.1), for more each robot the rank ahead
+# on its side, hypot(1.5, 1.5 - 0.1); the line's is one place, 1.5 - 0.1, ahead
 # (on pairs two places, 3.0 - 0.1, but for 3 robots);
 # abreast and the grid's first row look 1.5 m to the side, hypot(1.5, 0.1).
 WORST_RHO_M = {  # n = 3, 10, 30
-    "wedge": (math.hypot(3.0, 0.1),) * 3,
+    "wedge": (math.hypot(3.0, 0.1), math.hypot(1.5, 1.4), math.hypot(1.5, 1.4)),
     "line": (1.4, 1.4, 1.4),
     "line_pairs": (1.4, 2.9, 2.9),
     "abreast": (math.hypot(1.5, 0.1),) * 3,
     "grid": (math.hypot(1.5, 0.1),) * 3,
 }
 DEPTH = {  # n = 3, 10, 30
-    "wedge": (2, 5, 15),  # (n - 1) // 2 + 1: two chains
+    "wedge": (2, 5, 15),  # n // 2: two chains from the leader (3 robots: the paper's chain)
     "line": (2, 9, 29),  # n - 1: one chain
-    "line_pairs": (2, 5, 15),  # (n - 1) // 2 + 1: two interleaved chains
+    "line_pairs": (2, 5, 15),  # the wedge's: two interleaved chains
     "abreast": (1, 5, 15),  # n // 2: two chains from the leader
     "grid": (2, 4, 11),  # rows - 1 + 2, three columns
 }
@@ -86,9 +87,9 @@ def test_a_wedge_is_two_chains_one_rank_apart() -> None:
     form = wedge(30, 1.5, 1.0)
     refs = {rid: s.reference for rid, s in form.slots.items()}
     assert [refs[r] for r in (2, 4, 6, 28, 30)] == [1, 2, 4, 26, 28]  # the left chain
-    assert [refs[r] for r in (3, 5, 7, 29)] == [2, 3, 5, 27]  # the right chain, off robot 2
+    assert [refs[r] for r in (3, 5, 7, 29)] == [1, 3, 5, 27]  # the right chain, off the leader too
     for rid, slot in form.slots.items():
-        step = Point(3.0, 0.0) if rid == 3 else Point(-1.5 if rid % 2 == 0 else 1.5, -1.0)
+        step = Point(-1.5 if rid % 2 == 0 else 1.5, -1.0)
         assert slot.offset == pytest.approx(step)
     # The places are those of the chain i -> i-1 it replaces: rank r at (-+r * lateral, -r * back).
     places = form.slot_positions()
@@ -124,7 +125,8 @@ def test_a_far_or_abeam_reference_fails_the_camera_with_numbers() -> None:
     ):
         check_sight(abreast(3, 1.5), half_circle)
     with pytest.raises(ValueError, match="robot 3's reference robot 2 is at a bearing of -91.9 deg"):
-        check_sight(wedge(30, 1.5, 1.5), half_circle)
+        check_sight(wedge(3, 1.5, 1.5), half_circle)  # the paper's triangle: robot 2 abeam of robot 3
+    check_sight(wedge(30, 1.5, 1.5), half_circle)  # more robots: every reference 45 deg ahead
     check_sight(line(30, 1.5), half_circle)
 
 
@@ -136,7 +138,7 @@ def test_a_wedge_and_a_line_on_pairs_share_their_references(n: int) -> None:
     assert {r: s.reference for r, s in w.slots.items()} == {r: s.reference for r, s in ln.slots.items()}
     check_switch(w, ln, DEFAULT_CAMERA)
     check_switch(ln, w, DEFAULT_CAMERA)
-    ab = abreast(n, 1.5)  # robot 3 references the leader instead of robot 2: 2.1 m from its wedge slot
+    ab = abreast(n, 1.5)  # for 3 robots robot 3 references the leader instead of robot 2: 2.1 m from its wedge slot
     check_switch(w, ab, DEFAULT_CAMERA)
     check_switch(ab, w, DEFAULT_CAMERA)
 
