@@ -253,6 +253,26 @@ def _ranges(ids: list[int]) -> str:
     return ", ".join(str(r[0]) if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs)
 
 
+def turn_warnings(speed_mps: float, turn_rate_rps: float, formations: Mapping[str, Formation]) -> list[str]:
+    """The formations with slots farther to the side of the leader than its turn
+    radius (speed / turn rate): in a turn toward them such a slot moves
+    backwards, and a robot cannot drive backwards, so the formation folds."""
+    radius = speed_mps / turn_rate_rps
+    out = []
+    for name, form in formations.items():
+        side = {rid: abs(p.x_m) for rid, p in form.slot_positions().items() if rid != form.leader}
+        beyond = sorted(rid for rid, x in side.items() if x > radius + 1e-6)
+        if beyond:
+            far = max(side[r] for r in beyond)
+            out.append(
+                f"formation {name!r}: robots {_ranges(beyond)} sit up to {far:g} m to the side of the leader, beyond "
+                f"its turn radius leader.speed_mps / leader.turn_rate_rps = {radius:g} m: in a turn toward them "
+                "their slots move backwards, which the robots cannot do, and the formation folds (closer spacing, "
+                "e.g. lateral_m, or a gentler turn keeps every slot inside the radius)"
+            )
+    return out
+
+
 def speed_warnings(leader_speed_mps: float, followers: Mapping[int, FollowerParams]) -> list[str]:
     """Why the leader's cruise speed lies outside the speeds its fuzzy
     followers hold steadily (agents.fuzzy.speed_range), one line per group of
@@ -437,6 +457,7 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
     _check_wheel_limit(float(robot["max_wheel_mps"]), float(robot["width_m"]), ld, followers)
     _check_sight(ld, formations, camera, followers, forms_raw)
     speed = speed_warnings(float(ld["speed_mps"]), followers)
+    speed += turn_warnings(float(ld["speed_mps"]), float(ld["turn_rate_rps"]), formations)
 
     obstacles = []
     obs_raw = raw.get("obstacles", [])

@@ -295,6 +295,22 @@ def test_a_slow_leader_is_warned_of() -> None:
         sm.load(SCENARIOS / "fig7_turn_vn_dynamic.toml", overrides={"leader.speed_mps": 1.0, "controller.law": "lpsi"})
 
 
+def test_a_wing_beyond_the_leaders_turn_radius_is_warned_of() -> None:
+    # 1.5 m/s at 0.25 rad/s: a 6 m radius; a 30-robot wedge at 1.5 m per rank reaches 22.5 m out.
+    wide = {"run.robots": 30, "formations.two.shape": "wedge"}
+    with pytest.warns(ScenarioWarning) as record:
+        sm.load(SCENARIOS / "fig7_turn_vn_dynamic.toml", overrides=wide)
+    assert [str(w.message) for w in record] == [
+        "formation 'two': robots 10-30 sit up to 22.5 m to the side of the leader, beyond its turn radius"
+        " leader.speed_mps / leader.turn_rate_rps = 6 m: in a turn toward them their slots move backwards, which"
+        " the robots cannot do, and the formation folds (closer spacing, e.g. lateral_m, or a gentler turn keeps"
+        " every slot inside the radius)"
+    ]
+    with warnings.catch_warnings():  # 15 ranks of 0.4 m: the inner wing ends at the turn's centre
+        warnings.simplefilter("error", ScenarioWarning)
+        sm.load(SCENARIOS / "fig7_turn_vn_dynamic.toml", overrides={**wide, "formations.two.lateral_m": 0.4})
+
+
 @pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.toml")), ids=lambda p: p.stem)
 def test_no_shipped_scenario_is_warned_of(path: Path) -> None:
     with warnings.catch_warnings():
