@@ -63,7 +63,19 @@ WORLD_ID = 0
 # Lockstep holds at most a tick's observation and a few codes here; when full,
 # Zenoh waits for the loop (back-pressure) rather than dropping.
 INBOX_CAPACITY = 1024
-STATS_PERIOD_S = 1.0  # wall time between two writes of the counters while the run goes on
+# Wall time between two writes of the counters while the run goes on: one
+# write (JSON, then a rename over the old file) costs 0.3-1 ms of CPU here, so
+# beyond 25 robots it is spaced out to STATS_S_PER_ROBOT per robot (4 s for 100).
+STATS_PERIOD_S = 1.0
+STATS_S_PER_ROBOT = 0.04
+# Telemetry is for the logger only. Up to TELEMETRY_BATCH_ABOVE robots each
+# tick's goes out at once (protocol.batch's 20 ms window); beyond, a follower
+# sends every TELEMETRY_TICKS ticks, on a tick set by its id so that the
+# followers' sends spread over the ticks: every tick's telemetry is still sent,
+# in a fifth of the puts (each one routed by the router and taken by the logger).
+TELEMETRY_BATCH_ABOVE = 25
+TELEMETRY_TICKS = 5
+TELEMETRY_WINDOW_S = 0.02
 PENDING_CODES = 64  # formation codes waiting for their tick
 MAX_HOLDS = 100  # holds listed in a follower's stats (all are counted in held_ticks)
 DUPLICATE_QUERY_S = 1.0  # how long the start-up check for another agent of the same robot waits
@@ -77,6 +89,7 @@ class Agent:
         # a SIGKILLed agent (a kill or restart fault) leaves what it counted until then.
         self.stats_path = stats_path
         self.stats_written_at = time.monotonic()
+        self.stats_period_s = max(STATS_PERIOD_S, STATS_S_PER_ROBOT * len(sc.robots))
         if rid not in sc.robots:
             raise ValueError(f"--id {rid} is not a robot of this scenario; robots are {list(sc.robots)}")
         self.session = sess
@@ -87,6 +100,7 @@ class Agent:
         self.stop = role.stop
         self.where = where  # the session's endpoints, for messages
         self.is_leader = rid == sc.leader.robot_id
+        self.tel_every = 1 if len(sc.robots) <= TELEMETRY_BATCH_ABOVE else TELEMETRY_TICKS  # ticks per telemetry put
         self.rejections = Rejections()
         self.status_rejections = Rejections()  # counted on the status callback's thread
         self.inbox: zenoh.Subscriber | None = None
@@ -191,7 +205,7 @@ class Agent:
         # layer); telemetry, for the logger only, travels in batches.
         block = zenoh.CongestionControl.BLOCK
         self.cmd_pub = s.declare_publisher(k.cmd(self.rid), congestion_control=block)
-        self.tel_pub = BatchPublisher(s.declare_publisher(k.telemetry(self.rid)))
+        self.tel_pub = self.telemetry_publisher(s.declare_publisher(k.telemetry(self.rid)))
         self.form_pubs = (
             {f: s.declare_publisher(k.formation(f), congestion_control=block) for f in self.sc.follower_ids}
             if self.is_leader else {}
@@ -216,6 +230,11 @@ class Agent:
                 self.world_lost.cancel()
             self.tel_pub.close()  # the logger waits for this end-of-stream mark
             token.undeclare()
+
+    def telemetry_publisher(self, pub: Any) -> BatchPublisher:
+        """The telemetry's batches onto ``pub``: by wall time (every tick at
+        20 Hz), or, beyond TELEMETRY_BATCH_ABOVE robots, flushed by tick (in _follow)."""
+        return BatchPublisher(pub, window_s=TELEMETRY_WINDOW_S if self.tel_every == 1 else math.inf)
 
     def _wait_matched(self) -> int | None:
         """Until the world's token is seen and our command publisher matched and,
@@ -298,7 +317,7 @@ class Agent:
             if newest is not None:
                 self._on_observation(newest, reading)
             self.busy_s += time.perf_counter() - t0
-            if self.stats_path and time.monotonic() - self.stats_written_at >= STATS_PERIOD_S:
+            if self.stats_path and time.monotonic() - self.stats_written_at >= self.stats_period_s:
                 write_json(self.stats_path, self.stats())
                 self.stats_written_at = time.monotonic()
 
@@ -442,6 +461,8 @@ class Agent:
                 self.rejections.total,
             ).to_bytes()  # fmt: skip
         )
+        if self.tel_every > 1 and (obs.tick + self.rid) % self.tel_every == 0:
+            self.tel_pub.flush()
         self.follower.prepare()  # the next tick's EKF prediction, before its observation comes
 
     def _count_hold(self, tick: int, holding: bool) -> None:

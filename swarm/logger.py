@@ -13,9 +13,10 @@ router's work for nothing), holds a liveliness token the world waits for,
 and watches the world's token: it gives up when the world has not appeared
 within ``--peers-timeout`` and ends when the world says "done" or leaves.
 
-Data is buffered and sent as columns every 0.25 s of wall time and the file
-is flushed every 0.5 s, so a logger killed with SIGKILL loses at most about
-the last second.
+Data is buffered and sent as columns every 0.25 s of wall time (beyond 12
+robots every 0.02 s per robot: 2 s for 100) and the file is flushed every
+0.5 s, so a logger killed with SIGKILL loses at most about the last second
+(beyond 12 robots, the last send period and a half).
 """
 
 from __future__ import annotations
@@ -46,9 +47,10 @@ from formation_swarm.recording import Recorder, open_recording
 
 SEND_PERIOD_S = 0.25
 # Each send costs about 17 Rerun calls per robot, whatever the rows it carries
-# (about 0.1 ms each here): beyond 25 robots the logger sends less often, every
-# SEND_S_PER_ROBOT per robot (1 s for 100), not more rows.
-SEND_S_PER_ROBOT = 0.01
+# (about 0.1 ms each here): beyond 12 robots the logger sends less often, every
+# SEND_S_PER_ROBOT per robot (2 s for 100: 1.7 ms of CPU per robot per send,
+# 0.85 ms per second), not more rows.
+SEND_S_PER_ROBOT = 0.02
 FLUSH_PERIOD_S = 0.5
 END_WAIT_S = 1.0
 # How far past the run's last tick a message may be stamped: a follower's last

@@ -205,7 +205,8 @@ def _links(parts: Mapping[str, Any]) -> dict[str, Any]:
 def partial_links(processes: Mapping[str, Any], sc: Scenario) -> list[str]:
     """The links whose counts are partial: those into a robot one of whose agents
     (agent-3, agent-3.2, ...) a signal killed. Such an agent's counters are
-    those of its last periodic write (up to STATS_PERIOD_S of wall time old),
+    those of its last periodic write (up to its stats period of wall time old:
+    agents.process.STATS_PERIOD_S, longer beyond 25 robots),
     or none when it died before its first; how many messages it had by then
     depends on the machine's speed, not on the run."""
     killed = set()

@@ -19,6 +19,7 @@ the figures of both runs and of what else was tried)."""
 
 from __future__ import annotations
 
+import itertools
 import math
 import statistics
 from collections.abc import Callable
@@ -30,8 +31,9 @@ from formation_swarm.agents.follower import Follower
 from formation_swarm.agents.formation import sights
 from formation_swarm.agents.process import Agent
 from formation_swarm.launcher import RunResult
+from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.protocol.messages import FormationCode, Observation
+from formation_swarm.protocol.messages import FormationCode, Observation, Telemetry
 from formation_swarm.world.engine import WorldEngine
 from formation_swarm.world.kinematics import Pose
 from tests.conftest import SCENARIOS
@@ -101,6 +103,32 @@ def _overrides(shape: str) -> dict[str, object]:
         ranks = (len(sc.follower_ids) + 1) // 2
         ov["formations.two.lateral_m"] = sc.leader.speed_mps / sc.leader.turn_rate_rps / ranks
     return ov
+
+
+@pytest.mark.parametrize(("robots", "puts"), [(25, list(range(12))), (30, [0, 3, 8])])
+def test_beyond_25_robots_telemetry_leaves_every_fifth_tick_each_tick_in_it(robots: int, puts: list[int]) -> None:
+    """Up to 25 robots each tick's telemetry leaves at once; beyond, follower 7
+    sends on the ticks where tick + 7 is a multiple of 5, and every tick's
+    telemetry is in one of its batches, in order (the end of the run flushes the rest)."""
+    sc = sm.load(SCENARIOS / "fig11_obstacles.toml", overrides={"run.robots": robots, "leader.formation": "line"})
+    keys = Keys("telemetry-batch-test")
+    agent = Agent(None, sc, 7, keys.run_id, sc.seed, FakeRole())  # type: ignore[arg-type]  # no session needed
+    pub = FakePub()
+    agent.cmd_pub, agent.tel_pub = FakePub(), agent.telemetry_publisher(pub)
+    agent.tel_pub.clock = itertools.count().__next__  # a second of wall time between two puts
+    sent_at = []
+    for tick in range(12):
+        obs = Observation(0, tick + 1, tick, tick * sc.dt_s, (0.0, 0.0, 1.57), ((6, 1.5, 0.0, 0.0),), ())
+        taken = agent._on_message(keys.obs(7), obs.to_bytes())
+        assert taken is not None
+        before = len(pub.payloads)
+        agent._on_observation(*taken)
+        sent_at += [tick] * (len(pub.payloads) - before)
+    agent.tel_pub.close()
+    assert sent_at == puts
+    batches = [Rejections().decode_batch(Telemetry, p, sender=7) for p in pub.payloads]
+    assert [t.tick for b in batches for t in b or []] == list(range(12))
+    assert batches[-1] == []  # the end-of-stream mark
 
 
 @pytest.mark.slow

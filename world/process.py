@@ -63,6 +63,10 @@ from formation_swarm.world.engine import WorldEngine
 from formation_swarm.world.process_faults import START, Call, ProcessFaults
 
 STATUS_PERIOD_S = 0.25
+# Real time: Status "running" every tick up to this many robots, beyond it every
+# STATUS_PERIOD_S like lockstep: each one is routed to every agent, whose
+# status callback thread then wakes and takes the GIL from its loop.
+STATUS_EVERY_TICK_UP_TO = 25
 LINGER_S = 2.0  # after "done", at most this long for the others to leave
 # Lockstep holds at most one command per robot here; when full, Zenoh waits
 # for the loop (back-pressure) rather than dropping.
@@ -459,7 +463,7 @@ class World:
                 self.wait_s += time.perf_counter() - t_wait
             else:
                 self._drain(until=0.0)
-            if self.mode == "realtime" or now >= next_status:
+            if now >= next_status or (self.mode == "realtime" and len(self.sc.robots) <= STATUS_EVERY_TICK_UP_TO):
                 self._publish_status(status_pub, "running")
                 next_status = now + STATUS_PERIOD_S
             for link in self.cmd_links.values():  # commands held back until this tick
