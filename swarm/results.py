@@ -247,7 +247,6 @@ def main(argv: list[str] | None = None) -> int:
             for target in writes:  # before the runs, not after
                 for axis in axes:
                     check_markers(target, *markers("sensitivity", axis.name))
-            make_folder("--figures", Path(args.figures))
         else:
             begin, end = markers("claims" if args.claims else "results table", settings_text(settings))
             for target in writes:
@@ -256,7 +255,11 @@ def main(argv: list[str] | None = None) -> int:
                 sweeps = claim_sweeps(range(args.seeds), settings, out, args.jobs)
             else:
                 sweeps = {"": Sweep(SCENARIO, jobs(range(args.seeds), settings), out, workers=args.jobs)}
+        if args.sensitivity and Path(args.figures).exists() and not Path(args.figures).is_dir():
+            raise ValueError(f"--figures {args.figures}: is an existing file, not a folder")
         make_folder("--out", out)  # last: nothing made for a bad input
+        if args.sensitivity:
+            make_folder("--figures", Path(args.figures))
     except ValueError as exc:
         print(f"swarm results: {exc}", file=sys.stderr)
         return USAGE_ERROR

@@ -67,6 +67,11 @@ class Axis:
     faults: Callable[[float], list[str]] = lambda _v: []
     extras: tuple[str, ...] = ("l-psi",)
     note: str = ""
+    marks: tuple[tuple[float, str], ...] = ()  # values drawn dotted, with what they are; default: the shipped one
+
+    @property
+    def dotted(self) -> tuple[tuple[float, str], ...]:
+        return self.marks or (((self.shipped, "the shipped value"),) if self.shipped is not None else ())
 
     def point(self, value: float) -> tuple[dict[str, Any], list[str]]:
         """The scenario keys and the faults of one value; none at the shipped value."""
@@ -83,7 +88,8 @@ AXES: tuple[Axis, ...] = (
     Axis("camera_noise", "camera noise, sigma of rho", "m", tuple(CAMERA_LEVELS), None, _camera,
          note="sigma of phi and beta " + ", ".join(f"{p:g} and {b:g} deg at {r:g} m"
                                                    for r, (p, b) in CAMERA_LEVELS.items())
-         + ", the EKF told them, in every scenario (shipped: 0.05 m, claim c's 0.1 m)"),
+         + ", the EKF told them, in every scenario (shipped: 0.05 m, claim c's 0.1 m)",
+         marks=((0.05, "the shipped 0.05 m (claims a, b, d)"), (0.1, "claim c's 0.1 m (fig9_ekf_noise)"))),
     Axis("wheel_noise", "wheel noise", "m/s", (0.0, 0.05, 0.1), 0.0, lambda v: {"robot.wheel_noise_mps": v},
          note="robot.wheel_noise_mps: Gaussian noise on every wheel of every robot, drawn per tick; "
          "the EKF is not told of it"),
@@ -140,13 +146,14 @@ def stat(values: Sequence[float]) -> Stat:
 METRICS: tuple[tuple[str, str, tuple[str, ...], float | None], ...] = (
     ("formation error RMS, m (claim a)", "r2_rms_m", tuple(LINES), None),
     ("largest formation error, m (claim a)", "r2_max_m", tuple(LINES), None),
-    ("mean lag in the turns, m (claim b: > 0.5 for V_N = 1.5)", "r2_turn_mean_lag_m", tuple(LINES), 0.5),
-    ("largest lead on the target, m (claim b: > 0.25 for V_N = 2)", "r2_max_ahead_m", tuple(LINES), 0.25),
+    ("mean lag in the turns, m (claim b: > 0.5 at V_N 1.5)", "r2_turn_mean_lag_m", tuple(LINES), 0.5),
+    ("largest lead on the target, m (claim b: > 0.25 at V_N 2)", "r2_max_ahead_m", tuple(LINES), 0.25),
     ("EKF / raw target error RMS (claim c: <= 0.5)", "r2_ekf_ratio", ("ekf",), 0.5),
 )
 
 
 LOG_SCALE = ("r2_rms_m", "r2_max_m")
+SYMLOG_SCALE = ("r2_turn_mean_lag_m", "r2_max_ahead_m")
 
 
 @dataclass
@@ -154,6 +161,7 @@ class Point:
     value: float
     claims: list[claims.Claim]
     stats: dict[tuple[str, str], Stat] = field(default_factory=dict)  # (sweep, metric) -> over the seeds
+    counts: dict[str, int] = field(default_factory=dict)  # claim d's runs with a contact, of counts["runs"]
 
 
 def measure(value: float, rows: claims.Rows) -> Point:
@@ -164,7 +172,11 @@ def measure(value: float, rows: claims.Rows) -> Point:
             if name in rows:
                 pt.stats[name, key] = stat([r.get(key) for r in rows[name]])
     if "obstacles" in rows:
-        pt.stats["obstacles", "min_distance_m"] = stat([r["min_distance_m"] for r in rows["obstacles"]])
+        obs = rows["obstacles"]
+        pt.stats["obstacles", "min_distance_m"] = stat([r["min_distance_m"] for r in obs])
+        pt.counts["obstacle contact"] = sum(1 for r in obs if r["obstacle_collisions"])
+        pt.counts["robot contact"] = sum(1 for r in obs if r["collisions"])
+        pt.counts["runs"] = len(obs)
     return pt
 
 
@@ -224,8 +236,11 @@ def markdown(axis: Axis, points: Sequence[Point], figure_path: str) -> str:
             who = LINES.get(name, "fuzzy, dynamic V_N, claim c's run (fig9_ekf_noise)")
             lines.append(f"| {title.split(' (')[0]}: {who} | "
                          + " | ".join(_cell(p.stats.get((name, key))) for p in points) + " |")  # fmt: skip
-    lines.append("| least distance between robots, m (claim d) | "
+    lines.append("| least distance between two robots' centres, m (claim d; touching below 0.4) | "
                  + " | ".join(_cell(p.stats.get(("obstacles", "min_distance_m"))) for p in points) + " |")  # fmt: skip
+    for what, said in (("obstacle contact", "a robot touches an obstacle"), ("robot contact", "two robots touch")):
+        cells = " | ".join(f"{p.counts.get(what, 0)}/{p.counts.get('runs', 0)}" for p in points)
+        lines.append(f"| claim d: runs in which {said} | {cells} |")
     lines += ["", f"![{axis.title}]({figure_path})"]
     return "\n".join(lines)
 
@@ -255,6 +270,9 @@ def figure(axis: Axis, points: Sequence[Point]) -> Figure:
         if key in LOG_SCALE:
             _log_axis(ax)  # l-psi's 0.1 m and a static V_N's 10 m on one panel
             title += ", log scale"
+        elif key in SYMLOG_SCALE and max((abs(m) for m in _means(points, key)), default=0.0) > 3.0:
+            _symlog_axis(ax)  # the 0.25 and 0.5 m thresholds readable beside 10 m
+            title += ", log > 1 m"
         ax.set_title(title, fontsize=10)
     share = axes[5]
     n = len(points[0].claims)
@@ -270,15 +288,29 @@ def figure(axis: Axis, points: Sequence[Point]) -> Figure:
         ax.set_xlabel(f"{axis.title}, {axis.unit}")
         ax.set_xticks(xs)
         ax.grid(alpha=0.3)
-        if axis.shipped is not None:
-            ax.axvline(axis.shipped, color="0.6", ls=":", lw=1.0)
+        for x, _what in axis.dotted:
+            ax.axvline(x, color="0.6", ls=":", lw=1.0)
     for ax in (axes[0], axes[4], share):
         ax.legend(fontsize=8, loc="best")
     seeds = points[0].claims[0].seeds
-    shipped = f"; dotted: the shipped {axis.label(axis.shipped)}" if axis.shipped is not None else ""
-    fig.suptitle(f"The paper's claims against the {axis.title}: mean and 95% interval over {seeds} seeds per "
+    marks = [what if what != "the shipped value" else f"the shipped {axis.label(x)}" for x, what in axis.dotted]
+    shipped = "; dotted: " + " and ".join(marks) if marks else ""
+    fig.suptitle(f"The paper's claims against the {axis.title}\nmean and 95% interval over {seeds} seeds per "
                  f"value{shipped}; dashed: the claim's threshold")  # fmt: skip
     return fig
+
+
+def _means(points: Sequence[Point], key: str) -> list[float]:
+    return [st.mean for p in points for (_name, k), st in p.stats.items() if k == key and st.n]
+
+
+def _symlog_axis(ax: Any) -> None:
+    """Linear within 1 m of 0, log beyond, labelled in plain numbers."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter
+
+    ax.set_yscale("symlog", linthresh=1.0)
+    ax.yaxis.set_major_locator(FixedLocator([-5, -2, -1, -0.5, 0, 0.25, 0.5, 1, 2, 5, 10, 20]))
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
 
 
 def _log_axis(ax: Any) -> None:

@@ -23,6 +23,7 @@ import statistics
 import sys
 import threading
 import time
+import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, replace
@@ -155,14 +156,20 @@ class Sweep:
         self.faults = list(faults)  # added to every run (formation_swarm.faults)
         scenario_mod.load(self.scenario, None, self.faults)  # a bad scenario or fault fails here, not in every run
         contexts = {}
+        said: list[str] = []
         for label, ov in {j.label: j.overrides for j in jobs}.items():
-            sc = scenario_mod.load(self.scenario, dict(ov), self.faults)  # and so does a bad --set value
+            with warnings.catch_warnings():  # the loader's warnings: said once below, not as Python warnings
+                warnings.simplefilter("ignore", scenario_mod.ScenarioWarning)
+                sc = scenario_mod.load(self.scenario, dict(ov), self.faults)  # and so does a bad --set value
+            said += [f"[sweep] {self.scenario.stem} {label or 'as shipped'}: {w}" for w in sc.warnings]
             contexts[label] = scenario_files.dumps(sc.with_seed(0).raw)
         self.jobs = [replace(j, context=contexts[j.label]) for j in jobs]
         self.out = Path(out)
         self.workers = max(1, workers or os.cpu_count() or 1)
         self.logger = logger
         self.progress = progress
+        for line in said:
+            progress(line)
         self.run_timeout_s = run_timeout_s
         self._stop = threading.Event()
         self._live: set[Launch] = set()

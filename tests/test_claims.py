@@ -7,7 +7,10 @@
   be the very figures of the runs here, so the 30 seeds are this code's.
 
 Figures are in docs/results.md; the bounds are the claims themselves, not
-fitted margins."""
+fitted margins. They hold for the scenarios as shipped; docs/results.md,
+"Where each claim holds", says where they fail (another leader speed, a
+quieter camera, noise or bias on the wheels). The last test compares with
+the runs of the tests before it, so it skips when run alone."""
 
 from __future__ import annotations
 

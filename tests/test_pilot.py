@@ -205,7 +205,8 @@ TURN_RATES_RPS = (0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5)
 @pytest.mark.parametrize("speed", SPEEDS_MPS)
 @pytest.mark.parametrize("turn_rate", TURN_RATES_RPS)
 def test_the_leader_finishes_the_paper_path_at_any_speed_and_turn_rate(speed: float, turn_rate: float) -> None:
-    # Before, it circled for ever in 24 of these 48 cases (from 1.6 m/s at 0.25 rad/s, 1.25 m/s at 0.2 rad/s).
+    # Before, it circled for ever in 24 of the 48 cases of 1.0-2.5 m/s and 0.15-0.5 rad/s (from 1.6 m/s at
+    # 0.25 rad/s, 1.25 m/s at 0.2 rad/s).
     radius = speed / turn_rate
     corners = len(PAPER_TURNING_PATH) - 2
     # The path at the cruise speed, and at worst a full circle at each corner.
@@ -263,7 +264,7 @@ def _length(path) -> float:
 def test_on_arcs_the_leader_flies_every_path_the_loader_takes(speed: float, turn_rate: float) -> None:
     radius = speed / turn_rate
     if turn_room(PAPER_TURNING_PATH, radius):
-        # The middle 20 m segment holds two 90 deg corners up to R = 10 m: 7 of the 48 are refused.
+        # The middle 20 m segment holds two 90 deg corners up to R = 10 m: 14 of the 70 cases are refused.
         assert radius > 10.0
         with pytest.raises(ValueError, match="corners = 'arcs': segment"):
             PathPilot(PAPER_TURNING_PATH, speed, 0.5, max_turn_rate_rps=turn_rate, corners="arcs")

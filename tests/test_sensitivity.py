@@ -112,6 +112,9 @@ def test_the_section_and_the_figure_of_an_axis(tmp_path: Path) -> None:
     assert "| | 0 m/s (shipped) | 0.05 m/s | 0.1 m/s |" in text
     assert "| claim a: seeds where it holds | 3/3 | 3/3 | 1/3 |" in text
     assert "| formation error RMS, m: fuzzy, dynamic V_N | 0.72 ± 0.05 | 0.92 ± 0.05 | 1.11 ± 0.05 |" in text
+    assert "| claim d: runs in which a robot touches an obstacle | 0/3 | 0/3 | 0/3 |" in text
+    least = "| least distance between two robots' centres, m (claim d; touching below 0.4) |"
+    assert least + " 1.30 ± 0.00 | 1.30 ± 0.00 | 1.30 ± 0.00 |" in text
     assert "![wheel noise](figures/sensitivity-wheel_noise.png)" in text
     fig = sensitivity.figure(axis, pts)
     panels = fig.axes
@@ -131,6 +134,10 @@ def test_sensitivity_refuses_claims_set_and_a_missing_marker_before_running(tmp_
     assert results.main(["--sensitivity", "--set", "robot.wheel_noise_mps=0.1", "--out", str(out)]) == 2
     assert results.main(["--axis", "wheel_noise", "--out", str(out)]) == 2
     assert results.main(["--sensitivity", "--axis", "wheel_bias", "--write", str(doc), "--out", str(out)]) == 2
+    figures = tmp_path / "figs"
+    (tmp_path / "taken").write_text("")
+    assert results.main(["--sensitivity", "--out", str(tmp_path / "taken"), "--figures", str(figures)]) == 2
+    assert not figures.exists()
     err = capsys.readouterr().err
     assert "takes neither --claims nor --set" in err
     assert "--axis needs --sensitivity" in err

@@ -124,3 +124,18 @@ def test_sweep_figure_puts_non_numeric_values_on_ticks() -> None:
     assert [t.get_text() for t in ax.get_xticklabels()] == ["1.5", "dynamic"]
     assert ax.get_xlabel() == "controller.vn"
     assert len(ax.containers) == 2
+
+
+def test_a_sweep_says_the_loaders_warnings_once_each_in_its_own_words(tmp_path) -> None:
+    import warnings as w
+
+    from formation_swarm import scenario as sm
+    from formation_swarm.sweep import Job, Sweep
+
+    lines: list[str] = []
+    jobs = [Job("leader.speed_mps=1.0", {"leader.speed_mps": 1.0}, s) for s in range(3)]
+    with w.catch_warnings():
+        w.simplefilter("error", sm.ScenarioWarning)  # none escapes as a Python warning
+        Sweep(SCENARIOS / "fig7_turn_vn_dynamic.toml", jobs, tmp_path, progress=lines.append)
+    assert len(lines) == 1
+    assert lines[0].startswith("[sweep] fig7_turn_vn_dynamic leader.speed_mps=1.0: leader.speed_mps = 1 is below")
