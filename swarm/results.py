@@ -220,14 +220,20 @@ def run_sensitivity(axes: Sequence[sensitivity.Axis], seeds: int, out: Path, wor
         rel = png.relative_to(figures.parent) if figures.name == "figures" else png
         text = sensitivity.markdown(axis, points, str(rel))
         print(text)
-        begin, end = markers("sensitivity", axis.name)
-        for target in writes:
-            try:
-                write_into(target, text, begin, end)
-            except (OSError, ValueError) as exc:
-                print(f"swarm results: {exc}", file=sys.stderr)
-                return 1
+        if not write_all(writes, text, *markers("sensitivity", axis.name)):
+            return 1
     return 0
+
+
+def write_all(writes: Sequence[Path], text: str, begin: str, end: str) -> bool:
+    """``text`` between the markers of every file; False, having said why, if one cannot take it."""
+    for target in writes:
+        try:
+            write_into(target, text, begin, end)
+        except (OSError, ValueError) as exc:
+            print(f"swarm results: {exc}", file=sys.stderr)
+            return False
+    return True
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -275,11 +281,9 @@ def main(argv: list[str] | None = None) -> int:
     text = claims.table(rows, settings_text(settings)) if args.claims else table(rows[""], args.seeds, settings)
     print(text)
     if args.rows:
-        claims.write_rows(Path(args.rows), rows)
-    for target in writes:
         try:
-            write_into(target, text, begin, end)
-        except (OSError, ValueError) as exc:
-            print(f"swarm results: {exc}", file=sys.stderr)
+            claims.write_rows(Path(args.rows), rows)
+        except OSError as exc:
+            print(f"swarm results: --rows {args.rows}: cannot write it ({exc.strerror or exc})", file=sys.stderr)
             return 1
-    return 0
+    return 0 if write_all(writes, text, begin, end) else 1
