@@ -156,6 +156,7 @@ class World:
             rid: Link(link_name("cmd", rid, 0), sc.links.cmd_drop, seed, faults_on(sc.faults, "cmd", rid), sc.dt_s)
             for rid in sc.robots
         }
+        self.cmd_ids = {self.keys.cmd(rid): rid for rid in sc.robots}  # each robot's command key, parsed once
         self.applied_seq = {rid: -1 for rid in sc.robots}  # of the last command a cmd link handed over and taken
         # Per robot, the last command taken: (seq, tick). A command must be newer on both.
         self.last_cmd: dict[int, tuple[int, int]] = {rid: (-1, -1) for rid in sc.robots}
@@ -307,14 +308,17 @@ class World:
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         key = str(sample.key_expr)
-        if key == self.keys.world_wake:
-            self.wakes += 1
-            return
-        rk = self.keys.parse_robot(key)
-        if rk is None or rk.robot_id not in self.engine.robots:
-            self.rejections.reject("unknown robot")
-            return
-        msg = self.rejections.decode(Command, sample.payload.to_bytes(), sender=rk.robot_id)
+        rid = self.cmd_ids.get(key)
+        if rid is None:
+            if key == self.keys.world_wake:
+                self.wakes += 1
+                return
+            rk = self.keys.parse_robot(key)
+            if rk is None or rk.robot_id not in self.engine.robots:
+                self.rejections.reject("unknown robot")
+                return
+            rid = rk.robot_id
+        msg = self.rejections.decode(Command, sample.payload.to_bytes(), sender=rid)
         if msg is not None:
             self._on_command(msg)
 
