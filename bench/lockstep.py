@@ -60,15 +60,17 @@ def bare_world(endpoint: str, run: str, ticks: int, lowlatency: bool) -> None:
         pubs = [s.declare_publisher(k.obs(r)) for r in (1, 2, 3)]
         truth = s.declare_publisher(k.truth)
         done = s.declare_publisher(k.status)
-        logger = s.declare_publisher(f"{k.prefix}/bench/logger-ready")
+        # Each agent's token comes once its subscribers are declared and its command
+        # publisher matched us; the logger's once it subscribed (a loaded machine
+        # can take seconds for that).
+        tokens: set[str] = set()
+        s.liveliness().declare_subscriber(k.alive_any, lambda smp: tokens.add(str(smp.key_expr)), history=True)
         deadline = time.monotonic() + 60
-        while not (all(p.matching_status.matching for p in pubs) and truth.matching_status.matching):
+        while not (all(p.matching_status.matching for p in pubs) and truth.matching_status.matching
+                   and len(tokens) >= 4):  # fmt: skip
             if time.monotonic() > deadline:
                 raise SystemExit("bare world: peers never matched")
             time.sleep(0.01)
-        # Each agent's command publisher matched us before it subscribed? Wait for one round.
-        del logger
-        time.sleep(0.5)
         t0 = time.perf_counter()
         for _ in range(ticks):
             for p in pubs:
@@ -92,9 +94,14 @@ def bare_agent(endpoint: str, run: str, rid: int, lowlatency: bool) -> None:
         cmd = s.declare_publisher(k.cmd(rid))
         tel = s.declare_publisher(k.telemetry(rid))
         forms = [s.declare_publisher(k.formation(f)) for f in (2, 3)] if rid == 1 else []
+        deadline = time.monotonic() + 60
+        while not cmd.matching_status.matching and time.monotonic() < deadline:
+            time.sleep(0.01)
+        token = s.liveliness().declare_token(k.alive("agent", rid))  # held: dropped, it is undeclared
         while True:
             m = q.get()
             if m == b"done":
+                token.undeclare()
                 return
             if m is FORM or m == FORM:
                 continue
@@ -110,8 +117,10 @@ def bare_logger(endpoint: str, run: str, lowlatency: bool) -> None:
     with zenoh.open(make_config("client", [endpoint], lowlatency=lowlatency)) as s:
         q: queue.SimpleQueue[str] = queue.SimpleQueue()
         s.declare_subscriber(k.everything, lambda smp: q.put(str(smp.key_expr)))
+        token = s.liveliness().declare_token(k.alive("logger", 0))  # held: dropped, it is undeclared
         while not q.get().endswith("/world/status"):
             pass
+        token.undeclare()
 
 
 def measure_bare(ticks: int, lowlatency: bool = False) -> float:

@@ -208,6 +208,11 @@ class Link(Generic[T]):
         """Message ``seq`` of sim tick ``tick`` arrives: what the receiver gets
         now (see the module's docstring). Counts what happens to it."""
         self.received += 1
+        if not self.rules:  # the steady drop alone: nothing is ever held (every tick of a run without faults)
+            if self._steady_drop(seq):
+                self.dropped += 1
+                return []
+            return [item]
         out = self.due(tick)
         held, self._reorder_held = self._reorder_held, None
         rules = [r for r in self.rules if r.active(tick)]

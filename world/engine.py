@@ -14,7 +14,7 @@ from __future__ import annotations
 import hashlib
 import math
 import struct
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -186,11 +186,16 @@ class WorldEngine:
     def observations(self, rids: list[int]) -> dict[int, tuple[tuple[float, float, float], list, list]]:
         """:meth:`observation` of each robot of ``rids``, every camera of the tick
         taken at once (world.camera.CameraFrame: the same readings, the same draws)."""
+        return dict(self.each_observation(rids))
+
+    def each_observation(self, rids: list[int]) -> Iterator[tuple[int, tuple[tuple[float, float, float], list, list]]]:
+        """(rid, :meth:`observation`) of each robot of ``rids`` in turn, so that
+        one can be sent before the next is taken. Every robot's comes from its
+        own generator: the order of ``rids`` changes no reading."""
         sc = self.scenario
         leader = sc.leader.robot_id
         frame = None
         poses: dict[int, Pose] = {}
-        out = {}
         for rid in rids:
             r = self.robots[rid]
             readings: list = []
@@ -212,8 +217,7 @@ class WorldEngine:
                     dist = math.hypot(xb, yb)
                     if dist - ob.radius_m <= sc.leader.sensing_range_m:
                         obstacles.append((dist, math.atan2(xb, yb), ob.radius_m))
-            out[rid] = (tuple(r.pose), readings, obstacles)
-        return out
+            yield rid, (tuple(r.pose), readings, obstacles)
 
     def set_command(self, rid: int, left_mps: float, right_mps: float, formation: int, now_s: float) -> None:
         r = self.robots[rid]
@@ -252,9 +256,10 @@ class WorldEngine:
         """Follower ``rid``'s true virtual target now (eq. 2 on true poses), in the
         formation it flies: the code of its last command, so at a formation
         switch tick the new formation's slot."""
-        return self._target(rid, self.robots[rid].formation, {i: r.pose for i, r in self.robots.items()})
+        return self.target_in(rid, self.robots[rid].formation, {i: r.pose for i, r in self.robots.items()})
 
-    def _target(self, rid: int, formation: int, poses: Mapping[int, Pose]) -> tuple[float, float]:
+    def target_in(self, rid: int, formation: int, poses: Mapping[int, Pose]) -> tuple[float, float]:
+        """Follower ``rid``'s true virtual target in ``formation`` among ``poses`` (eq. 2)."""
         slot = self.scenario.formation_by_code(formation).slots[rid]
         return from_body_frame(poses[slot.reference], slot.offset[0], slot.offset[1])
 
@@ -299,7 +304,7 @@ class WorldEngine:
             pose, _, formation = snap[rid]
             reference = sc.formation_by_code(formation).slots[rid].reference
             ref_pose, ref_command, _ = snap[reference]
-            tx, ty = self._target(rid, formation, poses)
+            tx, ty = self.target_in(rid, formation, poses)
             ex, ey = tx - pose.x_m, ty - pose.y_m
             along = ex * math.cos(ref_pose.theta_rad) + ey * math.sin(ref_pose.theta_rad)
             turning = abs(ref_command[1] - ref_command[0]) / sc.width_m >= TURN_RATE_RPS
@@ -326,6 +331,9 @@ class WorldEngine:
         again with math.hypot, which decides, as the pair loop did."""
         sc = self.scenario
         ids = sorted(poses)
+        if len(ids) <= CameraFrame.SCALAR_MAX:
+            self._contacts_by_pairs(ids, poses)
+            return
         xy = np.array([(poses[i][0], poses[i][1]) for i in ids], dtype=float).reshape(-1, 2)
         slack = CameraFrame.SLACK
         touching: set[tuple[int, int]] = set()
@@ -347,6 +355,30 @@ class WorldEngine:
                 p = poses[ids[i]]
                 if math.hypot(p.x_m - ob.x_m, p.y_m - ob.y_m) < reach:
                     touching.add((ids[i], -1 - k))
+        self._touched(touching)
+
+    def _contacts_by_pairs(self, ids: list[int], poses: dict[int, Pose]) -> None:
+        """:meth:`_contacts` for a few robots: every pair measured with math.hypot,
+        which decides all the same (numpy's fixed cost per call is dearer here
+        than the pairs it would spare)."""
+        sc = self.scenario
+        touching: set[tuple[int, int]] = set()
+        least = self.min_distance_m
+        for n, a in enumerate(ids):
+            xa, ya = poses[a][0], poses[a][1]
+            for b in ids[n + 1 :]:
+                dist = math.hypot(xa - poses[b][0], ya - poses[b][1])
+                least = min(least, dist)
+                if dist < sc.diameter_m:
+                    touching.add((a, b))
+            for k, ob in enumerate(sc.obstacles):
+                if math.hypot(xa - ob.x_m, ya - ob.y_m) < ob.radius_m + 0.5 * sc.diameter_m:
+                    touching.add((a, -1 - k))
+        self.min_distance_m = least
+        self._touched(touching)
+
+    def _touched(self, touching: set[tuple[int, int]]) -> None:
+        """The contacts of one tick: those that are new are counted."""
         new = touching - self._touching
         self.collisions += sum(1 for _, b in new if b > 0)
         self.obstacle_collisions += sum(1 for _, b in new if b < 0)

@@ -160,6 +160,7 @@ class World:
             rid: Link(link_name("cmd", rid, 0), sc.links.cmd_drop, seed, faults_on(sc.faults, "cmd", rid), sc.dt_s)
             for rid in sc.robots
         }
+        self.cmd_ids = {self.keys.cmd(rid): rid for rid in sc.robots}  # each robot's command key, parsed once
         self.applied_seq = {rid: -1 for rid in sc.robots}  # of the last command a cmd link handed over and taken
         # Per robot, the last command taken: (seq, tick). A command must be newer on both.
         self.last_cmd: dict[int, tuple[int, int]] = {rid: (-1, -1) for rid in sc.robots}
@@ -181,6 +182,8 @@ class World:
         self.loop_wall_s = 0.0
         self.wait_s = 0.0  # lockstep: time waiting for the agents' answers
         self.counts = {"obs_sent": 0, "cmd_received": 0, "truth_sent": 0}
+        # (tick, time_s, robots, poses, formations) of the ground truth not yet sent (_take_truth).
+        self.truth_due: tuple[int, float, tuple, dict, dict] | None = None
 
     # -- Zenoh callback: short, hands the event to the loop and wakes it -------
     def _on_alive(self, sample: zenoh.Sample) -> None:
@@ -229,6 +232,7 @@ class World:
             self.ended_at_s = self.engine.time_s
             if code == 0:
                 self.end_reason = summary_mod.LEADER_FINISHED if self.leader_done else summary_mod.DURATION_REACHED
+            self._publish_truth(truth_pub)  # the last tick's
             truth_pub.flush()  # before "done": the logger stops listening after it
             self._publish_status(status_pub, "done")
             self.finished = True
@@ -308,14 +312,17 @@ class World:
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         key = str(sample.key_expr)
-        if key == self.keys.world_wake:
-            self.wakes += 1
-            return
-        rk = self.keys.parse_robot(key)
-        if rk is None or rk.robot_id not in self.engine.robots:
-            self.rejections.reject("unknown robot")
-            return
-        msg = self.rejections.decode(Command, sample.payload.to_bytes(), sender=rk.robot_id)
+        rid = self.cmd_ids.get(key)
+        if rid is None:
+            if key == self.keys.world_wake:
+                self.wakes += 1
+                return
+            rk = self.keys.parse_robot(key)
+            if rk is None or rk.robot_id not in self.engine.robots:
+                self.rejections.reject("unknown robot")
+                return
+            rid = rk.robot_id
+        msg = self.rejections.decode(Command, sample.payload.to_bytes(), sender=rid)
         if msg is not None:
             self._on_command(msg)
 
@@ -392,20 +399,35 @@ class World:
         eng = self.engine
         tick, t = eng.tick, eng.time_s
         observed = [rid for rid in eng.alive_ids if self.faults.observed(rid)]  # frozen (lockstep): not waited for
-        for rid, (pose, readings, obstacles) in eng.observations(observed).items():
+        # Each sent as soon as it is taken, the followers' first: their controller
+        # (EKF, two fuzzy inferences) takes longer than the leader's pilot.
+        observed.sort(key=self.sc.leader.robot_id.__eq__)
+        for rid, (pose, readings, obstacles) in eng.each_observation(observed):
             eng.robots[rid].answered = False
             seq = self._next_seq(link_name("obs", 0, rid))
             obs_pubs[rid].put(Observation(0, seq, tick, t, pose, tuple(readings), tuple(obstacles)).to_bytes())
             self.counts["obs_sent"] += 1
 
-    def _publish_truth(self, truth_pub: BatchPublisher) -> None:
-        """Ground truth of tick k, once its commands are in: each follower's true
-        target is that of the formation it flies at tick k (a code is flown from
-        the command that carries it), as the world's formation error takes it."""
+    def _take_truth(self) -> None:
+        """Ground truth of tick k, once its commands are in, before its step: the
+        state it is made of, kept for :meth:`_publish_truth` (the logger's; in
+        lockstep it is made and sent while the agents work on tick k + 1)."""
         eng = self.engine
         robots = tuple((rid, *r.pose, r.alive) for rid, r in eng.robots.items())
-        targets = tuple((rid, *eng.true_target(rid)) for rid in self.sc.follower_ids)
-        truth_pub.put(Truth(0, self._next_seq("truth"), eng.tick, eng.time_s, robots, targets).to_bytes())
+        poses = {rid: r.pose for rid, r in eng.robots.items()}
+        formations = {rid: eng.robots[rid].formation for rid in self.sc.follower_ids}
+        self.truth_due = (eng.tick, eng.time_s, robots, poses, formations)
+
+    def _publish_truth(self, truth_pub: BatchPublisher) -> None:
+        """The ground truth taken last, if not yet sent: each follower's true
+        target is that of the formation it flies at tick k (a code is flown from
+        the command that carries it), as the world's formation error takes it."""
+        if self.truth_due is None:
+            return
+        (tick, time_s, robots, poses, formations), self.truth_due = self.truth_due, None
+        eng = self.engine
+        targets = tuple((rid, *eng.target_in(rid, formation, poses)) for rid, formation in formations.items())
+        truth_pub.put(Truth(0, self._next_seq("truth"), tick, time_s, robots, targets).to_bytes())
         self.counts["truth_sent"] += 1
 
     def _loop(
@@ -433,7 +455,9 @@ class World:
                 self.wall_s = now - start
             self._process_faults()  # this tick's fault calls and returning agents, before its observations
             self._publish_observations(obs_pubs)
-            eng.record()  # the last tick's metrics, while the agents work on this one
+            # While the agents work on this tick: the last tick's ground truth and metrics.
+            self._publish_truth(truth_pub)
+            eng.record()
             if self.mode == "lockstep":
                 t_wait = time.perf_counter()
                 deadline = time.monotonic() + sc.lockstep_deadline_s
@@ -469,7 +493,9 @@ class World:
             for link in self.cmd_links.values():  # commands held back until this tick
                 for held in link.due(eng.tick):
                     self._apply_command(held)
-            self._publish_truth(truth_pub)
+            self._take_truth()
+            if self.mode == "realtime":  # no one waits for the next tick's observations: now
+                self._publish_truth(truth_pub)
             eng.step(eng.time_s if self.mode == "lockstep" else self.wall_s)
         return 0
 
