@@ -84,10 +84,13 @@ DUPLICATE_QUERY_S = 1.0  # how long the start-up check for another agent of the 
 class Agent:
     def __init__(self, sess: zenoh.Session, sc: scenario_mod.Scenario, rid: int, run_id: str, seed: int,
                  role: role_mod.Role, where: str = "", world_grace_s: float = math.inf,
-                 stats_path: str | None = None) -> None:  # fmt: skip
+                 stats_path: str | None = None, lockstep: bool = False) -> None:  # fmt: skip
         # The counters go to stats_path at exit and every STATS_PERIOD_S meanwhile, so
         # a SIGKILLed agent (a kill or restart fault) leaves what it counted until then.
         self.stats_path = stats_path
+        # In lockstep the telemetry may hold back the run rather than be lost: a
+        # dropped batch took up to 200 ticks out of the recording and its metrics.
+        self.lockstep = lockstep
         self.stats_written_at = time.monotonic()
         self.stats_period_s = max(STATS_PERIOD_S, STATS_S_PER_ROBOT * len(sc.robots))
         if rid not in sc.robots:
@@ -202,10 +205,12 @@ class Agent:
         s.declare_subscriber(k.status, self._on_status)
         s.liveliness().declare_subscriber(k.alive("world", 0), self._on_world_alive, history=True)
         # Control messages are never dropped by Zenoh itself (only by our link
-        # layer); telemetry, for the logger only, travels in batches.
+        # layer); telemetry, for the logger only, travels in batches: in real
+        # time droppable (a stalled logger must not stall a robot), in lockstep not.
         block = zenoh.CongestionControl.BLOCK
         self.cmd_pub = s.declare_publisher(k.cmd(self.rid), congestion_control=block)
-        self.tel_pub = self.telemetry_publisher(s.declare_publisher(k.telemetry(self.rid)))
+        tel_cc = block if self.lockstep else zenoh.CongestionControl.DROP
+        self.tel_pub = self.telemetry_publisher(s.declare_publisher(k.telemetry(self.rid), congestion_control=tel_cc))
         self.form_pubs = (
             {f: s.declare_publisher(k.formation(f), congestion_control=block) for f in self.sc.follower_ids}
             if self.is_leader else {}
@@ -540,6 +545,8 @@ def build_parser() -> cliargs.Parser:
         help="random seed of the link drops and link faults (default: the scenario's); the same as the world's",
     )
     ap.add_argument("--stats", metavar="FILE", help="write this agent's counters here at exit (JSON)")
+    ap.add_argument("--lockstep", action="store_true",
+                    help="the world runs in lockstep: telemetry waits for the logger, never dropped")  # fmt: skip
     role_mod.add_arguments(ap, waits_for="the world (and, for the leader, its followers)")
     ap.add_argument(
         "--world-grace",
@@ -570,7 +577,8 @@ def main(argv: list[str] | None = None) -> int:
     where = role_mod.describe_session(args)
     with sess_cm as sess:
         grace = args.peers_timeout if args.world_grace is None else args.world_grace
-        agent = Agent(sess, sc, args.id, args.run, seed, role, where, grace, stats_path=args.stats)
+        agent = Agent(sess, sc, args.id, args.run, seed, role, where, grace, stats_path=args.stats,
+                      lockstep=args.lockstep)  # fmt: skip
         part = "leader" if agent.is_leader else f"follower of robot {agent.reference}"
         waits = "the world and its followers" if agent.is_leader else "the world"
         role.say(f"{where}; run {args.run}, {part}: waiting up to {role.peers_timeout_s:g} s for {waits}")

@@ -322,6 +322,7 @@ class Launch:
             specs[f"agent-{rid}"] = [*py("agents.process"), "--id", str(rid), *common,
                                      "--stats", agent_stats, "--connect", self.endpoint,
                                      "--world-grace", f"{AGENT_WORLD_GRACE_S:g}",
+                                     *(["--lockstep"] if self.mode == "lockstep" else []),
                                      *auth(trust.agent_user(rid))]  # fmt: skip
         self.started_at = time.monotonic()
         for name, argv in specs.items():

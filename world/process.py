@@ -198,7 +198,10 @@ class World:
         s, k, sc = self.session, self.keys, self.sc
         block = zenoh.CongestionControl.BLOCK  # Zenoh never drops an observation; our link layer may
         obs_pubs = {rid: s.declare_publisher(k.obs(rid), congestion_control=block) for rid in sc.robots}
-        truth_pub = BatchPublisher(s.declare_publisher(k.truth))  # for the logger only: batched
+        # For the logger only, batched; in lockstep it may hold the run back rather
+        # than be lost (a dropped batch took up to 200 ticks out of the recording).
+        truth_cc = block if self.mode == "lockstep" else zenoh.CongestionControl.DROP
+        truth_pub = BatchPublisher(s.declare_publisher(k.truth, congestion_control=truth_cc))
         status_pub = s.declare_publisher(k.status)
         self.wake_pub = s.declare_publisher(k.world_wake, congestion_control=block)
         self.fault_pub = s.declare_publisher(k.faults, congestion_control=block) if self.executor else None
