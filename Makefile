@@ -45,7 +45,7 @@ bench: $(STAMP)
 # runs), the same under wheel noise (180), the paper's claims over 30 seeds as
 # shipped (with the rows tests/test_claims.py checks), under wheel noise, with
 # the EKF told it (3 x 150), and the claims at every value of one setting at a
-# time (10 seeds per value: 1,280 runs, 150 of them the claims' own);
+# time (10 seeds per value: 840 runs beyond the claims' own, which it shares);
 # resumable: an interrupted `make results` goes on where it stopped.
 NOISE_SET := --set robot.wheel_noise_mps=0.1
 EKF_TOLD := --set controller.ekf.q_pos_m=0.13 --set controller.ekf.q_phi_rad=0.09
