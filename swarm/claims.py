@@ -61,13 +61,11 @@ def _m(rows: Sequence[Mapping[str, Any]], key: str, sign: str = "") -> str:
 
 def _ci(rows: Sequence[Mapping[str, Any]], key: str, fmt: str = ".3f") -> str:
     """``"mean 0.727 ± 0.004"``: the mean over the seeds and its 95% confidence half-width (Student t)."""
-    from formation_swarm.sweep import t975
+    from formation_swarm.sweep import half_width
 
     vals = [float(r[key]) for r in rows]
-    mean = statistics.fmean(vals)
-    if len(vals) < 2:
-        return f"mean {mean:{fmt}}"
-    return f"mean {mean:{fmt}} ± {t975(len(vals)) * statistics.stdev(vals) / math.sqrt(len(vals)):{fmt}}"
+    mean, half = statistics.fmean(vals), half_width(vals)
+    return f"mean {mean:{fmt}}" if math.isnan(half) else f"mean {mean:{fmt}} ± {half:{fmt}}"
 
 
 def _count(n: int, test: Callable[[int], bool]) -> int:

@@ -132,14 +132,12 @@ class Stat:
 
 
 def stat(values: Sequence[float]) -> Stat:
-    from formation_swarm.sweep import t975
+    from formation_swarm.sweep import half_width
 
     vals = [float(v) for v in values if v is not None and math.isfinite(float(v))]
     if not vals:
         return Stat(math.nan, math.nan, 0)
-    n = len(vals)
-    half = t975(n) * statistics.stdev(vals) / math.sqrt(n) if n > 1 else math.nan
-    return Stat(statistics.fmean(vals), half, n)
+    return Stat(statistics.fmean(vals), half_width(vals), len(vals))
 
 
 # The figures' metrics: (panel title, row key, sweeps it is read from, the claim's threshold if any).

@@ -119,6 +119,12 @@ def t975(n: int) -> float:
     return _T975[n - 2] if n - 2 < len(_T975) else 1.96
 
 
+def half_width(vals: Sequence[float]) -> float:
+    """The 95% confidence half-width of the mean of ``vals`` (Student t); nan for fewer than two."""
+    n = len(vals)
+    return t975(n) * statistics.stdev(vals) / math.sqrt(n) if n > 1 else math.nan
+
+
 def aggregate(rows: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
     """Per combination and numeric metric: n, mean, std and the 95% CI of the mean."""
     by_label: dict[str, list[Mapping[str, Any]]] = {}
@@ -135,7 +141,7 @@ def aggregate(rows: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
             n = len(vals)
             mean = statistics.fmean(vals)
             std = statistics.stdev(vals) if n > 1 else 0.0
-            half = t975(n) * std / math.sqrt(n) if n > 1 else math.nan
+            half = half_width(vals)
             out.append({"combination": label, "metric": k, "n": n, "mean": mean, "std": std, "ci95_low": mean - half,
                         "ci95_high": mean + half, "min": min(vals), "max": max(vals)})  # fmt: skip
     return out
