@@ -50,7 +50,7 @@ from formation_swarm.agents.follower import Decision, Follower
 from formation_swarm.agents.inbox import InboxChecks
 from formation_swarm.agents.leader import CodeRepeats, FormationSwitch
 from formation_swarm.agents.pilot import PathPilot
-from formation_swarm.proc import exit_after_main, wait_for, write_json
+from formation_swarm.proc import JsonWriter, exit_after_main, wait_for, write_json
 from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.codec import Rejections
@@ -92,6 +92,7 @@ class Agent:
         # dropped batch took up to 200 ticks out of the recording and its metrics.
         self.lockstep = lockstep
         self.stats_written_at = time.monotonic()
+        self.stats_writer = JsonWriter(stats_path, name="stats-writer")
         self.stats_period_s = max(STATS_PERIOD_S, STATS_S_PER_ROBOT * len(sc.robots))
         if rid not in sc.robots:
             raise ValueError(f"--id {rid} is not a robot of this scenario; robots are {list(sc.robots)}")
@@ -323,7 +324,7 @@ class Agent:
                 self._on_observation(newest, reading)
             self.busy_s += time.perf_counter() - t0
             if self.stats_path and time.monotonic() - self.stats_written_at >= self.stats_period_s:
-                write_json(self.stats_path, self.stats())
+                self.stats_writer.offer(self.stats())  # written by its own thread: a slow disk stalls no tick
                 self.stats_written_at = time.monotonic()
 
     def _exit_code(self) -> int:
@@ -583,6 +584,7 @@ def main(argv: list[str] | None = None) -> int:
         waits = "the world and its followers" if agent.is_leader else "the world"
         role.say(f"{where}; run {args.run}, {part}: waiting up to {role.peers_timeout_s:g} s for {waits}")
         code = agent.run()
+        agent.stats_writer.close()  # before the last write, which no older snapshot may overwrite
         write_json(args.stats, agent.stats())
         if code != role_mod.EXIT_NO_PEERS:
             written = f"stats in {args.stats}" if args.stats else "no --stats: counters not written"

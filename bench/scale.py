@@ -7,7 +7,10 @@ Per N and mode it prints:
 - ``start``: wall seconds from the launch to the first tick (every process
   forked, connected and ready);
 - real time: the ticks late by more than half a period, and the 99th
-  percentile and the largest lateness of a tick (ms);
+  percentile and the largest lateness of a tick (ms); and ``skipped``, the
+  share of the followers' observations never answered because a newer one
+  had arrived by the time the agent got to them (an agent that keeps up
+  skips none);
 - lockstep: the world's ticks per wall second;
 - CPU per tick, in microseconds: of an agent (the mean and the largest over the
   followers, from each agent's CPU time over its loop, ``loop_cpu_s``, divided
@@ -85,13 +88,17 @@ def one(n: int, mode: str, duration_s: float, logger: bool, straight: bool, tmp:
         "logger_us": 1e6 * parts.get("logger", {}).get("loop_cpu_s", float("nan")) / ticks,
         "pss_mb": statistics.mean(p for p in pss if p == p) if any(p == p for p in pss) else float("nan"),
         "misses": s.get("lockstep_misses"),
+        # Observations an agent never answered: a newer one had come by the time it got to them.
+        "skipped": sum(p.get("superseded", 0) for p in followers),
+        "observed": sum(p.get("superseded", 0) + p.get("answered", 0) for p in followers),
     }
 
 
 def line(n: int, mode: str, r: dict[str, Any]) -> str:
     head = f"{n:4d} robots {mode:8s} start {r['start_s']:6.2f} s"
     if mode == "realtime":
-        timing = f"late {r['late']:4d}/{r['ticks']:<5d} p99 {r['p99_ms']:7.1f} ms max {r['max_ms']:7.1f} ms"
+        timing = (f"late {r['late']:4d}/{r['ticks']:<5d} p99 {r['p99_ms']:7.1f} ms max {r['max_ms']:7.1f} ms "
+                  f"skipped {100 * r['skipped'] / max(1, r['observed']):4.1f}%")  # fmt: skip
     else:
         timing = f"{r['ticks_per_s']:7.1f} ticks/s ({r['ticks']} ticks, misses {r['misses']})"
     cpu = (f"CPU/tick: agent {r['agent_us']:6.0f} us (max {r['agent_max_us']:6.0f}), world {r['world_us']:7.0f} us, "

@@ -113,6 +113,58 @@ def write_json(path: str | None, data: dict[str, Any]) -> None:
     tmp.replace(p)
 
 
+class JsonWriter:
+    """Writes the newest of the snapshots it is offered to ``path`` (atomically,
+    as :func:`write_json`) from a thread of its own, so that a slow disk never
+    holds up the caller's loop: with 100 agents each replacing its counters
+    file, one ``rename`` took up to half a second (ext4 flushes the new file's
+    data before it replaces an old one). A snapshot offered while one is
+    being written replaces any still waiting; :meth:`close` writes the last
+    one offered (waiting at most ``timeout_s``) and stops the thread."""
+
+    def __init__(self, path: str | None, name: str = "json-writer") -> None:
+        self.path = path
+        self._pending: dict[str, Any] | None = None
+        self._cond = threading.Condition()
+        self._closed = False
+        self.errors = 0
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+        if path:
+            self._thread.start()
+
+    def offer(self, data: dict[str, Any]) -> None:
+        """Hand over ``data``, copied here (its lists and dicts, which the
+        caller may go on changing while the thread writes)."""
+        if not self.path:
+            return
+        snapshot = clean_json(data)
+        with self._cond:
+            self._pending = snapshot
+            self._cond.notify()
+
+    def close(self, timeout_s: float = 5.0) -> None:
+        with self._cond:
+            self._closed = True
+            self._cond.notify()
+        if self._thread.is_alive():
+            self._thread.join(timeout_s)
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while self._pending is None and not self._closed:
+                    self._cond.wait()
+                data, self._pending = self._pending, None
+                closed = self._closed
+            if data is not None:
+                try:
+                    write_json(self.path, data)
+                except (OSError, ValueError):
+                    self.errors += 1  # the next snapshot, or the caller's last write, tries again
+            if closed:
+                return
+
+
 def clean_json(o: Any) -> Any:
     """NaN and inf become None (JSON has neither); tuples become lists."""
     if isinstance(o, float):
