@@ -14,7 +14,8 @@ Per N and mode it prints:
 - lockstep: the world's ticks per wall second;
 - CPU per tick, in microseconds: of an agent (the mean and the largest over the
   followers, from each agent's CPU time over its loop, ``loop_cpu_s``, divided
-  by the observations it answered), of the world and of the logger;
+  by the observations it answered), of the world and of the logger (and of the logger's loop thread, what its sends to
+  Rerun took and what taking the messages apart and checking them took);
 - PSS per agent (MB, shared pages counted once), sampled a second into the run.
 
 The machine's load average is printed before and after: other work on the
@@ -86,8 +87,11 @@ def one(n: int, mode: str, duration_s: float, logger: bool, straight: bool, tmp:
         "agent_max_us": max(per_tick, default=float("nan")),
         "world_us": 1e6 * world.get("loop_cpu_s", float("nan")) / ticks,
         "logger_us": 1e6 * parts.get("logger", {}).get("loop_cpu_s", float("nan")) / ticks,
+        "logger_send_us": 1e6 * parts.get("logger", {}).get("send_cpu_s", float("nan")) / ticks,
+        "logger_drain_us": 1e6 * parts.get("logger", {}).get("drain_cpu_s", float("nan")) / ticks,
         "pss_mb": statistics.mean(p for p in pss if p == p) if any(p == p for p in pss) else float("nan"),
         "misses": s.get("lockstep_misses"),
+        "recorded": parts.get("logger", {}).get("messages", {}).get("truth"),
         # Observations an agent never answered: a newer one had come by the time it got to them.
         "skipped": sum(p.get("superseded", 0) for p in followers),
         "observed": sum(p.get("superseded", 0) + p.get("answered", 0) for p in followers),
@@ -102,7 +106,8 @@ def line(n: int, mode: str, r: dict[str, Any]) -> str:
     else:
         timing = f"{r['ticks_per_s']:7.1f} ticks/s ({r['ticks']} ticks, misses {r['misses']})"
     cpu = (f"CPU/tick: agent {r['agent_us']:6.0f} us (max {r['agent_max_us']:6.0f}), world {r['world_us']:7.0f} us, "
-           f"logger {r['logger_us']:6.0f} us")  # fmt: skip
+           f"logger {r['logger_us']:6.0f} us (send {r['logger_send_us']:.0f}, take {r['logger_drain_us']:.0f}; "
+           f"recorded {r['recorded']} ticks)")  # fmt: skip
     bad = "" if r["exit"] == 0 else f"  EXIT {r['exit']}"
     return f"{head}  {timing}  {cpu}  PSS/agent {r['pss_mb']:5.1f} MB{bad}"
 

@@ -85,7 +85,9 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
         w(f"  formation changes: {', '.join(changes) or 'none'}\n")
         if s.get("mode") == "realtime":
             late_ms = _num(1e3 * s["max_tick_lateness_s"] if s.get("max_tick_lateness_s") is not None else None, ".1f")
-            w(f"  late ticks {s.get('late_ticks')} (worst {late_ms} ms), drops {s.get('drops_total')}, ")
+            sched = s.get("world_scheduling") or ""
+            note = f" (world scheduling {sched})" if sched.startswith("normal") else ""
+            w(f"  late ticks {s.get('late_ticks')} (worst {late_ms} ms){note}, drops {s.get('drops_total')}, ")
         else:
             w(f"  lockstep misses {s.get('lockstep_misses')}, drops {s.get('drops_total')}, ")
         w(f"rejected {s.get('rejected_total')}\n")

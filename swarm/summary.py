@@ -286,6 +286,7 @@ def build(
         "late_ticks": world.get("late_ticks"),
         "max_tick_lateness_s": world.get("max_tick_lateness_s"),
         "p99_tick_lateness_s": world.get("p99_tick_lateness_s"),
+        "world_scheduling": world.get("scheduling"),  # real time: the world's class (swarm.proc.realtime_priority)
         "stale_stops": world.get("stale_stops"),
         "formation_events": world.get("formation_events", []),
         "sensor_faults": world.get("sensor_faults", {}),

@@ -122,6 +122,13 @@ def test_forked_roles_are_what_exec_would_start(swarm_launch: Callable[..., Laun
         assert fds[1] == fds[2] == str(launch.children[name].log_path), name
         # Its parent is the spawner's server, which ends with the launcher.
         assert Path(f"/proc/{pid}/stat").read_text().split(") ")[1].split()[1] != str(os.getpid()), name
+    # The real-time world, every thread of it (Zenoh's too), in the real-time
+    # class where this machine allows it; nothing else.
+    rt = subprocess.run([sys.executable, "-c", "import os; os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(10))"],
+                        check=False).returncode == 0  # fmt: skip
+    for name, pid in launch.pids().items():
+        policies = {os.sched_getscheduler(int(t.name)) for t in Path(f"/proc/{pid}/task").iterdir()}
+        assert policies == ({os.SCHED_RR} if rt and name == "world" else {os.SCHED_OTHER}), name
     launch.stop()
 
 

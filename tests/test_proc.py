@@ -1,10 +1,16 @@
-"""swarm.proc's JsonWriter: the newest snapshot reaches the file, off the caller's thread."""
+"""swarm.proc: the JsonWriter (the newest snapshot reaches the file, off the
+caller's thread) and the real-time class of the real-time world."""
 
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 import threading
 from pathlib import Path
+
+import pytest
 
 from formation_swarm import proc
 
@@ -60,3 +66,38 @@ def test_no_path_writes_nothing_and_starts_no_thread() -> None:
     w.offer({"n": 1})
     w.close()
     assert w.errors == 0
+
+
+def _in_child(code: str, as_nobody: bool = False) -> subprocess.CompletedProcess[str]:
+    """Run ``code`` (with swarm.proc imported) in a fresh process, as user nobody if asked."""
+    prelude = "import os\nfrom formation_swarm import proc\n"
+    if as_nobody:
+        prelude += "os.setgid(65534)\nos.setuid(65534)\n"
+    return subprocess.run([sys.executable, "-c", prelude + code], capture_output=True, text=True, check=True)
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="needs root, to have the right to a real-time class and to drop it")
+def test_the_real_time_class_is_taken_by_the_thread_and_the_threads_it_starts() -> None:
+    out = _in_child(
+        "import threading\n"
+        "print(proc.realtime_priority(10))\n"
+        "seen = []\n"
+        "t = threading.Thread(target=lambda: seen.append(os.sched_getscheduler(0)))\n"
+        "t.start(); t.join()\n"
+        "print(os.sched_getscheduler(0) == os.SCHED_RR, seen == [os.SCHED_RR], os.sched_getparam(0).sched_priority)\n"
+    ).stdout.splitlines()
+    assert out == ["real-time (SCHED_RR 10)", "True True 10"]
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="needs root, to become a user without the right to a real-time class")
+def test_without_the_right_the_process_stays_normal_and_says_why() -> None:
+    out = _in_child("print(proc.realtime_priority(10)); print(os.sched_getscheduler(0) == os.SCHED_OTHER)", True)
+    said, normal = out.stdout.splitlines()
+    assert said.startswith("normal (real-time priority 10 refused: Operation not permitted")
+    assert normal == "True"
+
+
+def test_priority_zero_is_the_normal_class_and_out_of_range_is_refused() -> None:
+    assert proc.realtime_priority(0) == "normal"
+    with pytest.raises(ValueError, match=r"\[0, 99\], got 100"):
+        proc.realtime_priority(100)

@@ -48,7 +48,7 @@ from typing import Any
 
 import zenoh
 
-from formation_swarm import cliargs, scenario_files
+from formation_swarm import cliargs, proc, scenario_files
 from formation_swarm import role as role_mod
 from formation_swarm import scenario as scenario_mod
 from formation_swarm import summary as summary_mod
@@ -63,6 +63,9 @@ from formation_swarm.world.engine import WorldEngine
 from formation_swarm.world.process_faults import START, Call, ProcessFaults
 
 STATUS_PERIOD_S = 0.25
+# The real-time world's priority in Linux's real-time class (swarm.proc.realtime_priority):
+# low among real-time threads (the kernel's own run from 50 up), above every normal one.
+REALTIME_PRIORITY = 10
 # Real time: Status "running" every tick up to this many robots, beyond it every
 # STATUS_PERIOD_S like lockstep: each one is routed to every agent, whose
 # status callback thread then wakes and takes the GIL from its loop.
@@ -634,6 +637,16 @@ def build_parser() -> cliargs.Parser:
     )
     ap.add_argument("--expect-logger", action="store_true", help="also wait for the logger before the first tick")
     ap.add_argument(
+        "--rt-priority",
+        type=cliargs.integer(0, 99),
+        default=REALTIME_PRIORITY,
+        metavar="0-99",
+        help="realtime mode: run the world in Linux's real-time scheduling class at this priority, so that "
+        "its ticks start on time however busy the agents keep the cores; 0 leaves it in the normal class. "
+        "Without the right to (CAP_SYS_NICE: root, or an RLIMIT_RTPRIO of at least this) it stays normal "
+        f"and says so (default {REALTIME_PRIORITY})",
+    )
+    ap.add_argument(
         "--process-faults",
         action="store_true",
         help="a process of the run (swarm run's launcher) executes the scenario's process faults (kill, restart, "
@@ -658,6 +671,11 @@ def main(argv: list[str] | None = None) -> int:
             "does; by hand, remove them from [[faults]], or pass --process-faults with an executor of your own"
         )
         return role_mod.EXIT_USAGE
+    # Before the session: Zenoh's threads, started with it, take the same class
+    # (the commands they receive are as urgent as the ticks).
+    scheduling = proc.realtime_priority(args.rt_priority) if args.mode == "realtime" else "normal"
+    if scheduling.startswith("normal ("):
+        role.say(f"scheduling: {scheduling}; under load its ticks may start late")
     sess_cm = role.connect(args)
     if isinstance(sess_cm, int):
         return sess_cm
@@ -675,6 +693,7 @@ def main(argv: list[str] | None = None) -> int:
         code = world.run()
         stats = world.stats(time.monotonic() - started)
         stats["exit_code"] = code
+        stats["scheduling"] = scheduling
         write_json(args.stats, stats)
         written = [f"stats in {args.stats}"] if args.stats else []
         if run_dir is not None:
