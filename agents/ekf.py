@@ -17,11 +17,11 @@ A missing reading (dropped, out of view) only predicts.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
-from filterpy.kalman import ExtendedKalmanFilter
 
 from formation_swarm.agents.geometry import Point, leader_point, rotate
 from formation_swarm.checks import finite, non_negative, positive
@@ -60,30 +60,40 @@ def _residual(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return y
 
 
-class _Filter(ExtendedKalmanFilter):
-    """filterpy's EKF with the nonlinear prediction of this model."""
+@functools.cache
+def filter_class() -> type:
+    """filterpy's EKF with the nonlinear prediction of this model, made on
+    first use: filterpy imports scipy.stats (about 0.6 s), which the
+    commands that only read a scenario never need. The agents' spawner
+    makes it before it forks (formation_swarm.spawn_preload)."""
+    from filterpy.kalman import ExtendedKalmanFilter
 
-    def predict_x(self, u: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
-        v_f, dth, dt = u
-        x, y, phi, v, w = self.x[:, 0].tolist()
-        # The follower's own displacement over the step, on its arc (eq. 7).
-        if abs(dth) < 1e-9:
-            tx, ty = 0.0, v_f * dt
-        else:
-            radius = v_f * dt / dth
-            tx, ty = -radius * (1.0 - math.cos(dth)), radius * math.sin(dth)
-        # Reference moves along its mid-step heading R(phi_m)[0, 1] = (-sin, cos).
-        phi_m = phi + 0.5 * w * dt
-        x1 = x - v * dt * math.sin(phi_m) - tx
-        y1 = y + v * dt * math.cos(phi_m) - ty
-        # The follower turns by dth: points rotate by -dth in its frame.
-        c = math.cos(dth)
-        s = math.sin(dth)
-        # In place: filterpy keeps copies (x_prior, x_post), never this array.
-        state = self.x
-        state[0, 0] = c * x1 + s * y1
-        state[1, 0] = -s * x1 + c * y1
-        state[2, 0] = wrap_angle(phi + w * dt - dth)
+    class _Filter(ExtendedKalmanFilter):
+        """filterpy's EKF with the nonlinear prediction of this model."""
+
+        def predict_x(self, u: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+            v_f, dth, dt = u
+            x, y, phi, v, w = self.x[:, 0].tolist()
+            # The follower's own displacement over the step, on its arc (eq. 7).
+            if abs(dth) < 1e-9:
+                tx, ty = 0.0, v_f * dt
+            else:
+                radius = v_f * dt / dth
+                tx, ty = -radius * (1.0 - math.cos(dth)), radius * math.sin(dth)
+            # Reference moves along its mid-step heading R(phi_m)[0, 1] = (-sin, cos).
+            phi_m = phi + 0.5 * w * dt
+            x1 = x - v * dt * math.sin(phi_m) - tx
+            y1 = y + v * dt * math.cos(phi_m) - ty
+            # The follower turns by dth: points rotate by -dth in its frame.
+            c = math.cos(dth)
+            s = math.sin(dth)
+            # In place: filterpy keeps copies (x_prior, x_post), never this array.
+            state = self.x
+            state[0, 0] = c * x1 + s * y1
+            state[1, 0] = -s * x1 + c * y1
+            state[2, 0] = wrap_angle(phi + w * dt - dth)
+
+    return _Filter
 
 
 def _hx(state: np.ndarray, d: float, out: np.ndarray | None = None) -> np.ndarray:
@@ -142,7 +152,7 @@ class TargetEKF:
         self.params = params
         self.marker_offset_m = non_negative("marker_offset_m", marker_offset_m)
         self.width_m = positive("width_m", width_m)
-        self._kf = _Filter(dim_x=5, dim_z=3)
+        self._kf = filter_class()(dim_x=5, dim_z=3)
         self._kf.R = np.diag([params.sigma_rho_m**2, params.sigma_beta_rad**2, params.sigma_phi_rad**2])
         self._q_dt = math.nan
         self._q = np.zeros((5, 5))

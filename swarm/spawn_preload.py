@@ -16,6 +16,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import formation_swarm.agents.process  # noqa: E402, F401
 import formation_swarm.world.process  # noqa: E402, F401
+from formation_swarm.agents.ekf import filter_class  # noqa: E402
+
+filter_class()  # imports filterpy (and scipy.stats), which agents.ekf leaves to first use
 
 with contextlib.suppress(ImportError):  # the children's command lines (formation_swarm.spawner)
     import setproctitle  # noqa: F401
