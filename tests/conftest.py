@@ -7,10 +7,14 @@ import shutil
 import socket
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import pytest
+
+if TYPE_CHECKING:
+    from formation_swarm.launcher import Launch, RunResult
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIOS = ROOT / "scenarios"
@@ -79,6 +83,18 @@ def _no_process_left_behind(tmp_path_factory: pytest.TempPathFactory) -> object:
     yield
     left = [(pid, cmd) for pid, cmd in processes(lambda cmd: base in cmd) if pid not in before]
     assert not left, f"processes left behind by the suite: {left}"
+
+
+def run_together(
+    start: Callable[..., Launch], *runs: tuple[str | Path, Mapping[str, Any]], timeout_s: float = 300.0
+) -> list[RunResult]:
+    """Runs (scenario, ``swarm_launch``'s keywords) started together, then each
+    waited for. Only for lockstep runs without process faults: nothing in them
+    depends on the wall clock or on their launcher while they run, and a lockstep
+    run's processes wait on each other, so two runs on two cores take little more
+    than one."""
+    launches = [start(scenario, **kwargs) for scenario, kwargs in runs]
+    return [launch.wait(timeout_s=timeout_s) for launch in launches]
 
 
 class Console:

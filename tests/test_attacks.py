@@ -42,12 +42,19 @@ def rogue(launch: Launch, user: str | None) -> zenoh.Session:
     return zenoh.open(make_config("client", [launch.endpoint], connect_timeout_s=3.0, settings=settings))
 
 
-def put_all(sess: zenoh.Session, messages: list[tuple[str, bytes]], rounds: int) -> None:
+def put_all(sess: zenoh.Session, messages: list[tuple[str, bytes]], rounds: int, witness: str | None = None) -> None:
     """Each (key, payload) ``rounds`` times, with the publishers declared first
     (a put made before the router knows of them may be lost: that would hide a
-    hole, not show a wall)."""
+    hole, not show a wall). A key nobody subscribes to in the run (the truth
+    without a logger) never matches: with ``witness`` (a liveliness token the
+    login may query) the wait ends once a query sent after the declarations is
+    answered, as the router answers on the session's one link in order (no QoS
+    lanes): every publisher that can match has by then."""
     pubs = {key: sess.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK) for key, _ in messages}
-    deadline = time.monotonic() + 10.0
+    if witness is not None:
+        replies = list(sess.liveliness().get(witness, timeout=10.0))
+        assert replies, f"no answer for {witness}"
+    deadline = time.monotonic() + (0.0 if witness is not None else 10.0)
     while not all(p.matching_status.matching for p in pubs.values()) and time.monotonic() < deadline:
         time.sleep(0.01)
     for _ in range(rounds):
@@ -86,7 +93,8 @@ def run_under_attack(swarm_launch: Callable[..., Launch], user: str | None, mode
     launch = swarm_launch(FIG11, mode=mode, **kwargs)
     assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
     with rogue(launch, user) as sess:
-        put_all(sess, attacks(Keys(launch.run_id), tick=int(launch.sim_time() / 0.05) + 1), rounds=20)
+        k = Keys(launch.run_id)
+        put_all(sess, attacks(k, tick=int(launch.sim_time() / 0.05) + 1), rounds=20, witness=k.alive("world", 0))
         return launch.wait(timeout_s=240)
 
 

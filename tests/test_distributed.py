@@ -24,7 +24,7 @@ from formation_swarm.protocol.codec import MAX_PAYLOAD_BYTES
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Command
 from formation_swarm.protocol.session import make_config
-from tests.conftest import RERUN, SCENARIOS, our_processes, rrd_rows
+from tests.conftest import RERUN, SCENARIOS, our_processes, rrd_rows, run_together
 from tests.replica import replay
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"
@@ -98,11 +98,13 @@ def _cpu_hogs(n: int = 2) -> object:
             h.wait()
 
 
-def test_same_seed_same_digest_other_seed_differs(swarm_run: Callable[..., RunResult]) -> None:
-    a = swarm_run(FIG11, seed=7, logger=False).summary
+def test_same_seed_same_digest_other_seed_differs(
+    swarm_run: Callable[..., RunResult], swarm_launch: Callable[..., Launch]
+) -> None:
+    a, c = (r.summary for r in run_together(swarm_launch, (FIG11, {"seed": 7, "logger": False}),
+                                            (FIG11, {"seed": 8, "logger": False})))  # fmt: skip
     with _cpu_hogs():  # the same run on a loaded machine, each process exec'd rather than forked
         b = swarm_run(FIG11, seed=7, logger=False, fork=False).summary  # timing changes, trajectories must not
-    c = swarm_run(FIG11, seed=8, logger=False).summary
     assert a["lockstep_misses"] == b["lockstep_misses"] == 0
     assert a["trajectory_digest"] == b["trajectory_digest"]
     assert a["trajectory_digest"] != c["trajectory_digest"]
@@ -132,14 +134,16 @@ def test_forked_roles_are_what_exec_would_start(swarm_launch: Callable[..., Laun
     launch.stop()
 
 
-def test_runs_with_observation_and_formation_code_drops_are_reproducible(swarm_run: Callable[..., RunResult]) -> None:
+def test_runs_with_observation_and_formation_code_drops_are_reproducible(
+    swarm_run: Callable[..., RunResult], swarm_launch: Callable[..., Launch]
+) -> None:
     """Whether a message drops is decided on its link's own sequence number, which
     nothing timed by the wall clock (the world's status messages) may advance."""
     lossy = {"links.obs_drop": 0.3, "links.formation_drop": 0.3}
-    a = swarm_run(FIG11, seed=3, logger=False, overrides=lossy).summary
+    a, clean = (r.summary for r in run_together(swarm_launch, (FIG11, {"seed": 3, "logger": False, "overrides": lossy}),
+                                                (FIG11, {"seed": 3, "logger": False})))  # fmt: skip
     with _cpu_hogs():  # another timing: status messages fall on other ticks
         b = swarm_run(FIG11, seed=3, logger=False, overrides=lossy).summary
-    clean = swarm_run(FIG11, seed=3, logger=False).summary
     assert a["lockstep_misses"] == b["lockstep_misses"] == 0
     assert a["trajectory_digest"] == b["trajectory_digest"]
     obs = {k: v for k, v in a["links"].items() if k.startswith("obs:")}
@@ -177,11 +181,11 @@ def test_a_lockstep_run_is_its_one_process_replica(
     assert by_tick == sorted(again["formation_events"], key=lambda e: (e["tick"], e["robot"]))
 
 
-def test_formation_changes_through_30_percent_drops(swarm_run: Callable[..., RunResult]) -> None:
+def test_formation_changes_through_30_percent_drops(swarm_launch: Callable[..., Launch]) -> None:
     # Seed 2: at 30% the drops hit two of the four changes (measured delays
     # 0.05, 0.05, 0.10, 0.15 s), so re-sending is exercised, not just bounded.
-    clean = swarm_run(FIG11, seed=2, logger=False).summary
-    lossy = swarm_run(FIG11, seed=2, logger=False, overrides={"links.formation_drop": 0.3}).summary
+    clean, lossy = (r.summary for r in run_together(swarm_launch, (FIG11, {"seed": 2, "logger": False}),
+                    (FIG11, {"seed": 2, "logger": False, "overrides": {"links.formation_drop": 0.3}})))  # fmt: skip
 
     def delays(s: dict) -> list[float]:
         leader = dict((n, t) for n, t in _events(s, 1))

@@ -14,6 +14,7 @@ tests/test_sensor_actuator_faults.py, tests/test_process_faults.py.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -54,23 +55,29 @@ PROCESS_SCHEDULE = [
 ]
 
 
-def _run_twice(tmp_path_factory: pytest.TempPathFactory, faults: list[str], logger: bool) -> list[dict[str, Any]]:
-    """The schedule, run twice (what the swarm_run fixture does, shared by the module's tests)."""
+def _run_twice(
+    tmp_path_factory: pytest.TempPathFactory, faults: list[str], logger: bool, together: bool = False
+) -> list[dict[str, Any]]:
+    """The schedule, run twice (what the swarm_run fixture does, shared by the module's tests);
+    ``together``: both runs at once, for a schedule without process faults (which the
+    launcher executes while it waits for its run)."""
     out = []
-    for k in range(2):
-        folder = tmp_path_factory.mktemp("faults") / f"run-{k}"
-        with Launch(FIG11, mode="lockstep", out=folder, logger=logger, faults=faults,
-                    overrides={"run.duration_s": SECONDS}, progress=lambda _line: None) as launch:  # fmt: skip
-            res = launch.wait(timeout_s=240)
-        assert res.exit_code == 0, (res.summary.get("events"), res.summary.get("failure"))
-        assert res.summary["lockstep_misses"] == 0
-        out.append(res.summary)
+    kwargs = {"mode": "lockstep", "logger": logger, "faults": faults, "overrides": {"run.duration_s": SECONDS}}
+    for ks in ([0, 1],) if together else ([0], [1]):
+        with contextlib.ExitStack() as stack:
+            folders = [tmp_path_factory.mktemp("faults") / f"run-{k}" for k in ks]
+            launches = [stack.enter_context(Launch(FIG11, out=f, progress=lambda _l: None, **kwargs)) for f in folders]
+            results = [launch.wait(timeout_s=240) for launch in launches]
+        for res in results:
+            assert res.exit_code == 0, (res.summary.get("events"), res.summary.get("failure"))
+            assert res.summary["lockstep_misses"] == 0
+            out.append(res.summary)
     return out
 
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> list[dict[str, Any]]:
-    return _run_twice(tmp_path_factory, SCHEDULE, logger=False)
+    return _run_twice(tmp_path_factory, SCHEDULE, logger=False, together=True)
 
 
 @pytest.fixture(scope="module")

@@ -14,8 +14,9 @@ from collections.abc import Callable
 import pytest
 
 from formation_swarm.faults import Fault
-from formation_swarm.launcher import RunResult
+from formation_swarm.launcher import Launch, RunResult
 from formation_swarm.protocol.links import Link, faults_on
+from tests.conftest import run_together
 from tests.test_faults import assert_same_links
 
 pytestmark = pytest.mark.slow
@@ -48,11 +49,12 @@ def offline(link_class: str, robot: int, ticks: int, seq_of: Callable[[int], int
     return link.stats(), refused
 
 
-def test_every_link_fault_at_once_is_reproducible_and_counted_exactly(swarm_run: Callable[..., RunResult]) -> None:
+def test_every_link_fault_at_once_is_reproducible_and_counted_exactly(swarm_launch: Callable[..., Launch]) -> None:
     kwargs = {"mode": "lockstep", "logger": False, "faults": list(MIX), "overrides": {"run.duration_s": 20}}
-    a = swarm_run(FIG11, **kwargs).summary
-    b = swarm_run(FIG11, **kwargs).summary
-    clean = swarm_run(FIG11, mode="lockstep", logger=False, overrides={"run.duration_s": 20}).summary
+    clean_kwargs = {"mode": "lockstep", "logger": False, "overrides": {"run.duration_s": 20}}
+    a, b, clean = (
+        r.summary for r in run_together(swarm_launch, (FIG11, kwargs), (FIG11, kwargs), (FIG11, clean_kwargs))
+    )
     assert a["trajectory_digest"] == b["trajectory_digest"] != clean["trajectory_digest"]
     assert (a["ticks"], a["lockstep_misses"], b["lockstep_misses"]) == (400, 0, 0)
     assert_same_links(a["links"], b["links"])

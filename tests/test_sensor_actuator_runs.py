@@ -10,9 +10,9 @@ from collections.abc import Callable
 
 from formation_swarm import scenario as sm
 from formation_swarm.console import print_result
-from formation_swarm.launcher import RunResult
+from formation_swarm.launcher import Launch, RunResult
 from formation_swarm.world.kinematics import Pose, from_body_frame
-from tests.conftest import SCENARIOS
+from tests.conftest import SCENARIOS, run_together
 from tests.replica import replay
 
 FIG11 = "fig11_obstacles"  # three robots in a triangle: 1 leads 2, 2 leads 3
@@ -48,11 +48,11 @@ def test_a_blackout_of_robot_3_opens_its_error_and_it_recovers(swarm_run: Callab
     assert "  fault: blackout 3@5s for=3s: R3 blacked_out 120, R3 ticks 60\n" in console.getvalue()
 
 
-def test_lockstep_runs_with_wheel_noise_and_outliers_are_reproducible(swarm_run: Callable[..., RunResult]) -> None:
+def test_lockstep_runs_with_wheel_noise_and_outliers_are_reproducible(swarm_launch: Callable[..., Launch]) -> None:
     faults = ["wheel_noise *@0s sigma_mps=0.1", "outliers 2,3@0s p=0.05"]
     short = {"run.duration_s": 20}
-    a = swarm_run(FIG11, mode="lockstep", logger=False, overrides=short, faults=faults).summary
-    b = swarm_run(FIG11, mode="lockstep", logger=False, overrides=short, faults=faults).summary
+    kwargs = {"mode": "lockstep", "logger": False, "overrides": short, "faults": faults}
+    a, b = (r.summary for r in run_together(swarm_launch, (FIG11, kwargs), (FIG11, kwargs)))
     assert a["lockstep_misses"] == b["lockstep_misses"] == 0
     assert a["trajectory_digest"] == b["trajectory_digest"]
     # and the same run replayed in one process (the engine, the brains, the links) draws the same noise
