@@ -486,6 +486,7 @@ class Agent:
         return {
             "robot": self.rid,
             "role": "leader" if self.is_leader else "follower",
+            "lockstep": self.lockstep,  # its telemetry waits for the logger (lockstep) or may be dropped
             "answered": self.answered,
             "superseded": self.superseded,
             "ekf_resets": 0 if self.is_leader else self.follower.ekf.resets,

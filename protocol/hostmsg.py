@@ -13,7 +13,9 @@ ops::
 
     info     -> hostname, cores, free_mem_mb, robots it may run, time_unix, running
     start    run, process (agent-N or agent-N.k), scenario (TOML text), user,
-             password (the agent's login for this run), world_grace_s -> pid
+             password (the agent's login for this run), world_grace_s,
+             lockstep (the run's mode: its telemetry waits for the logger
+             instead of being dropped) -> pid
     signal   run, process, action (kill, freeze, thaw, term) -> ok
     poll     run -> processes: [name, pid, exit code or None] of the run
     collect  run, process -> code, log (its tail), stats (its --stats JSON text)
@@ -162,11 +164,12 @@ class HostRequest(_Map):
     password: str = ""
     world_grace_s: float = 1.0
     sent_unix: float = 0.0  # the sender's clock (swarm doctor compares it)
+    lockstep: bool = False
 
     CHECKS: ClassVar[dict[str, Any]] = {
         "op": _text(16), "version": _text(64), "run": _text(64), "process": _text(40), "action": _text(16),
         "scenario": _text(MAX_SCENARIO_BYTES), "user": _text(32), "password": _text(128),
-        "world_grace_s": _float(0.0, 3600.0), "sent_unix": _float(0.0, 1e11),
+        "world_grace_s": _float(0.0, 3600.0), "sent_unix": _float(0.0, 1e11), "lockstep": _bool,
     }  # fmt: skip
 
     @classmethod

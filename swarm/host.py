@@ -208,7 +208,8 @@ class Host:
         argv = [sys.executable, "-m", AGENT, "--id", str(robot), "--scenario", str(scenario), "--run", req.run,
                 "--stats", str(run.folder / "stats" / f"{req.process}.json"),
                 *(a for ep in self.connect for a in ("--connect", ep)),
-                "--world-grace", f"{req.world_grace_s:g}", "--auth", str(auth)]  # fmt: skip
+                "--world-grace", f"{req.world_grace_s:g}", "--auth", str(auth),
+                *(["--lockstep"] if req.lockstep else [])]  # fmt: skip
         child = Child(req.process, argv, run.folder / "logs" / f"{req.process}.log")
         run.children[req.process] = child
         child.start()

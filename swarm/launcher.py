@@ -369,7 +369,8 @@ class Launch:
         if secrets:
             password = trust.read_settings(secrets[user])["transport/auth/usrpwd"]["password"]
         req = HostRequest("start", __version__, run=self.run_id, process=name, scenario=scenario_text, user=user,
-                          password=password, world_grace_s=AGENT_WORLD_GRACE_S)  # fmt: skip
+                          password=password, world_grace_s=AGENT_WORLD_GRACE_S,
+                          lockstep=self.mode == "lockstep")  # fmt: skip
         child = remote.RemoteChild(name, [], self.run_dir / "logs" / f"{name}.log", client=self.clients[host],
                                    run=self.run_id, request=req)  # fmt: skip
         self.children[name] = child

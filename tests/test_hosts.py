@@ -37,7 +37,7 @@ PY = [sys.executable, "-m", "formation_swarm.cli"]
 # -- the wire -----------------------------------------------------------------------
 def test_a_request_round_trips_and_bad_ones_are_refused_with_a_reason() -> None:
     req = HostRequest("start", __version__, run="r1", process="agent-3.2", scenario="x = 1", user="agent-3",
-                      password="p" * 32, world_grace_s=1.0)  # fmt: skip
+                      password="p" * 32, world_grace_s=1.0, lockstep=True)  # fmt: skip
     assert HostRequest.from_bytes(req.to_bytes()) == req
     good = msgpack.unpackb(req.to_bytes())
     cases = {
@@ -50,6 +50,7 @@ def test_a_request_round_trips_and_bad_ones_are_refused_with_a_reason() -> None:
         msgpack.packb({**good, "process": "world"}): "bad process",
         msgpack.packb({**good, "world_grace_s": float("nan")}): "out of range",
         msgpack.packb({**good, "user": 7}): "wrong type",
+        msgpack.packb({**good, "lockstep": 1}): "wrong type",
         msgpack.packb({**good, "op": "signal", "action": "reboot"}): "bad action",
         b"\x00" * (MAX_HOST_MESSAGE_BYTES + 1): "oversized",
     }
@@ -208,6 +209,8 @@ def test_a_run_on_two_hosts_is_the_local_run_and_leaves_a_full_folder(two_hosts:
         assert (out / "stats" / f"{name}.json").is_file(), name
     agent2 = json.loads((out / "stats" / "agent-2.json").read_text())
     assert agent2["answered"] == summary["ticks"]
+    # A lockstep run's telemetry waits for the logger on a host too: none of it is dropped.
+    assert all(json.loads((out / "stats" / f"agent-{r}.json").read_text())["lockstep"] for r in (1, 2, 3))
     assert (out / "recording.rrd").stat().st_size > 10_000
     assert not (out / "secrets").exists()
     # Each host ended the run: its agents reaped, their logins deleted, the hosts still serving.
