@@ -5,17 +5,22 @@ strands robots), the logger on, in real time and in lockstep.
 Per N and mode it prints:
 
 - ``start``: wall seconds from the launch to the first tick (every process
-  forked, connected and ready);
+  forked, connected and ready). The spawner's server, which imports the
+  roles' modules once, starts with the first run of this script and serves
+  the later ones: the first row's start includes it (marked "cold"), the
+  others' do not; ``swarm run`` always starts cold;
 - real time: the ticks late by more than half a period, and the 99th
   percentile and the largest lateness of a tick (ms); and ``skipped``, the
   share of the followers' observations never answered because a newer one
   had arrived by the time the agent got to them (an agent that keeps up
-  skips none);
+  skips none); and the world's scheduling class (real-time, or NORMAL
+  where the machine refused it: see ``swarm world --rt-priority``);
 - lockstep: the world's ticks per wall second;
 - CPU per tick, in microseconds: of an agent (the mean and the largest over the
   followers, from each agent's CPU time over its loop, ``loop_cpu_s``, divided
-  by the observations it answered), of the world and of the logger (and of the logger's loop thread, what its sends to
-  Rerun took and what taking the messages apart and checking them took);
+  by the observations it answered), of the world and of the logger (and,
+  of the logger's loop thread, what its sends to Rerun took and what taking
+  the messages apart and checking them took), and the ticks it recorded;
 - PSS per agent (MB, shared pages counted once), sampled a second into the run.
 
 The machine's load average is printed before and after: other work on the
@@ -80,6 +85,7 @@ def one(n: int, mode: str, duration_s: float, logger: bool, straight: bool, tmp:
         "start_s": start_s,
         "ticks": ticks,
         "late": s.get("late_ticks"),
+        "scheduling": s.get("world_scheduling") or "",
         "p99_ms": 1e3 * (world.get("p99_tick_lateness_s") or float("nan")),
         "max_ms": 1e3 * (s.get("max_tick_lateness_s") or 0.0),
         "ticks_per_s": s.get("ticks_per_s"),
@@ -98,11 +104,12 @@ def one(n: int, mode: str, duration_s: float, logger: bool, straight: bool, tmp:
     }
 
 
-def line(n: int, mode: str, r: dict[str, Any]) -> str:
-    head = f"{n:4d} robots {mode:8s} start {r['start_s']:6.2f} s"
+def line(n: int, mode: str, r: dict[str, Any], cold: bool = False) -> str:
+    head = f"{n:4d} robots {mode:8s} start {r['start_s']:6.2f} s{' (cold)' if cold else '       '}"
     if mode == "realtime":
+        rt = "real-time" if r["scheduling"].startswith("real-time") else "NORMAL class"
         timing = (f"late {r['late']:4d}/{r['ticks']:<5d} p99 {r['p99_ms']:7.1f} ms max {r['max_ms']:7.1f} ms "
-                  f"skipped {100 * r['skipped'] / max(1, r['observed']):4.1f}%")  # fmt: skip
+                  f"skipped {100 * r['skipped'] / max(1, r['observed']):4.1f}% (world {rt})")  # fmt: skip
     else:
         timing = f"{r['ticks_per_s']:7.1f} ticks/s ({r['ticks']} ticks, misses {r['misses']})"
     cpu = (f"CPU/tick: agent {r['agent_us']:6.0f} us (max {r['agent_max_us']:6.0f}), world {r['world_us']:7.0f} us, "
@@ -127,7 +134,8 @@ def main() -> None:
             for mode in args.modes:
                 duration = args.duration if mode == "realtime" else args.lockstep_duration
                 r = one(n, mode, duration, not args.no_logger, args.straight, Path(tmp))
-                print(line(n, mode, r), f"load {os.getloadavg()[0]:.2f}", flush=True)
+                print(line(n, mode, r, cold=(n, mode) == (args.robots[0], args.modes[0])),
+                      f"load {os.getloadavg()[0]:.2f}", flush=True)  # fmt: skip
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

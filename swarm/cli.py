@@ -194,7 +194,10 @@ def _add_run(sub: argparse._SubParsersAction[Parser]) -> None:
     run.add_argument("scenario", help="a shipped scenario's name (see: swarm scenarios) or a scenario file (TOML)")
     run.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
                      help="lockstep: the world waits for every robot each tick, reproducible and as fast as the "
-                     "machine goes; realtime: the world steps on the wall clock (default: lockstep)")  # fmt: skip
+                     "machine goes; realtime: the world steps on the wall clock, in Linux's real-time "
+                     "scheduling class where the machine allows it (root, CAP_SYS_NICE or an RLIMIT_RTPRIO of "
+                     "10: see swarm world --rt-priority; the result line says when it did not) "
+                     "(default: lockstep)")  # fmt: skip
     run.add_argument("--seed", type=seed, default=None, metavar="N",
                      help="seed of every random draw (camera noise, link drops, the faults' draws), "
                      "an integer in [0, 2**63 - 1] (default: the scenario's run.seed)")  # fmt: skip

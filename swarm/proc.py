@@ -125,7 +125,11 @@ def realtime_priority(priority: int) -> str:
     try:
         os.sched_setscheduler(0, policy, os.sched_param(priority))
     except OSError as exc:
-        return f"normal (real-time priority {priority} refused: {exc.strerror or exc}; it needs CAP_SYS_NICE)"
+        return (
+            f"normal (real-time priority {priority} refused: {exc.strerror or exc}; it needs root or CAP_SYS_NICE, "
+            f"or an RLIMIT_RTPRIO of at least {priority}, e.g. ulimit -r {priority}, and real-time CPU time "
+            "in its cgroup)"
+        )
     return f"real-time (SCHED_RR {priority})"
 
 

@@ -296,7 +296,7 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     assert "late ticks 3 (worst 55.1 ms), drops None" in out.getvalue()
     assert "lockstep misses" not in out.getvalue()
     out = io.StringIO()  # a world left in the normal class says so beside its late ticks
-    why = "normal (real-time priority 10 refused: Operation not permitted; it needs CAP_SYS_NICE)"
+    why = "normal (real-time priority 10 refused: Operation not permitted; it needs root or CAP_SYS_NICE)"
     print_result(RunResult(tmp_path, {**realtime, "world_scheduling": why}, 1), out)
     assert f"late ticks 3 (worst 55.1 ms) (world scheduling {why}), drops None" in out.getvalue()
 

@@ -93,7 +93,8 @@ def test_the_real_time_class_is_taken_by_the_thread_and_the_threads_it_starts() 
 def test_without_the_right_the_process_stays_normal_and_says_why() -> None:
     out = _in_child("print(proc.realtime_priority(10)); print(os.sched_getscheduler(0) == os.SCHED_OTHER)", True)
     said, normal = out.stdout.splitlines()
-    assert said.startswith("normal (real-time priority 10 refused: Operation not permitted")
+    assert said.startswith("normal (real-time priority 10 refused: Operation not permitted; it needs root or ")
+    assert "ulimit -r 10" in said
     assert normal == "True"
 
 

@@ -643,8 +643,8 @@ def build_parser() -> cliargs.Parser:
         metavar="0-99",
         help="realtime mode: run the world in Linux's real-time scheduling class at this priority, so that "
         "its ticks start on time however busy the agents keep the cores; 0 leaves it in the normal class. "
-        "Without the right to (CAP_SYS_NICE: root, or an RLIMIT_RTPRIO of at least this) it stays normal "
-        f"and says so (default {REALTIME_PRIORITY})",
+        "Without the right to (root or CAP_SYS_NICE, or an RLIMIT_RTPRIO of at least this) it stays "
+        f"normal and says so (default {REALTIME_PRIORITY})",
     )
     ap.add_argument(
         "--process-faults",
