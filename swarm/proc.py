@@ -149,9 +149,11 @@ class JsonWriter:
     as :func:`write_json`) from a thread of its own, so that a slow disk never
     holds up the caller's loop: with 100 agents each replacing its counters
     file, opening and renaming one took 11-46 ms (strace), up to a tick of a
-    20 Hz run. A snapshot offered while one is
-    being written replaces any still waiting; :meth:`close` writes the last
-    one offered (waiting at most ``timeout_s``) and stops the thread."""
+    20 Hz run. A snapshot offered while one is being written replaces any
+    still waiting. :meth:`close` hands over the last one, which the thread
+    writes after every other (the caller never writes the file itself, so two
+    writers never share its temporary file), and waits at most ``timeout_s``
+    for it."""
 
     def __init__(self, path: str | None, name: str = "json-writer") -> None:
         self.path = path
@@ -173,8 +175,11 @@ class JsonWriter:
             self._pending = snapshot
             self._cond.notify()
 
-    def close(self, timeout_s: float = 5.0) -> None:
+    def close(self, last: dict[str, Any] | None = None, timeout_s: float = 5.0) -> None:
+        snapshot = None if last is None or not self.path else clean_json(last)
         with self._cond:
+            if snapshot is not None:
+                self._pending = snapshot
             self._closed = True
             self._cond.notify()
         if self._thread.is_alive():

@@ -24,6 +24,10 @@ def test_the_writer_writes_the_newest_snapshot_and_a_copy_of_it(tmp_path: Path) 
     w.offer({"answered": 2, "holds": holds[:1], "nan": float("nan")})
     w.close()
     assert json.loads(path.read_text()) == {"answered": 2, "holds": [[1, 2]], "nan": None}
+    w = proc.JsonWriter(str(path))
+    w.offer({"answered": 3})
+    w.close({"answered": 4})  # the last, written after any snapshot offered before it
+    assert json.loads(path.read_text()) == {"answered": 4}
     assert not path.with_suffix(".json.tmp").exists()
     assert w.errors == 0
 
