@@ -240,17 +240,23 @@ class Sweep:
     def _one(self, job: Job, run_dir: Path) -> RunResult | None:
         from formation_swarm.launcher import Launch
 
-        if self._stop.is_set():
-            return None
-        with Launch(self.scenario, seed=job.seed, out=run_dir, overrides=dict(job.overrides), logger=self.logger,
-                    faults=self.faults, progress=lambda _line: None) as launch:  # fmt: skip
-            with self._lock:
-                self._live.add(launch)
-            try:
-                return launch.wait(timeout_s=self.run_timeout_s)
-            finally:
+        for attempt in (1, 2):
+            if self._stop.is_set():
+                return None
+            with Launch(self.scenario, seed=job.seed, out=run_dir, overrides=dict(job.overrides), logger=self.logger,
+                        faults=self.faults, progress=lambda _line: None) as launch:  # fmt: skip
                 with self._lock:
-                    self._live.discard(launch)
+                    self._live.add(launch)
+                try:
+                    res = launch.wait(timeout_s=self.run_timeout_s)
+                finally:
+                    with self._lock:
+                        self._live.discard(launch)
+            gap = recording_gap(res.summary)
+            if gap is None or attempt == 2:
+                return res
+            self.progress(f"[sweep] {job.name}: {gap}; running it again (its metrics would miss those ticks)")
+        return res
 
     def _row(self, job: Job, summary: Mapping[str, Any]) -> dict[str, Any]:
         return {"combination": job.label, "seed": job.seed, "run": job.name, **metrics(summary)}
@@ -262,12 +268,31 @@ class Sweep:
 
 
 def _load_done(run_dir: Path) -> dict[str, Any] | None:
-    """The summary of a run that completed (exit 0), else None (to be run again)."""
+    """The summary of a run that completed (exit 0) with its whole recording,
+    else None (to be run again)."""
     try:
         s = json.loads((run_dir / "summary.json").read_text())
     except (OSError, json.JSONDecodeError):
         return None
-    return s if isinstance(s, dict) and s.get("exit_code") == 0 else None
+    return s if isinstance(s, dict) and s.get("exit_code") == 0 and recording_gap(s) is None else None
+
+
+def recording_gap(summary: Mapping[str, Any]) -> str | None:
+    """What a lockstep run's recording misses of the ticks the world sent (None:
+    nothing, or nothing to tell: real time may drop by design, or no logger).
+    The recorded metrics (the measured and EKF target errors) come from the
+    recording: a run that lost part of it would put wrong figures in a table.
+    Lockstep truth and telemetry are sent with Zenoh's BLOCK, yet in about one
+    full test suite in five one fig9 run of test_claims lost 165 of 880 ticks;
+    100 runs made to find it lost none."""
+    if summary.get("mode") != "lockstep":
+        return None
+    logger = (summary.get("parts") or {}).get("logger") or {}
+    got = (logger.get("messages") or {}).get("truth")
+    sent = (summary.get("messages") or {}).get("truth_sent")
+    if not isinstance(got, int) or not isinstance(sent, int) or got >= sent:
+        return None
+    return f"the logger recorded {got} of the {sent} ticks the world sent"
 
 
 def _write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from formation_swarm import sweep
 from formation_swarm.sweep import Job, Sweep, aggregate, grid, parse_set
 from tests.conftest import SCENARIOS
 
@@ -139,3 +140,18 @@ def test_a_sweep_says_the_loaders_warnings_once_each_in_its_own_words(tmp_path) 
         Sweep(SCENARIOS / "fig7_turn_vn_dynamic.toml", jobs, tmp_path, progress=lines.append)
     assert len(lines) == 1
     assert lines[0].startswith("[sweep] fig7_turn_vn_dynamic leader.speed_mps=1.0: leader.speed_mps = 1 is below")
+
+
+def test_a_lockstep_run_whose_recording_misses_ticks_is_not_taken_as_done(tmp_path: Path) -> None:
+    whole = {"mode": "lockstep", "exit_code": 0, "messages": {"truth_sent": 880},
+             "parts": {"logger": {"messages": {"truth": 880}}}}  # fmt: skip
+    lossy = {**whole, "parts": {"logger": {"messages": {"truth": 715}}}}
+    assert sweep.recording_gap(whole) is None
+    assert sweep.recording_gap(lossy) == "the logger recorded 715 of the 880 ticks the world sent"
+    assert sweep.recording_gap({**lossy, "mode": "realtime"}) is None  # real time may drop by design
+    assert sweep.recording_gap({**whole, "parts": {}}) is None  # no logger, no recording
+    for name, summary in (("whole", whole), ("lossy", lossy)):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "summary.json").write_text(json.dumps(summary))
+    assert sweep._load_done(tmp_path / "whole") == whole
+    assert sweep._load_done(tmp_path / "lossy") is None  # run again on resume
