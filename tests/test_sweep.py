@@ -143,11 +143,16 @@ def test_a_sweep_says_the_loaders_warnings_once_each_in_its_own_words(tmp_path) 
 
 
 def test_a_lockstep_run_whose_recording_misses_ticks_is_not_taken_as_done(tmp_path: Path) -> None:
+    follower = {"role": "follower", "answered": 880}
     whole = {"mode": "lockstep", "exit_code": 0, "messages": {"truth_sent": 880},
-             "parts": {"logger": {"messages": {"truth": 880}}}}  # fmt: skip
-    lossy = {**whole, "parts": {"logger": {"messages": {"truth": 715}}}}
+             "parts": {"logger": {"messages": {"truth": 880, "telemetry": 880}}, "agent-2": follower}}  # fmt: skip
+    lossy = {**whole, "parts": {**whole["parts"], "logger": {"messages": {"truth": 715, "telemetry": 880}}}}
     assert sweep.recording_gap(whole) is None
     assert sweep.recording_gap(lossy) == "the logger recorded 715 of the 880 ticks the world sent"
+    no_tel = {**whole, "parts": {**whole["parts"], "logger": {"messages": {"truth": 880, "telemetry": 820}}}}
+    assert sweep.recording_gap(no_tel) == (
+        "the logger recorded 820 of the 880 telemetry messages the followers sent (one per tick answered)"
+    )
     assert sweep.recording_gap({**lossy, "mode": "realtime"}) is None  # real time may drop by design
     assert sweep.recording_gap({**whole, "parts": {}}) is None  # no logger, no recording
     for name, summary in (("whole", whole), ("lossy", lossy)):
