@@ -47,16 +47,20 @@ class Formation:
                 raise ValueError(f"formation {self.name!r}: robot {rid} references itself")
             finite(f"formation {self.name!r} robot {rid} offset x", slot.offset[0])
             finite(f"formation {self.name!r} robot {rid} offset y", slot.offset[1])
-        # Every chain of references must end at the leader (a robot with no slot).
+        # Every chain of references must end at the leader (a robot with no slot):
+        # each chain is walked once, up to a robot whose root is already known.
+        roots: dict[int, int] = {}
         for rid in ids:
-            seen = {rid}
-            ref = self.slots[rid].reference
-            while ref in self.slots:
-                if ref in seen:
+            chain, on_chain, ref = [rid], {rid}, self.slots[rid].reference
+            while ref in self.slots and ref not in roots:
+                if ref in on_chain:
                     raise ValueError(f"formation {self.name!r}: reference cycle through robot {rid}")
-                seen.add(ref)
+                chain.append(ref)
+                on_chain.add(ref)
                 ref = self.slots[ref].reference
-        leaders = {self._root(r) for r in ids}
+            root = roots.get(ref, ref)
+            roots.update(dict.fromkeys(chain, root))
+        leaders = set(roots.values())
         if len(leaders) != 1:
             raise ValueError(f"formation {self.name!r}: followers lead back to several leaders {sorted(leaders)}")
 

@@ -92,6 +92,8 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
         else:
             w(f"  lockstep misses {s.get('lockstep_misses')}, drops {s.get('drops_total')}, ")
         w(f"rejected {s.get('rejected_total')}\n")
+        if s.get("recording_gap"):
+            w(f"  RECORDING INCOMPLETE: {s['recording_gap']}\n")
     for f in s.get("faults") or []:
         w(f"  fault: {describe_fault(f)}\n")
     events = s.get("events") or []

@@ -60,6 +60,7 @@ END_WAIT_S = 1.0
 # the logger had taken (lockstep fig9, 91 of 880 ticks of a follower refused).
 TICKS_PAST_END = 2
 END_OF_STREAM = pack_batch([])  # what protocol.batch.BatchPublisher.close sends
+GAPS_KEPT = 8
 
 
 class Logger:
@@ -94,6 +95,12 @@ class Logger:
         self.started = False  # the run's first status or truth has been handled
         self.done = False
         self.last_tick: dict[int, int] = {}  # per sender (WORLD_ID: truth), the last tick taken
+        # Per sender, the first GAPS_KEPT runs of ticks skipped between two taken
+        # ([first, last] missing) and how many ticks were skipped in all. Real time
+        # drops by design; in lockstep every tick is sent, so a gap is a loss.
+        self.gaps: dict[int, list[list[int]]] = {}
+        self.first_tick: dict[int, int] = {}
+        self.skipped: dict[int, int] = {}
         self.last_run_tick = sc.ticks + TICKS_PAST_END
         self.end_note = "not started"  # why the loop ended, for the last report line
         self.loop_cpu_s = 0.0
@@ -218,6 +225,13 @@ class Logger:
         if msg.tick > self.last_run_tick:
             self.rejections.reject("tick past the run's end")
             return False
+        if last >= 0 and msg.tick > last + 1:
+            self.skipped[msg.sender] = self.skipped.get(msg.sender, 0) + msg.tick - last - 1
+            kept = self.gaps.setdefault(msg.sender, [])
+            if len(kept) < GAPS_KEPT:
+                kept.append([last + 1, msg.tick - 1])
+        elif last < 0:
+            self.first_tick[msg.sender] = msg.tick
         self.last_tick[msg.sender] = msg.tick
         return True
 
@@ -226,6 +240,20 @@ class Logger:
             self.started = True
             self.role.say(f"run {self.keys.run_id} started")
 
+    def tick_stats(self) -> dict[str, dict[str, Any]]:
+        """Per sender ("0": the world's truth, else a follower's telemetry): the
+        first and last tick taken, how many were skipped between and where
+        (swarm.summary.recording_gap says it in words)."""
+        return {
+            str(sender): {
+                "first": self.first_tick.get(sender),
+                "last": last,
+                "skipped": self.skipped.get(sender, 0),
+                "gaps": self.gaps.get(sender, []),
+            }
+            for sender, last in sorted(self.last_tick.items())
+        }
+
     def stats(self) -> dict[str, Any]:
         recorded = self.recorder.stats()
         return {
@@ -233,6 +261,7 @@ class Logger:
             "last_sim_time_s": recorded["last_sim_time_s"],
             "target_errors": recorded["target_errors"],
             "rejected": dict(self.rejections.by_reason),
+            "ticks": self.tick_stats(),
             "cpu_s": time.process_time(),  # the process's CPU time so far (user + system, all threads)
             "loop_cpu_s": self.loop_cpu_s,  # of it, over the loop
             # Of the loop thread's CPU: taking messages apart and checking them; sending them to Rerun.

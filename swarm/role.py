@@ -88,6 +88,7 @@ def open_session(conf: zenoh.Config, stop: StopEvent, deadline: float) -> zenoh.
     Zenoh refuses the configuration."""
     import zenoh
 
+    zenoh.try_init_log_from_env()  # Zenoh's own log on stderr, only if RUST_LOG asks for it
     done = threading.Event()
     lock = threading.Lock()
     box: dict[str, object] = {}

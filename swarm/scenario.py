@@ -445,14 +445,20 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
     for key in per:
         if not str(key).isdigit() or int(key) not in follower_ids:
             raise ScenarioError(f"followers.{key}: not a follower id; followers are {follower_ids}")
+    shared: FollowerParams | None = None  # the [controller] table's, made once for every follower without its own
     for rid in follower_ids:
         merged = dict(raw.get("controller") or {})
         override = per.get(str(rid), {})
         if not isinstance(override, dict):
             raise ScenarioError(f"followers.{rid} must be a table")
+        if not override and shared is not None:
+            followers[rid] = shared  # frozen: one object serves them all
+            continue
         merged.update(override)
         where = f"followers.{rid}" if override else "controller"
         followers[rid] = _follower_params(where, _table(merged, where, CONTROLLER_KEYS), robot, dt)
+        if not override:
+            shared = followers[rid]
 
     _check_wheel_limit(float(robot["max_wheel_mps"]), float(robot["width_m"]), ld, followers)
     _check_sight(ld, formations, camera, followers, forms_raw)

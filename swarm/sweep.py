@@ -19,6 +19,7 @@ import itertools
 import json
 import math
 import os
+import shutil
 import statistics
 import sys
 import threading
@@ -30,6 +31,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from formation_swarm import summary as summary_mod
 from formation_swarm.checks import SEED_MAX
 from formation_swarm.cliargs import USAGE_ERROR, Parser, integer, make_folder, seed
 from formation_swarm.proc import interrupt_on_stop_signals
@@ -252,10 +254,14 @@ class Sweep:
                 finally:
                     with self._lock:
                         self._live.discard(launch)
-            gap = recording_gap(res.summary)
+            gap = summary_mod.recording_gap(res.summary)
             if gap is None or attempt == 2:
                 return res
-            self.progress(f"[sweep] {job.name}: {gap}; running it again (its metrics would miss those ticks)")
+            kept = run_dir.with_name(run_dir.name + ".incomplete")
+            shutil.rmtree(kept, ignore_errors=True)
+            run_dir.rename(kept)  # its logs and recording, to look into the loss
+            self.progress(f"[sweep] {job.name}: {gap}; running it again (its metrics would miss those ticks; "
+                          f"this attempt is kept in {kept})")  # fmt: skip
         return res
 
     def _row(self, job: Job, summary: Mapping[str, Any]) -> dict[str, Any]:
@@ -274,32 +280,7 @@ def _load_done(run_dir: Path) -> dict[str, Any] | None:
         s = json.loads((run_dir / "summary.json").read_text())
     except (OSError, json.JSONDecodeError):
         return None
-    return s if isinstance(s, dict) and s.get("exit_code") == 0 and recording_gap(s) is None else None
-
-
-def recording_gap(summary: Mapping[str, Any]) -> str | None:
-    """What a lockstep run's recording misses of the ticks the world sent (None:
-    nothing, or nothing to tell: real time may drop by design, or no logger).
-    The recorded metrics (the measured and EKF target errors) come from the
-    recording: a run that lost part of it would put wrong figures in a table.
-    Lockstep truth and telemetry are sent with Zenoh's BLOCK, yet in two of
-    six test suites one fig9 run of test_claims lost a batch (165 of 880
-    ticks of truth; 60 of 880 telemetry messages); 100 runs made to find it
-    lost none."""
-    if summary.get("mode") != "lockstep":
-        return None
-    parts = summary.get("parts") or {}
-    taken = (parts.get("logger") or {}).get("messages") or {}
-    answered = [p.get("answered") for p in parts.values() if isinstance(p, dict) and p.get("role") == "follower"]
-    expected = {
-        "ticks the world sent": (summary.get("messages") or {}).get("truth_sent"),
-        "telemetry messages the followers sent (one per tick answered)": sum(answered)
-        if answered and all(isinstance(a, int) for a in answered) else None,
-    }  # fmt: skip
-    for (what, sent), got in zip(expected.items(), (taken.get("truth"), taken.get("telemetry")), strict=True):
-        if isinstance(got, int) and isinstance(sent, int) and got < sent:
-            return f"the logger recorded {got} of the {sent} {what}"
-    return None
+    return s if isinstance(s, dict) and s.get("exit_code") == 0 and summary_mod.recording_gap(s) is None else None
 
 
 def _write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from formation_swarm import summary as summary_mod
 from formation_swarm import sweep
 from formation_swarm.sweep import Job, Sweep, aggregate, grid, parse_set
 from tests.conftest import SCENARIOS
@@ -147,14 +148,22 @@ def test_a_lockstep_run_whose_recording_misses_ticks_is_not_taken_as_done(tmp_pa
     whole = {"mode": "lockstep", "exit_code": 0, "messages": {"truth_sent": 880},
              "parts": {"logger": {"messages": {"truth": 880, "telemetry": 880}}, "agent-2": follower}}  # fmt: skip
     lossy = {**whole, "parts": {**whole["parts"], "logger": {"messages": {"truth": 715, "telemetry": 880}}}}
-    assert sweep.recording_gap(whole) is None
-    assert sweep.recording_gap(lossy) == "the logger recorded 715 of the 880 ticks the world sent"
+    assert summary_mod.recording_gap(whole) is None
+    assert summary_mod.recording_gap(lossy) == "the logger recorded 715 of the 880 ticks the world sent"
     no_tel = {**whole, "parts": {**whole["parts"], "logger": {"messages": {"truth": 880, "telemetry": 820}}}}
-    assert sweep.recording_gap(no_tel) == (
+    assert summary_mod.recording_gap(no_tel) == (
         "the logger recorded 820 of the 880 telemetry messages the followers sent (one per tick answered)"
     )
-    assert sweep.recording_gap({**lossy, "mode": "realtime"}) is None  # real time may drop by design
-    assert sweep.recording_gap({**whole, "parts": {}}) is None  # no logger, no recording
+    # Where: the logger's per-sender first and last tick and the gaps between.
+    ticks = {"0": {"first": 0, "last": 879, "skipped": 165, "gaps": [[100, 264]]},
+             "2": {"first": 3, "last": 822, "skipped": 0, "gaps": []}}  # fmt: skip
+    placed = {**no_tel, "parts": {**no_tel["parts"], "logger": {**no_tel["parts"]["logger"], "ticks": ticks}}}
+    assert summary_mod.recording_gap(placed) == (
+        "the logger recorded 820 of the 880 telemetry messages the followers sent (one per tick answered) "
+        "(missing: truth ticks 100-264; R2's telemetry ticks 0-2, 823-879)"
+    )
+    assert summary_mod.recording_gap({**lossy, "mode": "realtime"}) is None  # real time may drop by design
+    assert summary_mod.recording_gap({**whole, "parts": {}}) is None  # no logger, no recording
     for name, summary in (("whole", whole), ("lossy", lossy)):
         (tmp_path / name).mkdir()
         (tmp_path / name / "summary.json").write_text(json.dumps(summary))
