@@ -20,12 +20,19 @@ on a loaded machine:
 - full without authentication (every process a stranger, the router without
   access rules): what the logins and the router's rules cost.
 
+Beside the rates, the CPU every process spends over the exchange, per tick
+(the bare roles measure it from their first message; a run's roles report
+their loop's): on two cores a run that needs C seconds of CPU per tick cannot
+pass 2 / C ticks/s however well its processes overlap, which bounds the
+ratio a run can reach before its latency counts.
+
     python bench/lockstep.py [--repeat 3] [--ticks 3000]
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import queue
 import statistics
@@ -71,7 +78,7 @@ def bare_world(endpoint: str, run: str, ticks: int, lowlatency: bool) -> None:
             if time.monotonic() > deadline:
                 raise SystemExit("bare world: peers never matched")
             time.sleep(0.01)
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.process_time()
         for _ in range(ticks):
             for p in pubs:
                 p.put(OBS)
@@ -79,8 +86,9 @@ def bare_world(endpoint: str, run: str, ticks: int, lowlatency: bool) -> None:
             for _ in range(3):
                 q.get(timeout=5)
         rate = ticks / (time.perf_counter() - t0)
+        cpu = time.process_time() - cpu0
         done.put(b"done")
-        print(f"{rate:.1f}", flush=True)
+        print(f"{rate:.1f} {cpu:.6f}", flush=True)
 
 
 def bare_agent(endpoint: str, run: str, rid: int, lowlatency: bool) -> None:
@@ -98,10 +106,13 @@ def bare_agent(endpoint: str, run: str, rid: int, lowlatency: bool) -> None:
         while not cmd.matching_status.matching and time.monotonic() < deadline:
             time.sleep(0.01)
         token = s.liveliness().declare_token(k.alive("agent", rid))  # held: dropped, it is undeclared
+        cpu0 = None
         while True:
             m = q.get()
+            cpu0 = time.process_time() if cpu0 is None else cpu0  # from the first observation
             if m == b"done":
                 token.undeclare()
+                print(f"{time.process_time() - cpu0:.6f}", flush=True)
                 return
             if m is FORM or m == FORM:
                 continue
@@ -118,29 +129,39 @@ def bare_logger(endpoint: str, run: str, lowlatency: bool) -> None:
         q: queue.SimpleQueue[str] = queue.SimpleQueue()
         s.declare_subscriber(k.everything, lambda smp: q.put(str(smp.key_expr)))
         token = s.liveliness().declare_token(k.alive("logger", 0))  # held: dropped, it is undeclared
+        q.get()
+        cpu0 = time.process_time()  # from the first message
         while not q.get().endswith("/world/status"):
             pass
         token.undeclare()
+        print(f"{time.process_time() - cpu0:.6f}", flush=True)
 
 
-def measure_bare(ticks: int, lowlatency: bool = False) -> float:
+def measure_bare(ticks: int, lowlatency: bool = False) -> tuple[float, float]:
+    """Ticks per second, and the CPU of every process over the exchange per tick (s)."""
     run = f"bench-{uuid.uuid4().hex[:8]}"
     ep = f"tcp/127.0.0.1:{free_port()}"
     me = [sys.executable, __file__, "--role"]
     ll = "lowlatency" if lowlatency else "default"
     world = subprocess.Popen([*me, "world", ep, run, ll, str(ticks)], stdout=subprocess.PIPE, text=True)
-    others = [subprocess.Popen([*me, "logger", ep, run, ll])]
-    others += [subprocess.Popen([*me, "agent", ep, run, ll, str(r)]) for r in (1, 2, 3)]
+    piped = {"stdout": subprocess.PIPE, "text": True}
+    others = [subprocess.Popen([*me, "logger", ep, run, ll], **piped)]
+    others += [subprocess.Popen([*me, "agent", ep, run, ll, str(r)], **piped) for r in (1, 2, 3)]
+    cpu = 0.0
     try:
         out, _ = world.communicate(timeout=600)
+        rate, world_cpu = map(float, out.strip().splitlines()[-1].split())
+        cpu += world_cpu
     finally:
         for p in others:
             try:
-                p.wait(timeout=10)
+                said, _ = p.communicate(timeout=10)
+                cpu += float(said.strip().splitlines()[-1]) if said.strip() else math.nan
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
-    return float(out.strip().splitlines()[-1])
+                cpu = math.nan
+    return rate, cpu / ticks
 
 
 def measure_full(duration_s: float, logger: bool = True, auth: bool = True) -> tuple[float, dict]:
@@ -161,6 +182,12 @@ def measure_full(duration_s: float, logger: bool = True, auth: bool = True) -> t
         return float(res.summary["ticks_per_s"]), res.summary
 
 
+def full_cpu_per_tick(summary: dict) -> float:
+    """The CPU of every process over the run's loop, per tick (s): each role's
+    stats say its process's CPU over its loop (all its threads)."""
+    return sum(p.get("loop_cpu_s") or 0.0 for p in summary["parts"].values()) / summary["ticks"]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeat", type=int, default=3)
@@ -178,19 +205,24 @@ def main() -> None:
             bare_logger(ep, run, ll)
         return
     bare, bare_ll, full, quiet, open_ = [], [], [], [], []
+    bare_cpu, full_cpu = [], []
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
     for i in range(args.repeat):
-        bare.append(measure_bare(args.ticks))
-        bare_ll.append(measure_bare(args.ticks, lowlatency=True))
+        rate, cpu = measure_bare(args.ticks)
+        bare.append(rate)
+        bare_cpu.append(cpu)
+        bare_ll.append(measure_bare(args.ticks, lowlatency=True)[0])
         rate, summary = measure_full(args.ticks * 0.05)
         full.append(rate)
+        full_cpu.append(full_cpu_per_tick(summary))
         quiet.append(measure_full(args.ticks * 0.05, logger=False)[0])
         open_.append(measure_full(args.ticks * 0.05, auth=False)[0])
         print(
             f"  round {i + 1}: bare {bare[-1]:7.0f} ticks/s   bare low-latency {bare_ll[-1]:7.0f}   "
             f"full (controller + logger) {full[-1]:7.0f} ticks/s ({summary['ticks']} ticks, "
             f"misses {summary['lockstep_misses']})   without the logger {quiet[-1]:7.0f} ticks/s   "
-            f"without authentication {open_[-1]:7.0f} ticks/s",
+            f"without authentication {open_[-1]:7.0f} ticks/s   "
+            f"CPU per tick, all processes: bare {1e6 * bare_cpu[-1]:.0f} us, full {1e6 * full_cpu[-1]:.0f} us",
             flush=True,
         )
     b, bl = statistics.median(bare), statistics.median(bare_ll)
@@ -198,6 +230,12 @@ def main() -> None:
     print(f"median: bare {b:.0f} ticks/s, bare low-latency {bl:.0f}, full {f:.0f} ticks/s (full/bare {f / b:.2f}, "
           f"full/bare low-latency {f / bl:.2f}), without the logger {q:.0f} ticks/s ({q / b:.2f}), "
           f"without authentication {o:.0f} ticks/s ({o / b:.2f})")  # fmt: skip
+    bc, fc = statistics.median(bare_cpu), statistics.median(full_cpu)
+    # Two cores give 2 s of CPU per wall second: a run needing fc per tick cannot
+    # pass 2 / fc ticks/s, however its work overlaps.
+    print(f"CPU per tick, all processes: bare {1e6 * bc:.0f} us, full {1e6 * fc:.0f} us; the full run's ceiling "
+          f"on {os.cpu_count()} cores, all busy: {os.cpu_count() / fc:.0f} ticks/s "
+          f"({os.cpu_count() / fc / b:.2f} of bare)")  # fmt: skip
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 
