@@ -201,6 +201,14 @@ def _markdown(
         f"with obstacles {summary.get('obstacle_collisions')}.",
         f"Messages dropped by the link layer: {summary.get('drops_total')}; lockstep misses "
         f"{summary.get('lockstep_misses')}; rejected payloads {summary.get('rejected_total')}.",
+        *(
+            [
+                f"**The recording is incomplete:** {summary['recording_gap']}; the target errors measured "
+                "from it (the last two columns) miss those ticks."
+            ]
+            if summary.get("recording_gap")
+            else []
+        ),
         "",
         *_events_markdown(summary),
         *_faults_markdown(summary),

@@ -299,6 +299,12 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     why = "normal (real-time priority 10 refused: Operation not permitted; it needs root or CAP_SYS_NICE)"
     print_result(RunResult(tmp_path, {**realtime, "world_scheduling": why}, 1), out)
     assert f"late ticks 3 (worst 55.1 ms) (world scheduling {why}), drops None" in out.getvalue()
+    out = io.StringIO()  # a lockstep recording that misses ticks: the console and the report say which
+    gap = "the logger recorded 715 of the 880 ticks the world sent (missing: truth ticks 100-264)"
+    print_result(RunResult(tmp_path, {**ticked, "mode": "lockstep", "recording_gap": gap}, 0), out)
+    assert f"  RECORDING INCOMPLETE: {gap}\n" in out.getvalue()
+    assert f"**The recording is incomplete:** {gap};" in report._markdown({**ticked, "recording_gap": gap}, [2])
+    assert "incomplete" not in report._markdown(ticked, [2]) + text
 
 
 def test_version() -> None:
