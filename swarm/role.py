@@ -24,6 +24,7 @@ import signal
 import sys
 import threading
 import time
+import warnings
 from typing import TYPE_CHECKING
 
 from formation_swarm.proc import StopEvent, install_stop_handlers, wait_for
@@ -184,10 +185,20 @@ class Role:
 
         try:
             check_run_id(args.run)
-            return scenario_mod.load(args.scenario)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always", scenario_mod.ScenarioWarning)
+                sc = scenario_mod.load(args.scenario)
         except ValueError as exc:
             self.complain(str(exc))
             return EXIT_USAGE
+        # One line each, in the role's words (Python's own format reads the
+        # source file for the line that warned: for 100 agents, 100 times).
+        for w in caught:
+            if issubclass(w.category, scenario_mod.ScenarioWarning):
+                self.complain(f"scenario warning: {w.message}")
+            else:
+                warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+        return sc
 
     def connect(self, args: argparse.Namespace) -> zenoh.Session | int:
         """The Zenoh session of the common flags, open, or the exit code after

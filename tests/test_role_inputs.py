@@ -177,3 +177,21 @@ def test_the_logger_takes_telemetry_far_ahead_of_its_truth_but_nothing_past_the_
         "2": {"first": 510, "last": 511, "skipped": 0, "gaps": []},
         "3": {"first": last + 2, "last": last + 2, "skipped": 0, "gaps": []},
     }
+
+
+def test_a_role_says_each_scenario_warning_on_one_line_of_its_own(tmp_path, capsys) -> None:
+    import argparse
+
+    from formation_swarm import role as role_mod
+    from formation_swarm import scenario_files
+
+    with pytest.warns(scenario_mod.ScenarioWarning):
+        slow = scenario_mod.load(SCENARIOS / "fig6_turn_vn_1_5.toml", {"leader.speed_mps": 0.9})
+    path = tmp_path / "slow.toml"
+    path.write_text(scenario_files.dumps(slow.raw))
+    role = role_mod.Role("agent 2", 5.0)
+    sc = role.load(argparse.Namespace(run=RUN, scenario=str(path)))
+    assert isinstance(sc, scenario_mod.Scenario)
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == len(slow.warnings) == 1
+    assert err[0] == f"agent 2: scenario warning: {slow.warnings[0]}"  # not Python's format, with its source line
