@@ -50,7 +50,7 @@ from formation_swarm.agents.follower import Decision, Follower
 from formation_swarm.agents.inbox import InboxChecks
 from formation_swarm.agents.leader import CodeRepeats, FormationSwitch
 from formation_swarm.agents.pilot import PathPilot
-from formation_swarm.proc import JsonWriter, exit_after_main, wait_for
+from formation_swarm.proc import SEND_DRAIN_S, JsonWriter, exit_after_main, wait_for, wait_sent
 from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.codec import Rejections
@@ -585,6 +585,11 @@ def main(argv: list[str] | None = None) -> int:
         waits = "the world and its followers" if agent.is_leader else "the world"
         role.say(f"{where}; run {args.run}, {part}: waiting up to {role.peers_timeout_s:g} s for {waits}")
         code = agent.run()
+        # Our last telemetry and its end-of-stream mark may still be in our kernel
+        # (the router reads them only as fast as the logger takes them): leaving
+        # now could throw them away (swarm.proc.wait_sent).
+        if (unsent := wait_sent(SEND_DRAIN_S)) > 0:
+            role.say(f"{unsent} bytes not yet taken by the router after {SEND_DRAIN_S:g} s; leaving anyway")
         agent.stats_writer.close(agent.stats())  # the last write, after any older snapshot
         if code != role_mod.EXIT_NO_PEERS:
             written = f"stats in {args.stats}" if args.stats else "no --stats: counters not written"

@@ -99,7 +99,7 @@ def grants(run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[s
         "logger": Grants(
             subscribe=(k.world_all, k.all_telemetry),
             tokens=(k.alive("logger", 0),),
-            watch=(k.alive("world", 0),),
+            watch=(k.alive("world", 0), k.alive_all("agent")),  # the agents': a follower gone sends no more
         ),
         "launcher": Grants(
             subscribe=(k.status, k.faults),

@@ -52,7 +52,11 @@ SEND_PERIOD_S = 0.25
 # 0.85 ms per second), not more rows.
 SEND_S_PER_ROBOT = 0.02
 FLUSH_PERIOD_S = 0.5
-END_WAIT_S = 1.0
+# After "done", at most this long for the followers' last telemetry: each one's
+# end-of-stream mark, or its agent's leaving (a killed agent sends no mark).
+# Long, for a machine that starves the logger (nice 10): what is still on its
+# way when the logger closes is not recorded.
+END_WAIT_S = 10.0
 # How far past the run's last tick a message may be stamped: a follower's last
 # telemetry may follow the world's "done" by a tick. Not a bound relative to the
 # last truth taken: truth and telemetry travel in separate batches from separate
@@ -89,6 +93,7 @@ class Logger:
         self.inbox: queue.SimpleQueue[tuple[str, bytes]] = queue.SimpleQueue()
         self.rejections = Rejections()
         self.ended: set[int] = set()  # followers whose telemetry stream has ended
+        self.agents_present: set[int] = set()  # robots whose agent's token is alive
         self.counts = {"truth": 0, "telemetry": 0, "fault_calls": 0, "other": 0}
         self.world_seen = False
         self.world_gone = False
@@ -114,6 +119,12 @@ class Logger:
         if key == self.keys.status or payload == END_OF_STREAM:
             self.wake.set()  # the end of the run is handled at once, the rest per send
 
+    def _on_agent_alive(self, sample: zenoh.Sample) -> None:
+        rid = str(sample.key_expr).rpartition("/")[2]
+        if rid.isdigit():
+            (self.agents_present.add if sample.kind == zenoh.SampleKind.PUT else self.agents_present.discard)(int(rid))
+            self.wake.set()  # a follower gone sends no more telemetry: the end may be here
+
     def _on_world_alive(self, sample: zenoh.Sample) -> None:
         if sample.kind == zenoh.SampleKind.PUT:
             self.world_seen = True
@@ -127,6 +138,9 @@ class Logger:
         s.declare_subscriber(k.world_all, self._on_sample)
         s.declare_subscriber(k.all_telemetry, self._on_sample)
         s.liveliness().declare_subscriber(k.alive("world", 0), self._on_world_alive, history=True)
+        # Its token goes after its last telemetry (same link, in order): a follower
+        # gone has nothing more on its way.
+        s.liveliness().declare_subscriber(k.alive_all("agent"), self._on_agent_alive, history=True)
         gc.freeze()  # start-up objects (numpy, scipy, zenoh) leave the collector's scans
         token = s.liveliness().declare_token(k.alive("logger", 0))
         last_send = last_flush = time.monotonic()
@@ -143,7 +157,7 @@ class Logger:
             while (
                 not self.stop.is_set()
                 and not self.world_gone
-                and not (self.done and (self.ended >= followers or time.monotonic() > end_by))
+                and not (self.done and (self._all_ended(followers) or time.monotonic() > end_by))
             ):
                 if not self.world_seen and self.role.left_s() <= 0:
                     self.end_note = "gave up waiting for the world"
@@ -174,6 +188,10 @@ class Logger:
             self.loop_cpu_s = time.process_time() - cpu0
             token.undeclare()
         return self._exit_code()
+
+    def _all_ended(self, followers: set[int]) -> bool:
+        """Every follower's telemetry has ended: its end-of-stream mark taken, or its agent gone."""
+        return followers <= self.ended | (followers - self.agents_present)
 
     def _exit_code(self) -> int:
         code, self.end_note = self.role.follower_end(self.keys.run_id, self.done, self.started)

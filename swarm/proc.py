@@ -21,6 +21,8 @@ from typing import Any
 # rare race costs at most this much, and a set event still ends the wait at
 # once. (A Zenoh channel's recv looks for signals itself.)
 SIGNAL_CHECK_S = 0.1
+# At exit, how long a role waits for what it wrote to reach its peers (wait_sent).
+SEND_DRAIN_S = 5.0
 
 
 class StopEvent(threading.Event):
@@ -77,6 +79,50 @@ def exit_after_main(code: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     sys.exit(code)
+
+
+def unsent_bytes() -> int:
+    """Bytes this process has written to its TCP sockets that the peers' kernels
+    have not acknowledged yet (Linux ``SIOCOUTQ``); 0 where /proc is missing."""
+    import fcntl
+    import socket
+    import struct
+    import termios
+
+    total = 0
+    try:
+        fds = os.listdir("/proc/self/fd")
+    except OSError:
+        return 0
+    for name in fds:
+        fd = int(name)
+        try:
+            if not os.readlink(f"/proc/self/fd/{name}").startswith("socket:"):
+                continue
+            with socket.socket(fileno=os.dup(fd)) as sock:  # a duplicate: closing it leaves ours open
+                if sock.family not in (socket.AF_INET, socket.AF_INET6) or sock.type != socket.SOCK_STREAM:
+                    continue
+            total += struct.unpack("i", fcntl.ioctl(fd, termios.TIOCOUTQ, b"\0" * 4))[0]  # TIOCOUTQ == SIOCOUTQ
+        except OSError:
+            continue  # closed meanwhile, or not a socket we can ask
+    return total
+
+
+def wait_sent(timeout_s: float, poll_s: float = 0.01) -> int:
+    """Wait until every byte this process wrote to its TCP sockets has reached
+    the peer's kernel, at most ``timeout_s``; the bytes still unsent then.
+
+    A process that exits while its socket still holds unread input makes Linux
+    send a reset instead of closing, and the reset throws away what was written
+    but not yet acknowledged: a lockstep agent's last telemetry batches, stuck
+    behind a slow logger, were lost that way (data the peer's kernel already
+    acknowledged survives a reset). So a role waits for this before it exits.
+    Zenoh writes on its own threads; a Zenoh put has returned once the bytes are
+    in our kernel's send buffer, not once they have left it."""
+    deadline = time.monotonic() + timeout_s
+    while (left := unsent_bytes()) > 0 and time.monotonic() < deadline:
+        time.sleep(poll_s)
+    return left
 
 
 def wait_for(event: threading.Event, timeout_s: float | None = None) -> bool:

@@ -106,3 +106,56 @@ def test_priority_zero_is_the_normal_class_and_out_of_range_is_refused() -> None
     assert proc.realtime_priority(0) == "normal"
     with pytest.raises(ValueError, match=r"\[0, 99\], got 100"):
         proc.realtime_priority(100)
+
+
+SENT = 2_000_000  # far more than the reader's buffer holds
+
+
+def _writer(port: int, wait: bool) -> None:
+    """A child process: write SENT bytes, maybe wait until they are taken, and
+    exit with input unread (the reader's greeting): Linux resets the connection."""
+    import socket
+
+    try:
+        with socket.create_connection(("127.0.0.1", port)) as s:
+            s.sendall(b"x" * SENT)  # returns once our kernel holds it all, not once it left
+            if wait:
+                proc.wait_sent(20.0)
+            os._exit(0)  # the unread greeting makes this a reset
+    finally:
+        os._exit(1)
+
+
+@pytest.mark.parametrize("wait", [False, True])
+def test_what_a_process_wrote_survives_its_exit_only_once_the_peer_took_it(wait: bool) -> None:
+    """proc.wait_sent: without it a process that exits with input unread (a
+    reset) throws away what it wrote and the slow reader had not yet taken."""
+    import multiprocessing
+    import socket
+    import time
+
+    with socket.socket() as srv:
+        srv.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 8192)  # a slow reader with a small buffer
+        srv.bind(("127.0.0.1", 0))
+        srv.listen()
+        child = multiprocessing.get_context("fork").Process(target=_writer, args=(srv.getsockname()[1], wait))
+        child.start()
+        conn, _ = srv.accept()
+        with conn:
+            conn.sendall(b"hello")  # never read by the writer
+            got, deadline = 0, time.monotonic() + 60
+            try:
+                while time.monotonic() < deadline:
+                    chunk = conn.recv(16384)
+                    if not chunk:
+                        break
+                    got += len(chunk)
+                    time.sleep(0.0005)  # slower than the writer
+            except ConnectionResetError:
+                pass
+        child.join(30)
+    assert child.exitcode == 0
+    if wait:
+        assert got == SENT
+    else:
+        assert got < SENT  # the reset threw the rest away

@@ -43,7 +43,7 @@ def test_the_grants_of_a_three_robot_run() -> None:
     assert g["logger"] == Grants(
         subscribe=(f"{R}/world/**", f"{R}/robot/*/telemetry"),
         tokens=(f"{R}/alive/logger/0",),
-        watch=(f"{R}/alive/world/0",),
+        watch=(f"{R}/alive/world/0", f"{R}/alive/agent/*"),  # the agents': a follower gone sends no more
     )
     # The launcher hears the run's status and the world's fault calls, and holds a token of its own.
     assert g["launcher"] == Grants(
@@ -102,8 +102,8 @@ def test_the_router_rules_of_a_two_robot_run() -> None:
             ("sub", "ingress", ["declare_subscriber"], [f"{R}/world/**", f"{R}/robot/*/telemetry"]),
             ("data", "egress", ["put"], [f"{R}/world/**", f"{R}/robot/*/telemetry"]),
             ("token", "ingress", ["liveliness_token"], [f"{R}/alive/logger/0"]),
-            ("watch", "ingress", WATCHING, [f"{R}/alive/world/0"]),
-            ("seen", "egress", SEEN, [f"{R}/alive/world/0"]),
+            ("watch", "ingress", WATCHING, [f"{R}/alive/world/0", f"{R}/alive/agent/*"]),
+            ("seen", "egress", SEEN, [f"{R}/alive/world/0", f"{R}/alive/agent/*"]),
         ],
         "launcher": [
             ("sub", "ingress", ["declare_subscriber"], [f"{R}/world/status", f"{R}/world/faults"]),

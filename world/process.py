@@ -70,7 +70,11 @@ REALTIME_PRIORITY = 10
 # STATUS_PERIOD_S like lockstep: each one is routed to every agent, whose
 # status callback thread then wakes and takes the GIL from its loop.
 STATUS_EVERY_TICK_UP_TO = 25
-LINGER_S = 2.0  # after "done", at most this long for the others to leave
+LINGER_S = 2.0  # after "done", at most this long for the agents to leave
+# ... and for the logger, which leaves once it has every follower's last
+# telemetry: a router that left first would lose what it had not yet forwarded.
+# Longer, for a logger the machine starves (it runs at nice 10).
+LINGER_LOGGER_S = 10.0
 # Lockstep holds at most one command per robot here; when full, Zenoh waits
 # for the loop (back-pressure) rather than dropping.
 CMD_CAPACITY = 1024
@@ -250,10 +254,15 @@ class World:
 
     def _linger(self) -> None:
         """Stay up (we may be the router) until the agents and the logger have left
-        on "done", so that their last messages still get routed. Bounded."""
-        end = time.monotonic() + LINGER_S
-        while self.present and not self.stop.is_set() and time.monotonic() < end:
-            self._drain(until=end)
+        on "done", so that their last messages still get routed. Bounded: the
+        agents LINGER_S, the logger LINGER_LOGGER_S."""
+        start, logger = time.monotonic(), self.keys.alive("logger", 0)
+        while not self.stop.is_set():
+            now = time.monotonic()
+            ends = [start + (LINGER_LOGGER_S if key == logger else LINGER_S) for key in self.present]
+            if not ends or now >= max(ends):
+                return
+            self._drain(until=max(ends))
 
     def _wait_ready(self, obs_pubs: dict[int, zenoh.Publisher]) -> bool:
         """Every agent's token (declared after its subscribers and after its
