@@ -169,3 +169,34 @@ def test_a_lockstep_run_whose_recording_misses_ticks_is_not_taken_as_done(tmp_pa
         (tmp_path / name / "summary.json").write_text(json.dumps(summary))
     assert sweep._load_done(tmp_path / "whole") == whole
     assert sweep._load_done(tmp_path / "lossy") is None  # run again on resume
+
+
+def test_a_run_that_lost_ticks_is_run_again_and_the_lossy_attempt_kept(tmp_path: Path, monkeypatch) -> None:
+    """The first attempt's recording misses ticks (its logger's count cut to 25
+    of 40, as two test suites saw happen): the sweep says so, keeps that attempt
+    beside the run and runs it again."""
+    from formation_swarm.launcher import Launch
+
+    real_wait, results = Launch.wait, []
+
+    def first_lossy(self: Launch, *args: object, **kwargs: object) -> object:
+        res = real_wait(self, *args, **kwargs)
+        if not results:
+            res.summary["parts"]["logger"]["messages"]["truth"] = 25
+        results.append(res)
+        return res
+
+    monkeypatch.setattr(Launch, "wait", first_lossy)
+    lines: list[str] = []
+    job = Job("controller.vn=1.5", {"controller.vn": 1.5, "run.duration_s": 2.0}, 0)
+    sweep = Sweep(SCENARIOS / "fig7_turn_vn_dynamic.toml", [job], tmp_path, logger=True, progress=lines.append)
+    rows = sweep.run()
+    assert [r["exit_code"] for r in rows] == [0]
+    name = rows[0]["run"]
+    assert [r.summary["ticks"] for r in results] == [40, 40]  # two whole runs of 2 s at 20 Hz
+    kept = tmp_path / "runs" / f"{name}.incomplete"
+    assert json.loads((kept / "summary.json").read_text())["ticks"] == 40
+    assert summary_mod.recording_gap(json.loads((tmp_path / "runs" / name / "summary.json").read_text())) is None
+    again = [line for line in lines if "running it again" in line]
+    assert again == [f"[sweep] {name}: the logger recorded 25 of the 40 ticks the world sent; running it again "
+                     f"(its metrics would miss those ticks; this attempt is kept in {kept})"]  # fmt: skip
