@@ -27,6 +27,7 @@ from formation_swarm.cliargs import (
     USAGE_ERROR,
     Parser,
     add_tls_arguments,
+    integer,
     make_folder,
     port,
     rerun_url,
@@ -83,6 +84,8 @@ def _run_flag_conflicts(args: argparse.Namespace) -> str | None:
     for flag, value in (("--grpc-port", args.grpc_port), ("--web-port", args.web_port)):
         if value is not None and not args.serve_web:
             return f"argument {flag}: only used with --serve-web, got {flag} {value} alone"
+    if args.rt_priority is not None and args.mode != "realtime":
+        return f"argument --rt-priority: only used with --mode realtime, got it in {args.mode}"
     if args.serve_web and (args.grpc_port or GRPC_PORT) == (args.web_port or WEB_PORT):
         return f"arguments --grpc-port and --web-port: must differ, got {args.grpc_port or GRPC_PORT} for both"
     return None
@@ -109,7 +112,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             live=args.live, serve_web=args.serve_web, kills=kills, faults=args.fault,
             web_ports=(args.grpc_port or GRPC_PORT, args.web_port or WEB_PORT), hosts=hosts,
             placement=parse_placement(args.place or ""), listen=args.listen, host_logins=args.host_logins,
-            hosts_timeout_s=args.hosts_timeout, tls=tls(args),
+            hosts_timeout_s=args.hosts_timeout, tls=tls(args), rt_priority=args.rt_priority,
         )  # fmt: skip
         if args.out is not None and not args.out.strip():
             raise ValueError("--out '': an empty name")
@@ -198,6 +201,9 @@ def _add_run(sub: argparse._SubParsersAction[Parser]) -> None:
                      "scheduling class where the machine allows it (root, CAP_SYS_NICE or an RLIMIT_RTPRIO of "
                      "10: see swarm world --rt-priority; the result line says when it did not) "
                      "(default: lockstep)")  # fmt: skip
+    run.add_argument("--rt-priority", type=integer(0, 99), default=None, metavar="0-99",
+                     help="realtime: the world's real-time priority, or 0 to keep it in the normal class "
+                     "(default: swarm world's, 10)")  # fmt: skip
     run.add_argument("--seed", type=seed, default=None, metavar="N",
                      help="seed of every random draw (camera noise, link drops, the faults' draws), "
                      "an integer in [0, 2**63 - 1] (default: the scenario's run.seed)")  # fmt: skip

@@ -146,9 +146,13 @@ class Launch:
         host_logins: str | Path | None = None,
         hosts_timeout_s: float = 30.0,
         tls: trust.Tls | None = None,
+        rt_priority: int | None = None,
     ) -> None:
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be 'lockstep' or 'realtime', got {mode!r}")
+        if rt_priority is not None and not (mode == "realtime" and 0 <= rt_priority <= 99):
+            raise ValueError(f"rt_priority: 0-99 and only in real time, got {rt_priority!r} in {mode}")
+        self.rt_priority = rt_priority  # the real-time world's (None: swarm world's default)
         self.scenario_path = scenario_files.resolve(scenario_path)
         ov = dict(overrides or {})
         if seed is not None:
@@ -303,7 +307,8 @@ class Launch:
             self.session = zenoh.open(conf)
         specs = {
             "world": [*py("world.process"), *common, "--mode", self.mode, "--stats", str(stats / "world.json"),
-                      *zenoh_role, *["--expect-logger"] * self.logger, *["--process-faults"] * self.process_faults],
+                      *zenoh_role, *["--expect-logger"] * self.logger, *["--process-faults"] * self.process_faults,
+                      *(["--rt-priority", str(self.rt_priority)] if self.rt_priority is not None else [])],
         }  # fmt: skip
         if self.logger:
             extra = ["--live", self.live] if self.live else []

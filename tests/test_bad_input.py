@@ -72,6 +72,14 @@ REJECTED = {
         [*RUN, "--grpc-port", "9000"],
         "argument --grpc-port: only used with --serve-web",
     ),
+    "run: --rt-priority in lockstep": (
+        [*RUN, "--rt-priority", "5"],
+        "argument --rt-priority: only used with --mode realtime, got it in lockstep",
+    ),
+    "run: --rt-priority 100": (
+        [*RUN, "--mode", "realtime", "--rt-priority", "100"],
+        "argument --rt-priority: must be in [0, 99], got '100'",
+    ),
     "run: one port for two": (
         [*RUN, "--serve-web", "--grpc-port", "9000", "--web-port", "9000"],
         "arguments --grpc-port and --web-port: must differ, got 9000 for both",

@@ -113,7 +113,7 @@ def test_same_seed_same_digest_other_seed_differs(
 def test_forked_roles_are_what_exec_would_start(swarm_launch: Callable[..., Launch]) -> None:
     """Each role forked from the spawner shows its own command line, leads its own
     session, reads /dev/null, writes its log, and left the server's pipes closed."""
-    launch = swarm_launch(FIG11, mode="realtime", overrides={"run.duration_s": 30.0})
+    launch = swarm_launch(FIG11, mode="realtime", overrides={"run.duration_s": 30.0}, rt_priority=7)
     assert launch.wait_until(lambda: launch.sim_time() >= 0.5, timeout_s=60)
     for name, pid in launch.pids().items():
         argv = Path(f"/proc/{pid}/cmdline").read_bytes().rstrip(b"\0").decode().split("\0")[0].split(" ")
@@ -125,12 +125,15 @@ def test_forked_roles_are_what_exec_would_start(swarm_launch: Callable[..., Laun
         # Its parent is the spawner's server, which ends with the launcher.
         assert Path(f"/proc/{pid}/stat").read_text().split(") ")[1].split()[1] != str(os.getpid()), name
     # The real-time world, every thread of it (Zenoh's too), in the real-time
-    # class where this machine allows it; nothing else.
+    # class at the priority asked (swarm run --rt-priority) where this machine
+    # allows it; nothing else.
     rt = subprocess.run([sys.executable, "-c", "import os; os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(10))"],
                         check=False).returncode == 0  # fmt: skip
     for name, pid in launch.pids().items():
-        policies = {os.sched_getscheduler(int(t.name)) for t in Path(f"/proc/{pid}/task").iterdir()}
+        tids = [int(t.name) for t in Path(f"/proc/{pid}/task").iterdir()]
+        policies = {os.sched_getscheduler(tid) for tid in tids}
         assert policies == ({os.SCHED_RR} if rt and name == "world" else {os.SCHED_OTHER}), name
+        assert {os.sched_getparam(tid).sched_priority for tid in tids} == {7 if rt and name == "world" else 0}, name
     launch.stop()
 
 
