@@ -100,12 +100,12 @@ class Logger:
         self.started = False  # the run's first status or truth has been handled
         self.done = False
         self.last_tick: dict[int, int] = {}  # per sender (WORLD_ID: truth), the last tick taken
-        # Per sender, the first GAPS_KEPT runs of ticks skipped between two taken
-        # ([first, last] missing) and how many ticks were skipped in all. Real time
+        # Per sender, the first GAPS_KEPT runs of ticks missing between two taken
+        # ([first, last] missing) and how many ticks were missing in all. Real time
         # drops by design; in lockstep every tick is sent, so a gap is a loss.
         self.gaps: dict[int, list[list[int]]] = {}
         self.first_tick: dict[int, int] = {}
-        self.skipped: dict[int, int] = {}
+        self.missing: dict[int, int] = {}
         self.last_run_tick = sc.ticks + TICKS_PAST_END
         self.end_note = "not started"  # why the loop ended, for the last report line
         self.loop_cpu_s = 0.0
@@ -244,7 +244,7 @@ class Logger:
             self.rejections.reject("tick past the run's end")
             return False
         if last >= 0 and msg.tick > last + 1:
-            self.skipped[msg.sender] = self.skipped.get(msg.sender, 0) + msg.tick - last - 1
+            self.missing[msg.sender] = self.missing.get(msg.sender, 0) + msg.tick - last - 1
             kept = self.gaps.setdefault(msg.sender, [])
             if len(kept) < GAPS_KEPT:
                 kept.append([last + 1, msg.tick - 1])
@@ -260,13 +260,13 @@ class Logger:
 
     def tick_stats(self) -> dict[str, dict[str, Any]]:
         """Per sender ("0": the world's truth, else a follower's telemetry): the
-        first and last tick taken, how many were skipped between and where
+        first and last tick taken, how many were missing between and where
         (swarm.summary.recording_gap says it in words)."""
         return {
             str(sender): {
                 "first": self.first_tick.get(sender),
                 "last": last,
-                "skipped": self.skipped.get(sender, 0),
+                "missing": self.missing.get(sender, 0),
                 "gaps": self.gaps.get(sender, []),
             }
             for sender, last in sorted(self.last_tick.items())

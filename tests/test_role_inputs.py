@@ -169,13 +169,13 @@ def test_the_logger_takes_telemetry_far_ahead_of_its_truth_but_nothing_past_the_
     assert not log._fresh(SimpleNamespace(sender=2, tick=510))
     assert log._fresh(SimpleNamespace(sender=2, tick=511))  # a huge tick refused did not mute the robot
     assert log.rejections.by_reason == {"tick past the run's end": 2, "replayed or reordered": 1}
-    # Where ticks were skipped, per sender: truth from tick 10, R2 from 510, R3 only its last.
+    # Where ticks were missing, per sender: truth from tick 10, R2 from 510, R3 only its last.
     for tick in (11, 12, 20, 21, 40):
         assert log._fresh(SimpleNamespace(sender=WORLD_ID, tick=tick))
     assert log.tick_stats() == {
-        "0": {"first": 10, "last": 40, "skipped": 7 + 18, "gaps": [[13, 19], [22, 39]]},
-        "2": {"first": 510, "last": 511, "skipped": 0, "gaps": []},
-        "3": {"first": last + 2, "last": last + 2, "skipped": 0, "gaps": []},
+        "0": {"first": 10, "last": 40, "missing": 7 + 18, "gaps": [[13, 19], [22, 39]]},
+        "2": {"first": 510, "last": 511, "missing": 0, "gaps": []},
+        "3": {"first": last + 2, "last": last + 2, "missing": 0, "gaps": []},
     }
 
 

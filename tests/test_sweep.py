@@ -155,8 +155,8 @@ def test_a_lockstep_run_whose_recording_misses_ticks_is_not_taken_as_done(tmp_pa
         "the logger recorded 820 of the 880 telemetry messages the followers sent (one per tick answered)"
     )
     # Where: the logger's per-sender first and last tick and the gaps between.
-    ticks = {"0": {"first": 0, "last": 879, "skipped": 165, "gaps": [[100, 264]]},
-             "2": {"first": 3, "last": 822, "skipped": 0, "gaps": []}}  # fmt: skip
+    ticks = {"0": {"first": 0, "last": 879, "missing": 165, "gaps": [[100, 264]]},
+             "2": {"first": 3, "last": 822, "missing": 0, "gaps": []}}  # fmt: skip
     placed = {**no_tel, "parts": {**no_tel["parts"], "logger": {**no_tel["parts"]["logger"], "ticks": ticks}}}
     assert summary_mod.recording_gap(placed) == (
         "the logger recorded 820 of the 880 telemetry messages the followers sent (one per tick answered) "
