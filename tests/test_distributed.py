@@ -137,6 +137,29 @@ def test_forked_roles_are_what_exec_would_start(swarm_launch: Callable[..., Laun
     launch.stop()
 
 
+MAIN_SCRIPT = """
+import sys
+print("the main script ran", flush=True)
+from pathlib import Path
+from formation_swarm.spawner import Forked
+
+if __name__ == "__main__":
+    argv = [sys.executable, "-m", "formation_swarm.agents.process", "--help"]
+    print("exit", Forked("formation_swarm.agents.process", argv, Path(sys.argv[1]), {}).wait(60), flush=True)
+"""
+
+
+def test_a_forked_role_does_not_run_the_launchers_main_script_again(tmp_path: Path) -> None:
+    """multiprocessing runs the parent's __main__ again in each child; a role needs
+    nothing of it (for a benchmark script, that was its imports, 20 ms a child)."""
+    script = tmp_path / "launcher_script.py"
+    script.write_text(MAIN_SCRIPT)
+    out = subprocess.run([sys.executable, str(script), str(tmp_path / "role.log")], capture_output=True, text=True,
+                         timeout=120, check=True).stdout  # fmt: skip
+    assert out == "the main script ran\nexit 0\n"  # once: in the launcher, not again in its child
+    assert (tmp_path / "role.log").read_text().startswith("usage: swarm agent")
+
+
 def test_runs_with_observation_and_formation_code_drops_are_reproducible(
     swarm_run: Callable[..., RunResult], swarm_launch: Callable[..., Launch]
 ) -> None:
