@@ -241,7 +241,9 @@ def recording_gap(summary: Mapping[str, Any]) -> str | None:
     lost part of it gives wrong figures (swarm.sweep runs it again). Lockstep
     truth and telemetry are sent with Zenoh's BLOCK, yet in two of six test
     suites one fig9 run lost a batch (165 of 880 ticks of truth; 60 of 880
-    telemetry messages)."""
+    telemetry messages), most likely at the run's end: processes left before
+    a starved logger had taken what they sent (swarm.proc.wait_sent, the
+    logger's END_WAIT_S and the world's LINGER_LOGGER_S now wait for it)."""
     if summary.get("mode") != "lockstep":
         return None
     parts = summary.get("parts") or {}
