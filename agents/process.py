@@ -63,6 +63,9 @@ WORLD_ID = 0
 # Lockstep holds at most a tick's observation and a few codes here; when full,
 # Zenoh waits for the loop (back-pressure) rather than dropping.
 INBOX_CAPACITY = 1024
+# After "done", a follower's longest wait for the logger to leave (its own
+# wait for the followers' last telemetry, logger.END_WAIT_S, ends first).
+LOGGER_WAIT_S = 12.0
 # Wall time between two writes of the counters while the run goes on: one
 # write (JSON, then a rename over the old file) costs 0.3-1 ms of CPU here, so
 # beyond 25 robots it is spaced out to STATS_S_PER_ROBOT per robot (4 s for 100).
@@ -126,6 +129,8 @@ class Agent:
         self.world_lost_at = 0.0
         self.world_back_after_s: list[float | None] = []  # per loss of the world: how long it was away
         self.peers_changed = threading.Event()  # a matching change, the world's token or a stop
+        self.logger_present = False  # the run's logger holds its token
+        self.logger_left = threading.Event()  # ... and has undeclared it (or a stop came)
         self.started = False  # a message of the run has arrived
         self.done = False
         self.end_note = "not started"  # why the loop ended, for the last report line
@@ -205,6 +210,8 @@ class Agent:
         self.stop.add_waker(self._close_inbox)
         s.declare_subscriber(k.status, self._on_status)
         s.liveliness().declare_subscriber(k.alive("world", 0), self._on_world_alive, history=True)
+        if not self.is_leader:  # a follower stays until the logger has its last telemetry (_await_logger)
+            s.liveliness().declare_subscriber(k.alive("logger", 0), self._on_logger_alive, history=True)
         # Control messages are never dropped by Zenoh itself (only by our link
         # layer); telemetry, for the logger only, travels in batches: in real
         # time droppable (a stalled logger must not stall a robot), in lockstep not.
@@ -235,7 +242,27 @@ class Agent:
             if self.world_lost is not None:
                 self.world_lost.cancel()
             self.tel_pub.close()  # the logger waits for this end-of-stream mark
+            self._await_logger()
             token.undeclare()
+
+    def _on_logger_alive(self, sample: zenoh.Sample) -> None:
+        self.logger_present = sample.kind == zenoh.SampleKind.PUT
+        if not self.logger_present:
+            self.logger_left.set()
+
+    def _await_logger(self) -> None:
+        """After "done", until the logger has left (bounded, LOGGER_WAIT_S; not at
+        all without a logger, or after a stop). The logger leaves once it holds
+        every follower's end-of-stream mark, so then our telemetry has arrived
+        whole. Leaving first could lose its last batches on their way (in two of
+        three test suites, a run lost its followers' last 5-11 ticks): a process
+        that exits with input unread resets its connection, and the router then
+        drops what it had not yet read from it."""
+        if not (self.done and self.logger_present) or self.stop.is_set():
+            return
+        self.stop.add_waker(self.logger_left.set)
+        if not wait_for(self.logger_left, LOGGER_WAIT_S) and not self.stop.is_set():
+            self.role.say(f"the logger was still there {LOGGER_WAIT_S:g} s after the run's end; leaving anyway")
 
     def telemetry_publisher(self, pub: Any) -> BatchPublisher:
         """The telemetry's batches onto ``pub``: by wall time (every tick at

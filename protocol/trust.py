@@ -118,7 +118,8 @@ def grants(run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[s
             publish=(k.cmd(rid), k.telemetry(rid), *codes),
             subscribe=(k.inbox(rid), k.status),
             tokens=(k.alive("agent", rid),),
-            watch=(k.alive("world", 0), k.alive("agent", rid)),  # its own: is another agent flying it?
+            # Its own: is another agent flying it? The logger's: a follower leaves after it.
+            watch=(k.alive("world", 0), k.alive("agent", rid), k.alive("logger", 0)),
         )
     return out
 

@@ -55,14 +55,14 @@ def test_the_grants_of_a_three_robot_run() -> None:
         publish=(f"{R}/robot/1/cmd", f"{R}/robot/1/telemetry", f"{R}/robot/2/formation", f"{R}/robot/3/formation"),
         subscribe=(f"{R}/robot/1/*", f"{R}/world/status"),
         tokens=(f"{R}/alive/agent/1",),
-        watch=(f"{R}/alive/world/0", f"{R}/alive/agent/1"),
+        watch=(f"{R}/alive/world/0", f"{R}/alive/agent/1", f"{R}/alive/logger/0"),
     )
     for rid in (2, 3):
         assert g[f"agent-{rid}"] == Grants(
             publish=(f"{R}/robot/{rid}/cmd", f"{R}/robot/{rid}/telemetry"),
             subscribe=(f"{R}/robot/{rid}/*", f"{R}/world/status"),
             tokens=(f"{R}/alive/agent/{rid}",),
-            watch=(f"{R}/alive/world/0", f"{R}/alive/agent/{rid}"),
+            watch=(f"{R}/alive/world/0", f"{R}/alive/agent/{rid}", f"{R}/alive/logger/0"),
         )
 
 
@@ -117,16 +117,16 @@ def test_the_router_rules_of_a_two_robot_run() -> None:
             ("sub", "ingress", ["declare_subscriber"], [f"{R}/robot/1/*", f"{R}/world/status"]),
             ("data", "egress", ["put"], [f"{R}/robot/1/*", f"{R}/world/status"]),
             ("token", "ingress", ["liveliness_token"], [f"{R}/alive/agent/1"]),
-            ("watch", "ingress", WATCHING, [f"{R}/alive/world/0", f"{R}/alive/agent/1"]),
-            ("seen", "egress", SEEN, [f"{R}/alive/world/0", f"{R}/alive/agent/1"]),
+            ("watch", "ingress", WATCHING, [f"{R}/alive/world/0", f"{R}/alive/agent/1", f"{R}/alive/logger/0"]),
+            ("seen", "egress", SEEN, [f"{R}/alive/world/0", f"{R}/alive/agent/1", f"{R}/alive/logger/0"]),
         ],
         "agent-2": [
             ("put", "ingress", ["put"], [f"{R}/robot/2/cmd", f"{R}/robot/2/telemetry"]),
             ("sub", "ingress", ["declare_subscriber"], [f"{R}/robot/2/*", f"{R}/world/status"]),
             ("data", "egress", ["put"], [f"{R}/robot/2/*", f"{R}/world/status"]),
             ("token", "ingress", ["liveliness_token"], [f"{R}/alive/agent/2"]),
-            ("watch", "ingress", WATCHING, [f"{R}/alive/world/0", f"{R}/alive/agent/2"]),
-            ("seen", "egress", SEEN, [f"{R}/alive/world/0", f"{R}/alive/agent/2"]),
+            ("watch", "ingress", WATCHING, [f"{R}/alive/world/0", f"{R}/alive/agent/2", f"{R}/alive/logger/0"]),
+            ("seen", "egress", SEEN, [f"{R}/alive/world/0", f"{R}/alive/agent/2", f"{R}/alive/logger/0"]),
         ],
     }  # fmt: skip
     learn = {"id": "learn-subscribers", "permission": "allow", "flows": ["egress"],
