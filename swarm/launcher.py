@@ -558,6 +558,10 @@ class Launch:
             self.progress("[swarm] interrupted: stopping every process")
         self._watch()
         self.stop(graceful_first=not (interrupted or timed_out or start_failed))
+        for child in self.children.values():  # codes the fork server did not report, taken from the child's record
+            if getattr(child.proc, "unreported", False):
+                self.events.append({"event": "exit code not reported by the fork server", "process": child.name,
+                                    "code": child.proc.returncode})  # fmt: skip
         world_code = world.proc.returncode if world.proc is not None else None
         code = 130 if interrupted else (124 if timed_out else (0 if world_code == 0 and not start_failed else 1))
         world_stats = summary_mod.read_parts(self.run_dir / "stats").get("world", {})

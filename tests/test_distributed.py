@@ -160,6 +160,25 @@ def test_a_forked_role_does_not_run_the_launchers_main_script_again(tmp_path: Pa
     assert (tmp_path / "role.log").read_text().startswith("usage: swarm agent")
 
 
+def test_an_exit_code_the_fork_server_did_not_report_is_the_childs_own(tmp_path: Path, monkeypatch) -> None:
+    """multiprocessing says 255 when it cannot read a child's code from the fork
+    server (a suite saw it once, for a world that had said exit code 0): the
+    code is then the one the child wrote itself."""
+    from formation_swarm.spawner import UNREPORTED, Forked
+
+    argv = [sys.executable, "-m", "formation_swarm.agents.process", "--no-such-flag"]  # a usage error: exit 2
+    reported = Forked("formation_swarm.agents.process", argv, tmp_path / "a.log", {})
+    assert reported.wait(60) == 2
+    assert not reported.unreported
+    lost = Forked("formation_swarm.agents.process", argv, tmp_path / "b.log", {})
+    lost._p.join(60)
+    monkeypatch.setattr(type(lost._p), "exitcode", property(lambda _p: UNREPORTED))
+    assert lost.poll() == 2
+    assert lost.unreported
+    assert not Path(lost.exit_path).exists()  # no file left behind
+    assert not Path(reported.exit_path).exists()
+
+
 def test_runs_with_observation_and_formation_code_drops_are_reproducible(
     swarm_run: Callable[..., RunResult], swarm_launch: Callable[..., Launch]
 ) -> None:
