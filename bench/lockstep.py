@@ -227,9 +227,10 @@ def main() -> None:
         )
     b, bl = statistics.median(bare), statistics.median(bare_ll)
     f, q, o = statistics.median(full), statistics.median(quiet), statistics.median(open_)
-    print(f"median: bare {b:.0f} ticks/s, bare low-latency {bl:.0f}, full {f:.0f} ticks/s (full/bare {f / b:.2f}, "
-          f"full/bare low-latency {f / bl:.2f}), without the logger {q:.0f} ticks/s ({q / b:.2f}), "
-          f"without authentication {o:.0f} ticks/s ({o / b:.2f})")  # fmt: skip
+    print(f"median: bare {b:.0f} ticks/s, bare low-latency {bl:.0f} ticks/s, full {f:.0f} ticks/s "
+          f"(full/bare {f / b:.2f}, full/bare low-latency {f / bl:.2f}), "
+          f"without the logger {q:.0f} ticks/s ({q / b:.2f} of bare), "
+          f"without authentication {o:.0f} ticks/s ({o / b:.2f} of bare)")  # fmt: skip
     bc, fc = statistics.median(bare_cpu), statistics.median(full_cpu)
     # Two cores give 2 s of CPU per wall second: a run needing fc per tick cannot
     # pass 2 / fc ticks/s, however its work overlaps.

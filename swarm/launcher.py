@@ -192,6 +192,7 @@ class Launch:
         self.last_call_seq = 0
         self.current: dict[str, str] = {}  # a process of the scenario -> its newest child (agent-3 -> agent-3.2)
         self.frozen: set[str] = set()  # children stopped by SIGSTOP
+        self.frozen_by: dict[str, str] = {}  # the fault that froze (or thawed) each, last
         self.events: list[dict[str, Any]] = []
         self.started_at = 0.0
         for f in self.sc.faults:
@@ -415,6 +416,7 @@ class Launch:
 
     def _watch(self) -> None:
         self._read_status()
+        self._thaw_at_end()
         t = self.sim_time()
         if self.serve_web and self.logger and not self.said_web and self.last_status is not None:
             # The world starts once the logger is there, serving: the address works now.
@@ -458,6 +460,21 @@ class Launch:
             self.last_call_seq = call.seq
             self._execute(call, faults[call.index])
 
+    def _thaw_at_end(self) -> None:
+        """Once the world has said "done", a process still frozen by a fault that
+        outlasts the run is thawed: it could not leave, and the world and the
+        followers would wait for it (the logger: up to 10 s)."""
+        if not self.frozen or self.last_status is None or self.last_status.state != "done":
+            return
+        for name in sorted(self.frozen):
+            self.children[name].signal(signal.SIGCONT)
+            st = self.last_status
+            self.events.append({"event": "thawed", "process": name, "fault": self.frozen_by.get(name),
+                                "why": "the run's end", "sim_time_s": st.time_s, "tick": st.tick,
+                                "wall_s": time.monotonic() - self.started_at})  # fmt: skip
+            self.progress(f"[swarm] thawed {name} at the run's end (its freeze outlasted the run)")
+        self.frozen.clear()
+
     def _execute(self, call: FaultCall, fault: Fault) -> None:
         name = self.current[call.process]
         child = self.children[name]
@@ -466,6 +483,7 @@ class Launch:
         else:
             child.signal(SIGNALS[call.action])
             (self.frozen.add if call.action == "freeze" else self.frozen.discard)(name)
+            self.frozen_by[name] = str(fault)
         done = {"kill": "killed", "start": "started", "freeze": "frozen", "thaw": "thawed"}[call.action]
         self.events.append({"event": done, "process": name, "fault": str(fault), "tick": call.tick,
                             "sim_time_s": call.time_s, "wall_s": time.monotonic() - self.started_at,

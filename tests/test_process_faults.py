@@ -521,3 +521,18 @@ def test_a_leader_frozen_beyond_the_zenoh_lease_is_lost_then_rejoins(swarm_run: 
         assert r["first_below_after_s"] < 5.0
         assert r["error_after_window_m"] < 0.8  # measured 0.41 m and 0.45 m
     print("leader frozen 15 s: events", at, "back after", back_after_s, "recoveries", recs)
+
+
+def test_a_freeze_that_outlasts_the_run_is_thawed_at_its_end(swarm_run: Callable[..., RunResult]) -> None:
+    """A logger frozen from 1 s before the end, for 4 s: the launcher thaws it as
+    soon as the world says "done" (the world and the followers wait for it to
+    leave), and it records every tick all the same."""
+    res = swarm_run("fig9_ekf_noise", faults=["freeze logger@43s for=4s"])
+    assert res.exit_code == 0
+    ends = [e for e in res.summary["events"] if e["event"] == "thawed"]
+    assert [(e["process"], e["fault"], e["why"], e["tick"]) for e in ends] == [
+        ("logger", "freeze logger@43s for=4s", "the run's end", 880)
+    ]
+    assert res.summary["parts"]["logger"]["messages"]["truth"] == 880
+    assert res.summary["parts"]["logger"]["messages"]["telemetry"] == 880
+    assert res.summary["recording_gap"] is None

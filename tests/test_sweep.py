@@ -154,14 +154,22 @@ def test_a_lockstep_run_whose_recording_misses_ticks_is_not_taken_as_done(tmp_pa
     assert summary_mod.recording_gap(no_tel) == (
         "the logger recorded 820 of the 880 telemetry messages the followers sent (one per tick answered)"
     )
-    # Where: the logger's per-sender first and last tick and the gaps between.
-    ticks = {"0": {"first": 0, "last": 879, "missing": 165, "gaps": [[100, 264]]},
+    # Where, robot by robot: the logger's per-sender first and last tick and the gaps between.
+    ticks = {"0": {"first": 0, "last": 879, "missing": 0, "gaps": []},
              "2": {"first": 3, "last": 822, "missing": 0, "gaps": []}}  # fmt: skip
     placed = {**no_tel, "parts": {**no_tel["parts"], "logger": {**no_tel["parts"]["logger"], "ticks": ticks}}}
     assert summary_mod.recording_gap(placed) == (
-        "the logger recorded 820 of the 880 telemetry messages the followers sent (one per tick answered) "
-        "(missing: truth ticks 100-264; R2's telemetry ticks 0-2, 823-879)"
+        "the logger recorded 820 of the 880 telemetry messages R2 sent (one per tick answered) "
+        "(missing: R2's telemetry ticks 0-2, 823-879)"
     )
+    truth_gap = {"0": {"first": 0, "last": 879, "missing": 165, "gaps": [[100, 264]]}}
+    cut = {**lossy, "parts": {**lossy["parts"], "logger": {**lossy["parts"]["logger"], "ticks": truth_gap}}}
+    assert summary_mod.recording_gap(cut) == (
+        "the logger recorded 715 of the 880 ticks the world sent (missing: truth ticks 100-264)"
+    )
+    # A follower a fault killed: the batch it held died with it, by design; not a loss of the recording.
+    killed = {**placed, "events": [{"event": "killed", "process": "agent-2", "fault": "kill agent-2@20s"}]}
+    assert summary_mod.recording_gap(killed) is None
     assert summary_mod.recording_gap({**lossy, "mode": "realtime"}) is None  # real time may drop by design
     assert summary_mod.recording_gap({**whole, "parts": {}}) is None  # no logger, no recording
     for name, summary in (("whole", whole), ("lossy", lossy)):
