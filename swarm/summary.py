@@ -281,7 +281,11 @@ def recording_gap(summary: Mapping[str, Any]) -> str | None:
         return None
     for rid, sent in sorted(answered.items()):
         t = ticks.get(str(rid))
-        if rid in faulted or not isinstance(t, Mapping):
+        if rid in faulted:
+            continue
+        if not isinstance(t, Mapping):  # none of its telemetry reached the logger
+            if sent > 0:
+                return f"the logger recorded none of the {sent} telemetry messages R{rid} sent (one per tick answered)"
             continue
         first, last, missing = t.get("first"), t.get("last"), t.get("missing", 0)
         if not (isinstance(first, int) and isinstance(last, int) and isinstance(missing, int)):

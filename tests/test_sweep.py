@@ -170,6 +170,11 @@ def test_a_lockstep_run_whose_recording_misses_ticks_is_not_taken_as_done(tmp_pa
     # A follower a fault killed: the batch it held died with it, by design; not a loss of the recording.
     killed = {**placed, "events": [{"event": "killed", "process": "agent-2", "fault": "kill agent-2@20s"}]}
     assert summary_mod.recording_gap(killed) is None
+    silent = {**placed, "parts": {**placed["parts"], "logger": {**placed["parts"]["logger"], "ticks": truth_gap}}}
+    silent["parts"]["logger"]["messages"] = {"truth": 880, "telemetry": 0}
+    assert summary_mod.recording_gap(silent) == (
+        "the logger recorded none of the 880 telemetry messages R2 sent (one per tick answered)"
+    )
     assert summary_mod.recording_gap({**lossy, "mode": "realtime"}) is None  # real time may drop by design
     assert summary_mod.recording_gap({**whole, "parts": {}}) is None  # no logger, no recording
     for name, summary in (("whole", whole), ("lossy", lossy)):
