@@ -254,9 +254,10 @@ class Agent:
         """After "done", until the logger has left (bounded, LOGGER_WAIT_S; not at
         all without a logger, or after a stop). The logger leaves once it holds
         every follower's end-of-stream mark, so then our telemetry has arrived
-        whole. Leaving first could lose its last batches on their way (in two of
-        three test suites, a run lost its followers' last 5-11 ticks): a process
-        that exits with input unread resets its connection, and the router then
+        whole. Leaving first could lose its last batches on their way (in one
+        test suite, two runs lost their followers' last 5 and 11 ticks, with
+        this process's kernel already emptied): most likely a process that
+        exits with input unread resets its connection, and the router then
         drops what it had not yet read from it."""
         if not (self.done and self.logger_present) or self.stop.is_set():
             return
