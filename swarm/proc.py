@@ -99,9 +99,13 @@ def unsent_bytes() -> int:
         try:
             if not os.readlink(f"/proc/self/fd/{name}").startswith("socket:"):
                 continue
-            with socket.socket(fileno=os.dup(fd)) as sock:  # a duplicate: closing it leaves ours open
-                if sock.family not in (socket.AF_INET, socket.AF_INET6) or sock.type != socket.SOCK_STREAM:
-                    continue
+            sock = socket.socket(fileno=fd)
+            try:
+                tcp = sock.family in (socket.AF_INET, socket.AF_INET6) and sock.type == socket.SOCK_STREAM
+            finally:
+                sock.detach()  # the fd stays ours, open
+            if not tcp:
+                continue
             total += struct.unpack("i", fcntl.ioctl(fd, termios.TIOCOUTQ, b"\0" * 4))[0]  # TIOCOUTQ == SIOCOUTQ
         except OSError:
             continue  # closed meanwhile, or not a socket we can ask
@@ -242,7 +246,7 @@ class JsonWriter:
                 try:
                     write_json(self.path, data)
                 except (OSError, ValueError):
-                    self.errors += 1  # the next snapshot, or the caller's last write, tries again
+                    self.errors += 1  # the next snapshot, or the last one close() hands over, tries again
             if closed:
                 return
 

@@ -212,8 +212,8 @@ def partial_links(processes: Mapping[str, Any], sc: Scenario) -> list[str]:
     killed = set()
     for name, proc in processes.items():
         code = (proc or {}).get("exit_code")
-        if name.startswith("agent-") and isinstance(code, int) and code < 0:
-            killed.add(int(name.removeprefix("agent-").split(".")[0]))
+        if (rid := _robot_of(name)) is not None and isinstance(code, int) and code < 0:
+            killed.add(rid)
     leader = sc.leader.robot_id
     out = [link_name("obs", 0, r) for r in killed]
     out += [link_name("formation", leader, r) for r in killed if r != leader]
@@ -257,7 +257,7 @@ def recording_gap(summary: Mapping[str, Any]) -> str | None:
     sent_truth = (summary.get("messages") or {}).get("truth_sent")
     got = taken.get("truth")
     if isinstance(got, int) and isinstance(sent_truth, int) and got < sent_truth:
-        where = _missing_ticks({k: v for k, v in (ticks or {}).items() if str(k) == "0"}, sent_truth)
+        where = _missing_ticks("truth", (ticks or {}).get("0"), sent_truth)
         return f"the logger recorded {got} of the {sent_truth} ticks the world sent" + (
             f" (missing: {where})" if where else ""
         )
@@ -291,7 +291,7 @@ def recording_gap(summary: Mapping[str, Any]) -> str | None:
         if not (isinstance(first, int) and isinstance(last, int) and isinstance(missing, int)):
             continue
         if (got := last - first + 1 - missing) < sent:
-            where = _missing_ticks({str(rid): t}, sent_truth)
+            where = _missing_ticks(f"R{rid}'s telemetry", t, sent_truth)
             return (f"the logger recorded {got} of the {sent} telemetry messages R{rid} sent (one per tick answered)"
                     + (f" (missing: {where})" if where else ""))  # fmt: skip
     return None
@@ -305,22 +305,17 @@ def _robot_of(process: Any) -> int | None:
     return int(head) if head.isdigit() else None
 
 
-def _missing_ticks(ticks: Any, n_ticks: Any) -> str:
-    """From the logger's per-sender tick stats (swarm.logger: first, last and the
-    gaps between), which ticks of which stream it never took, in words."""
-    if not isinstance(ticks, Mapping) or not isinstance(n_ticks, int):
+def _missing_ticks(name: str, t: Any, n_ticks: Any) -> str:
+    """From one sender's tick stats in the logger's (swarm.logger: first, last and
+    the gaps between), which ticks of its stream (``name``) it never took, in words."""
+    if not isinstance(t, Mapping) or not isinstance(n_ticks, int):
         return ""
-    out = []
-    for sender, t in sorted(ticks.items(), key=lambda kv: int(kv[0]) if str(kv[0]).isdigit() else -1):
-        if not isinstance(t, Mapping) or not isinstance(t.get("first"), int) or not isinstance(t.get("last"), int):
-            continue
-        runs = [g for g in t.get("gaps") or [] if isinstance(g, list) and len(g) == 2]
-        runs = ([[0, t["first"] - 1]] if t["first"] > 0 else []) + runs
-        runs += [[t["last"] + 1, n_ticks - 1]] if t["last"] < n_ticks - 1 else []
-        if runs:
-            name = "truth" if str(sender) == "0" else f"R{sender}'s telemetry"
-            out.append(f"{name} ticks " + ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs))
-    return "; ".join(out)
+    first, last = t.get("first"), t.get("last")
+    if not isinstance(first, int) or not isinstance(last, int):
+        return ""
+    runs = [g for g in t.get("gaps") or [] if isinstance(g, list) and len(g) == 2]
+    runs = ([[0, first - 1]] if first > 0 else []) + runs + ([[last + 1, n_ticks - 1]] if last < n_ticks - 1 else [])
+    return f"{name} ticks " + ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs) if runs else ""
 
 
 def build(
