@@ -6,7 +6,8 @@
 A follower turns each observation into wheel speeds with the paper's
 controller (agents.follower) and obeys the formation codes its leader sends.
 The leader flies its scripted path, watches for obstacles and repeats the
-formation code to every follower over one-way links: every tick for
+formation code to its followers, one put for all of them (each follower's
+end of its one-way link applies that link's faults): every tick for
 ``leader.code_burst_s`` after a change, then every ``leader.code_period_s``
 (agents.leader.CodeRepeats).
 
@@ -15,7 +16,7 @@ loses or holds back (then with the newest reading the link did hand over,
 if any), so that lockstep never waits on a link fault (protocol.links).
 Before it announces itself (its liveliness token) it waits, up to
 ``--peers-timeout``, for the world's token and for its command publisher to
-match (the leader: also every follower's formation subscriber), each such
+match (the leader: also its code publisher, a follower's inbox), each such
 change waking the wait. It exits when the world says the run is done, when
 the world's token has been gone for ``--world-grace`` seconds (default: the
 peers timeout) once the run started, or on SIGINT/SIGTERM. A session the
@@ -219,10 +220,8 @@ class Agent:
         self.cmd_pub = s.declare_publisher(k.cmd(self.rid), congestion_control=block)
         tel_cc = block if self.lockstep else zenoh.CongestionControl.DROP
         self.tel_pub = self.telemetry_publisher(s.declare_publisher(k.telemetry(self.rid), congestion_control=tel_cc))
-        self.form_pubs = (
-            {f: s.declare_publisher(k.formation(f), congestion_control=block) for f in self.sc.follower_ids}
-            if self.is_leader else {}
-        )  # fmt: skip
+        # One put per code reaches every follower: the router copies it to each inbox.
+        self.code_pub = s.declare_publisher(k.codes, congestion_control=block) if self.is_leader else None
         # Announce ourselves only once the world can hear our commands.
         code = self._wait_matched()
         if code is not None:
@@ -272,18 +271,24 @@ class Agent:
 
     def _wait_matched(self) -> int | None:
         """Until the world's token is seen and our command publisher matched and,
-        for the leader, every follower's formation subscriber matched us; each
-        change (or a stop) ends a wait. None when all are there, else the exit
-        code. The token is what proves the world: our own inbox subscriber
-        (robot/<id>/*) matches our command key too."""
+        for a leader with followers, its code publisher matched a follower's
+        inbox; each change (or a stop) ends a wait. None when all are there,
+        else the exit code. The token is what proves the world: our own inbox
+        subscriber (robot/<id>/*) matches our command key too.
+
+        The leader need not wait for every follower: the world starts the run
+        only once it holds every agent's token, which an agent declares after
+        its inbox, so the router knows every inbox before the first code."""
         changed = self.peers_changed
         self.stop.add_waker(changed.set)
-        pubs = [self.cmd_pub, *self.form_pubs.values()]
+        pubs = [self.cmd_pub] + ([self.code_pub] if self.code_pub is not None else [])
         listeners = [p.declare_matching_listener(lambda _status: changed.set()) for p in pubs]
         try:
             while True:
                 no_world = not (self.world_seen and self.cmd_pub.matching_status.matching)
-                no_followers = [f for f, p in self.form_pubs.items() if not p.matching_status.matching]
+                no_followers = bool(self.sc.follower_ids) and not (
+                    self.code_pub is None or self.code_pub.matching_status.matching
+                )
                 if not no_world and not no_followers:
                     return None
                 if self.stop.is_set():
@@ -292,10 +297,8 @@ class Agent:
                 if self.role.left_s() <= 0:
                     missing = [f"no world of run {self.keys.run_id!r}"] if no_world else []
                     if no_followers:
-                        missing.append(
-                            f"no agent for follower{'s' if len(no_followers) > 1 else ''} "
-                            f"{', '.join(map(str, no_followers))}"
-                        )
+                        followers = self.sc.follower_ids
+                        missing.append(f"no agent for any of its followers ({', '.join(map(str, followers))})")
                     self.end_note = "gave up waiting for its peers"
                     return self.role.gave_up(f"{' and '.join(missing)} ({self.where}); check --run and --connect")
                 wait_for(changed, self.role.left_s())
@@ -368,6 +371,12 @@ class Agent:
         neither answered nor given to the link layer); what the link layer
         hands over is checked again for order (a duplicate or a message it
         held back behind a newer one is "replayed or reordered")."""
+        if key == self.keys.codes:
+            if self.is_leader:
+                self.rejections.reject("unexpected key")
+            else:
+                self._on_code(payload)
+            return None
         rk = self.keys.parse_robot(key)
         if rk is None or rk.robot_id != self.rid:
             self.rejections.reject("unknown key")
@@ -387,16 +396,17 @@ class Agent:
                     else:
                         reading = got
                 return msg, reading
-        elif rk.kind == "formation" and not self.is_leader:
-            fc = self.rejections.decode(FormationCode, payload, sender=self.sc.leader.robot_id)
-            if fc is not None:
-                if (why := self.checks.code(fc)) is not None:
-                    self.rejections.reject(why)
-                else:
-                    self._take_codes(self.formation_link.deliver(fc.seq, fc.tick, fc), fc.tick)
         else:
             self.rejections.reject("unexpected key")
         return None
+
+    def _on_code(self, payload: bytes) -> None:
+        fc = self.rejections.decode(FormationCode, payload, sender=self.sc.leader.robot_id)
+        if fc is not None:
+            if (why := self.checks.code(fc)) is not None:
+                self.rejections.reject(why)
+            else:
+                self._take_codes(self.formation_link.deliver(fc.seq, fc.tick, fc), fc.tick)
 
     def _take_codes(self, codes: list[FormationCode], release_tick: int) -> None:
         """Codes the formation link handed over at ``release_tick``: one it held
@@ -438,10 +448,9 @@ class Agent:
         if reading is not None:
             self.code = self.switch.step(reading.obstacles)
             self.last_cmd = self.pilot.step(Pose(*reading.pose))
-        if self.repeats.due(self.code):
-            for pub in self.form_pubs.values():
-                self.seq += 1
-                pub.put(FormationCode(self.rid, self.seq, obs.tick, self.code).to_bytes())
+        if self.repeats.due(self.code) and self.code_pub is not None:
+            self.seq += 1
+            self.code_pub.put(FormationCode(self.rid, self.seq, obs.tick, self.code).to_bytes())
         self._send_cmd(obs.tick, *self.last_cmd, done=self.pilot.finished)
 
     def _follow(self, obs: Observation, reading_obs: Observation | None) -> None:

@@ -5,13 +5,14 @@ on a loaded machine:
 
 - bare: a world process (the router) publishes one observation per robot and
   the truth each tick and waits for the three answers; the leader answers
-  with two formation codes and a command, each follower with a command and a
-  telemetry message; a logger-like process subscribes to the whole key space
-  and only counts. Same processes, keys and payload sizes as a run, with no
-  physics, camera, controller, EKF or Rerun; every message is sent every
-  tick, one put each (a run batches telemetry and truth and repeats the
-  formation code less often: the bare figure is the plain exchange). It
-  uses Zenoh's default configuration, transport included.
+  with a formation code (one put, which the router hands to both followers)
+  and a command, each follower with a command and a telemetry message; a
+  logger-like process subscribes to the whole key space and only counts.
+  Same processes, keys and payload sizes as a run, with no physics,
+  camera, controller, EKF or Rerun; every message is sent every tick, one
+  put each (a run batches telemetry and truth and repeats the formation code
+  less often: the bare figure is the plain exchange). It uses Zenoh's
+  default configuration, transport included.
 - bare, low-latency: the same exchange over the transport every ``swarm``
   process uses (protocol.session: Zenoh's low-latency unicast transport).
 - full: ``swarm run scenarios/fig11_obstacles.toml`` in lockstep with the
@@ -101,7 +102,7 @@ def bare_agent(endpoint: str, run: str, rid: int, lowlatency: bool) -> None:
         s.declare_subscriber(k.status, lambda smp: q.put(b"done"))
         cmd = s.declare_publisher(k.cmd(rid))
         tel = s.declare_publisher(k.telemetry(rid))
-        forms = [s.declare_publisher(k.formation(f)) for f in (2, 3)] if rid == 1 else []
+        form = s.declare_publisher(k.codes) if rid == 1 else None
         deadline = time.monotonic() + 60
         while not cmd.matching_status.matching and time.monotonic() < deadline:
             time.sleep(0.01)
@@ -116,8 +117,8 @@ def bare_agent(endpoint: str, run: str, rid: int, lowlatency: bool) -> None:
                 return
             if m is FORM or m == FORM:
                 continue
-            for f in forms:
-                f.put(FORM)
+            if form is not None:
+                form.put(FORM)
             cmd.put(CMD)
             if rid != 1:
                 tel.put(TEL)

@@ -13,7 +13,7 @@ Per N and mode it prints:
   percentile and the largest lateness of a tick (ms); and ``skipped``, the
   share of the followers' observations never answered because a newer one
   had arrived by the time the agent got to them (an agent that keeps up
-  skips none); and the world's scheduling class (real-time, or NORMAL
+  skips none), and the same share of the leader's; and the world's scheduling class (real-time, or NORMAL
   where the machine refused it: see ``swarm world --rt-priority``);
 - lockstep: the world's ticks per wall second;
 - CPU per tick, in microseconds: of an agent (the mean and the largest over the
@@ -78,6 +78,7 @@ def one(n: int, mode: str, duration_s: float, logger: bool, straight: bool, tmp:
     parts = s.get("parts", {})
     world = parts.get("world", {})
     followers = [p for name, p in parts.items() if name.startswith("agent-") and p.get("role") == "follower"]
+    leader = next((p for name, p in parts.items() if name.startswith("agent-") and p.get("role") == "leader"), {})
     per_tick = [1e6 * p["loop_cpu_s"] / p["answered"] for p in followers if p.get("answered")]
     ticks = max(1, int(s.get("ticks") or 0))
     return {
@@ -101,6 +102,8 @@ def one(n: int, mode: str, duration_s: float, logger: bool, straight: bool, tmp:
         # Observations an agent never answered: a newer one had come by the time it got to them.
         "skipped": sum(p.get("superseded", 0) for p in followers),
         "observed": sum(p.get("superseded", 0) + p.get("answered", 0) for p in followers),
+        "leader_skipped": leader.get("superseded", 0),
+        "leader_observed": leader.get("superseded", 0) + leader.get("answered", 0),
     }
 
 
@@ -109,7 +112,9 @@ def line(n: int, mode: str, r: dict[str, Any], cold: bool = False) -> str:
     if mode == "realtime":
         rt = "real-time" if r["scheduling"].startswith("real-time") else "NORMAL class"
         timing = (f"late {r['late']:4d}/{r['ticks']:<5d} p99 {r['p99_ms']:7.1f} ms max {r['max_ms']:7.1f} ms "
-                  f"skipped {100 * r['skipped'] / max(1, r['observed']):4.1f}% (world {rt})")  # fmt: skip
+                  f"skipped {100 * r['skipped'] / max(1, r['observed']):4.1f}% "
+                  f"(leader {100 * r['leader_skipped'] / max(1, r['leader_observed']):.1f}%) "
+                  f"(world {rt})")  # fmt: skip
     else:
         timing = f"{r['ticks_per_s']:7.1f} ticks/s ({r['ticks']} ticks, misses {r['misses']})"
     cpu = (f"CPU/tick: agent {r['agent_us']:6.0f} us (max {r['agent_max_us']:6.0f}), world {r['world_us']:7.0f} us, "

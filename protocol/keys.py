@@ -4,7 +4,7 @@ All keys start with ``swarm/<run>`` so that runs never cross-talk::
 
     swarm/<run>/robot/<id>/obs        world -> agent    Observation for tick k
     swarm/<run>/robot/<id>/cmd        agent -> world    Command (wheel speeds) for tick k
-    swarm/<run>/robot/<id>/formation  leader -> follower <id>: FormationCode (one-way link)
+    swarm/<run>/robot/*/formation     leader -> every follower: FormationCode (one put, one-way links)
     swarm/<run>/robot/<id>/telemetry  agent -> logger   Telemetry
     swarm/<run>/world/truth           world -> logger   Truth (true poses and targets)
     swarm/<run>/world/status          world -> all      Status (progress, end of run)
@@ -33,7 +33,7 @@ HOST_ROOT = "swarmhost"
 _HOST = re.compile(r"^[a-z][a-z0-9-]{0,26}$")  # a host's login is host-<name>: 32 characters at most
 MAX_ROBOT_ID = 10_000
 _RUN_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
-ROBOT_KINDS = ("obs", "cmd", "formation", "telemetry")
+ROBOT_KINDS = ("obs", "cmd", "telemetry")
 ROLES = ("world", "agent", "logger", "launcher")
 
 
@@ -100,14 +100,19 @@ class Keys:
     def cmd(self, robot_id: int) -> str:
         return self.robot(robot_id, "cmd")
 
-    def formation(self, follower_id: int) -> str:
-        return self.robot(follower_id, "formation")
+    @property
+    def codes(self) -> str:
+        """Where the leader puts each formation code, once for all its followers:
+        the router hands a copy to every inbox it matches (``robot/<id>/*``).
+        One put per code, where one per follower made the leader of a large
+        swarm wait on the router at every put (docs/protocol.md)."""
+        return f"{self.prefix}/robot/*/formation"
 
     def telemetry(self, robot_id: int) -> str:
         return self.robot(robot_id, "telemetry")
 
     def inbox(self, robot_id: int) -> str:
-        """Everything addressed to one robot (its obs and formation keys)."""
+        """Everything addressed to one robot: its observations, and the formation codes (``codes``)."""
         return f"{self.prefix}/robot/{check_robot_id(robot_id)}/*"
 
     @property

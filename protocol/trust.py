@@ -6,7 +6,8 @@ that deny everything not granted (``default_permission: deny``):
 
     world     publishes observations, truth, run status and fault calls; subscribes to commands
     agent-N   publishes robot N's command and telemetry (the leader also the
-              formation codes); subscribes to robot N's inbox and the run status
+              formation codes, on one key for all followers); subscribes to
+              robot N's inbox and the run status; a follower receives the codes
     logger    subscribes to the world's streams and the telemetry; publishes nothing
     launcher  subscribes to the run status and the world's fault calls (it executes
               process faults: kill, start, freeze, thaw) and holds its token; in a
@@ -70,6 +71,9 @@ class Grants:
 
     publish: tuple[str, ...] = ()
     subscribe: tuple[str, ...] = ()
+    # Data it is handed on keys it does not subscribe to by name: a put on a
+    # wildcard key (the leader's formation codes) that its subscription matches.
+    receive: tuple[str, ...] = ()
     tokens: tuple[str, ...] = ()
     watch: tuple[str, ...] = ()
     serve: tuple[str, ...] = ()  # queryables it declares and answers
@@ -88,7 +92,6 @@ def grants(run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[s
     """Every identity of a run and what it may do (``hosts``: the machines'
     ``swarm host`` the run's agents are placed on)."""
     k = Keys(run_id)
-    followers = [r for r in robots if r != leader_id]
     out = {
         "world": Grants(
             publish=(*(k.obs(r) for r in robots), k.truth, k.status, k.faults, k.world_wake),
@@ -113,10 +116,10 @@ def grants(run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[s
             tokens=(HostKeys(h).alive,), watch=(k.alive("launcher", 0),), serve=(HostKeys(h).ctl,)
         )
     for rid in robots:
-        codes = tuple(k.formation(f) for f in followers) if rid == leader_id else ()
         out[agent_user(rid)] = Grants(
-            publish=(k.cmd(rid), k.telemetry(rid), *codes),
+            publish=(k.cmd(rid), k.telemetry(rid), *((k.codes,) if rid == leader_id else ())),
             subscribe=(k.inbox(rid), k.status),
+            receive=() if rid == leader_id else (k.codes,),
             tokens=(k.alive("agent", rid),),
             # Its own: is another agent flying it? The logger's: a follower leaves after it.
             watch=(k.alive("world", 0), k.alive("agent", rid), k.alive("logger", 0)),
@@ -144,7 +147,7 @@ def access_control(run_id: str, robots: Sequence[int], leader_id: int, hosts: Se
             own.append(_rule(f"{user}-put", "ingress", ["put"], g.publish))
         if g.subscribe:
             own.append(_rule(f"{user}-sub", "ingress", ["declare_subscriber"], g.subscribe))
-            own.append(_rule(f"{user}-data", "egress", ["put"], g.subscribe))
+            own.append(_rule(f"{user}-data", "egress", ["put"], (*g.subscribe, *g.receive)))
         if g.tokens:
             own.append(_rule(f"{user}-token", "ingress", ["liveliness_token"], g.tokens))
         if g.watch:

@@ -59,8 +59,8 @@ def replay(path: str | Path, seed: int, overrides: Mapping[str, Any] | None = No
                     codes[lead] = switch.step(obstacles)
                     leader_cmd = pilot.step(Pose(*pose))
                 if repeats.due(codes[lead]):
+                    seqs[lead] += 1  # one put for every follower; each link draws on its own
                     for f in sc.follower_ids:
-                        seqs[lead] += 1
                         if form_links[f].accept(seqs[lead]):
                             pending[f].append((tick, codes[lead]))
                 answers[rid] = (*leader_cmd, codes[lead])

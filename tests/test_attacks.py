@@ -71,8 +71,7 @@ def attacks(k: Keys, tick: int) -> list[tuple[str, bytes]]:
         (k.cmd(3), Command(3, HUGE_SEQ, tick, 1e308, 1e308, 0, False).to_bytes()),
         (k.cmd(3), Command(3, HUGE_SEQ + 1, tick, 1.0, 2.0, 0, False).to_bytes()),
         (k.cmd(1), Command(1, HUGE_SEQ, tick, 1.5, 1.5, 0, True).to_bytes()),
-        (k.formation(2), FormationCode(1, HUGE_SEQ, FAR_TICK, LINE).to_bytes()),
-        (k.formation(3), FormationCode(1, HUGE_SEQ, FAR_TICK, LINE).to_bytes()),
+        (k.codes, FormationCode(1, HUGE_SEQ, FAR_TICK, LINE).to_bytes()),
         (k.obs(2), Observation(0, HUGE_SEQ, tick + 1, 0.0, (0.0, 0.0, 0.0), fake_reading, ()).to_bytes()),
         (k.obs(3), Observation(0, HUGE_SEQ, tick + 1, 0.0, (0.0, 0.0, 0.0), ((2, 1e200, 0.0, 0.0),), ()).to_bytes()),
         (k.status, Status(0, HUGE_SEQ, tick, 0.0, "done", 1).to_bytes()),
@@ -191,7 +190,7 @@ def test_without_the_router_the_receivers_still_refuse_what_could_not_be_true(
         put_all(sess, [
             (k.cmd(3), Command(3, HUGE_SEQ, tick, 1e308, 1e308, 0, False).to_bytes()),
             (k.cmd(2), Command(2, HUGE_SEQ, FAR_TICK, 1.0, 1.0, 0, False).to_bytes()),
-            (k.formation(2), FormationCode(1, HUGE_SEQ, FAR_TICK, LINE).to_bytes()),
+            (k.codes, FormationCode(1, HUGE_SEQ, FAR_TICK, LINE).to_bytes()),  # to every follower
             (k.obs(3), Observation(0, HUGE_SEQ, 0, 0.0, (0.0, 0.0, 0.0), (), ()).to_bytes()),  # a replay of tick 0
             (k.obs(2), Observation(0, HUGE_SEQ, FAR_TICK, 0.0, (0.0, 0.0, 0.0), ((1, 1e200, 0, 0),), ()).to_bytes()),
             (k.truth, pack_batch([Truth(0, HUGE_SEQ, FAR_TICK, 0.0, ((1, 0.0, 0.0, 0.0, True),), ()).to_bytes()])),
@@ -205,7 +204,9 @@ def test_without_the_router_the_receivers_still_refuse_what_could_not_be_true(
     assert rejected["world"] == {"wheel speed out of bounds": 4, "tick ahead of the world": 4}
     # agent 2's inbox (robot/2/*) also hears the forged cmd and telemetry of robot 2: not its to take
     assert rejected["agent-2"] == {"tick ahead of the world": 4, "reading out of bounds": 4, "unexpected key": 8}
-    assert rejected["agent-3"] == {"replayed or reordered": 4, "unexpected key": 4}  # and robot 3's forged cmd
+    # and robot 3's forged cmd; the forged code reached every follower, and the leader, whose inbox matches it too
+    assert rejected["agent-3"] == {"tick ahead of the world": 4, "replayed or reordered": 4, "unexpected key": 4}
+    assert rejected["agent-1"] == {"unexpected key": 4}
     assert rejected["logger"] == {"tick past the run's end": 8}
     assert s["parts"]["logger"]["messages"]["truth"] == 1061  # the fake one never entered the recording
 

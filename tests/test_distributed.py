@@ -287,8 +287,8 @@ def test_random_bytes_on_every_key_kill_nothing(swarm_launch: Callable[..., Laun
     launch = swarm_launch(FIG11, mode="realtime", overrides={"run.duration_s": 4.0}, auth=False)
     assert launch.wait_until(lambda: launch.sim_time() >= 0.5, timeout_s=60)
     keys = Keys(launch.run_id)
-    targets = [keys.robot(r, k) for r in (1, 2, 3) for k in ("obs", "cmd", "formation", "telemetry")]
-    targets += [keys.truth, keys.status]
+    targets = [keys.robot(r, k) for r in (1, 2, 3) for k in ("obs", "cmd", "telemetry")]
+    targets += [keys.codes, *(f"{keys.prefix}/robot/{r}/formation" for r in (1, 2, 3)), keys.truth, keys.status]
     rng = np.random.default_rng(0)
     n = 20
     crafted = [
@@ -316,13 +316,14 @@ def test_random_bytes_on_every_key_kill_nothing(swarm_launch: Callable[..., Laun
     assert all(p["exit_code"] == 0 for p in s["processes"].values()), s["processes"]
     assert s["deaths"] == [], s["deaths"]
     rej = {name: sum(v.values()) for name, v in s["rejected"].items()}
-    # The world decodes commands (3 keys); each agent its inbox (4 keys) and the
-    # status key; the logger truth, status and 3 telemetry keys.
+    # The world decodes commands (3 keys); each agent its inbox (its obs, cmd,
+    # telemetry and formation keys, and the codes' key) and the status key; the
+    # logger truth, status and 3 telemetry keys.
     assert rej["world"] == 3 * n
     for r in (1, 2, 3):
-        assert rej[f"agent-{r}"] == 5 * n
+        assert rej[f"agent-{r}"] == 6 * n
     assert rej["logger"] == 5 * n
-    assert s["rejected_total"] == 23 * n
+    assert s["rejected_total"] == 26 * n
     assert s["rejected"]["world"]["oversized"] == 3
 
 

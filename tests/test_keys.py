@@ -13,7 +13,7 @@ def test_every_key_starts_with_the_run() -> None:
     assert K.prefix == "swarm/run-1"
     assert K.obs(2) == "swarm/run-1/robot/2/obs"
     assert K.cmd(2) == "swarm/run-1/robot/2/cmd"
-    assert K.formation(3) == "swarm/run-1/robot/3/formation"
+    assert K.codes == "swarm/run-1/robot/*/formation"
     assert K.telemetry(3) == "swarm/run-1/robot/3/telemetry"
     assert K.inbox(2) == "swarm/run-1/robot/2/*"
     assert K.all_cmd == "swarm/run-1/robot/*/cmd"
@@ -29,13 +29,15 @@ def test_every_key_starts_with_the_run() -> None:
 
 def test_parse_robot_takes_this_runs_robot_keys_only() -> None:
     assert K.parse_robot(K.obs(2)) == RobotKey(2, "obs")
-    assert K.parse_robot(K.formation(MAX_ROBOT_ID)) == RobotKey(MAX_ROBOT_ID, "formation")
+    assert K.parse_robot(K.telemetry(MAX_ROBOT_ID)) == RobotKey(MAX_ROBOT_ID, "telemetry")
     assert K.parse_robot(K.cmd(1)) == RobotKey(1, "cmd")
     for bad in (
         "swarm/run-2/robot/2/obs",  # another run
         "swarm/run-1/robot/2/obs/x",  # too deep
         "swarm/run-1/robot/2",  # too short
         "swarm/run-1/robot/2/odometry",  # unknown kind
+        "swarm/run-1/robot/2/formation",  # codes come on K.codes, for every follower
+        K.codes,
         "swarm/run-1/robot/x/obs",  # not an id
         "swarm/run-1/robot/-2/obs",
         "swarm/run-1/robot/0/obs",  # ids start at 1

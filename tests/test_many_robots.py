@@ -79,7 +79,7 @@ def test_a_follower_given_a_new_reference_restarts_its_filter_on_it() -> None:
     observe(0)
     assert agent.reference == 2
     code = FormationCode(1, 100, 0, sc.code_of("line"))
-    agent._on_message(keys.formation(4), code.to_bytes())
+    agent._on_message(keys.codes, code.to_bytes())
     observe(1)
     assert agent.reference == 3
     # Its filter is that of a follower that has only ever seen robot 3 (read, then predicted for tick 2).

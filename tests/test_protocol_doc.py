@@ -76,7 +76,7 @@ def test_every_key_in_the_table_is_built_by_the_keys_module_and_back() -> None:
     built = {
         "obs": k.obs(ID),
         "cmd": k.cmd(ID),
-        "formation": k.formation(ID),
+        "codes": k.codes,
         "telemetry": k.telemetry(ID),
         "truth": k.truth,
         "status": k.status,

@@ -56,7 +56,7 @@ _SEQ = itertools.count(100)  # a leader's seq only grows (the agent refuses a re
 
 
 def _code(agent: Agent, sender: int, code: int, tick: int = 0) -> None:
-    agent._on_message(KEYS.formation(agent.rid), FormationCode(sender, next(_SEQ), tick, code).to_bytes())
+    agent._on_message(KEYS.codes, FormationCode(sender, next(_SEQ), tick, code).to_bytes())
 
 
 LINE = FIG11.code_of("line")
@@ -93,8 +93,10 @@ def test_what_is_not_for_this_robot_is_rejected_by_reason() -> None:
     agent._on_message("elsewhere/robot/2/obs", b"")
     agent._on_message(KEYS.cmd(2), Command(2, 1, 0, 0.0, 0.0, 0, False).to_bytes())  # its own output
     agent._on_message(KEYS.obs(2), Observation(0, 1, 0, 0.0, (0.0, 0.0, 0.0), (), ()).to_bytes()[:-1])  # cut short
-    agent._on_message(KEYS.formation(2), b"\xc1")
-    assert agent.rejections.by_reason == {"unknown key": 2, "unexpected key": 1, "not msgpack": 2}
+    agent._on_message(KEYS.codes, b"\xc1")
+    code = FormationCode(1, next(_SEQ), 0, 0).to_bytes()
+    agent._on_message(f"{KEYS.prefix}/robot/2/formation", code)  # codes come on the one shared key only
+    assert agent.rejections.by_reason == {"unknown key": 3, "unexpected key": 1, "not msgpack": 2}
     assert cmd.payloads == []  # nothing answered
 
 

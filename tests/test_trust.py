@@ -103,17 +103,34 @@ def test_no_credentials_or_a_wrong_password_cannot_connect(router: Router) -> No
 def test_each_role_publishes_only_its_own_keys(router: Router) -> None:
     k = router.keys
     cmds, _ = collect(router.session, k.all_cmd)
-    codes, _ = collect(router.session, f"{k.prefix}/robot/*/formation")
+    codes, _ = collect(router.session, k.codes)
     agent2 = router.client("agent-2")
     leader = router.client("agent-1")
     # The refused puts go first; the allowed ones after them on the same link
     # (in order), so once these arrived the others would have.
     agent2.put(k.status, b"done")  # only the world may end a run
-    for s, key in [(agent2, k.cmd(3)), (agent2, k.formation(3)), (leader, k.formation(3)), (agent2, k.cmd(2))]:
+    one_robot = f"{k.prefix}/robot/3/formation"
+    for s, key in [(agent2, k.cmd(3)), (agent2, k.codes), (agent2, one_robot), (leader, k.codes), (agent2, k.cmd(2))]:
         s.declare_publisher(key).put(b"x")
-    assert wait_for(lambda: cmds == [k.cmd(2)] and codes == [k.formation(3)])
+    assert wait_for(lambda: cmds == [k.cmd(2)] and codes == [k.codes])
     assert cmds == [k.cmd(2)]
-    assert codes == [k.formation(3)]
+    assert codes == [k.codes]
+
+
+def test_the_leaders_one_put_of_a_code_reaches_every_follower_and_no_one_else(router: Router) -> None:
+    k = router.keys
+    inbox2, _ = collect(router.client("agent-2"), k.inbox(2))
+    inbox3, _ = collect(router.client("agent-3"), k.inbox(3))
+    by_logger, _ = collect(router.client("logger"), f"{k.prefix}/robot/*/telemetry")
+    pub = router.client("agent-1").declare_publisher(k.codes)
+    deadline = time.monotonic() + 5.0
+    while not (inbox2 and inbox3) and time.monotonic() < deadline:  # until the router knows both inboxes
+        pub.put(b"x")
+        time.sleep(0.02)
+    assert inbox2, inbox3
+    assert inbox3, inbox2
+    assert set(inbox2) == set(inbox3) == {k.codes}
+    assert by_logger == []
 
 
 def test_each_role_hears_only_what_it_needs(router: Router) -> None:

@@ -50,9 +50,9 @@ def test_the_grants_of_a_three_robot_run() -> None:
         subscribe=(f"{R}/world/status", f"{R}/world/faults"), tokens=(f"{R}/alive/launcher/0",),
         watch=(f"{R}/alive/*/*",),
     )  # fmt: skip
-    # Only the leader may publish formation codes, one key per follower.
+    # Only the leader may publish formation codes, on one key for all its followers.
     assert g["agent-1"] == Grants(
-        publish=(f"{R}/robot/1/cmd", f"{R}/robot/1/telemetry", f"{R}/robot/2/formation", f"{R}/robot/3/formation"),
+        publish=(f"{R}/robot/1/cmd", f"{R}/robot/1/telemetry", f"{R}/robot/*/formation"),
         subscribe=(f"{R}/robot/1/*", f"{R}/world/status"),
         tokens=(f"{R}/alive/agent/1",),
         watch=(f"{R}/alive/world/0", f"{R}/alive/agent/1", f"{R}/alive/logger/0"),
@@ -61,6 +61,7 @@ def test_the_grants_of_a_three_robot_run() -> None:
         assert g[f"agent-{rid}"] == Grants(
             publish=(f"{R}/robot/{rid}/cmd", f"{R}/robot/{rid}/telemetry"),
             subscribe=(f"{R}/robot/{rid}/*", f"{R}/world/status"),
+            receive=(f"{R}/robot/*/formation",),  # the leader's codes, which its inbox matches
             tokens=(f"{R}/alive/agent/{rid}",),
             watch=(f"{R}/alive/world/0", f"{R}/alive/agent/{rid}", f"{R}/alive/logger/0"),
         )
@@ -72,8 +73,10 @@ def test_whoever_leads_only_the_leader_publishes_formation_codes(leader: int) ->
     codes = {user: [key for key in grants.publish if key.endswith("/formation")] for user, grants in g.items()}
     followers = [r for r in ROBOTS if r != leader]
     expected = {"world": [], "logger": [], "launcher": []}
-    expected |= {f"agent-{r}": ([f"{R}/robot/{f}/formation" for f in followers] if r == leader else []) for r in ROBOTS}
+    expected |= {f"agent-{r}": ([f"{R}/robot/*/formation"] if r == leader else []) for r in ROBOTS}
     assert codes == expected
+    receivers = [user for user, grants in g.items() if grants.receive]
+    assert receivers == [f"agent-{f}" for f in followers]
 
 
 def test_robot_ids_above_256_are_compared_by_value() -> None:
@@ -82,7 +85,7 @@ def test_robot_ids_above_256_are_compared_by_value() -> None:
     leader = int("1001")
     assert leader is not robots[0]
     g = trust.grants("r1", robots, leader_id=leader)
-    assert g["agent-1001"].publish == (f"{R}/robot/1001/cmd", f"{R}/robot/1001/telemetry", f"{R}/robot/1002/formation")
+    assert g["agent-1001"].publish == (f"{R}/robot/1001/cmd", f"{R}/robot/1001/telemetry", f"{R}/robot/*/formation")
     assert g["agent-1002"].publish == (f"{R}/robot/1002/cmd", f"{R}/robot/1002/telemetry")
 
 
@@ -113,7 +116,7 @@ def test_the_router_rules_of_a_two_robot_run() -> None:
             ("seen", "egress", SEEN, [f"{R}/alive/*/*"]),
         ],
         "agent-1": [
-            ("put", "ingress", ["put"], [f"{R}/robot/1/cmd", f"{R}/robot/1/telemetry", f"{R}/robot/2/formation"]),
+            ("put", "ingress", ["put"], [f"{R}/robot/1/cmd", f"{R}/robot/1/telemetry", f"{R}/robot/*/formation"]),
             ("sub", "ingress", ["declare_subscriber"], [f"{R}/robot/1/*", f"{R}/world/status"]),
             ("data", "egress", ["put"], [f"{R}/robot/1/*", f"{R}/world/status"]),
             ("token", "ingress", ["liveliness_token"], [f"{R}/alive/agent/1"]),
@@ -123,7 +126,7 @@ def test_the_router_rules_of_a_two_robot_run() -> None:
         "agent-2": [
             ("put", "ingress", ["put"], [f"{R}/robot/2/cmd", f"{R}/robot/2/telemetry"]),
             ("sub", "ingress", ["declare_subscriber"], [f"{R}/robot/2/*", f"{R}/world/status"]),
-            ("data", "egress", ["put"], [f"{R}/robot/2/*", f"{R}/world/status"]),
+            ("data", "egress", ["put"], [f"{R}/robot/2/*", f"{R}/world/status", f"{R}/robot/*/formation"]),
             ("token", "ingress", ["liveliness_token"], [f"{R}/alive/agent/2"]),
             ("watch", "ingress", WATCHING, [f"{R}/alive/world/0", f"{R}/alive/agent/2", f"{R}/alive/logger/0"]),
             ("seen", "egress", SEEN, [f"{R}/alive/world/0", f"{R}/alive/agent/2", f"{R}/alive/logger/0"]),
