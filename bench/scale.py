@@ -21,6 +21,7 @@ Per N and mode it prints:
   by the observations it answered), of the world and of the logger (and,
   of the logger's loop thread, what its sends to Rerun took and what taking
   the messages apart and checking them took), and the ticks it recorded;
+- the collisions between robots, and the closest two robots came (m);
 - PSS per agent (MB, shared pages counted once), sampled a second into the run.
 
 The machine's load average is printed before and after: other work on the
@@ -102,6 +103,8 @@ def one(n: int, mode: str, duration_s: float, logger: bool, straight: bool, tmp:
         # Observations an agent never answered: a newer one had come by the time it got to them.
         "skipped": sum(p.get("superseded", 0) for p in followers),
         "observed": sum(p.get("superseded", 0) + p.get("answered", 0) for p in followers),
+        "collisions": s.get("collisions"),
+        "closest_m": s.get("min_distance_m"),
         "leader_skipped": leader.get("superseded", 0),
         "leader_observed": leader.get("superseded", 0) + leader.get("answered", 0),
     }
@@ -121,7 +124,8 @@ def line(n: int, mode: str, r: dict[str, Any], cold: bool = False) -> str:
            f"logger {r['logger_us']:6.0f} us (send {r['logger_send_us']:.0f}, take {r['logger_drain_us']:.0f}; "
            f"recorded {r['recorded']} ticks)")  # fmt: skip
     bad = "" if r["exit"] == 0 else f"  EXIT {r['exit']}"
-    return f"{head}  {timing}  {cpu}  PSS/agent {r['pss_mb']:5.1f} MB{bad}"
+    closest = "" if r["closest_m"] is None else f" (closest {r['closest_m']:.2f} m)"
+    return f"{head}  {timing}  collisions {r['collisions']}{closest}  {cpu}  PSS/agent {r['pss_mb']:5.1f} MB{bad}"
 
 
 def main() -> None:

@@ -93,7 +93,7 @@ def _run_flag_conflicts(args: argparse.Namespace) -> str | None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     if conflict := _run_flag_conflicts(args):
-        print(f"swarm run: {conflict}", file=sys.stderr)
+        print(f"swarm run: {conflict} (see swarm run --help)", file=sys.stderr)
         return USAGE_ERROR
     import zenoh
 

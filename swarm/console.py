@@ -75,7 +75,8 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
     if not ticks:
         w("  no metrics: the run ended before its first tick\n")
     else:
-        for rid, m in sorted((s.get("followers") or {}).items()):
+        followers = (s.get("followers") or {}).items()  # JSON keys: robot ids as text, listed by number
+        for rid, m in sorted(followers, key=lambda kv: (len(str(kv[0])), str(kv[0]))):
             if m.get("acquired") is False:
                 w(f"  follower R{rid}: NEVER ACQUIRED its reference (never in its camera's view): no metrics\n")
                 continue

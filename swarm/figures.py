@@ -50,6 +50,7 @@ class Context:
     dt_s: float = 0.05
     t_end: float = 0.0
     paper: Mapping[str, str] = field(default_factory=dict)  # figure stem -> "Fig. 7a", when reproduced
+    changes: str | None = None  # else, for a paper's scenario that was changed, what was (report.paper_changes)
     fault_marks: list[Mark] = field(default_factory=list)
     switches: list[tuple[float, str]] = field(default_factory=list)  # (time s, formation)
     formation_events: list[Mapping[str, Any]] = field(default_factory=list)

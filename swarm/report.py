@@ -93,6 +93,7 @@ def _context(run_dir: Path, summary: Mapping[str, Any], data: Mapping[str, Serie
                       for n, f in sc.formations.items()}  # fmt: skip
     ctx.start_formation = sc.leader.formation
     ctx.paper = paper_figures(run_dir / "scenario.toml")
+    ctx.changes = None if ctx.paper else paper_changes(run_dir / "scenario.toml")
     return ctx
 
 
@@ -110,6 +111,39 @@ def paper_figures(scenario_toml: Path) -> dict[str, str]:
         if stem in PAPER and _without_seed(tomllib.loads(path.read_text())) == _without_seed(raw):
             return dict(PAPER[stem])
     return {}
+
+
+def paper_changes(scenario_toml: Path) -> str | None:
+    """For a run of a paper's scenario that was changed, what was: e.g.
+    "fig11_obstacles with [[faults]], run.robots changed" (None: not one)."""
+    from formation_swarm.scenario_files import shipped
+
+    try:
+        raw = _without_seed(tomllib.loads(scenario_toml.read_text()))
+    except (OSError, ValueError):
+        return None
+    for stem, path in shipped().items():
+        orig = _without_seed(tomllib.loads(path.read_text()))
+        if stem in PAPER and (orig.get("run") or {}).get("name") == (raw.get("run") or {}).get("name"):
+            changed = sorted(_flat(orig).keys() ^ _flat(raw).keys() | {
+                k for k, v in _flat(orig).items() if k in _flat(raw) and _flat(raw)[k] != v
+            })  # fmt: skip
+            if not changed:
+                return None
+            shown = ", ".join(changed[:6]) + (f" and {len(changed) - 6} more" if len(changed) > 6 else "")
+            return f"{stem} with {shown} changed"
+    return None
+
+
+def _flat(raw: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Dotted keys down to the tables' values; a list of tables ([[faults]]) is one key."""
+    out: dict[str, Any] = {}
+    for k, v in raw.items():
+        if isinstance(v, Mapping):
+            out |= _flat(v, f"{prefix}{k}.")
+        else:
+            out[f"[[{prefix}{k}]]" if isinstance(v, list) and v and isinstance(v[0], Mapping) else f"{prefix}{k}"] = v
+    return out
 
 
 def _without_seed(raw: Mapping[str, Any]) -> dict[str, Any]:
@@ -167,6 +201,7 @@ def _markdown(
 
     f = _num
     paper = "; ".join(f"{stem} cf. paper {fig}" for stem, fig in (ctx.paper if ctx else {}).items())
+    why_not = (ctx.changes if ctx else None) or "not a shipped scenario of the paper"
     lines = [
         f"# Run {summary.get('run_id')}: {summary.get('scenario')}",
         "",
@@ -174,9 +209,7 @@ def _markdown(
         f"({f(summary.get('sim_time_s'), '.1f')} s simulated), exit code {summary.get('exit_code')}. "
         f"Ended: {summary.get('ended') or describe_end(summary.get('end_reason'), summary.get('ended_at_s'))}.",
         "",
-        f"Reproduces: {paper}."
-        if paper
-        else "Reproduces no figure of the paper as it is (not a shipped scenario of the paper, or changed).",
+        f"Reproduces: {paper}." if paper else f"Reproduces no figure of the paper as it is ({why_not}).",
         "",
         "| follower | RMS error, m | max, m | RMS in turns, m | RMS on straights, m | mean lag in turns, m "
         "| max ahead of target, m | measured target RMS, m | EKF target RMS, m |",

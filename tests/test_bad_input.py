@@ -74,7 +74,7 @@ REJECTED = {
     ),
     "run: --rt-priority in lockstep": (
         [*RUN, "--rt-priority", "5"],
-        "argument --rt-priority: only used with --mode realtime, got it in lockstep",
+        "argument --rt-priority: only used with --mode realtime, got it in lockstep (see swarm run --help)",
     ),
     "run: --rt-priority 100": (
         [*RUN, "--mode", "realtime", "--rt-priority", "100"],
@@ -298,6 +298,11 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     assert "formation changes: R2 None at - s" in out.getvalue()
     md = report._markdown({**ticked, "parts": None}, [2])
     assert "| R2 | - | - |" in md
+    out = io.StringIO()
+    many = {**ticked, "followers": {str(r): {"rms_m": 0.1} for r in (100, 10, 2, 11)}}  # JSON's keys are text
+    print_result(RunResult(tmp_path, many, 0), out)
+    listed = [line.split(":")[0].strip() for line in out.getvalue().splitlines() if "follower R" in line]
+    assert listed == ["follower R2", "follower R10", "follower R11", "follower R100"]
     out = io.StringIO()  # real time: its late ticks, not lockstep's misses
     realtime = {**ticked, "mode": "realtime", "late_ticks": 3, "max_tick_lateness_s": 0.0551, "lockstep_misses": 0}
     print_result(RunResult(tmp_path, realtime, 1), out)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import tomllib
 from collections.abc import Callable
 from pathlib import Path
 
@@ -133,4 +134,22 @@ def test_formats_dpi_and_the_events_listed(swarm_run: Callable[..., RunResult]) 
     assert "| 393 | 19.65 | R2 | line |" in md
     assert "| 608 | 30.40 | R1 | triangle |" in md
     assert "Ended: the scenario's duration was reached at t=32.00 s." in md
-    assert "Reproduces no figure of the paper" in md  # its duration was changed
+    assert "Reproduces no figure of the paper as it is (fig11_obstacles with run.duration_s changed)." in md
+
+
+def test_a_changed_paper_scenario_is_named_with_what_changed(tmp_path: Path) -> None:
+    from formation_swarm.report import paper_changes, paper_figures
+    from formation_swarm.scenario_files import dumps
+
+    raw = tomllib.loads((SCENARIOS / "fig11_obstacles.toml").read_text())
+    run = tmp_path / "scenario.toml"
+    run.write_text(dumps({**raw, "run": {**raw["run"], "seed": 7}}))
+    assert paper_figures(run) == {"trajectories": "Fig. 11"}  # another seed is still the figure
+    assert paper_changes(run) is None
+    kill = {"kind": "kill", "target": "agent-3", "at_s": 20.0}
+    faulted = {**raw, "run": {**raw["run"], "robots": 5}, "faults": [kill]}
+    run.write_text(dumps(faulted))
+    assert paper_figures(run) == {}
+    assert paper_changes(run) == "fig11_obstacles with [[faults]], run.robots changed"
+    run.write_text(dumps({**raw, "run": {**raw["run"], "name": "mine"}}))
+    assert paper_changes(run) is None  # not a paper's scenario: nothing to compare with
