@@ -172,6 +172,17 @@ def test_a_formation_event_per_robot_and_change() -> None:
     assert eng.robots[3].formation == FIG11.code_of("triangle")
 
 
+def test_the_summary_lists_one_ticks_formation_events_by_robot_whatever_their_commands_order() -> None:
+    eng = WorldEngine(FIG11, 0)
+    line = FIG11.code_of("line")
+    eng.step(0.0)
+    eng.set_command(3, 0.0, 0.0, line, eng.time_s)  # robot 3's command came first this tick
+    eng.set_command(2, 0.0, 0.0, line, eng.time_s)
+    eng.step(eng.time_s)
+    eng.set_command(1, 0.0, 0.0, line, eng.time_s)
+    assert [(e["tick"], e["robot"]) for e in eng.summary()["formation_events"]] == [(1, 2), (1, 3), (2, 1)]
+
+
 OFF_AXES = """
 [run]
 robots = 3

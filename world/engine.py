@@ -416,7 +416,8 @@ class WorldEngine:
             "obstacle_collisions": self.obstacle_collisions,
             "stale_stops": self.stale_stops,
             "clamped_commands": self.clamped_commands,
-            "formation_events": self.formation_events,
+            # By tick, then robot: commands of one tick arrive in any order.
+            "formation_events": sorted(self.formation_events, key=lambda e: (e["tick"], e["robot"])),
             "error_windows": self._error_windows(),
             # {fault: {robot: {"ticks": active ticks, effect: count}}} (docs/faults.md)
             "sensor_faults": counts_table({rid: c.effects for rid, c in self.cameras.items()}, SENSOR_EFFECT),
