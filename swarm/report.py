@@ -125,9 +125,8 @@ def paper_changes(scenario_toml: Path) -> str | None:
     for stem, path in shipped().items():
         orig = _without_seed(tomllib.loads(path.read_text()))
         if stem in PAPER and (orig.get("run") or {}).get("name") == (raw.get("run") or {}).get("name"):
-            changed = sorted(_flat(orig).keys() ^ _flat(raw).keys() | {
-                k for k, v in _flat(orig).items() if k in _flat(raw) and _flat(raw)[k] != v
-            })  # fmt: skip
+            was, now = _flat(orig), _flat(raw)
+            changed = sorted(was.keys() ^ now.keys() | {k for k, v in was.items() if k in now and now[k] != v})
             if not changed:
                 return None
             shown = ", ".join(changed[:6]) + (f" and {len(changed) - 6} more" if len(changed) > 6 else "")
