@@ -4,7 +4,8 @@ All keys start with ``swarm/<run>`` so that runs never cross-talk::
 
     swarm/<run>/robot/<id>/obs        world -> agent    Observation for tick k
     swarm/<run>/robot/<id>/cmd        agent -> world    Command (wheel speeds) for tick k
-    swarm/<run>/robot/*/formation     leader -> every follower: FormationCode (one put, one-way links)
+    swarm/<run>/robot/*/formation     leader -> every follower: FormationCode, one put for all
+                                      (each follower's link layer applies its own link's faults)
     swarm/<run>/robot/<id>/telemetry  agent -> logger   Telemetry
     swarm/<run>/world/truth           world -> logger   Truth (true poses and targets)
     swarm/<run>/world/status          world -> all      Status (progress, end of run)
