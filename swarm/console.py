@@ -76,11 +76,18 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
         w("  no metrics: the run ended before its first tick\n")
     else:
         followers = (s.get("followers") or {}).items()  # JSON keys: robot ids as text, listed by number
+        kills: dict[str, Any] = {}  # agent-N -> the sim time of its first kill
+        for ev in s.get("events") or []:
+            if isinstance(ev, Mapping) and ev.get("event") == "killed":
+                kills.setdefault(str(ev.get("process")), ev.get("sim_time_s"))
         for rid, m in sorted(followers, key=lambda kv: (len(str(kv[0])), str(kv[0]))):
             if m.get("acquired") is False:
                 w(f"  follower R{rid}: NEVER ACQUIRED its reference (never in its camera's view): no metrics\n")
                 continue
-            w(f"  follower R{rid}: formation error RMS {_num(m.get('rms_m'))} m, max {_num(m.get('max_m'))} m\n")
+            killed = f"agent-{rid}" in kills
+            after = (f" (its agent killed at t={_num(kills[f'agent-{rid}'], '.2f')} s: these count the robot "
+                     "after it too)") if killed else ""  # fmt: skip
+            w(f"  follower R{rid}: formation error RMS {_num(m.get('rms_m'))} m, max {_num(m.get('max_m'))} m{after}\n")
         w(f"  min distance {_num(s.get('min_distance_m'))} m (diameter {_num(s.get('robot_diameter_m'), 'g')} m), "
           f"collisions {s.get('collisions')}, obstacle collisions {s.get('obstacle_collisions')}\n")  # fmt: skip
         changes = [f"R{e.get('robot')} {e.get('formation')} at {_num(e.get('time_s'), '.2f')} s"

@@ -303,6 +303,12 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     print_result(RunResult(tmp_path, many, 0), out)
     listed = [line.split(":")[0].strip() for line in out.getvalue().splitlines() if "follower R" in line]
     assert listed == ["follower R2", "follower R10", "follower R11", "follower R100"]
+    out = io.StringIO()
+    kill = {"event": "killed", "process": "agent-10", "tick": 40, "sim_time_s": 2.0}
+    print_result(RunResult(tmp_path, {**many, "events": [kill]}, 0), out)
+    lines = {line.split(":")[0].strip(): line for line in out.getvalue().splitlines() if "follower R" in line}
+    assert lines["follower R10"].endswith("(its agent killed at t=2.00 s: these count the robot after it too)")
+    assert "killed" not in lines["follower R2"]
     out = io.StringIO()  # real time: its late ticks, not lockstep's misses
     realtime = {**ticked, "mode": "realtime", "late_ticks": 3, "max_tick_lateness_s": 0.0551, "lockstep_misses": 0}
     print_result(RunResult(tmp_path, realtime, 1), out)
