@@ -104,6 +104,7 @@ class Agent:
         self.sc = sc
         self.rid = rid
         self.keys = Keys(run_id)
+        self.codes_key = self.keys.codes  # compared with every inbox message's key: built once
         self.role = role
         self.stop = role.stop
         self.where = where  # the session's endpoints, for messages
@@ -371,7 +372,7 @@ class Agent:
         neither answered nor given to the link layer); what the link layer
         hands over is checked again for order (a duplicate or a message it
         held back behind a newer one is "replayed or reordered")."""
-        if key == self.keys.codes:
+        if key == self.codes_key:
             if self.is_leader:
                 self.rejections.reject("unexpected key")
             else:
