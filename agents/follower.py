@@ -39,7 +39,14 @@ import numpy as np
 from formation_swarm.agents import fuzzy as fz
 from formation_swarm.agents.avoidance import Choice, select_target
 from formation_swarm.agents.ekf import EkfParams, TargetEKF
-from formation_swarm.agents.geometry import Point, errors, leader_point, target_from_reading, target_point
+from formation_swarm.agents.geometry import (
+    Point,
+    errors,
+    leader_point,
+    lookahead_bearing,
+    target_from_reading,
+    target_point,
+)
 from formation_swarm.agents.lpsi import LpsiParams
 from formation_swarm.agents.lpsi import control as lpsi_control
 from formation_swarm.checks import finite, non_negative, positive
@@ -75,6 +82,10 @@ class FollowerParams:
     # The wait ahead of the target (not the paper's; docs/paper.md): off, the
     # paper's follower drives on at V_N - a when it is ahead of its target.
     wait_ahead: bool = False
+    # The steering look-ahead (not the paper's; docs/paper.md): the fuzzy law's
+    # heading error alpha is the bearing of the point this far ahead of the
+    # target along the reference's heading; 0: of the target, as the paper's.
+    lookahead_m: float = 0.0
 
     def __post_init__(self) -> None:
         if self.law not in LAWS:
@@ -94,6 +105,7 @@ class FollowerParams:
                 f"resume_speed_mps must be >= hold_speed_mps ({self.hold_speed_mps!r}), got {self.resume_speed_mps!r}"
             )
         positive("hold_after_s", self.hold_after_s)
+        non_negative("lookahead_m", self.lookahead_m)
 
 
 class Decision(NamedTuple):
@@ -217,6 +229,8 @@ class Follower:
         err = errors(goal, prev_rho, phi)
         if p.drho_at_sign_change == "distance" and prev_rho is not None and prev_rho * err.rho_m < 0.0:
             err = err._replace(drho_m=abs(err.rho_m) - abs(prev_rho))  # level with the target: no jump
+        if p.lookahead_m:
+            err = err._replace(alpha_rad=lookahead_bearing(goal, phi, p.lookahead_m))
         if self.changing and change_over(choice, err.rho_m, p.fuzzy):
             self.changing = False  # track T0 from now on
         self._prev_rho = err.rho_m

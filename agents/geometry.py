@@ -90,6 +90,25 @@ def errors(target: Point, prev_rho_m: float | None, phi_rad: float = 0.0) -> Tar
     return TargetErrors(math.atan2(xg, yg), rho, drho)
 
 
+def lookahead_bearing(target: Point, phi_rad: float, lookahead_m: float) -> float:
+    """The bearing (as alpha, eq. 4: positive to the right) of the point
+    ``lookahead_m`` ahead of ``target`` along the reference's heading
+    (``phi_rad``, the direction R(phi)[0, 1] of eq. 5's sign); 0 m gives alpha.
+
+    Not the paper's (docs/paper.md, formations of many robots). Steering at
+    the target itself, a follower that trails it by rho turns by about
+    e / rho for a sideways error e of the target. A target d behind its
+    reference moves sideways by d per radian the reference turns: 1.5 m
+    behind it, with the follower 0.35 m behind the target, the follower turns
+    about four times as far as its reference swings, and the swings grow
+    down every chain. Aimed ``lookahead_m`` farther along the reference's
+    course, it turns by about e / (rho + lookahead_m).
+    """
+    lookahead = non_negative("lookahead_m", lookahead_m)
+    phi = finite("phi_rad", phi_rad)
+    return math.atan2(target[0] - lookahead * math.sin(phi), target[1] + lookahead * math.cos(phi))
+
+
 def follower_in_leader_frame(leader: Point, phi_rad: float) -> Point:
     """Eq. 11-12: the follower's position P_xy seen from the leader's frame.
 

@@ -29,6 +29,7 @@ machine shows in every figure.
 
     python bench/scale.py [--robots 10 50 100 200] [--modes realtime lockstep]
                           [--duration 20] [--lockstep-duration 10] [--no-logger]
+                          [--straight] [--lookahead-m 1]
 """
 
 from __future__ import annotations
@@ -62,8 +63,15 @@ def pss_mb(pid: int) -> float:
     return float("nan")
 
 
-def one(n: int, mode: str, duration_s: float, logger: bool, straight: bool, tmp: Path) -> dict[str, Any]:
-    overrides: dict[str, Any] = {"run.robots": n, "leader.formation": "line", "run.duration_s": duration_s}
+def one(
+    n: int, mode: str, duration_s: float, logger: bool, straight: bool, lookahead_m: float, tmp: Path
+) -> dict[str, Any]:
+    overrides: dict[str, Any] = {
+        "run.robots": n,
+        "leader.formation": "line",
+        "run.duration_s": duration_s,
+        "controller.lookahead_m": lookahead_m,
+    }
     if straight:
         overrides["leader.waypoints"] = STRAIGHT
     t0 = time.monotonic()
@@ -136,13 +144,21 @@ def main() -> None:
     ap.add_argument("--lockstep-duration", type=float, default=10.0, help="sim seconds of a lockstep run (default 10)")
     ap.add_argument("--no-logger", action="store_true", help="without the logger")
     ap.add_argument("--straight", action="store_true", help="a straight path, for durations beyond fig11's 56 s")
+    ap.add_argument(
+        "--lookahead-m",
+        type=float,
+        default=0.0,
+        help="the followers' steering look-ahead, controller.lookahead_m (default 0, the paper's steering; "
+        "1 keeps the heading swings from growing down the line: docs/paper.md)",
+    )
     args = ap.parse_args()
-    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}", flush=True)
+    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}; "
+          f"followers' look-ahead {args.lookahead_m:g} m", flush=True)  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
         for n in args.robots:
             for mode in args.modes:
                 duration = args.duration if mode == "realtime" else args.lockstep_duration
-                r = one(n, mode, duration, not args.no_logger, args.straight, Path(tmp))
+                r = one(n, mode, duration, not args.no_logger, args.straight, args.lookahead_m, Path(tmp))
                 print(line(n, mode, r, cold=(n, mode) == (args.robots[0], args.modes[0])),
                       f"load {os.getloadavg()[0]:.2f}", flush=True)  # fmt: skip
     print(f"load average after: {os.getloadavg()[0]:.2f}")

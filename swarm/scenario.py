@@ -253,6 +253,11 @@ def _ranges(ids: list[int]) -> str:
     return ", ".join(str(r[0]) if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs)
 
 
+def _robots(rids: Sequence[int], one: str, many: str) -> str:
+    """The words "robot 5 is" or "robots 5-9 are" (``one`` = "is", ``many`` = "are")."""
+    return f"robot {rids[0]} {one}" if len(rids) == 1 else f"robots {_ranges(rids)} {many}"
+
+
 def turn_warnings(speed_mps: float, turn_rate_rps: float, formations: Mapping[str, Formation]) -> list[str]:
     """The formations with slots farther to the side of the leader than its turn
     radius (speed / turn rate): in a turn toward them such a slot moves
@@ -265,10 +270,38 @@ def turn_warnings(speed_mps: float, turn_rate_rps: float, formations: Mapping[st
         if beyond:
             far = max(side[r] for r in beyond)
             out.append(
-                f"formation {name!r}: robots {_ranges(beyond)} sit up to {far:g} m to the side of the leader, beyond "
-                f"its turn radius leader.speed_mps / leader.turn_rate_rps = {radius:g} m: in a turn toward them "
+                f"formation {name!r}: {_robots(beyond, 'sits', 'sit')} up to {far:g} m to the side of the leader, "
+                f"beyond its turn radius leader.speed_mps / leader.turn_rate_rps = {radius:g} m: in a turn toward them "
                 "their slots move backwards, which the robots cannot do, and the formation folds (closer spacing, "
                 "e.g. lateral_m, or a gentler turn keeps every slot inside the radius)"
+            )
+    return out
+
+
+# From this many references down a chain the paper's steering makes a weave
+# (docs/paper.md, "The steering look-ahead": in a line on a straight path,
+# robot 5, four links down, swings its heading 17 degrees, robot 2 2.6).
+CHAIN_WARN_DEPTH = 4
+
+
+def chain_warnings(formations: Mapping[str, Formation], followers: Mapping[int, FollowerParams]) -> list[str]:
+    """The formations with fuzzy followers CHAIN_WARN_DEPTH or more references
+    down a chain from the leader that steer at their target itself
+    (controller.lookahead_m = 0): each swings more than its reference."""
+    out = []
+    for name, form in formations.items():
+        depths = form.depths()
+        deep = sorted(
+            rid for rid, d in depths.items()
+            if d >= CHAIN_WARN_DEPTH and followers[rid].law == "fuzzy" and not followers[rid].lookahead_m
+        )  # fmt: skip
+        if deep:
+            low, high = min(depths[r] for r in deep), max(depths[r] for r in deep)
+            links = f"{low}" if low == high else f"{low}-{high}"
+            out.append(
+                f"formation {name!r}: {_robots(deep, 'is', 'are')} {links} references down a chain from the leader; "
+                "with the paper's steering (controller.lookahead_m = 0) heading swings grow at every link "
+                '(docs/paper.md, "The steering look-ahead"): controller.lookahead_m = 1 keeps them level'
             )
     return out
 
@@ -340,6 +373,7 @@ def _follower_params(where: str, t: Mapping[str, Any], robot: Mapping[str, Any],
         resume_speed_mps=float(t["resume_speed_mps"]),
         hold_after_s=float(t["hold_after_s"]),
         wait_ahead=t["wait_ahead"],
+        lookahead_m=float(t["lookahead_m"]),
         fuzzy=fz,
         speed=mode,
         ekf=ekf,
@@ -464,6 +498,7 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
     _check_sight(ld, formations, camera, followers, forms_raw)
     speed = speed_warnings(float(ld["speed_mps"]), followers)
     speed += turn_warnings(float(ld["speed_mps"]), float(ld["turn_rate_rps"]), formations)
+    speed += chain_warnings(formations, followers)
 
     obstacles = []
     obs_raw = raw.get("obstacles", [])

@@ -250,6 +250,13 @@ CONTROLLER_KEYS = {
         " follower more than dn_m ahead of its target stops until the target is within d0_m (false: it drives on"
         " at V_N - a, as the paper's does)",
     ),
+    "lookahead_m": non_negative(
+        "the steering look-ahead (not the paper's; docs/paper.md, formations of many robots): a fuzzy follower"
+        " steers at the point this far ahead of its target along its reference's heading, which keeps heading"
+        " swings from growing down chains of references (0: at the target, as the paper's)",
+        _FOLLOWER.lookahead_m,
+        "m",
+    ),
     "gamma_deg": Key(
         NUM, math.degrees(_FZ.gamma_rad), "FIS-1 heading tolerance", "deg", low=0.0, high=180.0, open_low=True
     ),

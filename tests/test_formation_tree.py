@@ -278,7 +278,12 @@ def test_a_slow_leader_is_warned_of() -> None:
     with pytest.warns(ScenarioWarning) as record:
         sm.load(
             SCENARIOS / "fig7_turn_vn_dynamic.toml",
-            overrides={"leader.speed_mps": 1.0, "run.robots": 10, "formations.two.shape": "line"},
+            overrides={
+                "leader.speed_mps": 1.0,
+                "run.robots": 10,
+                "formations.two.shape": "line",
+                "controller.lookahead_m": 1.0,
+            },
         )
     assert [str(w.message) for w in record] == [
         "leader.speed_mps = 1 is below the speeds followers 2-10' fuzzy controllers hold steadily, 1.2-2.2 m/s"
@@ -297,7 +302,7 @@ def test_a_slow_leader_is_warned_of() -> None:
 
 def test_a_wing_beyond_the_leaders_turn_radius_is_warned_of() -> None:
     # 1.5 m/s at 0.25 rad/s: a 6 m radius; a 30-robot wedge at 1.5 m per rank reaches 22.5 m out.
-    wide = {"run.robots": 30, "formations.two.shape": "wedge"}
+    wide = {"run.robots": 30, "formations.two.shape": "wedge", "controller.lookahead_m": 1.0}
     with pytest.warns(ScenarioWarning) as record:
         sm.load(SCENARIOS / "fig7_turn_vn_dynamic.toml", overrides=wide)
     assert [str(w.message) for w in record] == [
@@ -309,6 +314,24 @@ def test_a_wing_beyond_the_leaders_turn_radius_is_warned_of() -> None:
     with warnings.catch_warnings():  # 15 ranks of 0.4 m: the inner wing ends at the turn's centre
         warnings.simplefilter("error", ScenarioWarning)
         sm.load(SCENARIOS / "fig7_turn_vn_dynamic.toml", overrides={**wide, "formations.two.lateral_m": 0.4})
+
+
+def test_a_deep_chain_with_the_papers_steering_is_warned_of() -> None:
+    line = {"run.robots": 10, "formations.two.shape": "line"}
+    with pytest.warns(ScenarioWarning) as record:
+        sm.load(SCENARIOS / "fig7_turn_vn_dynamic.toml", overrides=line)
+    assert [str(w.message) for w in record] == [
+        "formation 'two': robots 5-10 are 4-9 references down a chain from the leader; with the paper's steering"
+        ' (controller.lookahead_m = 0) heading swings grow at every link (docs/paper.md, "The steering'
+        ' look-ahead"): controller.lookahead_m = 1 keeps them level'
+    ]
+    with pytest.warns(ScenarioWarning, match="^formation 'two': robot 5 is 4 references down"):
+        sm.load(SCENARIOS / "fig7_turn_vn_dynamic.toml", overrides={**line, "run.robots": 5})
+    # Three links (the 4-robot line), the look-ahead, or the l-psi law: no warning.
+    for quiet in ({"run.robots": 4}, {"controller.lookahead_m": 1.0}, {"controller.law": "lpsi"}):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", ScenarioWarning)
+            sm.load(SCENARIOS / "fig7_turn_vn_dynamic.toml", overrides={**line, **quiet})
 
 
 @pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.toml")), ids=lambda p: p.stem)

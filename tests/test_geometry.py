@@ -149,6 +149,8 @@ def test_bad_formations(slots: dict, match: str) -> None:
         (lambda: g.leader_point(1.0, 0.0, math.inf, 0.1), "beta_rad"),
         (lambda: g.leader_point(1.0, 0.0, 0.0, -0.1), "marker_offset_m"),
         (lambda: g.errors(Point(math.nan, 1.0), None), "target.x_m"),
+        (lambda: g.lookahead_bearing(Point(0.1, 0.3), 0.0, -1.0), "lookahead_m"),
+        (lambda: g.lookahead_bearing(Point(0.1, 0.3), math.nan, 1.0), "phi_rad"),
         (lambda: select_target(Point(0.0, 1.0), 0.0, Point(0, -1), 0.0), "clearance_m"),
         (lambda: line(1, 1.0), "n must be"),
         (lambda: wedge(3, -1.0, 1.0), "lateral_m"),
@@ -243,3 +245,17 @@ def test_an_alpha_beyond_pi_is_wrapped_not_saturated() -> None:
     assert beyond == fz.control(-math.pi + 0.3, 1.5, 0.0, 0.05, p, fz.SpeedMode(1.5))
     assert beyond[1].left_mps < beyond[1].right_mps  # the target is behind-left: turn left
     assert fz.control(math.pi, 1.5, 0.0, 0.05, p, fz.SpeedMode(1.5))[1].left_mps > 1.5  # pi itself unchanged: Left
+
+
+def test_the_lookahead_bearing_aims_past_the_target_along_the_references_heading() -> None:
+    """0 m: eq. 4's alpha. 1 m with the reference heading as the follower
+    (phi = 0): the point 1 m farther ahead, so a target 0.1 m to the right and
+    0.35 m ahead turns it by atan(0.1 / 1.35), not atan(0.1 / 0.35); with the
+    reference turned 90 degrees to the left (phi = pi/2, its heading the
+    follower's -x), the point lies 1 m to the left of the target."""
+    target = Point(0.1, 0.35)
+    assert g.lookahead_bearing(target, 0.3, 0.0) == g.errors(target, None, 0.3).alpha_rad
+    assert g.lookahead_bearing(target, 0.0, 1.0) == pytest.approx(math.atan2(0.1, 1.35))
+    assert math.degrees(g.errors(target, None).alpha_rad) == pytest.approx(15.9, abs=0.05)
+    assert math.degrees(g.lookahead_bearing(target, 0.0, 1.0)) == pytest.approx(4.24, abs=0.01)
+    assert g.lookahead_bearing(target, math.pi / 2, 1.0) == pytest.approx(math.atan2(-0.9, 0.35))
