@@ -552,6 +552,7 @@ class Launch:
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         interrupted = timed_out = start_failed = False
         last_line = 0.0
+        shown: int | None = None  # the tick of the last progress line
         world = self.children["world"]
         try:
             while world.poll() is None:
@@ -562,9 +563,7 @@ class Launch:
                     self.progress(f"[swarm] the run cannot start without {', '.join(failed)}: stopping every process")
                     break
                 if now - last_line >= 2.0 and self.last_status is not None:
-                    st = self.last_status
-                    pct = 100.0 * st.tick / max(1, st.total_ticks)
-                    self.progress(f"[swarm] tick {st.tick}/{st.total_ticks} ({pct:.0f}%), sim {st.time_s:.1f} s")
+                    shown = self._show_progress()
                     last_line = now
                 if deadline is not None and now > deadline:
                     timed_out = True
@@ -575,6 +574,8 @@ class Launch:
             interrupted = True
             self.progress("[swarm] interrupted: stopping every process")
         self._watch()
+        if self.last_status is not None and self.last_status.tick != shown:
+            self._show_progress()  # where it ended: a run shorter than a line's 2 s showed only its start
         self.stop(graceful_first=not (interrupted or timed_out or start_failed))
         for child in self.children.values():  # codes the fork server did not report, taken from the child's record
             if getattr(child.proc, "unreported", False):
@@ -593,6 +594,14 @@ class Launch:
             code = 1
         summary = self._summary(code, interrupted, timed_out)
         return RunResult(self.run_dir, summary, code, self.pids())
+
+    def _show_progress(self) -> int:
+        """Print the last status's tick, share of the run and sim time; its tick."""
+        st = self.last_status
+        assert st is not None
+        pct = 100.0 * st.tick / max(1, st.total_ticks)
+        self.progress(f"[swarm] tick {st.tick}/{st.total_ticks} ({pct:.0f}%), sim {st.time_s:.1f} s")
+        return st.tick
 
     def stop(self, graceful_first: bool = True) -> None:
         """End of run: give everyone END_GRACE_S to leave on the world's "done",

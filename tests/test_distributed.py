@@ -179,6 +179,19 @@ def test_an_exit_code_the_fork_server_did_not_report_is_the_childs_own(tmp_path:
     assert not Path(reported.exit_path).exists()
 
 
+def test_a_run_shorter_than_a_progress_line_still_shows_where_it_ended(
+    swarm_run: Callable[..., RunResult],
+) -> None:
+    """A progress line comes every 2 s; a run that ends sooner used to show
+    only its tick 0. The last line now gives the tick it ended at."""
+    said: list[str] = []
+    res = swarm_run(FIG11, overrides={"run.duration_s": 1.5}, logger=False, progress=said.append)
+    assert res.exit_code == 0
+    ticks = [line for line in said if line.startswith("[swarm] tick ")]
+    assert ticks[0] == "[swarm] tick 0/30 (0%), sim 0.0 s"
+    assert ticks[-1] == "[swarm] tick 30/30 (100%), sim 1.5 s"
+
+
 def test_runs_with_observation_and_formation_code_drops_are_reproducible(
     swarm_run: Callable[..., RunResult], swarm_launch: Callable[..., Launch]
 ) -> None:
