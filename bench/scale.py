@@ -52,6 +52,17 @@ SCENARIO = ROOT / "scenarios" / "fig11_obstacles.toml"
 STRAIGHT = [[0.0, 0.0], [0.0, 1000.0]]  # --straight: a path that never ends within the duration
 
 
+def non_negative(text: str) -> float:
+    """An argparse type: a finite number >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0.0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return value
+
+
 def pss_mb(pid: int) -> float:
     """A process's proportional set size, MB (NaN when it is gone)."""
     try:
@@ -146,7 +157,7 @@ def main() -> None:
     ap.add_argument("--straight", action="store_true", help="a straight path, for durations beyond fig11's 56 s")
     ap.add_argument(
         "--lookahead-m",
-        type=float,
+        type=non_negative,
         default=0.0,
         help="the followers' steering look-ahead, controller.lookahead_m (default 0, the paper's steering; "
         "1 keeps the heading swings from growing down the line: docs/paper.md)",

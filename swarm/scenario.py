@@ -280,7 +280,7 @@ def turn_warnings(speed_mps: float, turn_rate_rps: float, formations: Mapping[st
 
 # From this many references down a chain the paper's steering makes a weave
 # (docs/paper.md, "The steering look-ahead": in a line on a straight path,
-# robot 5, four links down, swings its heading 17 degrees, robot 2 2.6).
+# robot 5, four links down, swings its heading 17.3 degrees, robot 2 2.6).
 CHAIN_WARN_DEPTH = 4
 
 
@@ -497,8 +497,10 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
     _check_wheel_limit(float(robot["max_wheel_mps"]), float(robot["width_m"]), ld, followers)
     _check_sight(ld, formations, camera, followers, forms_raw)
     speed = speed_warnings(float(ld["speed_mps"]), followers)
-    speed += turn_warnings(float(ld["speed_mps"]), float(ld["turn_rate_rps"]), formations)
-    speed += chain_warnings(formations, followers)
+    # Of the formations the leader flies (a scenario may hold others it never picks).
+    flown = {name: formations[name] for name in (ld["formation"], ld["avoid_formation"]) if name}
+    speed += turn_warnings(float(ld["speed_mps"]), float(ld["turn_rate_rps"]), flown)
+    speed += chain_warnings(flown, followers)
 
     obstacles = []
     obs_raw = raw.get("obstacles", [])

@@ -251,7 +251,7 @@ CONTROLLER_KEYS = {
         " at V_N - a, as the paper's does)",
     ),
     "lookahead_m": non_negative(
-        "the steering look-ahead (not the paper's; docs/paper.md, formations of many robots): a fuzzy follower"
+        'the steering look-ahead (not the paper\'s; docs/paper.md, "The steering look-ahead"): a fuzzy follower'
         " steers at the point this far ahead of its target along its reference's heading, which keeps heading"
         " swings from growing down chains of references (0: at the target, as the paper's)",
         _FOLLOWER.lookahead_m,

@@ -327,6 +327,11 @@ def test_a_deep_chain_with_the_papers_steering_is_warned_of() -> None:
     ]
     with pytest.warns(ScenarioWarning, match="^formation 'two': robot 5 is 4 references down"):
         sm.load(SCENARIOS / "fig7_turn_vn_dynamic.toml", overrides={**line, "run.robots": 5})
+    # Only of the formations the leader flies: fig11 flying its line alone says nothing of its triangle.
+    fig11_line = {"run.robots": 10, "leader.formation": "line"}
+    with pytest.warns(ScenarioWarning) as record:
+        sm.load(SCENARIOS / "fig11_obstacles.toml", overrides=fig11_line)
+    assert [str(w.message)[:50] for w in record] == ["formation 'line': robots 5-10 are 4-9 references d"]
     # Three links (the 4-robot line), the look-ahead, or the l-psi law: no warning.
     for quiet in ({"run.robots": 4}, {"controller.lookahead_m": 1.0}, {"controller.law": "lpsi"}):
         with warnings.catch_warnings():
