@@ -187,18 +187,37 @@ class Follower:
             self.ekf.predict(self._last_cmd[0], self._last_cmd[1], self.p.dt_s)
             self._predicted = True
 
-    def step(self, reading: tuple[float, float, float] | None) -> Decision:
-        """One tick. ``reading`` is the reference's (rho_r, phi, beta), or None."""
+    def step(self, reading: tuple[float, float, float] | None, ticks: int = 1) -> Decision:
+        """One tick. ``reading`` is the reference's (rho_r, phi, beta), or None.
+
+        ``ticks``: the ticks since the last step (1 but where the agent skipped
+        observations, in real time when it could not keep up, or was frozen).
+        The EKF then predicts over each of them with the command the robot
+        kept, and drho (eq. 6) is taken over their time, so neither the
+        reference's speed nor the approach rate looks faster than it is.
+        A gap longer than ``lost_after_s`` restarts the filter from this
+        reading, as a lost reference does: the robot stood still for part of
+        it (the world stops a robot on a stale command), which the filter
+        cannot know."""
         p = self.p
+        if isinstance(ticks, bool) or not isinstance(ticks, int) or ticks < 1:
+            raise ValueError(f"ticks must be an integer >= 1, got {ticks!r}")
+        if ticks > 1 and ticks * p.dt_s > p.lost_after_s:
+            self.ekf.reset()
+            self._prev_rho = None
+            self._speeds.clear()
+            ticks = 1
         measured = None
         if reading is not None:
             measured = target_from_reading(reading[0], reading[1], reading[2], p.marker_offset_m, self.offset)
             self._since_reading_s = 0.0
             self._raw = (float(reading[0]), float(reading[1]), float(reading[2]))
         else:
-            self._since_reading_s += p.dt_s
+            self._since_reading_s += p.dt_s * ticks
         if p.use_ekf:
             self.prepare()
+            for _ in range(ticks - 1):  # the skipped ticks, on the command the robot kept
+                self.ekf.predict(self._last_cmd[0], self._last_cmd[1], p.dt_s)
             self._predicted = False
             starting = not self.ekf.initialized
             self.ekf.update(reading)
@@ -243,7 +262,7 @@ class Follower:
             self._last_cmd = (0.0, 0.0)
             return Decision(0.0, 0.0, 0.0, err.alpha_rad, err.rho_m, err.drho_m, measured, estimate, cov, choice,
                             self.changing, waiting=True)  # fmt: skip
-        vn, wheels = fz.control(err.alpha_rad, err.rho_m, err.drho_m, p.dt_s, p.fuzzy, p.speed)
+        vn, wheels = fz.control(err.alpha_rad, err.rho_m, err.drho_m, p.dt_s * ticks, p.fuzzy, p.speed)
         self._last_cmd = (wheels.left_mps, wheels.right_mps)
         return Decision(
             wheels.left_mps,

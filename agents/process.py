@@ -137,6 +137,7 @@ class Agent:
         self.done = False
         self.end_note = "not started"  # why the loop ended, for the last report line
         self.answered = 0
+        self.answered_tick: int | None = None  # the tick of the last observation answered
         self.busy_s = 0.0  # time handling messages in the loop, summed
         self.loop_cpu_s = 0.0  # CPU time of this process over the loop (all its threads)
         self.formation_changes: list[dict[str, Any]] = []
@@ -475,7 +476,11 @@ class Agent:
                 if rid == self.reference:
                     reading = (rho, phi, beta)
                     break
-        d: Decision = self.follower.step(reading)
+        # The ticks since the last one answered: more than one where observations
+        # were skipped (real time, a busy machine) or the agent was frozen.
+        ticks = 1 if self.answered_tick is None else max(1, obs.tick - self.answered_tick)
+        self.answered_tick = obs.tick
+        d: Decision = self.follower.step(reading, ticks)
         self._send_cmd(obs.tick, d.left_mps, d.right_mps)
         self._count_hold(obs.tick, d.holding)
         self.waited_ticks += d.waiting

@@ -211,3 +211,28 @@ def test_ten_robots_switch_triangle_line_triangle_between_the_obstacles(swarm_ru
         farthest = max(sights(f, sc.camera.marker_offset_m)[rid].rho_m for f in sc.formations.values())
         assert s["followers"][str(rid)]["max_m"] < sc.camera.range_m - farthest, rid
     assert s["collisions"] <= 2  # counted by the world; see the docstring
+
+
+def test_an_agent_that_skipped_observations_tells_its_follower_how_many_ticks_passed() -> None:
+    """Observations 0, 1 and 4 answered (2 and 3 skipped: superseded, in real
+    time on a busy machine): the follower steps with 1, 1 and 3 ticks, as a
+    follower stepped so by hand, and its EKF predicted over the gap."""
+    sc = sm.load(SCENARIOS / "fig11_obstacles.toml")
+    keys = Keys("skipped-ticks-test")
+    agent = Agent(None, sc, 2, keys.run_id, sc.seed, FakeRole())  # type: ignore[arg-type]  # no session needed
+    agent.cmd_pub, agent.tel_pub = FakePub(), FakePub()
+    by_hand = Follower(sc.followers[2], sc.formations["triangle"].slots[2].offset)
+    r1 = (1, 2.1, 0.0, -0.8)  # (robot, rho_m, phi_rad, beta_rad)
+    for seq, (tick, ticks) in enumerate(((0, 1), (1, 1), (4, 3)), start=1):
+        obs = Observation(0, seq, tick, tick * sc.dt_s, (0.0, 0.0, 1.57), (r1,), ())
+        taken = agent._on_message(keys.obs(2), obs.to_bytes())
+        assert taken is not None
+        agent._on_observation(*taken)
+        by_hand.step(r1[1:], ticks)
+        by_hand.prepare()
+        assert agent.follower.ekf.state.tolist() == by_hand.ekf.state.tolist(), tick
+    once = Follower(sc.followers[2], sc.formations["triangle"].slots[2].offset)
+    for _ in range(3):
+        once.step(r1[1:])
+        once.prepare()
+    assert once.ekf.state.tolist() != by_hand.ekf.state.tolist()  # the gap made a difference
