@@ -202,11 +202,6 @@ class Follower:
         p = self.p
         if isinstance(ticks, bool) or not isinstance(ticks, int) or ticks < 1:
             raise ValueError(f"ticks must be an integer >= 1, got {ticks!r}")
-        if ticks > 1 and ticks * p.dt_s > p.lost_after_s:
-            self.ekf.reset()
-            self._prev_rho = None
-            self._speeds.clear()
-            ticks = 1
         measured = None
         if reading is not None:
             measured = target_from_reading(reading[0], reading[1], reading[2], p.marker_offset_m, self.offset)
@@ -214,6 +209,11 @@ class Follower:
             self._raw = (float(reading[0]), float(reading[1]), float(reading[2]))
         else:
             self._since_reading_s += p.dt_s * ticks
+        if ticks > 1 and ticks * p.dt_s > p.lost_after_s:
+            self.ekf.reset()
+            self._prev_rho = None
+            self._speeds.clear()
+            ticks = 1
         if p.use_ekf:
             self.prepare()
             for _ in range(ticks - 1):  # the skipped ticks, on the command the robot kept

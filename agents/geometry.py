@@ -95,7 +95,7 @@ def lookahead_bearing(target: Point, phi_rad: float, lookahead_m: float) -> floa
     ``lookahead_m`` ahead of ``target`` along the reference's heading
     (``phi_rad``, the direction R(phi)[0, 1] of eq. 5's sign); 0 m gives alpha.
 
-    Not the paper's (docs/paper.md, formations of many robots). Steering at
+    Not the paper's (docs/paper.md, "The steering look-ahead"). Steering at
     the target itself, a follower that trails it by rho turns by about
     e / rho for a sideways error e of the target. A target d behind its
     reference moves sideways by d per radian the reference turns: 1.5 m

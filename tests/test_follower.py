@@ -427,3 +427,14 @@ def test_a_gap_longer_than_lost_after_s_restarts_the_filter() -> None:
     assert f.ekf.state.tolist() != fresh.ekf.state.tolist()
     with pytest.raises(ValueError, match="ticks must be an integer >= 1, got 0"):
         f.step(None, ticks=0)
+
+
+def test_no_reading_after_a_gap_longer_than_lost_after_s_stops_the_follower() -> None:
+    """The gap counts toward lost_after_s, with or without the EKF."""
+    for use_ekf in (True, False):
+        f = Follower(FollowerParams(use_ekf=use_ekf), SLOT)
+        for _ in range(5):
+            assert f.step((2.1, 0.0, -0.8)).left_mps > 0.0
+            f.prepare()
+        stopped = f.step(None, ticks=21)
+        assert (stopped.left_mps, stopped.right_mps) == (0.0, 0.0), use_ekf
