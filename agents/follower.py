@@ -192,9 +192,10 @@ class Follower:
 
         ``ticks``: the ticks since the last step (1 but where the agent skipped
         observations, in real time when it could not keep up, or was frozen).
-        The EKF then predicts over each of them with the command the robot
-        kept, and drho (eq. 6) is taken over their time, so neither the
-        reference's speed nor the approach rate looks faster than it is.
+        The EKF then predicts over them with the command the robot kept (in
+        one step: an agent that fell behind gets no more work for it), and
+        drho (eq. 6) is taken over their time, so neither the reference's
+        speed nor the approach rate looks faster than it is.
         A gap longer than ``lost_after_s`` restarts the filter from this
         reading, as a lost reference does: the robot stood still for part of
         it (the world stops a robot on a stale command), which the filter
@@ -216,8 +217,8 @@ class Follower:
             ticks = 1
         if p.use_ekf:
             self.prepare()
-            for _ in range(ticks - 1):  # the skipped ticks, on the command the robot kept
-                self.ekf.predict(self._last_cmd[0], self._last_cmd[1], p.dt_s)
+            if ticks > 1:  # the skipped ticks, on the command the robot kept: one step, however many
+                self.ekf.predict(self._last_cmd[0], self._last_cmd[1], p.dt_s * (ticks - 1))
             self._predicted = False
             starting = not self.ekf.initialized
             self.ekf.update(reading)
