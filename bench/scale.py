@@ -74,6 +74,17 @@ def pss_mb(pid: int) -> float:
     return float("nan")
 
 
+_SAID: set[str] = set()
+
+
+def _warnings_once(line: str) -> None:
+    """The launcher's console: only the scenario's warnings, each once (they
+    name the robots, so each N has its own)."""
+    if line.startswith("[swarm] warning") and line not in _SAID:
+        _SAID.add(line)
+        print(f"  {line}", flush=True)
+
+
 def one(
     n: int, mode: str, duration_s: float, logger: bool, straight: bool, lookahead_m: float, tmp: Path
 ) -> dict[str, Any]:
@@ -87,7 +98,7 @@ def one(
         overrides["leader.waypoints"] = STRAIGHT
     t0 = time.monotonic()
     with Launch(SCENARIO, mode=mode, out=tmp / f"{mode}-{n}-{time.time_ns()}", overrides=overrides,
-                logger=logger, progress=lambda _l: None) as launch:  # fmt: skip
+                logger=logger, progress=_warnings_once) as launch:  # fmt: skip
         if not launch.wait_until(lambda: launch.sim_time() >= 0.0, timeout_s=900.0):
             raise SystemExit(f"{n} robots, {mode}: no first tick within 900 s ({launch.run_dir})")
         start_s = time.monotonic() - t0

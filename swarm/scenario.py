@@ -158,7 +158,8 @@ def _table(raw: Any, where: str, schema: Mapping[str, Key]) -> dict[str, Any]:
         spec = schema[key]
         types = spec.types if isinstance(spec.types, tuple) else (spec.types,)
         if (isinstance(value, bool) and bool not in types) or not isinstance(value, types):
-            raise ScenarioError(f"{where}.{key} must be {type_name(spec.types)}, got {value!r}")
+            got = str(value).lower() if isinstance(value, bool) else repr(value)  # as TOML writes it
+            raise ScenarioError(f"{where}.{key} must be {type_name(spec.types)}, got {got}")
         if isinstance(value, float) and not math.isfinite(value):
             raise ScenarioError(f"{where}.{key} must be finite, got {value!r}")
         if (why := spec.check_range(f"{where}.{key}", value)) is not None:

@@ -43,6 +43,7 @@ def test_every_shipped_scenario_loads(path: Path) -> None:
         ({"leader.code_burst_s": -1}, "leader.code_burst_s must be >= 0, got -1"),
         ({"controller.ekf": {"q_pos": 1.0}}, "unknown key controller.ekf.q_pos; did you mean 'q_pos_m'?"),
         ({"controller.use_ekf": 1}, "controller.use_ekf must be true or false, got 1"),
+        ({"controller.lookahead_m": True}, "controller.lookahead_m must be a number, got true"),
         ({"controller.hold_speed_mps": -0.1}, "controller.hold_speed_mps must be >= 0, got -0.1"),
         ({"controller.hold_after_s": 0}, "controller.hold_after_s must be > 0, got 0"),
         ({"controller.resume_speed_mps": 0.05},
