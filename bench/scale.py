@@ -46,21 +46,11 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
+from formation_swarm.cliargs import non_negative  # noqa: E402
 from formation_swarm.launcher import Launch  # noqa: E402
 
 SCENARIO = ROOT / "scenarios" / "fig11_obstacles.toml"
 STRAIGHT = [[0.0, 0.0], [0.0, 1000.0]]  # --straight: a path that never ends within the duration
-
-
-def non_negative(text: str) -> float:
-    """An argparse type: a finite number >= 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not 0.0 <= value < float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
-    return value
 
 
 def pss_mb(pid: int) -> float:

@@ -100,6 +100,17 @@ def seconds(high: float | None = None) -> Callable[[str], float]:
     return convert
 
 
+def non_negative(text: str) -> float:
+    """A converter for a finite number >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
+    return value
+
+
 def rerun_url(text: str) -> str:
     """A Rerun viewer's gRPC address, e.g. rerun+http://127.0.0.1:9876/proxy."""
     schemes = ("rerun", "rerun+http", "rerun+https")

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from formation_swarm import __version__, cli, compare, export, report, results, sweep
+from formation_swarm import __version__, cli, cliargs, compare, export, report, results, sweep
 from formation_swarm.console import print_result
 from formation_swarm.launcher import Launch, RunResult, free_port
 
@@ -378,3 +378,11 @@ def test_a_role_with_a_bad_zenoh_flag_says_so_in_one_line(tmp_path: Path, flags:
     assert line.startswith("world: ")
     assert fragment.format(tmp=tmp_path) in line
     assert no_traceback(proc)
+
+
+@pytest.mark.parametrize("text", ["-1", "x", "nan", "inf", ""])
+def test_a_non_negative_option_refuses_what_is_not_a_finite_number_at_least_0(text: str) -> None:
+    with pytest.raises(argparse.ArgumentTypeError, match=f"must be a finite number >= 0, got {text!r}"):
+        cliargs.non_negative(text)
+    assert cliargs.non_negative("0") == 0.0
+    assert cliargs.non_negative("1.5") == 1.5
