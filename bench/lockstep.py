@@ -11,8 +11,10 @@ on a loaded machine:
   Same processes, keys and payload sizes as a run, with no physics,
   camera, controller, EKF or Rerun; every message is sent every tick, one
   put each (a run batches telemetry and truth and repeats the formation code
-  less often: the bare figure is the plain exchange). It uses Zenoh's
-  default configuration, transport included.
+  less often: the bare figure is the plain exchange). Each role receives
+  as ours does: the world and the agents on their loop's thread through a
+  Zenoh FIFO channel, the logger through a callback and a queue. It uses
+  Zenoh's default configuration, transport included.
 - bare, low-latency: the same exchange over the transport every ``swarm``
   process uses (protocol.session: Zenoh's low-latency unicast transport).
 - full: ``swarm run scenarios/fig11_obstacles.toml`` in lockstep with the
@@ -40,6 +42,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import uuid
 from pathlib import Path
@@ -58,13 +61,15 @@ CMD = b"c" * 40
 FORM = b"f" * 20
 TEL = b"t" * 150
 TRUTH = b"r" * 160
+ANSWER_TIMEOUT_S = 5.0  # the bare world's longest wait for an answer
 
 
 def bare_world(endpoint: str, run: str, ticks: int, lowlatency: bool) -> None:
     k = Keys(run)
     with zenoh.open(make_config("router", listen=[endpoint], lowlatency=lowlatency)) as s:
-        q: queue.SimpleQueue[bytes] = queue.SimpleQueue()
-        s.declare_subscriber(k.all_cmd, lambda smp: q.put(smp.payload.to_bytes()))
+        # Received on this thread through a Zenoh FIFO channel, as the world does.
+        cmds = s.declare_subscriber(k.all_cmd, zenoh.handlers.FifoChannel(1024))
+        answers = cmds.handler
         pubs = [s.declare_publisher(k.obs(r)) for r in (1, 2, 3)]
         truth = s.declare_publisher(k.truth)
         done = s.declare_publisher(k.status)
@@ -79,27 +84,50 @@ def bare_world(endpoint: str, run: str, ticks: int, lowlatency: bool) -> None:
             if time.monotonic() > deadline:
                 raise SystemExit("bare world: peers never matched")
             time.sleep(0.01)
+        # recv has no timeout: a watchdog closes the channel when no answer came
+        # for ANSWER_TIMEOUT_S, which ends the wait with an error.
+        answered = [0]
+        stalled = threading.Event()
+        threading.Thread(target=_watchdog, args=(answered, cmds, stalled), daemon=True).start()
         t0, cpu0 = time.perf_counter(), time.process_time()
-        for _ in range(ticks):
-            for p in pubs:
-                p.put(OBS)
-            truth.put(TRUTH)
-            for _ in range(3):
-                q.get(timeout=5)
+        try:
+            for _ in range(ticks):
+                for p in pubs:
+                    p.put(OBS)
+                truth.put(TRUTH)
+                for _ in range(3):
+                    answers.recv()
+                answered[0] += 1
+        except zenoh.ZError:
+            raise SystemExit(f"bare world: no answer within {ANSWER_TIMEOUT_S:g} s") from None
+        finally:
+            stalled.set()  # ends the watchdog
         rate = ticks / (time.perf_counter() - t0)
         cpu = time.process_time() - cpu0
         done.put(b"done")
         print(f"{rate:.1f} {cpu:.6f}", flush=True)
 
 
+def _watchdog(answered: list[int], sub: zenoh.Subscriber, stop: threading.Event) -> None:
+    """Close ``sub`` when ``answered[0]`` has not moved for ANSWER_TIMEOUT_S."""
+    last, since = answered[0], time.monotonic()
+    while not stop.wait(0.5):
+        if answered[0] != last:
+            last, since = answered[0], time.monotonic()
+        elif time.monotonic() - since > ANSWER_TIMEOUT_S:
+            sub.undeclare()
+            return
+
+
 def bare_agent(endpoint: str, run: str, rid: int, lowlatency: bool) -> None:
     k = Keys(run)
     with zenoh.open(make_config("client", [endpoint], lowlatency=lowlatency)) as s:
-        q: queue.SimpleQueue[bytes] = queue.SimpleQueue()
-        s.declare_subscriber(
-            k.inbox(rid), lambda smp: q.put(smp.payload.to_bytes()), allowed_origin=zenoh.Locality.REMOTE
-        )
-        s.declare_subscriber(k.status, lambda smp: q.put(b"done"))
+        # Received on this thread through a Zenoh FIFO channel, as an agent does;
+        # "done" closes it, which ends the loop's recv.
+        inbox = s.declare_subscriber(k.inbox(rid), zenoh.handlers.FifoChannel(1024),
+                                     allowed_origin=zenoh.Locality.REMOTE)  # fmt: skip
+        channel = inbox.handler
+        s.declare_subscriber(k.status, lambda _smp: inbox.undeclare())
         cmd = s.declare_publisher(k.cmd(rid))
         tel = s.declare_publisher(k.telemetry(rid))
         form = s.declare_publisher(k.codes) if rid == 1 else None
@@ -109,13 +137,14 @@ def bare_agent(endpoint: str, run: str, rid: int, lowlatency: bool) -> None:
         token = s.liveliness().declare_token(k.alive("agent", rid))  # held: dropped, it is undeclared
         cpu0 = None
         while True:
-            m = q.get()
-            cpu0 = time.process_time() if cpu0 is None else cpu0  # from the first observation
-            if m == b"done":
+            try:
+                m = channel.recv().payload.to_bytes()
+            except zenoh.ZError:  # closed by "done"
                 token.undeclare()
-                print(f"{time.process_time() - cpu0:.6f}", flush=True)
+                print(f"{time.process_time() - (cpu0 or 0.0):.6f}", flush=True)
                 return
-            if m is FORM or m == FORM:
+            cpu0 = time.process_time() if cpu0 is None else cpu0  # from the first observation
+            if m == FORM:
                 continue
             if form is not None:
                 form.put(FORM)
