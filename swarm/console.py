@@ -7,11 +7,13 @@ the run did not produce prints as "-", never an error.
 from __future__ import annotations
 
 import shutil
+import statistics
 import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
+from formation_swarm import scenario as scenario_mod
 from formation_swarm import summary as summary_mod
 from formation_swarm.children import describe_exit
 
@@ -62,6 +64,66 @@ def describe_fault(f: Mapping[str, Any]) -> str:
     return f"{f.get('fault')}" + (f": {said}" if said else "")
 
 
+# Up to this many followers each gets its own line; beyond, a line of their
+# spread, the worst WORST_LISTED, and every one never acquired or killed.
+LIST_FOLLOWERS_UP_TO = 10
+WORST_LISTED = 5
+
+
+def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, Any]) -> str:
+    if m.get("acquired") is False:
+        return f"  follower R{rid}: NEVER ACQUIRED its reference (never in its camera's view): no metrics\n"
+    killed = f"agent-{rid}" in kills
+    after = (f" (its agent killed at t={_num(kills[f'agent-{rid}'], '.2f')} s: these count the robot "
+             "after it too)") if killed else ""  # fmt: skip
+    return f"  follower R{rid}: formation error RMS {_num(m.get('rms_m'))} m, max {_num(m.get('max_m'))} m{after}\n"
+
+
+def _many_followers(
+    w: Any, followers: list[tuple[str, Mapping[str, Any]]], kills: Mapping[str, Any]
+) -> list[tuple[str, Mapping[str, Any]]]:
+    """Write the spread of the followers' errors; return the followers to list
+    one by one: the worst by RMS, then any other never acquired or killed."""
+    measured = [(rid, m) for rid, m in followers if isinstance(m.get("rms_m"), (int, float))]
+    rms = sorted(float(m["rms_m"]) for _, m in measured)
+    if rms:
+        worst = max(measured, key=lambda kv: float(kv[1]["rms_m"]))[0]
+        maxes = [(float(m["max_m"]), rid) for rid, m in measured if isinstance(m.get("max_m"), (int, float))]
+        largest = f", largest error {_num(max(maxes)[0])} m (R{max(maxes)[1]})" if maxes else ""
+        w(f"  {len(followers)} followers: formation error RMS median {_num(statistics.median(rms))} m, "
+          f"best {_num(rms[0])} m, worst {_num(rms[-1])} m (R{worst}){largest}\n")  # fmt: skip
+    else:
+        w(f"  {len(followers)} followers: no formation error measured\n")
+    by_rms = sorted(measured, key=lambda kv: -float(kv[1]["rms_m"]))[:WORST_LISTED]
+    shown = {rid for rid, _ in by_rms}
+    flagged = [(rid, m) for rid, m in followers
+               if rid not in shown and (m.get("acquired") is False or f"agent-{rid}" in kills)]  # fmt: skip
+    also = f", then {len(flagged)} never acquired or killed" if flagged else ""
+    if by_rms or flagged:
+        w(f'  the {len(by_rms)} worst by RMS{also} (all {len(followers)}: summary.json, "followers"):\n')
+    return by_rms + flagged
+
+
+def _changes(events: list[Any], grouped: bool) -> str:
+    """The formation events, one by one; ``grouped``: those of one formation
+    at one time together ("line at 5.00 s: robots 2-30")."""
+    events = [e for e in events if isinstance(e, Mapping)]
+    if not grouped:
+        return ", ".join(f"R{e.get('robot')} {e.get('formation')} at {_num(e.get('time_s'), '.2f')} s" for e in events)
+    groups: dict[tuple[Any, Any], list[Any]] = {}
+    for e in events:
+        groups.setdefault((e.get("formation"), e.get("time_s")), []).append(e.get("robot"))
+    out = []
+    for (formation, time_s), rids in groups.items():
+        ints = all(isinstance(r, int) and not isinstance(r, bool) for r in rids)
+        if len(rids) == 1 or not ints:
+            who = ", ".join(f"R{r}" for r in rids)
+        else:
+            who = f"robots {scenario_mod.id_ranges(rids)}"
+        out.append(f"{formation} at {_num(time_s, '.2f')} s: {who}")
+    return "; ".join(out)
+
+
 def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
     """The run's metrics on the console; a run that ended early has fewer (never an error)."""
     s = res.summary
@@ -75,24 +137,20 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
     if not ticks:
         w("  no metrics: the run ended before its first tick\n")
     else:
-        followers = (s.get("followers") or {}).items()  # JSON keys: robot ids as text, listed by number
+        followers = sorted((s.get("followers") or {}).items(), key=lambda kv: (len(str(kv[0])), str(kv[0])))
         kills: dict[str, Any] = {}  # agent-N -> the sim time of its first kill
         for ev in s.get("events") or []:
             if isinstance(ev, Mapping) and ev.get("event") == "killed":
                 kills.setdefault(str(ev.get("process")), ev.get("sim_time_s"))
-        for rid, m in sorted(followers, key=lambda kv: (len(str(kv[0])), str(kv[0]))):
-            if m.get("acquired") is False:
-                w(f"  follower R{rid}: NEVER ACQUIRED its reference (never in its camera's view): no metrics\n")
-                continue
-            killed = f"agent-{rid}" in kills
-            after = (f" (its agent killed at t={_num(kills[f'agent-{rid}'], '.2f')} s: these count the robot "
-                     "after it too)") if killed else ""  # fmt: skip
-            w(f"  follower R{rid}: formation error RMS {_num(m.get('rms_m'))} m, max {_num(m.get('max_m'))} m{after}\n")
+        listed = followers  # JSON keys: robot ids as text, listed by number
+        if len(followers) > LIST_FOLLOWERS_UP_TO:
+            listed = _many_followers(w, followers, kills)
+        for rid, m in listed:
+            w(_follower_line(rid, m, kills))
         w(f"  min distance {_num(s.get('min_distance_m'))} m (diameter {_num(s.get('robot_diameter_m'), 'g')} m), "
           f"collisions {s.get('collisions')}, obstacle collisions {s.get('obstacle_collisions')}\n")  # fmt: skip
-        changes = [f"R{e.get('robot')} {e.get('formation')} at {_num(e.get('time_s'), '.2f')} s"
-                   for e in s.get("formation_events") or []]  # fmt: skip
-        w(f"  formation changes: {', '.join(changes) or 'none'}\n")
+        changes = _changes(s.get("formation_events") or [], grouped=len(followers) > LIST_FOLLOWERS_UP_TO)
+        w(f"  formation changes: {changes or 'none'}\n")
         if s.get("mode") == "realtime":
             late_ms = _num(1e3 * s["max_tick_lateness_s"] if s.get("max_tick_lateness_s") is not None else None, ".1f")
             sched = s.get("world_scheduling") or ""

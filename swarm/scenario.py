@@ -243,7 +243,7 @@ def _check_sight(ld: Mapping[str, Any], formations: Mapping[str, Formation], cam
             raise ScenarioError(f"leader.avoid_formation: {exc}{hint}") from None
 
 
-def _ranges(ids: list[int]) -> str:
+def id_ranges(ids: Sequence[int]) -> str:
     """[2, 3, 4, 7] -> "2-4, 7"."""
     runs: list[list[int]] = []
     for i in sorted(ids):
@@ -256,7 +256,7 @@ def _ranges(ids: list[int]) -> str:
 
 def _robots(rids: Sequence[int], one: str, many: str) -> str:
     """The words "robot 5 is" or "robots 5-9 are" (``one`` = "is", ``many`` = "are")."""
-    return f"robot {rids[0]} {one}" if len(rids) == 1 else f"robots {_ranges(rids)} {many}"
+    return f"robot {rids[0]} {one}" if len(rids) == 1 else f"robots {id_ranges(rids)} {many}"
 
 
 def turn_warnings(speed_mps: float, turn_rate_rps: float, formations: Mapping[str, Formation]) -> list[str]:
@@ -329,7 +329,7 @@ def speed_warnings(leader_speed_mps: float, followers: Mapping[int, FollowerPara
         who = (
             f"follower {rids[0]}'s fuzzy controller holds"
             if one
-            else f"followers {_ranges(rids)}' fuzzy controllers hold"
+            else f"followers {id_ranges(rids)}' fuzzy controllers hold"
         )
         they, their = ("it", "its") if one else ("they", "their")
         drives = ("drives" if one else "drive") + (" slower" if side == "below" else " faster")
