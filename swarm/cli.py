@@ -307,11 +307,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     args, unknown = parser.parse_known_args(argv)
     if unknown:  # said by the command's parser, which knows its flags, rather than by swarm's
         args.parser.error(f"unrecognized arguments: {' '.join(unknown)}")
+    from formation_swarm.proc import OutlivesItsReader
+
+    # A reader that leaves early (swarm run ... | head) must not cut a run short.
+    stdout, sys.stdout = sys.stdout, OutlivesItsReader(sys.stdout)
     try:
         return int(args.func(args))
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    finally:
+        sys.stdout = stdout
 
 
 if __name__ == "__main__":

@@ -141,6 +141,44 @@ def wait_for(event: threading.Event, timeout_s: float | None = None) -> bool:
     return True
 
 
+class OutlivesItsReader:
+    """A text stream whose writes go nowhere once its reader has left, instead
+    of raising BrokenPipeError into the program (``swarm run ... | head -1``:
+    the run goes on to its end and writes its folder). Everything else is the
+    wrapped stream's."""
+
+    def __init__(self, stream: Any) -> None:
+        self._stream = stream
+        self.reader_gone = False
+
+    def write(self, text: str) -> int:
+        if not self.reader_gone:
+            try:
+                return self._stream.write(text)
+            except BrokenPipeError:
+                self._leave()
+        return len(text)
+
+    def flush(self) -> None:
+        if not self.reader_gone:
+            try:
+                self._stream.flush()
+            except BrokenPipeError:
+                self._leave()
+
+    def _leave(self) -> None:
+        """Point the stream's descriptor at /dev/null, so that what its buffer
+        still holds is flushed there at exit rather than raising again."""
+        self.reader_gone = True
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self._stream.fileno())
+            os.close(devnull)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
 def interrupt_on_stop_signals() -> None:
     """SIGINT and SIGTERM raise KeyboardInterrupt in the main thread, even when the
     process was started with SIGINT ignored (as a shell's background jobs are):

@@ -417,3 +417,25 @@ def test_a_non_negative_option_refuses_what_is_not_a_finite_number_at_least_0(te
         cliargs.non_negative(text)
     assert cliargs.non_negative("0") == 0.0
     assert cliargs.non_negative("1.5") == 1.5
+
+
+def test_a_reader_that_leaves_early_does_not_cut_the_run_short(tmp_path: Path) -> None:
+    """`swarm run ... | head -1`: the pipe closes after the first line; the run
+    still goes to its end, writes its folder and exits 0."""
+    out = tmp_path / "run"
+    argv = [*COMMAND, "run", "fig11_obstacles", "--set", "run.duration_s=3", "--out", str(out)]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        assert proc.stdout.readline().startswith("[swarm] run ")
+        proc.stdout.close()  # as head does after its line
+        _, err = proc.communicate(timeout=180)  # a 3 s run takes about 5 s here
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, err
+    assert "BrokenPipeError" not in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["ticks"] == 60  # 3 s at 20 Hz
+    assert summary["end_reason"] == "duration_reached"
