@@ -52,6 +52,7 @@ sys.path.insert(0, str(ROOT))
 
 import zenoh  # noqa: E402
 
+from formation_swarm.cliargs import integer  # noqa: E402
 from formation_swarm.launcher import Launch, free_port  # noqa: E402
 from formation_swarm.protocol.keys import Keys  # noqa: E402
 from formation_swarm.protocol.session import make_config  # noqa: E402
@@ -61,6 +62,7 @@ CMD = b"c" * 40
 FORM = b"f" * 20
 TEL = b"t" * 150
 TRUTH = b"r" * 160
+MIN_TICKS = 100  # fewer would measure mostly the start
 ANSWER_TIMEOUT_S = 5.0  # the bare world's longest wait for an answer
 
 
@@ -220,8 +222,10 @@ def full_cpu_per_tick(summary: dict) -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--ticks", type=int, default=3000, help="ticks per measurement (full: the same, as sim time)")
+    ap.add_argument("--repeat", type=integer(1), default=3, metavar="N",
+                    help="rounds, each measuring every variant once; the medians are printed (default 3)")  # fmt: skip
+    ap.add_argument("--ticks", type=integer(MIN_TICKS), default=3000, metavar="N",
+                    help=f"ticks per measurement, at least {MIN_TICKS} (full: as sim time; default 3000)")  # fmt: skip
     ap.add_argument("--role", nargs="+", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.role:

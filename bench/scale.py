@@ -1,6 +1,6 @@
 """How a run scales with its number of robots: N robots in a line on fig11's
-path (``run.robots=N``, ``leader.formation=line``; a wedge of 10 or more
-strands robots), the logger on, in real time and in lockstep.
+path (``run.robots=N``, ``leader.formation=line``: each robot follows the
+one ahead of it), the logger on, in real time and in lockstep.
 
 Per N and mode it prints:
 
@@ -27,7 +27,7 @@ Per N and mode it prints:
 The machine's load average is printed before and after: other work on the
 machine shows in every figure.
 
-    python bench/scale.py [--robots 10 50 100 200] [--modes realtime lockstep]
+    python bench/scale.py [--robots N ...] [--modes realtime lockstep]
                           [--duration 20] [--lockstep-duration 10] [--no-logger]
                           [--straight] [--lookahead-m 1]
 """
@@ -46,8 +46,9 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from formation_swarm.cliargs import non_negative  # noqa: E402
+from formation_swarm.cliargs import integer, non_negative, seconds  # noqa: E402
 from formation_swarm.launcher import Launch  # noqa: E402
+from formation_swarm.scenario_keys import MAX_ROBOTS  # noqa: E402
 
 SCENARIO = ROOT / "scenarios" / "fig11_obstacles.toml"
 STRAIGHT = [[0.0, 0.0], [0.0, 1000.0]]  # --straight: a path that never ends within the duration
@@ -150,10 +151,13 @@ def line(n: int, mode: str, r: dict[str, Any], cold: bool = False) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--robots", type=int, nargs="+", default=[10, 50, 100])
-    ap.add_argument("--modes", nargs="+", choices=("realtime", "lockstep"), default=["realtime", "lockstep"])
-    ap.add_argument("--duration", type=float, default=20.0, help="sim seconds of a real-time run (default 20)")
-    ap.add_argument("--lockstep-duration", type=float, default=10.0, help="sim seconds of a lockstep run (default 10)")
+    ap.add_argument("--robots", type=integer(2, MAX_ROBOTS), nargs="+", default=[10, 50, 100], metavar="N",
+                    help="the swarm sizes, each run in every mode (default 10 50 100)")  # fmt: skip
+    ap.add_argument("--modes", nargs="+", choices=("realtime", "lockstep"), default=["realtime", "lockstep"],
+                    help="real time, lockstep or both (default both)")  # fmt: skip
+    ap.add_argument("--duration", type=seconds(), default=20.0, help="sim seconds of a real-time run (default 20)")
+    ap.add_argument("--lockstep-duration", type=seconds(), default=10.0,
+                    help="sim seconds of a lockstep run (default 10)")  # fmt: skip
     ap.add_argument("--no-logger", action="store_true", help="without the logger")
     ap.add_argument("--straight", action="store_true", help="a straight path, for durations beyond fig11's 56 s")
     ap.add_argument(

@@ -5,7 +5,11 @@ from __future__ import annotations
 
 import importlib.util
 import math
+import subprocess
+import sys
 import time
+
+import pytest
 
 from tests.conftest import ROOT
 
@@ -31,3 +35,24 @@ def test_bare_exchange_runs_its_ticks_and_reports_every_process_cpu():
     # processes exchanging six messages a tick use some.
     assert math.isfinite(cpu)
     assert cpu > 0
+
+
+@pytest.mark.parametrize(
+    ("script", "argv", "said"),
+    [
+        ("scale.py", ["--robots", "1"], "argument --robots: must be in [2, 500], got '1'"),
+        ("scale.py", ["--robots", "abc"], "argument --robots: must be an integer in [2, 500], got 'abc'"),
+        ("scale.py", ["--duration", "0"], "argument --duration: must be a number of seconds > 0, got '0'"),
+        ("scale.py", ["--lockstep-duration", "-1"], "argument --lockstep-duration: must be a number of seconds > 0"),
+        ("lockstep.py", ["--repeat", "0"], "argument --repeat: must be >= 1, got '0'"),
+        ("lockstep.py", ["--ticks", "50"], "argument --ticks: must be >= 100, got '50'"),
+    ],
+)
+def test_a_benchmark_refuses_bad_flags_on_one_line(script: str, argv: list[str], said: str) -> None:
+    """Before anything runs: exit 2 and argparse's one line, not a traceback."""
+    proc = subprocess.run([sys.executable, str(ROOT / "bench" / script), *argv], capture_output=True, text=True,
+                          timeout=60, check=False)  # fmt: skip
+    assert proc.returncode == 2, proc.stderr
+    assert said in proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert proc.stdout == ""  # nothing measured
