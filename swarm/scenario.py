@@ -283,26 +283,35 @@ def turn_warnings(speed_mps: float, turn_rate_rps: float, formations: Mapping[st
 # (docs/paper.md, "The steering look-ahead": in a line on a straight path,
 # robot 5, four links down, swings its heading 17.3 degrees, robot 2 2.6).
 CHAIN_WARN_DEPTH = 4
+# The smallest look-ahead measured to keep those swings level (the same
+# section: 0.5 m still let them grow, to 13.6 degrees at robot 10).
+CHAIN_LOOKAHEAD_M = 1.0
 
 
 def chain_warnings(formations: Mapping[str, Formation], followers: Mapping[int, FollowerParams]) -> list[str]:
     """The formations with fuzzy followers CHAIN_WARN_DEPTH or more references
     down a chain from the leader that steer at their target itself
-    (controller.lookahead_m = 0): each swings more than its reference."""
+    (controller.lookahead_m = 0), or look ahead less than CHAIN_LOOKAHEAD_M:
+    each swings more than its reference."""
     out = []
     for name, form in formations.items():
         depths = form.depths()
-        deep = sorted(
-            rid for rid, d in depths.items()
-            if d >= CHAIN_WARN_DEPTH and followers[rid].law == "fuzzy" and not followers[rid].lookahead_m
-        )  # fmt: skip
+        steers_short = {rid for rid, f in followers.items() if f.law == "fuzzy" and f.lookahead_m < CHAIN_LOOKAHEAD_M}
+        deep = sorted(rid for rid, d in depths.items() if d >= CHAIN_WARN_DEPTH and rid in steers_short)
         if deep:
             low, high = min(depths[r] for r in deep), max(depths[r] for r in deep)
             links = f"{low}" if low == high else f"{low}-{high}"
+            used = sorted({followers[r].lookahead_m for r in deep})
+            if used == [0.0]:
+                steering = "with the paper's steering (controller.lookahead_m = 0) heading swings grow"
+            else:
+                values = " and ".join(f"{v:g}" for v in used)
+                steering = (f"with controller.lookahead_m = {values}, under {CHAIN_LOOKAHEAD_M:g} m, heading swings "
+                            "still grow")  # fmt: skip
             out.append(
                 f"formation {name!r}: {_robots(deep, 'is', 'are')} {links} references down a chain from the leader; "
-                "with the paper's steering (controller.lookahead_m = 0) heading swings grow at every link "
-                '(docs/paper.md, "The steering look-ahead"): controller.lookahead_m = 1 keeps them level'
+                f'{steering} at every link (docs/paper.md, "The steering look-ahead"): controller.lookahead_m = '
+                f"{CHAIN_LOOKAHEAD_M:g} keeps them level"
             )
     return out
 

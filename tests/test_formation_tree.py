@@ -335,8 +335,16 @@ def test_a_deep_chain_with_the_papers_steering_is_warned_of() -> None:
     fig11_line = {"run.robots": 10, "leader.formation": "line"}
     warned = _warned(SCENARIOS / "fig11_obstacles.toml", fig11_line)
     assert [w[:50] for w in warned] == ["formation 'line': robots 5-10 are 4-9 references d"]
-    # Three links (the 4-robot line), the look-ahead, or the l-psi law: no warning.
-    for quiet in ({"run.robots": 4}, {"controller.lookahead_m": 1.0}, {"controller.law": "lpsi"}):
+    # A look-ahead shorter than the 1 m measured to hold (0.5 m let the swings grow) is warned of too.
+    assert _warned(turn, {**line, "controller.lookahead_m": 0.5}) == [
+        "formation 'two': robots 5-10 are 4-9 references down a chain from the leader; with"
+        ' controller.lookahead_m = 0.5, under 1 m, heading swings still grow at every link (docs/paper.md, "The'
+        ' steering look-ahead"): controller.lookahead_m = 1 keeps them level'
+    ]
+    # Three links (the 4-robot line), a look-ahead of 1 m or more, or the l-psi law: no warning.
+    quiet_ones = ({"run.robots": 4}, {"controller.lookahead_m": 1.0}, {"controller.lookahead_m": 2.0},
+                  {"controller.law": "lpsi"})  # fmt: skip
+    for quiet in quiet_ones:
         assert _warned(turn, {**line, **quiet}) == [], quiet
 
 
