@@ -104,6 +104,29 @@ def _many_followers(
     return by_rms + flagged
 
 
+CONTACTS_SHOWN = 3
+
+
+def _contacts(contacts: list[Any], collisions: Any, obstacle_collisions: Any) -> str:
+    """The first contacts, who and when: "first contacts: R4 and R5 at 12.35 s,
+    R7 and obstacle 0 at 20.10 s (all 9 listed: summary.json, "contacts")"."""
+    said = []
+    for c in contacts[:CONTACTS_SHOWN]:
+        if not isinstance(c, Mapping):
+            continue
+        robots = c.get("robots")
+        if isinstance(robots, list) and len(robots) == 2:
+            who = f"R{robots[0]} and R{robots[1]}"
+        else:
+            who = f"R{c.get('robot')} and obstacle {c.get('obstacle')}"
+        said.append(f"{who} at {_num(c.get('time_s'), '.2f')} s")
+    if not said:
+        return ""
+    counted = sum(n for n in (collisions, obstacle_collisions) if isinstance(n, int))
+    rest = f' ({len(contacts)} listed: summary.json, "contacts")' if counted > len(said) else ""
+    return f"first contact{'s' if len(said) > 1 else ''}: {', '.join(said)}{rest}"
+
+
 def _changes(events: list[Any], grouped: bool) -> str:
     """The formation events, one by one; ``grouped``: those of one formation
     at one time together ("line at 5.00 s: robots 2-30")."""
@@ -149,6 +172,8 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
             w(_follower_line(rid, m, kills))
         w(f"  min distance {_num(s.get('min_distance_m'))} m (diameter {_num(s.get('robot_diameter_m'), 'g')} m), "
           f"collisions {s.get('collisions')}, obstacle collisions {s.get('obstacle_collisions')}\n")  # fmt: skip
+        if contacts := _contacts(s.get("contacts") or [], s.get("collisions"), s.get("obstacle_collisions")):
+            w(f"  {contacts}\n")
         changes = _changes(s.get("formation_events") or [], grouped=len(followers) > LIST_FOLLOWERS_UP_TO)
         w(f"  formation changes: {changes or 'none'}\n")
         if s.get("mode") == "realtime":

@@ -367,6 +367,7 @@ def build(
         "robot_diameter_m": world.get("robot_diameter_m"),
         "collisions": world.get("collisions"),
         "obstacle_collisions": world.get("obstacle_collisions"),
+        "contacts": world.get("contacts", []),  # the first ones: tick, time_s, robots or robot and obstacle
         "lockstep_misses": world.get("lockstep_misses"),
         "late_ticks": world.get("late_ticks"),
         "max_tick_lateness_s": world.get("max_tick_lateness_s"),

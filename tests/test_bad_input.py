@@ -439,3 +439,26 @@ def test_a_reader_that_leaves_early_does_not_cut_the_run_short(tmp_path: Path) -
     summary = json.loads((out / "summary.json").read_text())
     assert summary["ticks"] == 60  # 3 s at 20 Hz
     assert summary["end_reason"] == "duration_reached"
+
+
+def test_print_result_names_the_first_contacts(tmp_path: Path) -> None:
+    contacts = [
+        {"tick": 489, "time_s": 24.45, "robots": [3, 15]},
+        {"tick": 490, "time_s": 24.5, "robot": 7, "obstacle": 0},
+        {"tick": 508, "time_s": 25.4, "robots": [1, 19]},
+        {"tick": 600, "time_s": 30.0, "robots": [4, 5]},
+    ]
+    base = {"run_id": "r1", "ticks": 700, "sim_time_s": 35.0, "followers": {}, "min_distance_m": 0.01}
+    out = io.StringIO()
+    print_result(RunResult(tmp_path, {**base, "collisions": 3, "obstacle_collisions": 1, "contacts": contacts}, 0), out)
+    assert (
+        "  first contacts: R3 and R15 at 24.45 s, R7 and obstacle 0 at 24.50 s, R1 and R19 at 25.40 s"
+        ' (4 listed: summary.json, "contacts")\n'
+    ) in out.getvalue()
+    out = io.StringIO()
+    print_result(RunResult(tmp_path, {**base, "collisions": 1, "obstacle_collisions": 0, "contacts": contacts[:1]}, 0),
+                 out)  # fmt: skip
+    assert "  first contact: R3 and R15 at 24.45 s\n" in out.getvalue()
+    out = io.StringIO()  # none, or a summary from before contacts were listed: no line
+    print_result(RunResult(tmp_path, {**base, "collisions": 0, "obstacle_collisions": 0}, 0), out)
+    assert "contact" not in out.getvalue()

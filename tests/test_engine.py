@@ -8,7 +8,7 @@ import math
 import pytest
 
 from formation_swarm import scenario as scenario_mod
-from formation_swarm.world.engine import TURN_RATE_RPS, WorldEngine
+from formation_swarm.world.engine import CONTACTS_LISTED, TURN_RATE_RPS, WorldEngine
 from formation_swarm.world.kinematics import Pose, from_body_frame
 from formation_swarm.world.recovery import Recovery
 from tests.conftest import SCENARIOS
@@ -130,6 +130,22 @@ def test_contacts_count_once_per_touch_and_the_closest_distance() -> None:
     assert s["collisions"] == 2
     assert s["min_distance_m"] == pytest.approx(0.5 * d)
     assert s["obstacle_collisions"] == 0
+    # Each contact listed once, at the tick it began (ticks 0-2 touching, 3 apart, 4 touching).
+    assert s["contacts"] == [{"tick": 0, "time_s": 0.0, "robots": [1, 2]}, {"tick": 4, "time_s": 0.2, "robots": [1, 2]}]
+
+
+def test_only_the_first_contacts_are_listed_but_all_are_counted() -> None:
+    eng = WorldEngine(FIG11, 0)
+    d = FIG11.diameter_m
+    eng.robots[1].pose = leader = Pose(7.0, 3.0, 0.5)
+    for k in range(CONTACTS_LISTED + 10):  # touch, part, touch, ...
+        gap = 0.5 * d if k % 2 == 0 else 5.0
+        eng.robots[2].pose = Pose(leader.x_m + gap, leader.y_m, leader.theta_rad)
+        _drive(eng, 1, {})
+    s = eng.summary()
+    assert s["collisions"] == (CONTACTS_LISTED + 10) // 2
+    assert len(s["contacts"]) == min(CONTACTS_LISTED, s["collisions"])
+    assert [c["tick"] for c in s["contacts"]] == list(range(0, 2 * len(s["contacts"]), 2))
 
 
 def test_an_obstacle_contact_is_counted_apart() -> None:
@@ -143,6 +159,7 @@ def test_an_obstacle_contact_is_counted_apart() -> None:
     s = eng.summary()
     assert s["obstacle_collisions"] == 1
     assert s["collisions"] == 0
+    assert s["contacts"] == [{"tick": 2, "time_s": 0.1, "robot": 3, "obstacle": 0}]
 
 
 def test_a_stale_command_stops_the_robot_and_is_counted() -> None:
@@ -257,6 +274,7 @@ def test_two_obstacles_touched_at_once_are_two_contacts(off_axes: WorldEngine) -
     s = off_axes.summary()
     assert (s["obstacle_collisions"], s["collisions"]) == (2, 0)
     assert s["min_distance_m"] == pytest.approx(math.hypot(4.6, 5.0))
+    assert [(c["robot"], c["obstacle"]) for c in s["contacts"]] == [(3, 0), (3, 1)]
 
 
 def test_a_killed_robot_stops_for_good() -> None:

@@ -37,6 +37,9 @@ TURN_RATE_RPS = 0.1
 # A second smooths the camera noise that a follower of a follower amplifies
 # (fig11's robot 3: 10-35% of its ticks above 0.5 m in steady flight).
 ERROR_WINDOW_S = 1.0
+# Contacts listed in the summary with their tick and who touched whom (all are
+# counted): enough to find the first ones; a 200-robot swarm that folds has hundreds.
+CONTACTS_LISTED = 50
 
 
 @dataclass
@@ -147,6 +150,8 @@ class WorldEngine:
     # Formation errors after a robot's return (world.recovery), fed by record().
     recoveries: list[Recovery] = field(init=False, default_factory=list)
     _touching: set[tuple[int, int]] = field(init=False, default_factory=set)
+    # The first CONTACTS_LISTED contacts counted: when, and who touched whom or what.
+    contacts: list[dict[str, object]] = field(init=False, default_factory=list)
     _pair_index: tuple[np.ndarray, np.ndarray] = field(init=False, default=(np.zeros(0, int), np.zeros(0, int)))
     _digest: hashlib._Hash = field(init=False)
     # The state of the last tick stepped from, until record() takes its metrics.
@@ -378,11 +383,19 @@ class WorldEngine:
         self._touched(touching)
 
     def _touched(self, touching: set[tuple[int, int]]) -> None:
-        """The contacts of one tick: those that are new are counted."""
+        """The contacts of one tick (of the snapshot record() takes: the tick
+        before the last step): those that are new are counted, and the first
+        CONTACTS_LISTED listed."""
         new = touching - self._touching
         self.collisions += sum(1 for _, b in new if b > 0)
         self.obstacle_collisions += sum(1 for _, b in new if b < 0)
         self._touching = touching
+        if new and len(self.contacts) < CONTACTS_LISTED:
+            tick = self.tick - 1
+            for a, b in sorted(new, key=lambda pair: (pair[0], -pair[1] if pair[1] < 0 else pair[1])):
+                what: dict[str, object] = {"robots": [a, b]} if b > 0 else {"robot": a, "obstacle": -1 - b}
+                self.contacts.append({"tick": tick, "time_s": round(tick * self.scenario.dt_s, 6), **what})
+            del self.contacts[CONTACTS_LISTED:]
 
     def _pairs(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """Row and column of every pair i < j of ``n`` robots (cached: n rarely changes)."""
@@ -414,6 +427,7 @@ class WorldEngine:
             "robot_diameter_m": self.scenario.diameter_m,
             "collisions": self.collisions,
             "obstacle_collisions": self.obstacle_collisions,
+            "contacts": self.contacts,  # the first CONTACTS_LISTED; obstacles by their index in the scenario
             "stale_stops": self.stale_stops,
             "clamped_commands": self.clamped_commands,
             # By tick, then robot: commands of one tick arrive in any order.
