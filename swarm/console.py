@@ -65,9 +65,10 @@ def describe_fault(f: Mapping[str, Any]) -> str:
 
 
 # Up to this many followers each gets its own line; beyond, a line of their
-# spread, the worst WORST_LISTED, and every one never acquired or killed.
+# spread, the worst WORST_LISTED, and every one that lost its reference or was killed.
 LIST_FOLLOWERS_UP_TO = 10
 WORST_LISTED = 5
+LOST_SIGHT_SHARE = 0.95  # beyond 10 followers, one whose reference was in fewer of its frames is listed
 
 
 def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, Any]) -> str:
@@ -76,14 +77,26 @@ def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, Any]) -> 
     killed = f"agent-{rid}" in kills
     after = (f" (its agent killed at t={_num(kills[f'agent-{rid}'], '.2f')} s: these count the robot "
              "after it too)") if killed else ""  # fmt: skip
+    seen, frames = m.get("seen_ticks"), m.get("frames")
+    if isinstance(seen, int) and isinstance(frames, int) and seen < frames:
+        after += f" (its reference in view in {seen} of {frames} camera frames)"
     return f"  follower R{rid}: formation error RMS {_num(m.get('rms_m'))} m, max {_num(m.get('max_m'))} m{after}\n"
+
+
+def _lost_sight(m: Mapping[str, Any]) -> bool:
+    """Never saw its reference, or not in LOST_SIGHT_SHARE of its camera frames."""
+    seen, frames = m.get("seen_ticks"), m.get("frames")
+    lost = isinstance(seen, int) and isinstance(frames, int) and seen < LOST_SIGHT_SHARE * frames
+    return m.get("acquired") is False or lost
 
 
 def _many_followers(
     w: Any, followers: list[tuple[str, Mapping[str, Any]]], kills: Mapping[str, Any]
 ) -> list[tuple[str, Mapping[str, Any]]]:
     """Write the spread of the followers' errors; return the followers to list
-    one by one: the worst by RMS, then any other never acquired or killed."""
+    one by one: the worst by RMS, then any other that lost sight of its
+    reference (never saw it, or not in LOST_SIGHT_SHARE of its frames) or
+    was killed."""
     measured = [(rid, m) for rid, m in followers if isinstance(m.get("rms_m"), (int, float))]
     rms = sorted(float(m["rms_m"]) for _, m in measured)
     if rms:
@@ -97,8 +110,8 @@ def _many_followers(
     by_rms = sorted(measured, key=lambda kv: -float(kv[1]["rms_m"]))[:WORST_LISTED]
     shown = {rid for rid, _ in by_rms}
     flagged = [(rid, m) for rid, m in followers
-               if rid not in shown and (m.get("acquired") is False or f"agent-{rid}" in kills)]  # fmt: skip
-    also = f", then {len(flagged)} never acquired or killed" if flagged else ""
+               if rid not in shown and (_lost_sight(m) or f"agent-{rid}" in kills)]  # fmt: skip
+    also = f", then {len(flagged)} more that lost sight of their reference or were killed" if flagged else ""
     if by_rms or flagged:
         w(f'  the {len(by_rms)} worst by RMS{also} (all {len(followers)}: summary.json, "followers"):\n')
     return by_rms + flagged

@@ -283,6 +283,8 @@ def test_print_result_sums_up_many_followers_and_lists_the_worst(tmp_path: Path)
     followers: dict[str, dict[str, Any]] = {str(r): {"rms_m": r / 100, "max_m": r / 50} for r in range(2, 14)}
     followers["5"] = {"rms_m": 0.9, "max_m": 1.0}  # the worst
     followers["7"] = {"acquired": False, "rms_m": None, "max_m": None}
+    followers["3"].update(seen_ticks=180, frames=200)  # lost sight of its reference in 10% of its frames
+    followers["4"].update(seen_ticks=195, frames=200)  # 2.5%: said on its line only, were it listed
     events = [{"robot": r, "formation": "line", "time_s": 5.0} for r in range(1, 14)]
     events.append({"robot": 4, "formation": "triangle", "time_s": 9.05})
     summary = {"run_id": "r1", "ticks": 200, "sim_time_s": 10.0, "followers": followers, "formation_events": events,
@@ -293,16 +295,23 @@ def test_print_result_sums_up_many_followers_and_lists_the_worst(tmp_path: Path)
     # Measured: R2-4, R6 and R8-13 at r/100, R5 at 0.9; sorted, the 6th of these 11 is R9's 0.09.
     assert "  12 followers: formation error RMS median 0.090 m, best 0.020 m, worst 0.900 m (R5), " \
            "largest error 1.000 m (R5)" in lines  # fmt: skip
-    assert '  the 5 worst by RMS, then 2 never acquired or killed (all 12: summary.json, "followers"):' in lines
+    assert (
+        "  the 5 worst by RMS, then 3 more that lost sight of their reference or were killed"
+        ' (all 12: summary.json, "followers"):'
+    ) in lines
     listed = [line.split(":")[0].strip() for line in lines if line.startswith("  follower R")]
     assert listed == ["follower R5", "follower R13", "follower R12", "follower R11", "follower R10",
-                      "follower R2", "follower R7"]  # fmt: skip
+                      "follower R2", "follower R3", "follower R7"]  # fmt: skip
+    assert "  follower R3: formation error RMS 0.030 m, max 0.060 m (its reference in view in 180 of 200 camera" \
+           " frames)" in lines  # fmt: skip
     assert "  formation changes: line at 5.00 s: robots 1-13; triangle at 9.05 s: R4" in lines
     # Up to 10 followers, each has its line and the events are listed one by one.
     few = {**summary, "followers": {k: followers[k] for k in list(followers)[:10]}}
     out = io.StringIO()
     print_result(RunResult(tmp_path, few, 0), out)
     assert sum(line.startswith("  follower R") for line in out.getvalue().splitlines()) == 10
+    said = out.getvalue()
+    assert "follower R4: formation error RMS 0.040 m, max 0.080 m (its reference in view in 195 of 200" in said
     assert "followers: formation error RMS median" not in out.getvalue()
     assert "formation changes: R1 line at 5.00 s, R2 line at 5.00 s," in out.getvalue()
 
