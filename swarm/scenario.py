@@ -10,6 +10,7 @@ invalid values are errors that name the key and the value.
 from __future__ import annotations
 
 import difflib
+import itertools
 import math
 import tomllib
 import warnings
@@ -257,6 +258,18 @@ def id_ranges(ids: Sequence[int]) -> str:
 def _robots(rids: Sequence[int], one: str, many: str) -> str:
     """The words "robot 5 is" or "robots 5-9 are" (``one`` = "is", ``many`` = "are")."""
     return f"robot {rids[0]} {one}" if len(rids) == 1 else f"robots {id_ranges(rids)} {many}"
+
+
+def path_turns(waypoints: Sequence[Sequence[float]]) -> bool:
+    """Whether the leader's path has a corner: the robots start heading along
+    its first leg (world.engine.start_poses), so a path of legs in one
+    direction is flown without a turn."""
+    headings = [
+        math.atan2(b[1] - a[1], b[0] - a[0])
+        for a, b in itertools.pairwise(waypoints)
+        if math.hypot(b[0] - a[0], b[1] - a[1]) > 1e-9
+    ]
+    return any(abs(math.remainder(h - g, math.tau)) > 1e-9 for g, h in itertools.pairwise(headings))
 
 
 def turn_warnings(speed_mps: float, turn_rate_rps: float, formations: Mapping[str, Formation]) -> list[str]:
@@ -509,7 +522,8 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
     speed = speed_warnings(float(ld["speed_mps"]), followers)
     # Of the formations the leader flies (a scenario may hold others it never picks).
     flown = {name: formations[name] for name in (ld["formation"], ld["avoid_formation"]) if name}
-    speed += turn_warnings(float(ld["speed_mps"]), float(ld["turn_rate_rps"]), flown)
+    if path_turns(wps):  # a straight path folds no formation
+        speed += turn_warnings(float(ld["speed_mps"]), float(ld["turn_rate_rps"]), flown)
     speed += chain_warnings(flown, followers)
 
     obstacles = []

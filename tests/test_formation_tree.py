@@ -320,6 +320,19 @@ def test_a_wing_beyond_the_leaders_turn_radius_is_warned_of() -> None:
     ]
     # 15 ranks of 0.4 m: the inner wing ends at the turn's centre.
     assert _warned(turn, {**wide, "formations.two.lateral_m": 0.4}) == []
+    # The same wedge on a path without a corner (fig11's straight 80 m, in legs or not) never turns.
+    straight = {**wide, "leader.waypoints": [[0.0, 0.0], [0.0, 30.0], [0.0, 30.0], [0.0, 80.0]]}
+    assert _warned(turn, straight) == []
+    cornered = {**wide, "leader.waypoints": [[0.0, 0.0], [0.0, 40.0], [40.0, 40.0]]}
+    assert [w[:46] for w in _warned(turn, cornered)] == ["formation 'two': robots 10-30 sit up to 22.5 m"]
+
+
+def test_a_path_turns_where_a_leg_changes_direction() -> None:
+    assert not sm.path_turns([[0.0, 0.0], [0.0, 80.0]])
+    assert not sm.path_turns([[0.0, 0.0], [1.0, 1.0], [1.0, 1.0], [5.0, 5.0]])  # collinear; a repeated point
+    assert sm.path_turns([[0.0, 0.0], [0.0, 40.0], [40.0, 40.0]])  # a corner
+    assert sm.path_turns([[0.0, 0.0], [0.0, 40.0], [0.0, 10.0]])  # back the way it came
+    assert sm.path_turns([[0.0, 0.0], [0.0, 40.0], [0.001, 80.0]])  # a slight bend is a turn too
 
 
 def test_a_deep_chain_with_the_papers_steering_is_warned_of() -> None:
