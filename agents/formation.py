@@ -303,6 +303,9 @@ def _sight_error(cam: Camera, rho_m: float, beta_rad: float) -> tuple[str, str] 
     return None
 
 
+SIGHT_LISTED = 8  # followers named per limit in check_sight's error
+
+
 def check_sight(form: Formation, cam: Camera) -> None:
     """Raise ValueError unless every follower, at its slot, sees its reference's
     marker within ``range_m - range_margin_m`` and within ``fov_rad / 2 -
@@ -310,14 +313,30 @@ def check_sight(form: Formation, cam: Camera) -> None:
 
     A follower away from its slot by e sees the marker at most e farther
     (triangle inequality); the margin is the error up to which it must still
-    see it. The field of view is not checked when it is a full circle.
+    see it. The field of view is not checked when it is a full circle. The
+    error names every follower that does not (SIGHT_LISTED per limit).
     """
-    for rid, sight in sights(form, cam.marker_offset_m).items():
-        if (why := _sight_error(cam, sight.rho_m, sight.beta_rad)) is not None:
-            raise ValueError(
-                f"formation {form.name!r}: robot {rid}'s reference robot {form.slots[rid].reference} is {why[0]}"
-                f" at its slot, {why[1]}"
-            )
+    bad = [(rid, why) for rid, sight in sights(form, cam.marker_offset_m).items()
+           if (why := _sight_error(cam, sight.rho_m, sight.beta_rad)) is not None]  # fmt: skip
+    if len(bad) == 1:
+        rid, (where, limit) = bad[0]
+        raise ValueError(
+            f"formation {form.name!r}: robot {rid}'s reference robot {form.slots[rid].reference} is {where}"
+            f" at its slot, {limit}"
+        )
+    if bad:  # every one, grouped by the limit it breaks: a layout is mended in one go
+        by_limit: dict[str, list[str]] = {}
+        for rid, (where, limit) in bad:
+            by_limit.setdefault(limit, []).append(f"robot {rid}'s reference robot {form.slots[rid].reference} {where}")
+        parts = [
+            f"{limit}: {', '.join(refs[:SIGHT_LISTED])}" + (f" and {len(refs) - SIGHT_LISTED} more"
+                                                              if len(refs) > SIGHT_LISTED else "")
+            for limit, refs in by_limit.items()
+        ]  # fmt: skip
+        raise ValueError(
+            f"formation {form.name!r}: {len(bad)} followers do not see their reference from their slot; "
+            + "; ".join(parts)
+        )
 
 
 def check_switch(old: Formation, new: Formation, cam: Camera) -> None:

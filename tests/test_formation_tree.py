@@ -107,6 +107,21 @@ def test_a_grid_fills_rows_from_the_centre_and_follows_down_its_columns() -> Non
     assert even.slot_positions()[2] == pytest.approx((-0.5, -1.0))
 
 
+def test_every_follower_out_of_sight_is_named_by_the_limit_it_breaks() -> None:
+    # Robots 2-11 each 9 m behind the leader (8.9 m to its marker), robot 12 beside robot 2.
+    slots = {r: Slot(1, Point(0.0, -9.0)) for r in range(2, 12)}
+    slots[12] = Slot(2, Point(1.5, 0.0))
+    with pytest.raises(ValueError, match="11 followers do not see") as err:
+        check_sight(Formation("far", slots), DEFAULT_CAMERA._replace(fov_rad=math.pi))
+    assert str(err.value) == (
+        "formation 'far': 11 followers do not see their reference from their slot; beyond the camera's 10 m range"
+        " (margin 2 m: at most 8 m): "
+        + ", ".join(f"robot {r}'s reference robot 1 8.9 m away" for r in range(2, 10))
+        + " and 2 more; outside the camera's 180 deg field of view (margin 15 deg: at most 75 deg either side):"
+        " robot 12's reference robot 2 at a bearing of -93.8 deg"
+    )
+
+
 def test_a_far_or_abeam_reference_fails_the_camera_with_numbers() -> None:
     far = Formation("x", {2: Slot(1, Point(0.0, -1.5)), 3: Slot(2, Point(0.0, -8.6))})
     # 8.6 - 0.1 = 8.5 m: inside the 10 m range, not inside its 2 m margin.
@@ -118,12 +133,13 @@ def test_a_far_or_abeam_reference_fails_the_camera_with_numbers() -> None:
         check_sight(far, DEFAULT_CAMERA)
     check_sight(far, DEFAULT_CAMERA._replace(range_margin_m=1.5))
     half_circle = DEFAULT_CAMERA._replace(fov_rad=math.pi)
-    with pytest.raises(
-        ValueError,
-        match=r"robot 2's reference robot 1 is at a bearing of 93.8 deg at its slot,"
-        r" outside the camera's 180 deg field of view \(margin 15 deg: at most 75 deg either side\)",
-    ):
+    with pytest.raises(ValueError, match="2 followers do not see") as err:  # both wings abeam: both named
         check_sight(abreast(3, 1.5), half_circle)
+    assert str(err.value) == (
+        "formation 'abreast': 2 followers do not see their reference from their slot; outside the camera's 180 deg"
+        " field of view (margin 15 deg: at most 75 deg either side): robot 2's reference robot 1 at a bearing of"
+        " 93.8 deg, robot 3's reference robot 1 at a bearing of -93.8 deg"
+    )
     with pytest.raises(ValueError, match="robot 3's reference robot 2 is at a bearing of -91.9 deg"):
         check_sight(wedge(3, 1.5, 1.5), half_circle)  # the paper's triangle: robot 2 abeam of robot 3
     check_sight(wedge(30, 1.5, 1.5), half_circle)  # more robots: every reference 45 deg ahead
@@ -212,7 +228,9 @@ def test_the_loader_rejects_a_shape_outside_a_narrow_field_of_view() -> None:
     # A 150 deg camera (75 - 15 deg either side) sees a line's references ahead, not abreast's beside.
     with pytest.raises(
         sm.ScenarioError,
-        match="formations.line: formation 'line': robot 2's reference robot 1 is at a bearing of 93.8 deg",
+        match="formations.line: formation 'line': 2 followers do not see their reference from their slot; outside"
+        r" the camera's 150 deg field of view \(margin 15 deg: at most 60 deg either side\): robot 2's reference robot"
+        " 1 at a bearing of 93.8 deg, robot 3's reference robot 1 at a bearing of -93.8 deg",
     ):
         sm.load(
             SCENARIOS / "fig11_obstacles.toml",
