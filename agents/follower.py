@@ -89,10 +89,11 @@ class FollowerParams:
 
     def __post_init__(self) -> None:
         if self.law not in LAWS:
-            raise ValueError(f"law must be one of {LAWS}, got {self.law!r}")
+            raise ValueError(f"law must be one of {', '.join(map(repr, LAWS))}, got {self.law!r}")
         if self.drho_at_sign_change not in DRHO_AT_SIGN_CHANGE:
             raise ValueError(
-                f"drho_at_sign_change must be one of {DRHO_AT_SIGN_CHANGE}, got {self.drho_at_sign_change!r}"
+                f"drho_at_sign_change must be one of {', '.join(map(repr, DRHO_AT_SIGN_CHANGE))}, "
+                f"got {self.drho_at_sign_change!r}"
             )
         positive("width_m", self.width_m)
         non_negative("marker_offset_m", self.marker_offset_m)

@@ -157,7 +157,7 @@ def line(n: int, spacing_m: float, first_id: int = 1, follow: str = "ahead") -> 
     s = positive("spacing_m", spacing_m)
     _check_n(n)
     if follow not in LINE_FOLLOW:
-        raise ValueError(f"follow must be one of {LINE_FOLLOW}, got {follow!r}")
+        raise ValueError(f"follow must be one of {', '.join(map(repr, LINE_FOLLOW))}, got {follow!r}")
     pos = {first_id + i: Point(0.0, -s * i) for i in range(n)}
     skip = 1 if follow == "ahead" or n == 3 else 2
     refs = {first_id + i: first_id + max(0, i - skip) for i in range(1, n)}

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import difflib
 import itertools
+import json
 import math
 import tomllib
 import warnings
@@ -627,4 +628,6 @@ def load(
     try:
         return from_dict(raw)
     except ScenarioError as exc:
-        raise ScenarioError(f"{p}: {exc}") from None
+        # The values given beside the file (--set) are named: the error may be theirs.
+        given = ", ".join(f"{k} = {json.dumps(v)}" for k, v in (overrides or {}).items())
+        raise ScenarioError(f"{p}{f' (with {given})' if given else ''}: {exc}") from None
