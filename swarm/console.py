@@ -117,6 +117,18 @@ def _many_followers(
     return by_rms + flagged
 
 
+def _skipped(parts: Any) -> str:
+    """Real time: the share of the followers' observations they never answered
+    (a newer one had come by the time they got to it)."""
+    followers = [p for p in (parts or {}).values() if isinstance(p, Mapping) and p.get("role") == "follower"]
+    counts = [(p.get("answered"), p.get("superseded")) for p in followers]
+    answered = sum(a for a, _ in counts if isinstance(a, int))
+    skipped = sum(k for _, k in counts if isinstance(k, int))
+    if answered + skipped == 0:
+        return ""
+    return f", followers skipped {100.0 * skipped / (answered + skipped):.1f}% of their observations"
+
+
 CONTACTS_SHOWN = 3
 
 
@@ -194,7 +206,8 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
             sched = s.get("world_scheduling") or ""
             # A world the machine kept out of the real-time class: its ticks may start late under load.
             note = f" (world scheduling {sched})" if sched.startswith("normal (") else ""
-            w(f"  late ticks {s.get('late_ticks')} (worst {late_ms} ms){note}, drops {s.get('drops_total')}, ")
+            w(f"  late ticks {s.get('late_ticks')} (worst {late_ms} ms){note}{_skipped(s.get('parts'))}, "
+              f"drops {s.get('drops_total')}, ")  # fmt: skip
         else:
             w(f"  lockstep misses {s.get('lockstep_misses')}, drops {s.get('drops_total')}, ")
         w(f"rejected {s.get('rejected_total')}\n")

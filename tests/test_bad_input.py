@@ -358,6 +358,12 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     why = "normal (real-time priority 10 refused: Operation not permitted; it needs root or CAP_SYS_NICE)"
     print_result(RunResult(tmp_path, {**realtime, "world_scheduling": why}, 1), out)
     assert f"late ticks 3 (worst 55.1 ms) (world scheduling {why}), drops None" in out.getvalue()
+    out = io.StringIO()  # the followers' skipped observations (the leader's are not theirs)
+    parts = {"agent-1": {"role": "leader", "answered": 100, "superseded": 50},
+             "agent-2": {"role": "follower", "answered": 80, "superseded": 20},
+             "agent-3": {"role": "follower", "answered": 90, "superseded": 10}, "world": {"ticks": 5}}  # fmt: skip
+    print_result(RunResult(tmp_path, {**realtime, "parts": parts}, 1), out)
+    assert "late ticks 3 (worst 55.1 ms), followers skipped 15.0% of their observations, drops None" in out.getvalue()
     out = io.StringIO()  # a lockstep recording that misses ticks: the console and the report say which
     gap = "the logger recorded 715 of the 880 ticks the world sent (missing: truth ticks 100-264)"
     print_result(RunResult(tmp_path, {**ticked, "mode": "lockstep", "recording_gap": gap}, 0), out)
