@@ -52,6 +52,7 @@ from formation_swarm.scenario_keys import (
     OBSTACLE_KEYS,
     ROBOT_KEYS,
     RUN_KEYS,
+    SECTIONS,
     SHAPES,
     SLOT_KEYS,
     TOP_KEYS,
@@ -440,7 +441,11 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         raise ScenarioError(f"a scenario must be a table, got {type(raw).__name__}")
     for key in raw:
         if key not in TOP_KEYS:
-            raise ScenarioError(f"unknown section [{key}]" + _suggest(key, TOP_KEYS))
+            # A key of a section given without it (robots=30 for run.robots=30): name its place.
+            places = [f"{name}.{key}" for name, (schema, _, _) in SECTIONS.items()
+                      if "." not in name and name != "followers" and key in schema]  # fmt: skip
+            hint = f"; did you mean {' or '.join(map(repr, places))}?" if places else _suggest(key, TOP_KEYS)
+            raise ScenarioError(f"unknown section [{key}]" + hint)
     run = _table(raw.get("run"), "run", RUN_KEYS)
     dt = float(run["dt_s"])
     duration = float(run["duration_s"])

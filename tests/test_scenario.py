@@ -29,6 +29,8 @@ def test_every_shipped_scenario_loads(path: Path) -> None:
         ({"leader.sped_mps": 1.0}, "unknown key leader.sped_mps; did you mean 'speed_mps'?"),
         ({"controller.gama_deg": 1.0}, "unknown key controller.gama_deg; did you mean 'gamma_deg'?"),
         ({"linkz": {}}, "unknown section [linkz]; did you mean 'links'?"),
+        ({"robots": 30}, "unknown section [robots]; did you mean 'run.robots'?"),  # a key without its section
+        ({"seed": 3}, "unknown section [seed]; did you mean 'run.seed'?"),
         ({"links.obs_drop": 1.5}, "links.obs_drop must be in [0, 1], got 1.5"),
         ({"run.dt_s": -0.05}, "run.dt_s must be > 0, got -0.05"),
         ({"run.dt_s": "fast"}, "run.dt_s must be"),
