@@ -214,7 +214,11 @@ def _formation(name: str, raw: Any, robots: tuple[int, ...]) -> Formation:
                             + _suggest(str(shape), SHAPES))  # fmt: skip
     form = Formation(name, form.slots)
     if sorted(form.robots) != list(robots):
-        raise ScenarioError(f"{where} covers robots {form.robots}, the run has {list(robots)}")
+        hint = (f"; a custom formation places the robots its slots name, a shape (e.g. {where}.shape = \"wedge\")"
+                " places any number") if shape == "custom" else ""  # fmt: skip
+        raise ScenarioError(
+            f"{where} covers robots {id_ranges(form.robots)}, the run has robots {id_ranges(robots)}{hint}"
+        )
     return form
 
 

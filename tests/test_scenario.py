@@ -118,3 +118,12 @@ def test_leader_corners_is_pursuit_by_default_and_checked() -> None:
     assert sm.load(turn, {"leader.corners": "arcs", "leader.speed_mps": 1.6}).leader.corners == "arcs"
     with pytest.raises(sm.ScenarioError, match="leader.corners must be one of 'pursuit', 'arcs', got 'round'"):
         sm.load(turn, {"leader.corners": "round"})
+
+
+def test_a_custom_formation_of_fewer_robots_than_the_run_says_what_scales() -> None:
+    with pytest.raises(sm.ScenarioError) as info:
+        sm.load(SCENARIOS / "fig7_turn_vn_dynamic.toml", overrides={"run.robots": 30})
+    assert str(info.value).endswith(
+        "formations.two covers robots 1-2, the run has robots 1-30; a custom formation places the robots its slots"
+        ' name, a shape (e.g. formations.two.shape = "wedge") places any number'
+    )
