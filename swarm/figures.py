@@ -16,11 +16,16 @@ Choices a reader should know, also said on the figures themselves:
   cut off.
 - Titles name the scenario and the seed, and "cf. Fig. N" only when the run
   is a shipped scenario of the paper as shipped (any seed).
+- Beyond LEGEND_FOLLOWERS followers (a swarm), no figure lists every robot:
+  the formation error and V_N draw each follower faint under their median
+  and name the worst, the trajectories name the leader and the followers as
+  one entry, and the targets figure shows the followers of largest error.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -37,6 +42,14 @@ EVENT_GAP_S = 1.0  # formation events closer than this are one switch (leader, t
 LETTERS = "abcdefghijklmnopqrstuvwxyz"  # panel letters, as the paper's Fig. 11 (a-d)
 MAX_PANELS = 9  # zoomed snapshots on the trajectory figure
 QUANTILE = 99.5  # robust axis limits: this percentile, with a margin
+# Beyond this many followers a figure draws them together (each faint, their
+# median bold, the worst named) rather than one legend entry each, and names
+# only some robots on the zoomed snapshots; the targets figure shows the
+# TARGET_ROWS followers of largest formation error.
+LEGEND_FOLLOWERS = 8
+TARGET_ROWS = 4
+NAMED_EVERY = 5  # on a zoomed snapshot of many robots: the leader and every 5th robot are named
+GAP_TICKS = 1.5  # a series with no row for longer than this many ticks has a gap: no line across it
 
 
 @dataclass
@@ -62,6 +75,11 @@ class Context:
     def title(self, stem: str, what: str) -> str:
         cf = f" (cf. paper {self.paper[stem]})" if stem in self.paper else ""
         return f"{self.scenario}, seed {self.seed}: {what}{cf}"
+
+    @property
+    def many(self) -> bool:
+        """A swarm: too many followers for one legend entry each."""
+        return len(self.followers) > LEGEND_FOLLOWERS
 
     def colour(self, rid: int) -> tuple[float, float, float]:
         """The robot's colour, the same as in the Rerun viewer (formation_swarm.palette)."""
@@ -116,15 +134,43 @@ def robust_top(arrays: Sequence[np.ndarray], floor: float = 0.0) -> tuple[float,
     return max(floor, 1.15 * q), top
 
 
+def stretches(t: np.ndarray, dt_s: float) -> list[slice]:
+    """The unbroken stretches of a time series: a gap of more than GAP_TICKS
+    ticks (an agent killed, frozen or restarted; a robot out of its camera's
+    view) ends one."""
+    breaks = np.flatnonzero(np.diff(t) > GAP_TICKS * dt_s) + 1
+    edges = [0, *breaks.tolist(), len(t)]
+    return [slice(a, b) for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+
+
+def gapped(t: np.ndarray, v: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """``t`` and ``v`` with a NaN between stretches, so that a line is not drawn across a gap."""
+    parts = stretches(t, dt_s)
+    if len(parts) <= 1:
+        return t, v
+    gap = np.full((1, *np.shape(v)[1:]), np.nan)
+    ts, vs = [], []
+    for k, sl in enumerate(parts):
+        if k:
+            ts.append(np.array([0.5 * (t[sl.start - 1] + t[sl.start])]))
+            vs.append(gap)
+        ts.append(t[sl])
+        vs.append(v[sl])
+    return np.concatenate(ts), np.concatenate(vs)
+
+
 def moving_average(t: np.ndarray, v: np.ndarray, window_s: float, dt_s: float) -> np.ndarray:
-    """Centred moving average over ``window_s`` (in ticks of ``dt_s``); shorter at the ends."""
+    """Centred moving average over ``window_s`` (in ticks of ``dt_s``); shorter at
+    the ends of each unbroken stretch, none of which averages across a gap."""
     n = max(1, int(round(window_s / dt_s)))
     if n <= 1 or len(v) < 2:
         return v.copy()
+    out = np.empty(len(v))
     kernel = np.ones(n)
-    num = np.convolve(v, kernel, mode="same")
-    den = np.convolve(np.ones_like(v), kernel, mode="same")
-    return num / den
+    for sl in stretches(t, dt_s):
+        part = v[sl]
+        out[sl] = np.convolve(part, kernel, mode="same") / np.convolve(np.ones_like(part), kernel, mode="same")
+    return out
 
 
 def _time_marks(ax: Any, ctx: Context) -> None:
@@ -252,13 +298,11 @@ def _overview(
     if ctx.obstacles:
         ax.plot([], [], "o", color="tab:red", alpha=0.35, label="obstacle")
     for r, s in poses.items():
-        ax.plot(
-            s.v[:, 0],
-            s.v[:, 1],
-            lw=1.8,
-            color=ctx.colour(r),
-            label=f"R{r}" + (" (leader)" if r not in ctx.followers else ""),
-        )
+        leader = r not in ctx.followers
+        label = f"R{r}" + (" (leader)" if leader else "") if leader or not ctx.many else None
+        ax.plot(s.v[:, 0], s.v[:, 1], lw=1.8, color=ctx.colour(r), label=label)
+    if ctx.many:  # one entry for them all: each still in its own colour, as in the Rerun viewer
+        ax.plot([], [], lw=1.8, color="0.55", label=f"{len(ctx.followers)} followers, each in its own colour")
     letters = iter(LETTERS)
     for k, (t, kind) in enumerate(snaps):
         pts = _at(poses, t)
@@ -314,7 +358,8 @@ def _zoom(
         near = (s.t >= t - 4.0) & (s.t <= t + 4.0)  # 4 s either side: where it came from, where it goes
         ax.plot(s.v[near, 0], s.v[near, 1], lw=1.0, color=ctx.colour(r), alpha=0.8)
         ax.add_patch(plt.Circle(tuple(pts[r]), 0.5 * ctx.diameter_m, color=ctx.colour(r), zorder=4))
-        ax.annotate(f"R{r}", tuple(pts[r]), xytext=(6, 6), textcoords="offset points", fontsize=8, zorder=5)
+        if not ctx.many or r not in ctx.followers or r % NAMED_EVERY == 0:
+            ax.annotate(f"R{r}", tuple(pts[r]), xytext=(6, 6), textcoords="offset points", fontsize=8, zorder=5)
     _links(ax, ctx, pts, t, lw=1.0, label=None)
     for r in ctx.followers:
         tgt = data.get(f"/robots/r{r}/target/true")
@@ -337,6 +382,37 @@ def _zoom(
         ax.legend(fontsize=7, loc="lower right")
 
 
+def _median_over(series: Mapping[int, tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """The median over the followers' (t, v) at each time of the longest one;
+    a follower counts only within its own times (a killed one's ends early)."""
+    grid = max((t for t, _ in series.values()), key=len)
+    rows = np.full((len(series), len(grid)), np.nan)
+    for k, (t, v) in enumerate(series.values()):
+        inside = (grid >= t[0]) & (grid <= t[-1])
+        rows[k, inside] = np.interp(grid[inside], t, v)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an instant no follower covers: NaN
+        return grid, np.nanmedian(rows, axis=0)
+
+
+def _swarm_lines(
+    ax: Any, drawn: Mapping[int, Series], score: Mapping[int, Any], what: str, unit: str, dt_s: float
+) -> None:
+    """Over the followers drawn faint: their median (bold black) and the one
+    of largest ``score`` (its own colour), each in the legend."""
+    grid, median = _median_over({r: (s.t, s.v) for r, s in drawn.items()})
+    ax.plot([], [], lw=0.7, color="0.5", alpha=0.6, label=f"each of the {len(drawn)} followers, faint")
+    ax.plot(*gapped(grid, median, dt_s), lw=2.0, color="k", label=f"median over the {len(drawn)} followers")
+    scored = [
+        (float(v), r) for r, v in score.items() if r in drawn and isinstance(v, (int, float)) and math.isfinite(v)
+    ]
+    if scored:
+        value, worst = max(scored)
+        s = drawn[worst]
+        ax.plot(*gapped(s.t, s.v, dt_s), lw=1.6, color=robot_colour(worst),
+                label=f"largest {what}: R{worst} ({value:.2f} {unit})")  # fmt: skip
+
+
 # -- formation error (Fig. 6b/d, 7b) ---------------------------------------------------------------
 
 
@@ -345,14 +421,21 @@ def formation_error(path: Any, data: Mapping[str, Series], ctx: Context, rms: Ma
 
     fig, ax = plt.subplots(figsize=(9, 4), layout="constrained")
     arrays = []
+    drawn: dict[int, Series] = {}
     for r in ctx.followers:
         s = data.get(f"/robots/r{r}/error/formation")
         if s is None or not len(s):
             continue
         value = rms.get(r)
         tag = f" (RMS {value:.2f} m)" if isinstance(value, (int, float)) else " (never acquired its reference)"
-        ax.plot(s.t, s.v, lw=1.5, color=ctx.colour(r), label=f"R{r}{tag}")
+        if ctx.many:
+            ax.plot(*gapped(s.t, s.v, ctx.dt_s), lw=0.7, color=ctx.colour(r), alpha=0.35)
+        else:
+            ax.plot(*gapped(s.t, s.v, ctx.dt_s), lw=1.5, color=ctx.colour(r), label=f"R{r}{tag}")
         arrays.append(s.v)
+        drawn[r] = s
+    if ctx.many and drawn:
+        _swarm_lines(ax, drawn, rms, "RMS", "m", ctx.dt_s)
     top, cut = robust_top(arrays)
     ax.set_ylim(0.0, top)
     _time_axis(ax, ctx)
@@ -375,6 +458,7 @@ def vn(path: Any, data: Mapping[str, Series], ctx: Context, dpi: int) -> None:
         1, 2, figsize=(10, 4.2), sharey=True, layout="constrained", gridspec_kw={"width_ratios": [4, 1]}
     )
     drawn: list[tuple[int, np.ndarray]] = []
+    averages: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     held = 0
     for r in ctx.followers:
         s = data.get(f"/robots/r{r}/fis/v_n")
@@ -386,9 +470,14 @@ def vn(path: Any, data: Mapping[str, Series], ctx: Context, dpi: int) -> None:
         if not len(v):
             continue
         c = ctx.colour(r)
-        ax.plot(t, v, lw=0.5, color=c, alpha=0.3)
         smooth = moving_average(t, v, VN_SMOOTH_S, ctx.dt_s)
-        ax.plot(t, smooth, lw=1.8, color=c, label=f"R{r}: {VN_SMOOTH_S:g} s moving average (mean {np.mean(v):.2f} m/s)")
+        if ctx.many:  # each follower's average faint; their median over it
+            ax.plot(*gapped(t, smooth, ctx.dt_s), lw=0.7, color=c, alpha=0.35)
+            averages[r] = (t, smooth)
+        else:
+            ax.plot(*gapped(t, v, ctx.dt_s), lw=0.5, color=c, alpha=0.3)
+            ax.plot(*gapped(t, smooth, ctx.dt_s), lw=1.8, color=c,
+                    label=f"R{r}: {VN_SMOOTH_S:g} s moving average (mean {np.mean(v):.2f} m/s)")  # fmt: skip
         drawn.append((r, v))
     if not drawn:
         ax.text(0.5, 0.5, "no V_N in this run (l-psi followers have none)", ha="center", transform=ax.transAxes)
@@ -399,26 +488,38 @@ def vn(path: Any, data: Mapping[str, Series], ctx: Context, dpi: int) -> None:
         pad = max(0.05, 0.08 * (hi - lo))
         ax.set_ylim(lo - pad, hi + pad)
         edges = np.linspace(lo - 1e-9, hi + 1e-9, 11) if hi - lo > 1e-6 else np.array([lo - 0.025, lo + 0.025])
-        width = 0.9 * np.diff(edges) / len(drawn)  # the followers' bars side by side in each band
-        for k, (r, v) in enumerate(drawn):
-            share, _ = np.histogram(v, bins=edges)
-            hist.barh(
-                edges[:-1] + (k + 0.55) * width,
-                100.0 * share / len(v),
-                height=width,
-                color=ctx.colour(r),
-                label=f"R{r}",
-            )
+        if ctx.many:  # every follower's ticks in one set of bars
+            pooled = np.concatenate([v for _, v in drawn])
+            share, _ = np.histogram(pooled, bins=edges)
+            hist.barh(edges[:-1] + 0.5 * np.diff(edges), 100.0 * share / len(pooled), height=0.9 * np.diff(edges),
+                      color="0.45", label=f"all {len(drawn)} followers")  # fmt: skip
+            grid, median = _median_over(averages)
+            ax.plot([], [], lw=0.7, color="0.5", alpha=0.6,
+                    label=f"each follower's {VN_SMOOTH_S:g} s moving average ({len(drawn)}), faint")  # fmt: skip
+            ax.plot(*gapped(grid, median, ctx.dt_s), lw=2.0, color="k",
+                    label=f"median over the {len(drawn)} followers' averages")  # fmt: skip
+        else:
+            width = 0.9 * np.diff(edges) / len(drawn)  # the followers' bars side by side in each band
+            for k, (r, v) in enumerate(drawn):
+                share, _ = np.histogram(v, bins=edges)
+                hist.barh(
+                    edges[:-1] + (k + 0.55) * width,
+                    100.0 * share / len(v),
+                    height=width,
+                    color=ctx.colour(r),
+                    label=f"R{r}",
+                )
+            ax.plot([], [], lw=0.5, color="0.4", alpha=0.5, label="V_N each tick, as the controller used it")
         hist.set_xlabel("share of ticks, %")
         hist.set_title("time at each V_N", fontsize=9)
         hist.grid(alpha=0.3)
-        ax.plot([], [], lw=0.5, color="0.4", alpha=0.5, label="V_N each tick, as the controller used it")
         ax.legend(fontsize=8, loc="lower left")
     _time_axis(ax, ctx)
     ax.set_ylabel("V_N, m/s")
     note = f"; {held} ticks holding (V_N = 0) not drawn" if held else ""
+    faint = f"each follower's {VN_SMOOTH_S:g} s" if ctx.many else f"every tick; bold: {VN_SMOOTH_S:g} s"
     ax.set_title(
-        ctx.title("vn", "FIS-2's normal speed V_N") + f"\nfaint: every tick; bold: {VN_SMOOTH_S:g} s "
+        ctx.title("vn", "FIS-2's normal speed V_N") + f"\nfaint: {faint} "
         f"centred moving average, for the eye only (the controller is not filtered){note}",
         fontsize=10,
         pad=14,
@@ -433,16 +534,32 @@ def vn(path: Any, data: Mapping[str, Series], ctx: Context, dpi: int) -> None:
 MEASURED, TRUE, EKF = "k", "tab:green", "tab:red"
 
 
+def _target_rows(ctx: Context, rms: Mapping[int, Any]) -> tuple[list[int], str]:
+    """The followers the targets figure shows, and how they were picked (a
+    swarm's: the TARGET_ROWS of largest formation error, by robot id)."""
+    if not ctx.many:
+        return list(ctx.followers), ""
+    scored = sorted(ctx.followers, key=lambda r: -rms[r] if isinstance(rms.get(r), (int, float)) else math.inf)
+    shown = sorted(scored[:TARGET_ROWS])
+    return shown, f"\nthe {len(shown)} of the {len(ctx.followers)} followers with the largest formation error"
+
+
 def targets(
-    path: Any, data: Mapping[str, Series], ctx: Context, errors: Mapping[int, Mapping[str, Any]], dpi: int
+    path: Any,
+    data: Mapping[str, Series],
+    ctx: Context,
+    errors: Mapping[int, Mapping[str, Any]],
+    dpi: int,
+    rms: Mapping[int, Any] | None = None,
 ) -> None:
     import matplotlib.pyplot as plt
 
-    n = max(1, len(ctx.followers))
+    shown, which = _target_rows(ctx, rms or {})
+    n = max(1, len(shown))
     fig, axes = plt.subplots(
         n, 3, figsize=(14, 4.4 * n), squeeze=False, layout="constrained", gridspec_kw={"width_ratios": [1.0, 1.0, 1.7]}
     )
-    for (whole, zoom, err), r in zip(axes, ctx.followers, strict=False):
+    for (whole, zoom, err), r in zip(axes, shown, strict=False):
         base = f"/robots/r{r}"
         series = {
             k: data.get(f"{base}/{p}")
@@ -455,7 +572,7 @@ def targets(
             continue
         t_mid = _zoom_time(true, ctx.t_end)
         for ax in (whole, zoom):
-            _target_xy(ax, series)
+            _target_xy(ax, series, ctx.dt_s)
         _xy_limits(whole, true.v, pad=2.0)
         whole.set_title(f"R{r}: virtual target, whole run", fontsize=10)
         sel = np.abs(true.t - t_mid) <= 2.0
@@ -466,7 +583,8 @@ def targets(
         _target_errors(err, data, base, ctx, errors.get(r) or {})
         err.set_title(f"R{r}: distance to the true target", fontsize=10, pad=14)
     fig.suptitle(
-        ctx.title("targets", "virtual target read by the camera (dots), true (green), EKF estimate (red)"), fontsize=11
+        ctx.title("targets", "virtual target read by the camera (dots), true (green), EKF estimate (red)") + which,
+        fontsize=11,
     )
     _save(fig, path, dpi)
 
@@ -482,14 +600,15 @@ def _zoom_time(true: Series, t_end: float) -> float:
     return float(np.clip(true.t[k], 2.0, max(2.0, t_end - 2.0)))
 
 
-def _target_xy(ax: Any, series: Mapping[str, Series | None]) -> None:
+def _target_xy(ax: Any, series: Mapping[str, Series | None], dt_s: float) -> None:
     s = series["measured"]
     if s is not None and len(s):
         ax.scatter(s.v[:, 0], s.v[:, 1], s=4, color=MEASURED, alpha=0.5, lw=0, label="read (eq. 1-2)", zorder=2)
     for key, label, color in (("true", "true", TRUE), ("ekf", "EKF", EKF)):
         s = series[key]
         if s is not None and len(s):
-            ax.plot(s.v[:, 0], s.v[:, 1], lw=1.2, color=color, label=label, zorder=3)
+            _, xy = gapped(s.t, s.v, dt_s)
+            ax.plot(xy[:, 0], xy[:, 1], lw=1.2, color=color, label=label, zorder=3)
     ax.set_xlabel("x, m")
     ax.set_ylabel("y, m")
     ax.grid(alpha=0.3)
@@ -522,7 +641,8 @@ def _target_errors(ax: Any, data: Mapping[str, Series], base: str, ctx: Context,
         if s is not None and len(s):
             value = rms.get(f"{name}_rms_m")
             tag = f" (RMS {value:.3f} m)" if isinstance(value, (int, float)) else ""
-            ax.plot(s.t, s.v, lw=0.7, color=color, alpha=0.5 if name == "measured" else 0.9, label=label + tag)
+            ax.plot(*gapped(s.t, s.v, ctx.dt_s), lw=0.7, color=color, alpha=0.5 if name == "measured" else 0.9,
+                    label=label + tag)  # fmt: skip
             arrays.append(s.v)
     top, cut = robust_top(arrays)
     ax.set_ylim(0.0, top)

@@ -67,7 +67,7 @@ def make_report(run_dir: str | Path, snapshots: int = 6, fmt: str = "png", dpi: 
     figures.formation_error(name["formation_error"], data, ctx, rms, dpi)
     figures.vn(name["vn"], data, ctx, dpi)
     errs = ((summary.get("parts") or {}).get("logger") or {}).get("target_errors") or {}
-    figures.targets(name["targets"], data, ctx, {r: errs.get(str(r)) or {} for r in followers}, dpi)
+    figures.targets(name["targets"], data, ctx, {r: errs.get(str(r)) or {} for r in followers}, dpi, rms)
     (out / "report.md").write_text(_markdown(summary, followers, fmt, ctx))
     return out
 

@@ -153,3 +153,60 @@ def test_a_changed_paper_scenario_is_named_with_what_changed(tmp_path: Path) -> 
     assert paper_changes(run) == "fig11_obstacles with [[faults]], run.robots changed"
     run.write_text(dumps({**raw, "run": {**raw["run"], "name": "mine"}}))
     assert paper_changes(run) is None  # not a paper's scenario: nothing to compare with
+
+
+def test_a_gap_in_a_series_breaks_its_line_and_its_average() -> None:
+    from formation_swarm.figures import gapped, moving_average, stretches
+
+    t = np.r_[np.arange(0, 10) * 0.05, np.arange(30, 40) * 0.05]  # ticks 0-9, then 30-39: an agent away
+    assert stretches(t, 0.05) == [slice(0, 10), slice(10, 20)]
+    gt, gv = gapped(t, np.ones(20), 0.05)
+    assert len(gt) == 21
+    assert np.isnan(gv[10])
+    assert gt[10] == pytest.approx(0.5 * (0.45 + 1.5))
+    unbroken = t[:10]
+    assert gapped(unbroken, np.ones(10), 0.05)[0] is unbroken  # as it was
+    # Each stretch averaged alone: a step across the gap does not leak into either side.
+    v = np.r_[np.zeros(10), np.ones(10)]
+    assert moving_average(t, v, 0.2, 0.05) == pytest.approx(v)
+
+
+def test_a_swarm_figure_draws_the_median_and_names_the_worst(monkeypatch: pytest.MonkeyPatch) -> None:
+    """12 followers: no legend entry each, but their median and the worst; the
+    targets figure shows the 4 of largest error, not 12 rows."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from formation_swarm import figures
+    from formation_swarm.data import Series
+
+    saved = []
+    monkeypatch.setattr(figures, "_save", lambda fig, path, dpi: saved.append(fig))
+    followers = list(range(2, 14))
+    t = np.arange(100) * 0.05
+    data = {}
+    for r in followers:
+        data[f"/robots/r{r}/error/formation"] = Series(t, np.full(100, r / 10))  # R13 the worst, 1.3 m
+        data[f"/robots/r{r}/fis/v_n"] = Series(t, np.full(100, 1.5 + r / 100))
+        xy = np.c_[np.zeros(100), t]
+        for path in ("target/true", "target/measured", "ekf/target"):
+            data[f"/robots/r{r}/{path}"] = Series(t, xy)
+    ctx = figures.Context(scenario="s", seed=1, robots=[1, *followers], followers=followers, t_end=5.0)
+    rms = {r: r / 10 for r in followers}
+    figures.formation_error("unused", data, ctx, rms, 50)
+    labels = [x.get_text() for x in saved[-1].axes[0].get_legend().get_texts()]
+    assert labels == ["each of the 12 followers, faint", "median over the 12 followers", "largest RMS: R13 (1.30 m)"]
+    median = saved[-1].axes[0].get_lines()[13]  # after the 12 faint ones and the legend's proxy
+    assert np.nanmedian(median.get_ydata()) == pytest.approx(0.75)  # of 0.2 ... 1.3
+    figures.vn("unused", data, ctx, 50)
+    labels = [x.get_text() for x in saved[-1].axes[0].get_legend().get_texts()]
+    assert labels == ["each follower's 1 s moving average (12), faint", "median over the 12 followers' averages"]
+    figures.targets("unused", data, ctx, {}, 50, rms)
+    rows = [a.get_title() for a in saved[-1].axes if a.get_title().endswith("whole run")]
+    assert rows == [f"R{r}: virtual target, whole run" for r in (10, 11, 12, 13)]
+    assert "the 4 of the 12 followers with the largest formation error" in saved[-1]._suptitle.get_text()
+    # Up to 8 followers, each has its own entry.
+    few = figures.Context(scenario="s", seed=1, robots=[1, 2, 3], followers=[2, 3], t_end=5.0)
+    figures.formation_error("unused", data, few, rms, 50)
+    labels = [x.get_text() for x in saved[-1].axes[0].get_legend().get_texts()]
+    assert labels == ["R2 (RMS 0.20 m)", "R3 (RMS 0.30 m)"]
