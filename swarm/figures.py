@@ -16,6 +16,9 @@ Choices a reader should know, also said on the figures themselves:
   cut off.
 - Titles name the scenario and the seed, and "cf. Fig. N" only when the run
   is a shipped scenario of the paper as shipped (any seed).
+- A line is not drawn across a gap in its series (an agent killed, frozen
+  or restarted; a follower holding, which has no V_N), nor is a moving
+  average taken across one.
 - Beyond LEGEND_FOLLOWERS followers (a swarm), no figure lists every robot:
   the formation error and V_N draw each follower faint under their median
   and name the worst, the trajectories name the leader and the followers as
