@@ -45,8 +45,13 @@ def describe_event(ev: Mapping[str, Any]) -> str:
     return ", ".join(f"{k} {v}" for k, v in ev.items() if k != "log_tail")
 
 
-def describe_fault(f: Mapping[str, Any]) -> str:
-    """One scheduled fault of the summary, with what it did, as a line."""
+def describe_fault(f: Mapping[str, Any], ticks: Any = None) -> str:
+    """One scheduled fault of the summary, with what it did, as a line; one
+    whose start the run never reached (it ended early: the leader's path was
+    done) says so."""
+    start = f.get("start_tick")
+    if isinstance(ticks, int) and isinstance(start, int) and start >= ticks:
+        return f"{f.get('fault')}: never started: the run ended at tick {ticks}, before its tick {start}"
     parts = []
     for e in f.get("events") or []:
         robot = f" R{e['robot']}" if e.get("robot") is not None else ""
@@ -214,7 +219,7 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
         if s.get("recording_gap"):
             w(f"  RECORDING INCOMPLETE: {s['recording_gap']}\n")
     for f in s.get("faults") or []:
-        w(f"  fault: {describe_fault(f)}\n")
+        w(f"  fault: {describe_fault(f, s.get('ticks'))}\n")
     events = s.get("events") or []
     killed = {ev.get("process") for ev in events if ev.get("event") == "killed"}
     for ev in events:

@@ -440,8 +440,10 @@ def check_against(faults: Sequence[Fault], robots: Sequence[int], leader_id: int
     busy: dict[str, list[tuple[int, int | None, Fault]]] = {}
     for f in faults:
         where = f"fault '{f}'"
-        if f.at_s > duration_s:
-            raise ValueError(f"{where}: starts at {f.at_s:g} s, after the run's end ({duration_s:g} s)")
+        if f.start_tick(dt_s) >= (ticks := int(round(duration_s / dt_s))):  # ticks 0 .. ticks - 1 are run
+            last = (ticks - 1) * dt_s
+            raise ValueError(f"{where}: starts at {f.at_s:g} s, at or after the run's end ({duration_s:g} s; its "
+                             f"last tick is at {last:g} s)")  # fmt: skip
         named = f.robots
         if named is not None and (unknown := sorted(set(named) - known)):
             raise ValueError(

@@ -45,7 +45,7 @@ REJECTED = {
         "argument --peers-timeout: must be a number of seconds in (0, 1e+06], got '1e12'",
     ),
     "run: kill an unknown process": ([*RUN, "--kill", "agent-9@5"], "no robot 9 in this run; robots are 1, 2, 3"),
-    "run: kill after the end": ([*RUN, "--kill", "agent-2@1e9"], "starts at 1e+09 s, after the run's end (56 s)"),
+    "run: kill after the end": ([*RUN, "--kill", "agent-2@1e9"], "starts at 1e+09 s, at or after the run's end (56 s; its last tick is at 55.95 s)"),
     "run: a fault of no kind": ([*RUN, "--fault", "explode agent-2@5s"], "unknown fault kind 'explode'"),
     "run: a fault without its parameter": ([*RUN, "--fault", "drop obs:2@5s"], "fault 'drop' needs p=VALUE"),
     "run: a fault on the world": ([*RUN, "--fault", "freeze world@5s for=1s"], "cannot freeze the world"),
@@ -477,3 +477,15 @@ def test_print_result_names_the_first_contacts(tmp_path: Path) -> None:
     out = io.StringIO()  # none, or a summary from before contacts were listed: no line
     print_result(RunResult(tmp_path, {**base, "collisions": 0, "obstacle_collisions": 0}, 0), out)
     assert "contact" not in out.getvalue()
+
+
+def test_a_fault_the_run_never_reached_says_so(tmp_path: Path) -> None:
+    """A run ends early when the leader's path is done (fig11: tick 1061 of 1120):
+    a fault timed after that never starts, and its line says so."""
+    fault = {"fault": "kill agent-3@54s", "start_tick": 1080, "end_tick": None, "events": [], "counts": {}}
+    base = {"run_id": "r1", "ticks": 1061, "sim_time_s": 53.05, "followers": {}, "faults": [fault]}
+    out = io.StringIO()
+    print_result(RunResult(tmp_path, base, 0), out)
+    assert "  fault: kill agent-3@54s: never started: the run ended at tick 1061, before its tick 1080\n" in (
+        out.getvalue()
+    )

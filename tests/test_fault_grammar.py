@@ -142,6 +142,9 @@ def test_scenario_faults_from_tables_and_the_command_line(tmp_path: Path) -> Non
     [
         ("kill agent-9@5s", "no robot 9 in this run; robots are 1, 2, 3"),
         ("kill agent-2@99s", "after the run's end"),
+        # fig11 runs 56 s: ticks 0-1119, the last at 55.95 s; a start rounded to tick 1120 would never come.
+        ("kill agent-2@56s", "starts at 56 s, at or after the run's end (56 s; its last tick is at 55.95 s)"),
+        ("kill agent-2@55.99s", "starts at 55.99 s, at or after the run's end"),
         ("drop formation:1@1s p=0.5", "robot 1 is the leader; formation links go to followers"),
         ("partition 1@1s for=2s from=leader", "cannot be cut off from itself"),
         ("wheel_noise 4@0s sigma_mps=0.1", "no robot 4"),
