@@ -65,8 +65,8 @@ class Param:
             if value not in self.choices:
                 raise ValueError(f"{where} must be one of {', '.join(self.choices)}, got {value!r}")
             return str(value)
-        if isinstance(value, str):
-            value = _number(where, value, self.unit)
+        if isinstance(value, str):  # a duration as the fault's times are written: 1, 1s or 500ms
+            value = seconds(where, value) if self.unit == "s" else _number(where, value, self.unit)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise ValueError(f"{where} must be a finite number, got {value!r}")
         low_ok = value > self.low if self.open_low else value >= self.low
@@ -186,13 +186,13 @@ _TIME = re.compile(r"^([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)(ms|s)?$")
 
 
 def _number(where: str, text: str, unit: str = "") -> float:
-    text = text.strip()
+    given, text = text, text.strip()
     if unit in ("s", "ms", "m", "m/s", "deg") and text.endswith(unit):
         text = text[: -len(unit)]
     try:
         return float(text)
     except ValueError:
-        raise ValueError(f"{where} must be a number{f' in {unit}' if unit else ''}, got {text!r}") from None
+        raise ValueError(f"{where} must be a number{f' in {unit}' if unit else ''}, got {given!r}") from None
 
 
 def seconds(where: str, value: Any) -> float:
@@ -200,7 +200,8 @@ def seconds(where: str, value: Any) -> float:
     if isinstance(value, str):
         m = _TIME.match(value.strip())
         if not m:
-            raise ValueError(f"{where} must be a time such as 20, 20s or 1500ms, got {value!r}")
+            sign = "a time >= 0 s, " if value.strip().startswith("-") else "a time "
+            raise ValueError(f"{where} must be {sign}such as 20, 20s or 1500ms, got {value!r}")
         out = float(m.group(1)) / (1000.0 if m.group(2) == "ms" else 1.0)
     elif isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ValueError(f"{where} must be a time in s, got {value!r}")

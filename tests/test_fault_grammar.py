@@ -91,12 +91,15 @@ def test_link_faults_by_link() -> None:
         ("agent-3@20", "did you mean 'kill agent-3@20'"),
         ("drop obs:2@1s", "needs p=VALUE"),
         ("drop obs:2@1s p=1.5", "p must be in [0, 1]"),
-        ("drop obs:2@-1s p=0.5", "a time such as 20, 20s or 1500ms"),
+        ("drop obs:2@-1s p=0.5", "the start must be a time >= 0 s, such as 20, 20s or 1500ms"),
         ("drop radio:2@1s p=0.5", "the target is a link class"),
         ("delay obs@1s ticks=1 ms=3", "exactly one of ticks or ms"),
         ("freeze agent-2@1s", "needs a duration"),
         ("kill agent-2@1s for=2s", "takes no duration"),
         ("drop obs:2@1s p=0.1 q=3", "has no parameter 'q'"),
+        ("bias 2@1s rho_m=0.5cm", "rho_m must be a number in m, got '0.5cm'"),  # the value as given
+        ("restart agent-2@1s after=500mss", "after must be a time such as 20, 20s or 1500ms, got '500mss'"),
+        ("drop obs:2@1s for=-1s p=0.1", "for must be a time >= 0 s, such as 20"),
         ("partition 2@1s for=1s from=mars", "from must be one of world, leader, both"),
         ("blackout 2,2@1s", "named twice"),
         ("drop obs:2@1s for=0s p=0.1", "for must be > 0 s"),
@@ -329,3 +332,9 @@ def test_update_doc_rewrites_between_the_markers_only(tmp_path: Path) -> None:
         with pytest.raises(SystemExit, match="no .* markers"):
             update_doc(str(doc))
         assert doc.read_text() == text
+
+
+def test_a_parameter_in_seconds_takes_the_units_the_times_do() -> None:
+    assert Fault.parse("restart agent-2@1s after=500ms").param("after") == 0.5
+    assert Fault.parse("restart agent-2@1s after=2s").param("after") == 2.0
+    assert Fault.parse("restart agent-2@1s after=1.5").param("after") == 1.5
