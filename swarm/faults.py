@@ -470,7 +470,14 @@ def check_against(faults: Sequence[Fault], robots: Sequence[int], leader_id: int
             busy.setdefault(f.target, []).append((start, end, f))
 
 
-def parse_all(values: Iterable[Fault | str | Mapping[str, Any]], where: str = "faults") -> tuple[Fault, ...]:
+def parse_all(
+    values: Iterable[Fault | str | Mapping[str, Any]] | Fault | str | Mapping[str, Any], where: str = "faults"
+) -> tuple[Fault, ...]:
+    """The faults, by start time (those that start together in the order
+    given). One fault given alone (a string, a table) is one fault, not a
+    sequence of letters or keys."""
+    if isinstance(values, (str, Mapping, Fault)):
+        values = [values]
     out = []
     for i, v in enumerate(values):
         try:

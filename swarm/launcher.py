@@ -157,6 +157,9 @@ class Launch:
         ov = dict(overrides or {})
         if seed is not None:
             ov["run.seed"] = seed
+        # One given alone (faults="kill agent-3@5s") is one, not a sequence of letters.
+        kills = [kills] if isinstance(kills, str) else kills
+        faults = [faults] if isinstance(faults, (str, Mapping, Fault)) else faults
         extra = [_as_fault(k, kill=True) for k in kills] + [_as_fault(f, kill=False) for f in faults]
         with warnings.catch_warnings():  # the loader's warnings are in sc.warnings: printed when the run starts
             warnings.simplefilter("ignore", ScenarioWarning)

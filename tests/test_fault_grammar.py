@@ -338,3 +338,13 @@ def test_a_parameter_in_seconds_takes_the_units_the_times_do() -> None:
     assert Fault.parse("restart agent-2@1s after=500ms").param("after") == 0.5
     assert Fault.parse("restart agent-2@1s after=2s").param("after") == 2.0
     assert Fault.parse("restart agent-2@1s after=1.5").param("after") == 1.5
+
+
+def test_one_fault_given_alone_is_one_fault(tmp_path: Path) -> None:
+    from formation_swarm.faults import parse_all
+    from formation_swarm.launcher import Launch
+
+    assert [str(f) for f in parse_all("kill agent-3@5s")] == ["kill agent-3@5s"]
+    assert [str(f) for f in parse_all({"kind": "kill", "target": "agent-3", "at_s": 5})] == ["kill agent-3@5s"]
+    launch = Launch("fig11_obstacles", out=tmp_path / "run", faults="kill agent-3@5s", kills="agent-2@7")
+    assert sorted(str(f) for f in launch.sc.faults) == ["kill agent-2@7s", "kill agent-3@5s"]
