@@ -45,6 +45,20 @@ def describe_event(ev: Mapping[str, Any]) -> str:
     return ", ".join(f"{k} {v}" for k, v in ev.items() if k != "log_tail")
 
 
+def describe_recoveries(f: Mapping[str, Any]) -> list[str]:
+    """How long the formation took to come back after a process fault, in words."""
+    out = []
+    for rec in f.get("recoveries") or []:
+        who = ", ".join(f"R{r}" for r in rec.get("watched") or [])
+        after = rec.get("first_below_after_s")
+        bound = rec.get("bound_m", 0.5)
+        if isinstance(after, (int, float)):
+            out.append(f"{who} below {bound:g} m {after:.2f} s after tick {rec.get('since_tick')}")
+        else:
+            out.append(f"{who} not back below {bound:g} m by the end")
+    return out
+
+
 def describe_fault(f: Mapping[str, Any], ticks: Any = None) -> str:
     """One scheduled fault of the summary, with what it did, as a line; one
     whose start the run never reached (it ended early: the leader's path was
@@ -57,14 +71,7 @@ def describe_fault(f: Mapping[str, Any], ticks: Any = None) -> str:
         robot = f" R{e['robot']}" if e.get("robot") is not None else ""
         parts.append(f"{e.get('event')}{robot} at tick {e.get('tick')}")
     counts = ", ".join(f"{k} {v}" for k, v in sorted((f.get("counts") or {}).items()))
-    for rec in f.get("recoveries") or []:
-        who = ", ".join(f"R{r}" for r in rec.get("watched") or [])
-        after = rec.get("first_below_after_s")
-        bound = rec.get("bound_m", 0.5)
-        if isinstance(after, (int, float)):
-            parts.append(f"{who} below {bound:g} m {after:.2f} s after tick {rec.get('since_tick')}")
-        else:
-            parts.append(f"{who} not back below {bound:g} m by the end")
+    parts += describe_recoveries(f)
     said = "; ".join(x for x in ("; ".join(parts), counts) if x)
     return f"{f.get('fault')}" + (f": {said}" if said else "")
 

@@ -263,16 +263,17 @@ def _events_markdown(summary: Mapping[str, Any]) -> list[str]:
 
 def _faults_markdown(summary: Mapping[str, Any]) -> list[str]:
     """The faults and what they did; processes that exited; robots lost."""
-    from formation_swarm.console import describe_event
+    from formation_swarm.console import describe_event, describe_recoveries
 
     out: list[str] = []
     faults = [f for f in summary.get("faults") or [] if isinstance(f, Mapping)]
     if faults:
-        out += ["## Faults", "", "| fault | ticks | what happened | counted |", "|---|---|---|---|"]
+        out += ["## Faults", "", "| fault | ticks (first-last) | what happened | counted |", "|---|---|---|---|"]
         for f in faults:
-            end = f.get("end_tick")
-            ticks = f"{f.get('start_tick')}-{end}" if end is not None else f"from {f.get('start_tick')}"
-            happened = "; ".join(_fault_event(e) for e in f.get("events") or []) or "-"
+            start, end = f.get("start_tick"), f.get("end_tick")
+            ticks = f"{start}-{end - 1}" if isinstance(end, int) else f"from {start}"
+            said = [_fault_event(e) for e in f.get("events") or []] + describe_recoveries(f)
+            happened = "; ".join(said) or "-"
             counted = ", ".join(f"{k} {v}" for k, v in sorted((f.get("counts") or {}).items())) or "-"
             out.append(f"| `{f.get('fault')}` | {ticks} | {happened} | {counted} |")
         out.append("")

@@ -49,7 +49,8 @@ FAULTED = {
     "faults": [
         {"fault": "kill agent-3@20s", "kind": "kill", "target": "agent-3", "at_s": 20.0, "for_s": None,
          "start_tick": 400, "end_tick": None, "counts": {},
-         "events": [{"tick": 400, "time_s": 20.0, "event": "killed", "robot": 3}]},
+         "events": [{"tick": 400, "time_s": 20.0, "event": "killed", "robot": 3}],
+         "recoveries": [{"watched": [2], "since_tick": 400, "bound_m": 0.5, "first_below_after_s": 1.25}]},
         {"fault": "drop obs:2@10s for=5s p=0.3", "kind": "drop", "target": "obs:2", "at_s": 10.0, "for_s": 5.0,
          "start_tick": 200, "end_tick": 300, "counts": {"dropped": 31}, "events": []},
         {"fault": "wheel_noise *@0s sigma_mps=0.1", "kind": "wheel_noise", "target": "*", "at_s": 0.0,
@@ -73,8 +74,11 @@ def test_faults_are_marked_on_the_time_axes_and_listed() -> None:
     assert marks == [(20.0, None, "kill agent-3"), (10.0, 15.0, "drop obs:2"), (0.0, math.inf, "wheel_noise *"),
                      (31.5, None, "logger exited")]  # fmt: skip
     text = "\n".join(_faults_markdown(FAULTED))
-    assert "| `kill agent-3@20s` | from 400 | killed R3 at tick 400 (20.00 s) | - |" in text
-    assert "| `drop obs:2@10s for=5s p=0.3` | 200-300 | - | dropped 31 |" in text
+    assert (
+        "| `kill agent-3@20s` | from 400 | killed R3 at tick 400 (20.00 s); R2 below 0.5 m 1.25 s after tick 400 | - |"
+        in text
+    )
+    assert "| `drop obs:2@10s for=5s p=0.3` | 200-299 | - | dropped 31 |" in text  # its last tick, not the first after
     assert "- logger exited with code 1 at sim t=31.50 s" in text
     assert "agent-3 was killed by SIGKILL" not in text  # said once, by the kill
     assert "- robot 3 lost its agent at tick 400 (20.00 s)" in text
