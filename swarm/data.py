@@ -117,7 +117,8 @@ def read_folder(run_dir: str | Path) -> tuple[Path, dict[str, Any], dict[str, Se
     run_dir = Path(run_dir)
     summary_path, rrd = run_dir / "summary.json", run_dir / "recording.rrd"
     if not run_dir.is_dir():
-        raise ValueError(f"{run_dir}: no such folder")
+        what = "a file, not a run folder" if run_dir.exists() else "no such folder"
+        raise ValueError(f"{run_dir}: {what}")
     if not summary_path.is_file():
         raise ValueError(f"{run_dir} is not a run folder: no summary.json")
     try:

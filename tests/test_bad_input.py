@@ -152,6 +152,7 @@ REJECTED = {
         "argument --snapshots: must be in [0, 100], got '-1'",
     ),
     "report: no such folder": (["report", "{tmp}/missing"], "{tmp}/missing: no such folder"),
+    "report: a file": (["report", __file__], f"{__file__}: a file, not a run folder"),
     "report: not a run folder": (["report", "{tmp}"], "{tmp} is not a run folder: no summary.json"),
     "sim: negative seed": (["sim", "--seed", "-1"], f"argument --seed: {SEED_RANGE}, got '-1'"),
     "sim: zero duration": (["sim", "--duration", "0"], "argument --duration: must be a number of seconds in (0, 3600]"),
