@@ -125,15 +125,30 @@ def read_folder(run_dir: str | Path) -> tuple[Path, dict[str, Any], dict[str, Se
         summary = json.loads(summary_path.read_text())
     except ValueError as exc:
         raise ValueError(f"{summary_path} is not valid JSON: {exc}") from None
-    if not isinstance(summary, dict):
-        raise ValueError(f"{summary_path} is not a run summary (a JSON object)")
+    if not isinstance(summary, dict) or not isinstance(summary.get("run_id"), str):
+        raise ValueError(f"{summary_path} is not a run summary (a JSON object with the run's run_id)")
     if not rrd.is_file():
         raise ValueError(f"{run_dir} has no recording.rrd: run it with its logger (without --no-logger)")
     try:
         data = read_recording(rrd)
+        runs = {entry.recording_id for entry in _entries(rrd) if entry.kind == "recording"}
     except RuntimeError as exc:  # rerun's reader: a file cut before its first chunk, or not a recording
         raise ValueError(f"cannot read {rrd}: {exc}") from None
+    if runs and summary["run_id"] not in runs:  # the logger names its recording after the run
+        raise ValueError(
+            f"{rrd} is the recording of run {', '.join(sorted(runs))}, not of {summary['run_id']} (summary.json): "
+            "the two come from different runs"
+        )
     return run_dir, summary, data
+
+
+def _entries(rrd: Path) -> list[Any]:
+    """The stores a recording file holds (application and recording ids)."""
+    from rerun.chunk import RrdReader
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a recording cut by a kill has no footer: still readable
+        return list(RrdReader(str(rrd)).recordings())
 
 
 def load_run(run_dir: str | Path) -> RunData:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import math
 import re
 from pathlib import Path
@@ -100,6 +101,9 @@ def test_clear_errors_for_folders_it_cannot_use(tmp_path: Path, capsys: pytest.C
     assert "no such folder" in capsys.readouterr().err
     (tmp_path / "summary.json").write_text("{}")
     assert export([str(tmp_path)]) == 2
+    assert "summary.json is not a run summary (a JSON object with the run's run_id)" in capsys.readouterr().err
+    (tmp_path / "summary.json").write_text('{"run_id": "r1"}')
+    assert export([str(tmp_path)]) == 2
     assert "no recording.rrd" in capsys.readouterr().err
     assert compare([str(tmp_path / "nowhere"), "--out", str(tmp_path / "c.png")]) == 2
     assert "nowhere: no such folder" in capsys.readouterr().err
@@ -141,3 +145,15 @@ def test_the_documented_example_runs(runs: tuple[Path, Path], tmp_path: Path, mo
         assert (tmp_path / "formation_error.png").stat().st_size > 10_000
     finally:
         plt.close("all")
+
+
+def test_a_recording_from_another_run_is_refused(runs: tuple[Path, Path], tmp_path: Path) -> None:
+    import shutil
+
+    mixed = tmp_path / "mixed"
+    shutil.copytree(runs[0], mixed)
+    shutil.copy(runs[1] / "recording.rrd", mixed / "recording.rrd")
+    other = json.loads((runs[1] / "summary.json").read_text())["run_id"]
+    mine = json.loads((runs[0] / "summary.json").read_text())["run_id"]
+    with pytest.raises(ValueError, match=f"is the recording of run {other}, not of {mine} \\(summary.json\\)"):
+        load_run(mixed)

@@ -42,6 +42,9 @@ def test_clear_errors_for_folders_it_cannot_use(tmp_path: Path, capsys: pytest.C
     assert "no summary.json" in capsys.readouterr().err
     (tmp_path / "summary.json").write_text("{}")
     assert main([str(tmp_path)]) == 2
+    assert "summary.json is not a run summary (a JSON object with the run's run_id)" in capsys.readouterr().err
+    (tmp_path / "summary.json").write_text('{"run_id": "r1"}')
+    assert main([str(tmp_path)]) == 2
     assert "no recording.rrd" in capsys.readouterr().err
 
 
