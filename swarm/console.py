@@ -146,7 +146,7 @@ CONTACTS_SHOWN = 3
 
 def _contacts(contacts: list[Any], collisions: Any, obstacle_collisions: Any) -> str:
     """The first contacts, who and when: "first contacts: R4 and R5 at 12.35 s,
-    R7 and obstacle 0 at 20.10 s (all 9 listed: summary.json, "contacts")"."""
+    R7 and obstacle 0 at 20.10 s (all 9 in summary.json, "contacts")"."""
     said = []
     for c in contacts[:CONTACTS_SHOWN]:
         if not isinstance(c, Mapping):
@@ -160,7 +160,11 @@ def _contacts(contacts: list[Any], collisions: Any, obstacle_collisions: Any) ->
     if not said:
         return ""
     counted = sum(n for n in (collisions, obstacle_collisions) if isinstance(n, int))
-    rest = f' ({len(contacts)} listed: summary.json, "contacts")' if counted > len(said) else ""
+    rest = ""
+    if counted > len(said):  # the world lists the first ones only (world.engine.CONTACTS_LISTED)
+        which = f"all {counted}" if len(contacts) >= counted else f"the first {len(contacts)} of {counted}"
+        rest = f' ({which} in summary.json, "contacts")'
+
     return f"first contact{'s' if len(said) > 1 else ''}: {', '.join(said)}{rest}"
 
 

@@ -469,8 +469,12 @@ def test_print_result_names_the_first_contacts(tmp_path: Path) -> None:
     print_result(RunResult(tmp_path, {**base, "collisions": 3, "obstacle_collisions": 1, "contacts": contacts}, 0), out)
     assert (
         "  first contacts: R3 and R15 at 24.45 s, R7 and obstacle 0 at 24.50 s, R1 and R19 at 25.40 s"
-        ' (4 listed: summary.json, "contacts")\n'
+        ' (all 4 in summary.json, "contacts")\n'
     ) in out.getvalue()
+    out = io.StringIO()  # more contacts counted than the world lists
+    many = {**base, "collisions": 70, "obstacle_collisions": 1, "contacts": contacts}
+    print_result(RunResult(tmp_path, many, 0), out)
+    assert '(the first 4 of 71 in summary.json, "contacts")\n' in out.getvalue()
     out = io.StringIO()
     print_result(RunResult(tmp_path, {**base, "collisions": 1, "obstacle_collisions": 0, "contacts": contacts[:1]}, 0),
                  out)  # fmt: skip
