@@ -52,7 +52,7 @@ from formation_swarm.agents.inbox import InboxChecks
 from formation_swarm.agents.leader import CodeRepeats, FormationSwitch
 from formation_swarm.agents.pilot import PathPilot
 from formation_swarm.proc import SEND_DRAIN_S, JsonWriter, exit_after_main, wait_for, wait_sent
-from formation_swarm.protocol import session
+from formation_swarm.protocol import session, trust
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
@@ -615,7 +615,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.id not in sc.robots:
         role.complain(f"--id {args.id} is not a robot of this scenario; its robots are {list(sc.robots)}")
         return role_mod.EXIT_USAGE
-    sess_cm = role.connect(args)
+    sess_cm = role.connect(args, login=trust.agent_user(args.id))
     if isinstance(sess_cm, int):
         return sess_cm
     seed = sc.seed if args.seed is None else args.seed

@@ -38,7 +38,7 @@ import json
 import os
 import re
 import secrets
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -82,6 +82,13 @@ class Grants:
 
 def agent_user(robot_id: int) -> str:
     return f"agent-{check_robot_id(robot_id)}"
+
+
+def login_user(settings: Mapping[str, Any]) -> str | None:
+    """The user a process's credentials log in as (None: no login in them)."""
+    login = settings.get("transport/auth/usrpwd")
+    user = login.get("user") if isinstance(login, Mapping) else None
+    return user if isinstance(user, str) else None
 
 
 def host_user(name: str) -> str:

@@ -366,7 +366,7 @@ def main(argv: list[str] | None = None) -> int:
         role.say(f"{rec.dropped}: not streaming there; the run is recorded to {args.out} only")
     if rec.web:
         role.say(f"web viewer: {rec.web}")
-    sess_cm = role.connect(args)
+    sess_cm = role.connect(args, login="logger")
     if isinstance(sess_cm, int):
         return sess_cm
     where = role_mod.describe_session(args)

@@ -166,8 +166,8 @@ class Role:
         """The exit code and end note of a process that follows the world (an
         agent, the logger) once its loop ends: the world said done, a stop
         signal came, or the world left (before the run started: it gave up)."""
-        if done:
-            return EXIT_OK, "the world said done"
+        if done:  # a process that heard nothing of the run before says so: it took no part
+            return EXIT_OK, "the world said done" + ("" if started else " before any message of the run reached it")
         if self.stop.is_set():
             return self.stop.exit_code, self.stopped_by() + ("" if started else " before the run started")
         if not started:
@@ -200,16 +200,25 @@ class Role:
                 warnings.showwarning(w.message, w.category, w.filename, w.lineno)
         return sc
 
-    def connect(self, args: argparse.Namespace) -> zenoh.Session | int:
+    def connect(self, args: argparse.Namespace, login: str | None = None) -> zenoh.Session | int:
         """The Zenoh session of the common flags, open, or the exit code after
-        saying why not (bad flags, no router by the deadline, a stop signal)."""
+        saying why not (bad flags, no router by the deadline, a stop signal).
+        ``login``: the user this role's --auth must log in as (swarm secure
+        writes it as LOGIN.json); another's is refused before connecting: the
+        router would let the process in, and its rules keep it from the keys
+        it needs, so it would wait for a run it can take no part in."""
         import zenoh
 
-        from formation_swarm.protocol import session
+        from formation_swarm.protocol import session, trust
 
         # Without a deadline (the router), Zenoh's own connect timeout stays the default.
         timeout_s = self.peers_timeout_s + CONNECT_MARGIN_S if math.isfinite(self.peers_timeout_s) else 30.0
         try:
+            if login is not None and args.auth:
+                user = trust.login_user(trust.read_settings(args.auth))
+                if user is not None and user != login:
+                    raise ValueError(f"--auth {args.auth}: this login is for {user}, not for {login}: give "
+                                     f"{login}.json of the run's swarm secure")  # fmt: skip
             conf = session.config_from_args(args, connect_timeout_s=timeout_s)
         except ValueError as exc:
             self.complain(str(exc))

@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import os
 import stat
+import subprocess
+import sys
 import threading
 import time
 import uuid
@@ -158,3 +160,36 @@ def test_a_role_cannot_hold_another_robots_liveliness_token(router: Router) -> N
     agent2.liveliness().declare_token(k.alive("agent", 2))
     assert wait_for(lambda: k.alive("agent", 2) in seen)  # declared after the refused one, on the same link
     assert set(seen) == {k.alive("agent", 2)}
+
+
+@pytest.mark.parametrize(
+    ("role", "login", "said"),
+    [
+        (
+            ["agent", "--id", "2"],
+            "agent-3",
+            "agent 2: --auth {f}: this login is for agent-3, not for agent-2: give"
+            " agent-2.json of the run's swarm secure",
+        ),
+        (
+            ["logger", "--out", "{tmp}/r.rrd"],
+            "agent-3",
+            "logger: --auth {f}: this login is for agent-3, not for logger",
+        ),
+        (["world"], "logger", "world: --auth {f}: this login is for logger, not for world"),
+    ],
+)
+def test_a_role_given_another_roles_login_is_refused_before_it_connects(
+    tmp_path: Path, role: list[str], login: str, said: str
+) -> None:
+    """The router would let it in, and its rules keep it from every key it needs:
+    an agent 2 with agent 3's login waited out the run and then said it ended well."""
+    files = trust.write_run_secrets(tmp_path / "secrets", "r1", ROBOTS, leader_id=1, world_is_router=False)
+    argv = [sys.executable, "-m", "formation_swarm.cli", *[a.format(tmp=tmp_path) for a in role],
+            "--scenario", "fig11_obstacles", "--run", "r1", "--connect", "tcp/127.0.0.1:9", "--auth",
+            str(files[login]), "--peers-timeout", "30"]  # fmt: skip
+    t0 = time.monotonic()
+    proc = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+    assert proc.returncode == 2, proc.stderr
+    assert said.format(f=files[login]) in proc.stderr
+    assert time.monotonic() - t0 < 20  # at once: not after the 30 s of --peers-timeout

@@ -685,7 +685,7 @@ def main(argv: list[str] | None = None) -> int:
     scheduling = proc.realtime_priority(args.rt_priority) if args.mode == "realtime" else "normal"
     if scheduling.startswith("normal ("):
         role.say(f"scheduling: {scheduling}; under load its ticks may start late")
-    sess_cm = role.connect(args)
+    sess_cm = role.connect(args, login="world")  # as the router its --auth holds no login: not checked
     if isinstance(sess_cm, int):
         return sess_cm
     if args.seed is not None:
