@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import socket
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -89,6 +90,35 @@ def add_arguments(parser: argparse.ArgumentParser, default_mode: str = "client")
     )
 
 
+def check_endpoint(ep: Any) -> str:
+    """``ep`` if it reads as a Zenoh endpoint (PROTOCOL/ADDRESS, a port in
+    [1, 65535] for tcp, tls, udp and quic), else ValueError saying why."""
+    if not isinstance(ep, str) or "/" not in ep:
+        raise ValueError(f"endpoint must look like tcp/HOST:PORT, got {ep!r}")
+    port = ep.split("#", 1)[0].rpartition(":")[2]
+    if ep.split("/", 1)[0] in ("tcp", "tls", "udp", "quic") and not (port.isdigit() and 0 < int(port) < 65536):
+        raise ValueError(f"endpoint {ep!r}: the port must be a number in [1, 65535]")
+    return ep
+
+
+def listen_problem(ep: str) -> str | None:
+    """Why this process cannot listen on a tcp or tls endpoint (the port taken,
+    the address not this machine's), or None; other protocols are not tried."""
+    proto, _, rest = check_endpoint(ep).split("#", 1)[0].partition("/")
+    if proto not in ("tcp", "tls"):
+        return None
+    host, _, port = rest.rpartition(":")
+    host = host.strip("[]")
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    try:
+        with socket.socket(family, socket.SOCK_STREAM) as sock:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as Zenoh's listener does
+            sock.bind((host, int(port)))
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    return None
+
+
 def make_config(
     mode: str = "client",
     connect: Sequence[str] = (),
@@ -103,11 +133,7 @@ def make_config(
     if mode not in ("client", "peer", "router"):
         raise ValueError(f"mode must be client, peer or router, got {mode!r}")
     for ep in (*connect, *listen):
-        if not isinstance(ep, str) or "/" not in ep:
-            raise ValueError(f"endpoint must look like tcp/HOST:PORT, got {ep!r}")
-        port = ep.split("#", 1)[0].rpartition(":")[2]
-        if ep.split("/", 1)[0] in ("tcp", "tls", "udp", "quic") and not (port.isdigit() and 0 < int(port) < 65536):
-            raise ValueError(f"endpoint {ep!r}: the port must be a number in [1, 65535]")
+        check_endpoint(ep)
     if mode == "client" and not connect and config_file is None:
         raise ValueError("a client needs --connect ENDPOINT (scouting is off)")
     try:

@@ -60,7 +60,7 @@ from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.hostmsg import HostReply, HostRequest
 from formation_swarm.protocol.keys import Keys, check_host_name
 from formation_swarm.protocol.messages import FaultCall, Status
-from formation_swarm.protocol.session import make_config
+from formation_swarm.protocol.session import listen_problem, make_config
 from formation_swarm.scenario_keys import ScenarioWarning
 
 STOP_GRACE_S = 2.0
@@ -223,6 +223,14 @@ class Launch:
         if self.hosts and not listen:
             raise ValueError("--hosts needs --listen ENDPOINT: where the world listens for the hosts' agents, "
                              "e.g. tcp/192.168.1.10:7447 (an address every host reaches)")  # fmt: skip
+        if self.hosts and listen:  # checked before anything starts: a run that cannot listen fails a bad command
+            try:
+                why = listen_problem(listen)
+            except ValueError as exc:
+                raise ValueError(f"--listen {listen}: {exc}") from None
+            if why is not None:
+                raise ValueError(f"--listen {listen}: cannot listen there ({why}); give a free port of an address "
+                                 "of this machine")  # fmt: skip
         self.host_logins = None
         if self.tls is not None and not (self.hosts and self.auth and listen and listen.startswith("tls/")):
             raise ValueError("TLS files are for --hosts with --listen tls/ADDRESS:PORT and logins")

@@ -494,3 +494,28 @@ def test_a_fault_the_run_never_reached_says_so(tmp_path: Path) -> None:
     assert "  fault: kill agent-3@54s: never started: the run ended at tick 1061, before its tick 1080\n" in (
         out.getvalue()
     )
+
+
+def test_a_listen_address_the_run_cannot_use_is_a_bad_command_line(tmp_path: Path) -> None:
+    """Refused before anything starts (exit 2, no run folder), not once the
+    world has started and failed to listen (exit 1, "cannot reach the world")."""
+    from formation_swarm.protocol import trust
+
+    logins = trust.write_host_logins(tmp_path / "hosts", ["b", "c"])[trust.HOST_LOGINS]
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        cases = {
+            "127.0.0.1:7447": "endpoint must look like tcp/HOST:PORT, got '127.0.0.1:7447'",
+            "tcp/127.0.0.1:99999": "the port must be a number in [1, 65535]",
+            f"tcp/127.0.0.1:{port}": f"--listen tcp/127.0.0.1:{port}: cannot listen there (Address already in use)",
+            "tcp/192.0.2.1:7447": "--listen tcp/192.0.2.1:7447: cannot listen there (Cannot assign requested address)",
+        }
+        for listen, said in cases.items():
+            out = tmp_path / f"run-{len(listen)}"
+            argv = [*RUN, "--hosts", "b,c", "--listen", listen, "--host-logins", str(logins), "--out", str(out)]
+            proc = swarm(argv, tmp_path)
+            assert proc.returncode == 2, (listen, proc.stderr)
+            assert said in proc.stderr, (listen, proc.stderr)
+            assert not out.exists()
