@@ -38,6 +38,8 @@ def describe_event(ev: Mapping[str, Any]) -> str:
         return summary_mod.describe_host_lost(ev)
     if ev.get("event") == "exited" and ev.get("host_lost"):  # its exit code stayed on that host
         return f"{ev.get('process')} lost with host {ev['host_lost']} {when}"
+    if ev.get("event") == "not fetched":  # a remote agent's log and stats, at the run's end
+        return f"{ev.get('process')}'s log and stats were not fetched: {ev.get('why')}"
     if ev.get("event") == "exit code not reported by the fork server":
         return f"{ev.get('process')}'s exit code {ev.get('code')} is its own record: the fork server did not report it"
     if ev.get("event") == "exited" and isinstance(ev.get("code"), int):

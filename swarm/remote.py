@@ -172,7 +172,7 @@ class RemoteChild(Child):
     def fetch(self, stats: Path) -> str | None:
         """Write its log (its tail, from the host) and stats here; why not, or None."""
         if self.client is None or self.client.lost:
-            return f"its host {self.host} is lost: its log and stats stay there"
+            return f"host {self.host} is lost; they stay on it"
         try:
             reply = self.client.ask(HostRequest("collect", __version__, run=self.run, process=self.name))
         except HostError as exc:

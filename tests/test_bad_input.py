@@ -519,3 +519,10 @@ def test_a_listen_address_the_run_cannot_use_is_a_bad_command_line(tmp_path: Pat
             assert proc.returncode == 2, (listen, proc.stderr)
             assert said in proc.stderr, (listen, proc.stderr)
             assert not out.exists()
+
+
+def test_a_remote_agents_log_not_fetched_is_said_in_a_sentence() -> None:
+    from formation_swarm.console import describe_event
+
+    ev = {"event": "not fetched", "process": "agent-2", "host": "c", "why": "host c is lost; they stay on it"}
+    assert describe_event(ev) == "agent-2's log and stats were not fetched: host c is lost; they stay on it"
