@@ -22,7 +22,10 @@ DESCRIPTION = """\
 Run a Zenoh router, for runs spread over several machines: the world, the
 logger and the agents connect to it as clients (--zenoh-mode client
 --connect tcp/HOST:7447 for the world; --connect tcp/HOST:7447 for the
-others). Any number of runs can share it: their keys start with their run id.
+others). Without --auth, any number of runs can share it: their keys start
+with their run id. With --auth it holds one run's logins and access rules
+(swarm secure S --run ID): a second run at the same time needs a second
+router, on another port, with that run's --auth.
 
 Without --listen or --config it listens on tcp/0.0.0.0:7447. It runs until
 SIGINT (Ctrl-C) or SIGTERM and prints one line when it listens and one when
