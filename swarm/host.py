@@ -305,9 +305,12 @@ def _robot_ids(text: str) -> tuple[int, ...]:
 
 def _check_login(settings: dict[str, Any], name: str, path: str | None) -> None:
     """A login must be this host's (``host-NAME``): the run's router would let
-    another one in only on another host's key, where no launcher asks for it."""
-    login = settings.get("transport/auth/usrpwd")
-    user = login.get("user") if isinstance(login, dict) else None
+    another one in only on another host's key, where no launcher asks for it.
+    A credentials file without a login is no credentials file."""
+    user = trust.login_user(settings)
+    if path is not None and user is None:
+        raise ValueError(f"--auth {path}: holds no login (transport/auth/usrpwd): give host-{name}.json of "
+                         "swarm secure --hosts")  # fmt: skip
     if user is not None and user != trust.host_user(name):
         whose = f"host {user[5:]}" if str(user).startswith("host-") else f"user {user!r}, not a host's"
         raise ValueError(
@@ -382,7 +385,10 @@ def main(argv: list[str] | None = None) -> int:
     stop = install_stop_handlers()
     spawner.warm()  # the agents' modules imported once, before any launcher waits for a start
     where = ", ".join(args.connect) or args.config
-    print(f"host {name}: waiting for a router at {where} (retrying); stop it with Ctrl-C or SIGTERM", flush=True)
+    # A router that refuses this host's login looks, from here, like no router: say so once.
+    login = "" if not args.auth else "; a router that refuses this host's login (--auth) looks the same from here"
+    print(f"host {name}: waiting for a router at {where} (retrying{login}); stop it with Ctrl-C or SIGTERM",
+          flush=True)  # fmt: skip
     try:
         sess = open_session(conf, stop)
     except zenoh.ZError as exc:

@@ -528,6 +528,13 @@ def test_a_host_whose_login_is_another_host_s_says_so_at_start(tmp_path: Path) -
     assert res.returncode == 2, res.stdout + res.stderr
     assert "this login is for host c, not for host cc (--name)" in res.stderr
     assert "waiting for a router" not in res.stdout  # refused before it connects
+    empty = tmp_path / "empty.json"  # no login at all: it would connect as no one
+    empty.write_text("{}")
+    empty.chmod(0o600)
+    argv[argv.index("--auth") + 1] = str(empty)
+    res = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert f"--auth {empty}: holds no login (transport/auth/usrpwd): give host-cc.json" in res.stderr
 
 
 @pytest.mark.slow
