@@ -286,11 +286,17 @@ def read_host_logins(path: str | Path, names: Sequence[str]) -> dict[str, Creden
         raise ValueError(f"cannot read the hosts' logins {p}: {exc}") from None
     if mode & 0o077:
         raise ValueError(f"{p} is readable by other users (mode {mode & 0o777:o}): chmod 600 {p}")
+    if lines and lines[0].lstrip().startswith("{"):
+        raise ValueError(f"{p} is a JSON file (a process's login?), not the hosts' list of user:password lines: "
+                         f"give {HOST_LOGINS} of swarm secure --hosts")  # fmt: skip
     known: dict[str, Credential] = {}
-    for line in lines:
+    for n, line in enumerate(lines, 1):
         user, sep, password = line.strip().partition(":")
         if sep:
-            known[user] = Credential(user, password)
+            try:
+                known[user] = Credential(user, password)
+            except ValueError as exc:
+                raise ValueError(f"{p}, line {n}: {exc}") from None
     missing = [n for n in names if host_user(n) not in known]
     if missing:
         raise ValueError(f"{p} has no login for host {', '.join(missing)} (swarm secure --hosts writes them)")

@@ -193,3 +193,15 @@ def test_a_role_given_another_roles_login_is_refused_before_it_connects(
     assert proc.returncode == 2, proc.stderr
     assert said.format(f=files[login]) in proc.stderr
     assert time.monotonic() - t0 < 20  # at once: not after the 30 s of --peers-timeout
+
+
+def test_the_hosts_logins_file_refuses_a_login_file_and_names_a_bad_line(tmp_path: Path) -> None:
+    files = trust.write_host_logins(tmp_path / "hosts", ["b", "c"])
+    assert set(trust.read_host_logins(files[trust.HOST_LOGINS], ["b", "c"])) == {"b", "c"}
+    with pytest.raises(ValueError, match="is a JSON file \\(a process's login\\?\\), not the hosts' list"):
+        trust.read_host_logins(files["host-b"], ["b"])  # the host's own file, given by mistake
+    bad = tmp_path / "bad.txt"
+    bad.write_text(files[trust.HOST_LOGINS].read_text() + "host-d:short\n")
+    bad.chmod(0o600)
+    with pytest.raises(ValueError, match=f"{bad}, line 3: password must be at least 16 characters"):
+        trust.read_host_logins(bad, ["b"])
