@@ -303,6 +303,34 @@ def _robot_ids(text: str) -> tuple[int, ...]:
     return ids
 
 
+def _own_workdir(workdir: Path) -> Any:
+    """Lock ``workdir`` for this host process (an open file holding an
+    exclusive flock, released when the process ends, however it ends);
+    ValueError when another host holds it."""
+    import fcntl
+
+    try:
+        workdir.mkdir(parents=True, exist_ok=True)
+        lock = (workdir / ".lock").open("w")
+    except OSError as exc:
+        raise ValueError(f"--workdir {workdir}: cannot use it: {exc}") from None
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        lock.close()
+        raise ValueError(f"--workdir {workdir} is in use by another swarm host: give each its own") from None
+    return lock
+
+
+def _remove_stale_secrets(workdir: Path) -> int:
+    """The runs' logins a host killed before its runs' end left behind (a run
+    removes its own when it ends); with the workdir locked, none is in use."""
+    stale = [d for d in workdir.glob("*/secrets") if d.is_dir()]
+    for d in stale:
+        shutil.rmtree(d, ignore_errors=True)
+    return len(stale)
+
+
 def _check_login(settings: dict[str, Any], name: str, path: str | None) -> None:
     """A login must be this host's (``host-NAME``): the run's router would let
     another one in only on another host's key, where no launcher asks for it.
@@ -382,6 +410,14 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         ap.error(str(exc))
     workdir = Path(args.workdir) if args.workdir else Path.home() / ".cache" / "swarm-host" / name
+    try:
+        lock = _own_workdir(workdir)  # held while this host runs
+    except ValueError as exc:
+        print(f"swarm host: {exc}", file=sys.stderr, flush=True)
+        return 2
+    if stale := _remove_stale_secrets(workdir):
+        print(f"host {name}: removed the logins of {stale} run(s) a previous host process left in {workdir}",
+              flush=True)  # fmt: skip
     stop = install_stop_handlers()
     spawner.warm()  # the agents' modules imported once, before any launcher waits for a start
     where = ", ".join(args.connect) or args.config
@@ -417,6 +453,7 @@ def main(argv: list[str] | None = None) -> int:
             token.undeclare()
             queryable.undeclare()
     host.say("stopped")
+    lock.close()  # the workdir is free for the next host (an exit of any kind frees it too)
     return 0
 
 

@@ -582,3 +582,31 @@ def test_a_run_over_tls_on_a_host_started_with_a_relative_auth_path(tmp_path: Pa
     while processes(lambda cmd: str(sec) in cmd) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not processes(lambda cmd: str(sec) in cmd)
+
+
+def test_a_host_clears_the_logins_a_killed_one_left_and_keeps_its_workdir_to_itself(tmp_path: Path) -> None:
+    """A host killed mid-run leaves its run's logins in its workdir (a run
+    removes its own only when it ends): the next host there removes them.
+    Two hosts never share a workdir."""
+    sec = trust.write_host_logins(tmp_path / "sec", ["b", "c"])
+    work = tmp_path / "work"
+    (work / "old-run" / "secrets").mkdir(parents=True)
+    (work / "old-run" / "secrets" / "agent-2.json").write_text("{}")
+    port = free_port()
+    argv = [*PY, "host", "--connect", f"tcp/127.0.0.1:{port}", "--name", "b", "--auth", str(sec["host-b"]),
+            "--workdir", str(work)]  # fmt: skip
+    first = subprocess.Popen(argv, stdout=subprocess.PIPE, text=True)
+    try:
+        assert first.stdout is not None
+        said = first.stdout.readline()
+        assert said.startswith(f"host b: removed the logins of 1 run(s) a previous host process left in {work}")
+        assert not (work / "old-run" / "secrets").exists()
+        assert (work / "old-run").is_dir()  # its logs stay
+        second = subprocess.run([*PY, "host", "--connect", f"tcp/127.0.0.1:{port}", "--name", "c", "--auth",
+                                 str(sec["host-c"]), "--workdir", str(work)],
+                                capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+        assert second.returncode == 2, second.stderr
+        assert f"--workdir {work} is in use by another swarm host: give each its own" in second.stderr
+    finally:
+        first.terminate()
+        first.wait(timeout=30)
