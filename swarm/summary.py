@@ -118,7 +118,7 @@ def read_parts(stats_dir: Path) -> dict[str, Any]:
 def describe_host_lost(ev: Mapping[str, Any]) -> str:
     """A "host lost" event of a run on hosts (its token went mid-run) as a sentence."""
     t = ev.get("sim_time_s")
-    when = f"at t={t:.2f} s" if isinstance(t, (int, float)) and t >= 0 else "before the run started"
+    when = f"at sim t={t:.2f} s" if isinstance(t, (int, float)) and t >= 0 else "before the run started"
     robots = [str(r) for r in ev.get("robots") or []]
     dead = f"robot{'s' if len(robots) > 1 else ''} {', '.join(robots)} counted dead" if robots else "it ran no robot"
     return f"host {ev.get('host')} lost {when}: {dead}"

@@ -242,7 +242,7 @@ def test_a_host_that_dies_mid_run_has_its_robots_counted_dead_and_fails_the_run(
     assert summary["hosts"]["b"]["lost"] is True
     assert any(e["event"] == "host lost" and e["host"] == "b" and e["robots"] == [2] for e in summary["events"])
     assert [d["robot"] for d in summary["deaths"]] == [2]  # the world saw robot 2's agent go
-    assert summary["failure"].startswith("host b lost at t=")
+    assert summary["failure"].startswith("host b lost at sim t=")
     assert summary["failure"].endswith(": robot 2 counted dead")
     assert summary["processes"]["agent-2"]["exit_code"] is None  # it stayed on host b
     assert summary["processes"]["agent-2"]["lost_with_host"] == "b"
@@ -489,15 +489,15 @@ def test_a_lost_host_and_its_agents_are_told_in_sentences_and_name_the_failure()
     from formation_swarm.scenario import load
 
     lost = {"event": "host lost", "host": "c", "robots": [2], "sim_time_s": 5.300000000000001, "wall_s": 8.33}
-    assert describe_event(lost) == "host c lost at t=5.30 s: robot 2 counted dead"
-    assert describe_event({**lost, "robots": [2, 3]}) == "host c lost at t=5.30 s: robots 2, 3 counted dead"
+    assert describe_event(lost) == "host c lost at sim t=5.30 s: robot 2 counted dead"
+    assert describe_event({**lost, "robots": [2, 3]}) == "host c lost at sim t=5.30 s: robots 2, 3 counted dead"
     agent = {"event": "exited", "process": "agent-2", "sim_time_s": 5.3, "host_lost": "c"}
     assert describe_event(agent) == "agent-2 lost with host c at sim t=5.30 s"
     events = [lost, agent]
     summary = summary_mod.build(run_id="r1", sc=load("fig11_obstacles"), mode="lockstep", parts={}, exit_code=1,
                                 end_reason=summary_mod.ROLE_FAILED, ended_at_s=5.3, interrupted=False,
                                 timed_out=False, processes={}, events=events, recording=None)  # fmt: skip
-    assert summary["failure"] == "host c lost at t=5.30 s: robot 2 counted dead"
+    assert summary["failure"] == "host c lost at sim t=5.30 s: robot 2 counted dead"
     assert "255" not in summary["ended"]
 
 
