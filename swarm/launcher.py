@@ -364,6 +364,9 @@ class Launch:
         assert self.session is not None
         self.clients = {h: remote.HostClient(self.session, h) for h in self.hosts}
         deadline = time.monotonic() + self.hosts_timeout_s
+        if not all(c.present.wait(0.2) for c in self.clients.values()):  # said only if it takes a while
+            self.progress(f"[swarm] waiting up to {self.hosts_timeout_s:g} s for hosts {', '.join(self.hosts)} "
+                          f"to connect to {self.listen}")  # fmt: skip
         for h, client in self.clients.items():
             if not client.present.wait(max(0.0, deadline - time.monotonic())):
                 raise remote.HostError(
