@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import socket
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -90,6 +91,15 @@ def add_arguments(parser: argparse.ArgumentParser, default_mode: str = "client")
     )
 
 
+_RUST_PLACE = re.compile(r" at /\S+?\.rs:\d+\.?")
+
+
+def zenoh_reason(exc: BaseException) -> str:
+    """A Zenoh error's message without the Rust source places it appends (" at
+    /root/.cargo/.../tcp.rs:61."), which say nothing to a user."""
+    return _RUST_PLACE.sub("", str(exc)).strip()
+
+
 def check_endpoint(ep: Any) -> str:
     """``ep`` if it reads as a Zenoh endpoint (PROTOCOL/ADDRESS, a port in
     [1, 65535] for tcp, tls, udp and quic), else ValueError saying why."""
@@ -139,8 +149,9 @@ def make_config(
     try:
         conf = zenoh.Config.from_file(config_file) if config_file else zenoh.Config()
     except zenoh.ZError as exc:
-        reason = str(exc).split(" at /", 1)[0]  # Zenoh appends the Rust source location
-        raise ValueError(f"--config {config_file}: not a Zenoh configuration Zenoh accepts: {reason}") from None
+        raise ValueError(
+            f"--config {config_file}: not a Zenoh configuration Zenoh accepts: {zenoh_reason(exc)}"
+        ) from None
     conf.insert_json5("mode", json.dumps(mode))
     if config_file is None:
         conf.insert_json5("scouting/multicast/enabled", "false")
@@ -159,7 +170,7 @@ def make_config(
         try:
             conf.insert_json5(path, json.dumps(value))
         except zenoh.ZError as exc:
-            raise ValueError(f"invalid Zenoh setting {path}: {exc}") from None
+            raise ValueError(f"invalid Zenoh setting {path}: {zenoh_reason(exc)}") from None
     return conf
 
 

@@ -131,8 +131,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"[swarm] interrupted while starting; every process stopped; folder {launch.run_dir}", flush=True)
         return 130
     except zenoh.ZError as exc:  # the world never listened (start() has reaped every process): its log says why
-        print(f"swarm run: cannot reach the world at {launch.endpoint}: {exc}; see {launch.run_dir / 'logs'}",
-              file=sys.stderr)  # fmt: skip
+        from formation_swarm.protocol.session import zenoh_reason
+
+        print(f"swarm run: cannot reach the world at {launch.endpoint}: {zenoh_reason(exc)}; see "
+              f"{launch.run_dir / 'logs'}", file=sys.stderr)  # fmt: skip
         return 1
     except (HostError, ValueError) as exc:  # a host missing, refusing or unable to run a robot: every process reaped
         print(f"swarm run: {exc}; nothing left running; folder {launch.run_dir}", file=sys.stderr)

@@ -104,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             sess = zenoh.open(conf)
         except zenoh.ZError as exc:
-            print(f"swarm doctor: cannot open the session ({where}): {exc}", flush=True)
+            print(f"swarm doctor: cannot open the session ({where}): {session.zenoh_reason(exc)}", flush=True)
             print("verdict: FAIL: no router (check --connect, that the router runs, and --auth)", flush=True)
             return 1
         with sess:

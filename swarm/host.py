@@ -428,7 +428,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         sess = open_session(conf, stop)
     except zenoh.ZError as exc:
-        print(f"host {name}: cannot open a Zenoh session: {exc}", file=sys.stderr, flush=True)
+        print(f"host {name}: cannot open a Zenoh session: {session.zenoh_reason(exc)}", file=sys.stderr, flush=True)
         return 1
     if sess is None:
         print(f"host {name}: stopped before a router answered", flush=True)

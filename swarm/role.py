@@ -232,7 +232,7 @@ class Role:
                 "(a router with logins refuses a process without its own)"
             )
         except zenoh.ZError as exc:
-            self.complain(f"cannot open the Zenoh session: {exc}")
+            self.complain(f"cannot open the Zenoh session: {session.zenoh_reason(exc)}")
             return EXIT_FAILED
         if sess is None:
             where = ", ".join(args.connect or args.listen) or f"the endpoints of {args.config}"
