@@ -299,7 +299,7 @@ def _robot_ids(text: str) -> tuple[int, ...]:
     except ValueError:
         ids = ()
     if not ids or ids[0] < 1:
-        raise ValueError(f"must be robot ids separated by commas, e.g. 2,3, got {text!r}")
+        raise ValueError(f"--robots must be robot ids separated by commas, e.g. 2,3, got {text!r}")
     return ids
 
 

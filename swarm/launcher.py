@@ -377,6 +377,9 @@ class Launch:
             client.info = self.host_infos[h] = client.ask(HostRequest("info", __version__))
         allowed = {h: info.robots for h, info in self.host_infos.items()}
         self.placement = remote.place(self.sc.robots, self.hosts, allowed, self.explicit)
+        if idle := [h for h in self.hosts if h not in self.placement.values()]:
+            self.progress(f"[swarm] warning: host{'s' if len(idle) > 1 else ''} {', '.join(idle)} "
+                          f"run{'' if len(idle) > 1 else 's'} no robot (the placement gave them none)")  # fmt: skip
         scenario_text = (self.run_dir / "scenario.toml").read_text()
         for rid, h in self.placement.items():
             self.progress(f"[swarm] agent-{rid} on host {h}")
