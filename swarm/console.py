@@ -146,7 +146,7 @@ def _skipped(parts: Any) -> str:
 CONTACTS_SHOWN = 3
 
 
-def _contacts(contacts: list[Any], collisions: Any, obstacle_collisions: Any) -> str:
+def contacts_line(contacts: list[Any], collisions: Any, obstacle_collisions: Any) -> str:
     """The first contacts, who and when: "first contacts: R4 and R5 at 12.35 s,
     R7 and obstacle 0 at 20.10 s (all 9 in summary.json, "contacts")"."""
     said = []
@@ -215,7 +215,7 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
             w(_follower_line(rid, m, kills))
         w(f"  min distance {_num(s.get('min_distance_m'))} m (diameter {_num(s.get('robot_diameter_m'), 'g')} m), "
           f"collisions {s.get('collisions')}, obstacle collisions {s.get('obstacle_collisions')}\n")  # fmt: skip
-        if contacts := _contacts(s.get("contacts") or [], s.get("collisions"), s.get("obstacle_collisions")):
+        if contacts := contacts_line(s.get("contacts") or [], s.get("collisions"), s.get("obstacle_collisions")):
             w(f"  {contacts}\n")
         changes = _changes(s.get("formation_events") or [], grouped=len(followers) > LIST_FOLLOWERS_UP_TO)
         w(f"  formation changes: {changes or 'none'}\n")

@@ -44,6 +44,8 @@ VN_SMOOTH_S = 1.0  # the moving average drawn over V_N, display only
 EVENT_GAP_S = 1.0  # formation events closer than this are one switch (leader, then its followers)
 LETTERS = "abcdefghijklmnopqrstuvwxyz"  # panel letters, as the paper's Fig. 11 (a-d)
 MAX_PANELS = 9  # zoomed snapshots on the trajectory figure
+MIN_HELD_S = 2.0  # a formation flown shorter than this gets no mid-way snapshot
+LEGEND_WIDTH_IN = 3.0  # what a swarm's trajectory figure without zoomed panels grows by, for its legend beside it
 QUANTILE = 99.5  # robust axis limits: this percentile, with a margin
 # Beyond this many followers a figure draws them together (each faint, their
 # median bold, the worst named) rather than one legend entry each, and names
@@ -119,7 +121,9 @@ def snapshot_times(switch_times: Sequence[float], t_end: float, evenly: int) -> 
     out = [(0.0, "start")]
     bounds = [*switch_times, t_end]
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
-        out += [(a, "switch"), (0.5 * (a + b), "held")]
+        out.append((a, "switch"))
+        if b - a >= MIN_HELD_S:  # a shorter stretch's middle looks like its switch
+            out.append((0.5 * (a + b), "held"))
     return out
 
 
@@ -210,7 +214,7 @@ def _time_marks(ax: Any, ctx: Context) -> None:
             ha="left",
             fontsize=8,
             color=color,
-            zorder=5,
+            zorder=1.5,  # under the data lines (2): the label must not hide what its window is there to show
             bbox=box,
         )
     ax.set_xlim(lo, hi)
@@ -274,6 +278,9 @@ def trajectories(path: Any, data: Mapping[str, Series], ctx: Context, snapshots:
         leg_ax = fig.add_subplot(spare[0])
         leg_ax.axis("off")
         leg_ax.legend(handles, labels, loc="center", fontsize=9, frameon=False)
+    elif not zoomed and ctx.many:  # a swarm's column of robots: beside the axes, in a figure made wider for it
+        fig.set_figwidth(fig.get_figwidth() + LEGEND_WIDTH_IN)
+        over.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
     else:
         over.legend(handles, labels, loc="best", fontsize=8)
     if zoomed:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 import sys
 import tomllib
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,7 @@ from typing import Any
 from formation_swarm import figures
 from formation_swarm.cliargs import USAGE_ERROR, Parser, integer
 from formation_swarm.data import Series, read_folder, robots_in
+from formation_swarm.scenario_keys import ScenarioWarning
 
 FIGURES = ("trajectories", "formation_error", "vn", "targets")
 FORMATS = ("png", "svg", "pdf")
@@ -84,7 +86,9 @@ def _context(run_dir: Path, summary: Mapping[str, Any], data: Mapping[str, Serie
     ctx.formation_events = [e for e in summary.get("formation_events") or [] if isinstance(e, Mapping)]
     ctx.switches = figures.switches(ctx.formation_events)
     try:
-        sc = scenario_mod.load(run_dir / "scenario.toml")
+        with warnings.catch_warnings():  # the loader's warnings are the run's: report.md lists them
+            warnings.simplefilter("ignore", ScenarioWarning)
+            sc = scenario_mod.load(run_dir / "scenario.toml")
     except (OSError, ValueError):
         return ctx
     ctx.dt_s, ctx.diameter_m = sc.dt_s, sc.diameter_m
@@ -231,6 +235,7 @@ def _markdown(
         f"Minimum distance between robots {f(summary.get('min_distance_m'))} m "
         f"(diameter {f(summary.get('robot_diameter_m'))} m); collisions {summary.get('collisions')}, "
         f"with obstacles {summary.get('obstacle_collisions')}.",
+        *_contacts_markdown(summary),
         f"Messages dropped by the link layer: {summary.get('drops_total')}; lockstep misses "
         f"{summary.get('lockstep_misses')}; rejected payloads {summary.get('rejected_total')}.",
         *(
@@ -242,12 +247,27 @@ def _markdown(
             else []
         ),
         "",
+        *_warnings_markdown(summary),
         *_events_markdown(summary),
         *_faults_markdown(summary),
         *[f"![{stem}]({stem}.{fmt})" for stem in FIGURES],
         "",
     ]
     return "\n".join(lines)
+
+
+def _contacts_markdown(summary: Mapping[str, Any]) -> list[str]:
+    """The first contacts, who and when (the world lists the first 50)."""
+    from formation_swarm.console import contacts_line
+
+    said = contacts_line(summary.get("contacts") or [], summary.get("collisions"), summary.get("obstacle_collisions"))
+    return [said[0].upper() + said[1:] + "."] if said else []
+
+
+def _warnings_markdown(summary: Mapping[str, Any]) -> list[str]:
+    """The scenario loader's warnings for the run, as the console gave them."""
+    said = [w for w in summary.get("scenario_warnings") or [] if isinstance(w, str)]
+    return ["## Scenario warnings", "", *[f"- {w}" for w in said], ""] if said else []
 
 
 def _events_markdown(summary: Mapping[str, Any]) -> list[str]:

@@ -98,6 +98,9 @@ def test_switches_snapshots_and_limits() -> None:
     assert snapshot_times([19.6, 30.4], 53.0, 6) == [(0.0, "start"), (19.6, "switch"), (25.0, "held"),
                                                      (30.4, "switch"), (41.7, "held")]  # fmt: skip
     assert [t for t, _ in snapshot_times([], 40.0, 5)] == [0.0, 10.0, 20.0, 30.0, 40.0]
+    # A formation flown less than 2 s (a 20 s run that switches at 19.6 s) gets no mid-way snapshot,
+    # whose label fell on the switch's.
+    assert snapshot_times([19.6], 20.0, 6) == [(0.0, "start"), (19.6, "switch")]
     assert snapshot_times([], 40.0, 0) == []
     # A few outliers do not set the axis: it is cut, and says where the largest value is.
     top, cut = robust_top([np.r_[np.full(998, 0.1), np.full(2, 9.0)]])
@@ -217,3 +220,18 @@ def test_a_swarm_figure_draws_the_median_and_names_the_worst(monkeypatch: pytest
     figures.formation_error("unused", data, few, rms, 50)
     labels = [x.get_text() for x in saved[-1].axes[0].get_legend().get_texts()]
     assert labels == ["R2 (RMS 0.20 m)", "R3 (RMS 0.30 m)"]
+
+
+def test_the_report_names_the_first_contacts_and_the_scenario_warnings() -> None:
+    from formation_swarm.report import _markdown
+
+    summary = {"run_id": "r1", "collisions": 2, "obstacle_collisions": 0,
+               "contacts": [{"tick": 489, "time_s": 24.45, "robots": [3, 15]},
+                            {"tick": 490, "time_s": 24.5, "robots": [7, 11]}],
+               "scenario_warnings": ["formation 'two': robots 10-30 sit up to 22.5 m to the side"]}  # fmt: skip
+    md = _markdown(summary, [])
+    assert "First contacts: R3 and R15 at 24.45 s, R7 and R11 at 24.50 s.\n" in md
+    assert "## Scenario warnings\n\n- formation 'two': robots 10-30 sit up to 22.5 m" in md
+    quiet = _markdown({"run_id": "r1", "collisions": 0, "obstacle_collisions": 0}, [])
+    assert "contact" not in quiet.lower().replace("collisions 0", "")
+    assert "Scenario warnings" not in quiet
