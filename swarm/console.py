@@ -89,8 +89,8 @@ def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, Any]) -> 
     if m.get("acquired") is False:
         return f"  follower R{rid}: NEVER ACQUIRED its reference (never in its camera's view): no metrics\n"
     killed = f"agent-{rid}" in kills
-    after = (f" (its agent killed at t={_num(kills[f'agent-{rid}'], '.2f')} s: these count the robot "
-             "after it too)") if killed else ""  # fmt: skip
+    after = (f" (its agent was killed at t={_num(kills[f'agent-{rid}'], '.2f')} s; these figures include the "
+             "robot after that)") if killed else ""  # fmt: skip
     seen, frames = m.get("seen_ticks"), m.get("frames")
     if isinstance(seen, int) and isinstance(frames, int) and seen < frames:
         after += f" (its reference in view in {seen} of {frames} camera frames)"

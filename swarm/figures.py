@@ -377,7 +377,7 @@ def _zoom(
             ax.plot(*_at({r: tgt}, t)[r], marker="x", color=ctx.colour(r), ms=7, mew=1.5, zorder=5)
     leader = next((r for r in ctx.robots if r not in ctx.followers), None)
     name = ctx.flown(leader, t) if leader is not None else None
-    what = {"start": f"start, {name}", "switch": f"code \u2192 {name}", "held": f"{name}"}.get(kind, name)
+    what = {"start": f"start, {name}", "switch": f"switch to {name}", "held": f"{name}"}.get(kind, name)
     ax.set_title(f"({letter}) t = {t:.1f} s: {what}", fontsize=10)
     ax.set_xlim(centre[0] - half, centre[0] + half)
     ax.set_ylim(centre[1] - half, centre[1] + half)
@@ -546,11 +546,11 @@ MEASURED, TRUE, EKF = "k", "tab:green", "tab:red"
 
 def _target_rows(ctx: Context, rms: Mapping[int, Any]) -> tuple[list[int], str]:
     """The followers the targets figure shows, and how they were picked (a
-    swarm's: the TARGET_ROWS of largest formation error, by robot id)."""
+    swarm's: the TARGET_ROWS of largest formation error, the worst first)."""
     if not ctx.many:
         return list(ctx.followers), ""
     scored = sorted(ctx.followers, key=lambda r: -rms[r] if isinstance(rms.get(r), (int, float)) else math.inf)
-    shown = sorted(scored[:TARGET_ROWS])
+    shown = scored[:TARGET_ROWS]  # the worst first
     return shown, f"\nthe {len(shown)} of the {len(ctx.followers)} followers with the largest formation error"
 
 

@@ -275,7 +275,7 @@ def _events_markdown(summary: Mapping[str, Any]) -> list[str]:
     events = [e for e in summary.get("formation_events") or [] if isinstance(e, Mapping)]
     if not events:
         return ["## Formation events", "", "None: the formation never changed.", ""]
-    out = ["## Formation events", "", "| tick | time, s | robot | flies from then |", "|---|---|---|---|"]
+    out = ["## Formation events", "", "| tick | time, s | robot | its formation from then |", "|---|---|---|---|"]
     out += [f"| {e.get('tick')} | {_num(e.get('time_s'), '.2f')} | R{e.get('robot')} | {e.get('formation')} |"
             for e in events]  # fmt: skip
     return [*out, ""]

@@ -348,7 +348,8 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     kill = {"event": "killed", "process": "agent-10", "tick": 40, "sim_time_s": 2.0}
     print_result(RunResult(tmp_path, {**many, "events": [kill]}, 0), out)
     lines = {line.split(":")[0].strip(): line for line in out.getvalue().splitlines() if "follower R" in line}
-    assert lines["follower R10"].endswith("(its agent killed at t=2.00 s: these count the robot after it too)")
+    said = "(its agent was killed at t=2.00 s; these figures include the robot after that)"
+    assert lines["follower R10"].endswith(said)
     assert "killed" not in lines["follower R2"]
     out = io.StringIO()  # real time: its late ticks, not lockstep's misses
     realtime = {**ticked, "mode": "realtime", "late_ticks": 3, "max_tick_lateness_s": 0.0551, "lockstep_misses": 0}

@@ -213,7 +213,7 @@ def test_a_swarm_figure_draws_the_median_and_names_the_worst(monkeypatch: pytest
     assert labels == ["each follower's 1 s moving average (12), faint", "median over the 12 followers' averages"]
     figures.targets("unused", data, ctx, {}, 50, rms)
     rows = [a.get_title() for a in saved[-1].axes if a.get_title().endswith("whole run")]
-    assert rows == [f"R{r}: virtual target, whole run" for r in (10, 11, 12, 13)]
+    assert rows == [f"R{r}: virtual target, whole run" for r in (13, 12, 11, 10)]  # the worst first
     assert "the 4 of the 12 followers with the largest formation error" in saved[-1]._suptitle.get_text()
     # Up to 8 followers, each has its own entry.
     few = figures.Context(scenario="s", seed=1, robots=[1, 2, 3], followers=[2, 3], t_end=5.0)
