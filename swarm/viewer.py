@@ -39,10 +39,6 @@ def unreachable(url: str, timeout_s: float = PROBE_TIMEOUT_S) -> str | None:
 def port_taken(port: int) -> str | None:
     """Why ``port`` cannot be served on (something listens there), or None.
     Rerun's web viewer binds every address; its gRPC server 127.0.0.1."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            s.bind(("0.0.0.0", port))
-        except OSError as exc:
-            return exc.strerror or str(exc)
-    return None
+    from formation_swarm.protocol.session import listen_problem
+
+    return listen_problem(f"tcp/0.0.0.0:{port}")
