@@ -12,6 +12,11 @@ Fixtures:
     ``"drop obs:2@10s for=5s p=0.3"``, ``Fault`` objects or tables (the
     grammar of ``[[faults]]``, docs/faults.md); ``kills`` takes ``"agent-3@20"``.
     Both are checked before any process starts. Every process is reaped when the test ends, pass or fail.
+    A run that does not end within ``timeout_s`` fails the test (its processes
+    stopped, the message naming its folder); Ctrl-C during a run stops it and
+    then stops the test session, as Ctrl-C does in pytest. A run that ends
+    badly (exit code 1: a robot lost, a process that never started) is
+    returned for the test to check.
 
 ``swarm_launch``
     ``swarm_launch(scenario, **kwargs) -> Launch``: the same, started but not
@@ -28,6 +33,9 @@ from typing import Any
 import pytest
 
 from formation_swarm.launcher import Launch, RunResult
+
+INTERRUPTED = 130  # Launch.wait's exit codes
+TIMED_OUT = 124
 
 
 @pytest.fixture
@@ -56,6 +64,17 @@ def swarm_run(swarm_launch: Callable[..., Launch]) -> Callable[..., RunResult]:
 
     def run(scenario: str | Path, *, timeout_s: float = 300.0, **kwargs: Any) -> RunResult:
         launch = swarm_launch(scenario, **kwargs)
-        return launch.wait(timeout_s=timeout_s)
+        res = launch.wait(timeout_s=timeout_s)
+        if res.exit_code == INTERRUPTED:
+            raise KeyboardInterrupt  # every process is stopped by now
+        if res.exit_code == TIMED_OUT:
+            reached = res.summary.get("ended_at_s")
+            where = f" (it had reached t={reached:.2f} s)" if isinstance(reached, (int, float)) else ""
+            pytest.fail(
+                f"swarm_run: {scenario} did not end within timeout_s={timeout_s:g} s{where}; every process is "
+                f"stopped; its folder: {res.run_dir}",
+                pytrace=False,
+            )
+        return res
 
     return run

@@ -1,0 +1,65 @@
+"""How the ``swarm_run`` fixture ends a run that does not end by itself: a
+timeout fails the test that called it (not a result the test might read
+as a run), Ctrl-C stops the session after every process is stopped."""
+
+from __future__ import annotations
+
+import textwrap
+
+import pytest
+
+pytest_plugins = ["pytester"]
+
+
+def test_a_run_past_its_timeout_fails_the_test_and_names_its_folder(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(
+        textwrap.dedent(
+            """
+            def test_slow(swarm_run):
+                res = swarm_run("fig11_obstacles", logger=False, timeout_s=0.5)
+                raise AssertionError(f"swarm_run returned {res.exit_code}")
+            """
+        )
+    )
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    result.assert_outcomes(failed=1)
+    out = result.stdout.str()
+    assert "swarm_run: fig11_obstacles did not end within timeout_s=0.5 s" in out
+    assert "every process is stopped; its folder: " in out
+    assert "swarm_run returned" not in out
+    assert "Traceback" not in out  # one line, not the plugin's own stack
+
+
+def test_ctrl_c_during_a_run_stops_the_session(pytester: pytest.Pytester) -> None:
+    # Launch.wait turns Ctrl-C into exit code 130 after stopping every process;
+    # here it says so at once (a real Ctrl-C cannot be sent to an inner session).
+    pytester.makeconftest(
+        textwrap.dedent(
+            """
+            import pytest
+            from formation_swarm import launcher
+
+            @pytest.fixture(autouse=True)
+            def interrupted(monkeypatch, tmp_path):
+                monkeypatch.setattr(launcher.Launch, "start", lambda self: None)
+                monkeypatch.setattr(launcher.Launch, "stop", lambda self, graceful_first=True: None)
+                monkeypatch.setattr(launcher.Launch, "wait", lambda self, timeout_s=None:
+                                    launcher.RunResult(tmp_path, {}, 130))
+            """
+        )
+    )
+    pytester.makepyfile(
+        textwrap.dedent(
+            """
+            def test_first(swarm_run):
+                swarm_run("fig11_obstacles")
+
+            def test_never_reached():
+                pass
+            """
+        )
+    )
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    assert result.ret == pytest.ExitCode.INTERRUPTED
+    assert "KeyboardInterrupt" in result.stdout.str()
+    result.assert_outcomes()  # test_never_reached did not run: the session stopped at the first test
