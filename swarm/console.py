@@ -61,6 +61,36 @@ def describe_recoveries(f: Mapping[str, Any]) -> list[str]:
     return out
 
 
+# A fault's counts in words: what a link did to its messages, and what a
+# camera or wheel fault did on each robot (summary.json keeps the raw keys).
+LINK_EFFECT_WORDS = {"dropped": "dropped", "partitioned": "lost to the partition", "delayed": "delayed",
+                     "duplicated": "duplicated", "reordered": "reordered"}  # fmt: skip
+ROBOT_EFFECT_WORDS = {"blacked_out": "readings blacked out", "cut": "readings cut by the range",
+                      "replaced": "readings replaced by outliers", "biased": "readings biased",
+                      "moving_ticks": "of them with the robot told to move"}  # fmt: skip
+
+
+def describe_counts(counts: Mapping[str, Any]) -> str:
+    """``{"dropped": 12}`` -> "12 messages dropped"; ``{"R2 ticks": 40,
+    "R2 blacked_out": 38}`` -> "R2: on for 40 ticks, 38 readings blacked out";
+    a key it does not know is kept as it is."""
+    out, robots = [], {}
+    for key, n in counts.items():
+        robot, _, what = key.partition(" ")
+        if what and robot.startswith("R") and robot[1:].isdigit():
+            robots.setdefault(int(robot[1:]), {})[what] = n
+        elif key in LINK_EFFECT_WORDS:
+            out.append(f"{n} message{'s' if n != 1 else ''} {LINK_EFFECT_WORDS[key]}")
+        else:
+            out.append(f"{key} {n}")
+    for rid in sorted(robots):
+        said = robots[rid]
+        words = [f"on for {said.pop('ticks')} ticks"] if "ticks" in said else []
+        words += [f"{n} {ROBOT_EFFECT_WORDS.get(k, k)}" for k, n in said.items()]
+        out.append(f"R{rid}: {', '.join(words)}")
+    return "; ".join(out)
+
+
 def describe_fault(f: Mapping[str, Any], ticks: Any = None) -> str:
     """One scheduled fault of the summary, with what it did, as a line; one
     whose start the run never reached (it ended early: the leader's path was
@@ -72,7 +102,7 @@ def describe_fault(f: Mapping[str, Any], ticks: Any = None) -> str:
     for e in f.get("events") or []:
         robot = f" R{e['robot']}" if e.get("robot") is not None else ""
         parts.append(f"{e.get('event')}{robot} at tick {e.get('tick')}")
-    counts = ", ".join(f"{k} {v}" for k, v in sorted((f.get("counts") or {}).items()))
+    counts = describe_counts(f.get("counts") or {})
     parts += describe_recoveries(f)
     said = "; ".join(x for x in ("; ".join(parts), counts) if x)
     return f"{f.get('fault')}" + (f": {said}" if said else "")
@@ -83,6 +113,13 @@ def describe_fault(f: Mapping[str, Any], ticks: Any = None) -> str:
 LIST_FOLLOWERS_UP_TO = 10
 WORST_LISTED = 5
 LOST_SIGHT_SHARE = 0.95  # beyond 10 followers, one whose reference was in fewer of its frames is listed
+
+
+def _losses(s: Mapping[str, Any]) -> str:
+    """The messages the links lost: dropped (the links' drop probability, drop
+    and burst faults) and, if any, lost to partitions."""
+    cut = sum(t.get("partitioned", 0) for t in (s.get("link_totals") or {}).values() if isinstance(t, Mapping))
+    return f"messages dropped {s.get('drops_total')}" + (f", lost to partitions {cut}" if cut else "")
 
 
 def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, Any]) -> str:
@@ -225,9 +262,9 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
             # A world the machine kept out of the real-time class: its ticks may start late under load.
             note = f" (world scheduling {sched})" if sched.startswith("normal (") else ""
             w(f"  late ticks {s.get('late_ticks')} (worst {late_ms} ms){note}{_skipped(s.get('parts'))}, "
-              f"drops {s.get('drops_total')}, ")  # fmt: skip
+              f"{_losses(s)}, ")  # fmt: skip
         else:
-            w(f"  lockstep misses {s.get('lockstep_misses')}, drops {s.get('drops_total')}, ")
+            w(f"  lockstep misses {s.get('lockstep_misses')}, {_losses(s)}, ")
         w(f"rejected {s.get('rejected_total')}\n")
         if s.get("recording_gap"):
             w(f"  RECORDING INCOMPLETE: {s['recording_gap']}\n")

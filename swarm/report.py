@@ -283,7 +283,7 @@ def _events_markdown(summary: Mapping[str, Any]) -> list[str]:
 
 def _faults_markdown(summary: Mapping[str, Any]) -> list[str]:
     """The faults and what they did; processes that exited; robots lost."""
-    from formation_swarm.console import describe_event, describe_recoveries
+    from formation_swarm.console import describe_counts, describe_event, describe_recoveries
 
     out: list[str] = []
     faults = [f for f in summary.get("faults") or [] if isinstance(f, Mapping)]
@@ -294,7 +294,7 @@ def _faults_markdown(summary: Mapping[str, Any]) -> list[str]:
             ticks = f"{start}-{end - 1}" if isinstance(end, int) else f"from {start}"
             said = [_fault_event(e) for e in f.get("events") or []] + describe_recoveries(f)
             happened = "; ".join(said) or "-"
-            counted = ", ".join(f"{k} {v}" for k, v in sorted((f.get("counts") or {}).items())) or "-"
+            counted = describe_counts(f.get("counts") or {}) or "-"
             out.append(f"| `{f.get('fault')}` | {ticks} | {happened} | {counted} |")
         out.append("")
     events = [e for e in summary.get("events") or [] if isinstance(e, Mapping)]

@@ -148,8 +148,7 @@ def fault_effects(
     logged for it (``fault_log``: killed, started, readmitted, rejoined, frozen,
     thawed, lost ...); the counters kept for it: by the link layer under its
     index (``link_faults``), by the world's cameras and wheels under its string
-    (``sensor_faults``, ``actuator_faults``, per robot) and by any process under
-    its string (``fault_counts``); for process faults what the launcher
+    (``sensor_faults``, ``actuator_faults``, per robot); for process faults what the launcher
     executed (``executed``: its events for the fault, with wall times), each
     return of the robot (``rejoins``: ticks and wall seconds from the "start"
     call, or the loss, to the agent's first command) and how the formation
@@ -165,10 +164,6 @@ def fault_effects(
             for rid, robot_counts in ((world.get(group) or {}).get(text) or {}).items():
                 for key, value in (robot_counts or {}).items():
                     counts[f"R{rid} {key}"] = value
-        for part in parts.values():
-            for key, value in ((part.get("fault_counts") or {}).get(text) or {}).items():
-                if isinstance(value, (int, float)) and not isinstance(value, bool):
-                    counts[key] = counts.get(key, 0) + value
         out.append(
             {
                 "index": index,

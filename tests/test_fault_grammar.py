@@ -179,14 +179,27 @@ def test_summary_gathers_each_faults_ticks_events_and_counts() -> None:
             {"tick": 400, "time_s": 20.0, "fault": "restart agent-3@20s after=1", "event": "killed", "robot": 3},
             {"tick": 420, "time_s": 21.0, "fault": "restart agent-3@20s after=1", "event": "rejoined", "robot": 3},
         ]},
-        "agent-2": {"fault_counts": {"drop obs:2@10s for=5s p=0.3": {"dropped": 29, "received": 100}}},
-        "agent-3": {"fault_counts": {"drop obs:2@10s for=5s p=0.3": {"dropped": 1}}},
     }  # fmt: skip
-    out = fault_effects(sc, parts)
+    # The link layer's per-fault counts, summed over the fault's links (summary._link_sums).
+    link_faults = {"0": {"fault": "drop obs:2@10s for=5s p=0.3", "dropped": 30}}
+    out = fault_effects(sc, parts, link_faults=link_faults)
     assert [(f["fault"], f["start_tick"], f["end_tick"]) for f in out] == [
         ("drop obs:2@10s for=5s p=0.3", 200, 300), ("restart agent-3@20s after=1", 400, 420)]  # fmt: skip
-    assert out[0]["counts"] == {"dropped": 30, "received": 100}
+    assert out[0]["counts"] == {"dropped": 30}
     assert [e["event"] for e in out[1]["events"]] == ["killed", "rejoined"]
+
+
+def test_a_faults_counts_read_as_words_on_the_console() -> None:
+    from formation_swarm.console import describe_counts, describe_fault
+
+    assert describe_counts({"dropped": 1, "partitioned": 40}) == "1 message dropped; 40 messages lost to the partition"
+    counts = {"R3 ticks": 40, "R3 moving_ticks": 38, "R2 ticks": 40, "R2 moving_ticks": 0, "held": 2}
+    assert describe_counts(counts) == (
+        "held 2; R2: on for 40 ticks, 0 of them with the robot told to move; "
+        "R3: on for 40 ticks, 38 of them with the robot told to move"
+    )
+    fault = {"fault": "partition 2@5s for=2s", "start_tick": 100, "events": [], "counts": {"partitioned": 40}}
+    assert describe_fault(fault, ticks=400) == "partition 2@5s for=2s: 40 messages lost to the partition"
 
 
 # -- exact boundaries, without a scenario ------------------------------------------------

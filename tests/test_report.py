@@ -81,7 +81,8 @@ def test_faults_are_marked_on_the_time_axes_and_listed() -> None:
         "| `kill agent-3@20s` | from 400 | killed R3 at tick 400 (20.00 s); R2 below 0.5 m 1.25 s after tick 400 | - |"
         in text
     )
-    assert "| `drop obs:2@10s for=5s p=0.3` | 200-299 | - | dropped 31 |" in text  # its last tick, not the first after
+    # its last tick, not the first after
+    assert "| `drop obs:2@10s for=5s p=0.3` | 200-299 | - | 31 messages dropped |" in text
     assert "- logger exited with code 1 at sim t=31.50 s" in text
     assert "agent-3 was killed by SIGKILL" not in text  # said once, by the kill
     assert "- robot 3 lost its agent at tick 400 (20.00 s)" in text

@@ -45,7 +45,7 @@ def test_a_blackout_of_robot_3_opens_its_error_and_it_recovers(swarm_run: Callab
     console = io.StringIO()
     print_result(dark, console)
     assert dark.summary["faults"][0]["counts"] == {"R3 ticks": 60, "R3 blacked_out": 120}
-    assert "  fault: blackout 3@5s for=3s: R3 blacked_out 120, R3 ticks 60\n" in console.getvalue()
+    assert "  fault: blackout 3@5s for=3s: R3: on for 60 ticks, 120 readings blacked out\n" in console.getvalue()
 
 
 def test_lockstep_runs_with_wheel_noise_and_outliers_are_reproducible(swarm_launch: Callable[..., Launch]) -> None:
