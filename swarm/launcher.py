@@ -365,8 +365,9 @@ class Launch:
         self.clients = {h: remote.HostClient(self.session, h) for h in self.hosts}
         deadline = time.monotonic() + self.hosts_timeout_s
         if not all(c.present.wait(0.2) for c in self.clients.values()):  # said only if it takes a while
-            self.progress(f"[swarm] waiting up to {self.hosts_timeout_s:g} s for hosts {', '.join(self.hosts)} "
-                          f"to connect to {self.listen}")  # fmt: skip
+            missing = [h for h, c in self.clients.items() if not c.present.is_set()]
+            self.progress(f"[swarm] waiting up to {self.hosts_timeout_s:g} s for host{'s' if len(missing) > 1 else ''} "
+                          f"{', '.join(missing)} to connect to {self.listen}")  # fmt: skip
         for h, client in self.clients.items():
             if not client.present.wait(max(0.0, deadline - time.monotonic())):
                 raise remote.HostError(

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -169,6 +170,10 @@ def two_hosts(tmp_path: Path) -> Iterator[Hosts]:
         hosts.close()
 
 
+def summary_placement(out: Path) -> dict[str, str]:
+    return json.loads((out / "summary.json").read_text())["placement"]
+
+
 def _parents() -> dict[int, int]:
     out = {}
     for entry in Path("/proc").iterdir():
@@ -266,10 +271,13 @@ def _alive(pid: int) -> bool:
 @pytest.mark.slow
 def test_process_faults_on_a_remote_agent_are_executed_by_its_host(two_hosts: Hosts, tmp_path: Path) -> None:
     out = tmp_path / "faults"
-    argv = [*two_hosts.run_argv(out, "a,b"), "--fault", "restart agent-2@5s after=1s",
+    # Every robot on b: a runs none, which the launcher warns of.
+    argv = [*two_hosts.run_argv(out, "a,b"), "--place", "1=b,2=b,3=b", "--fault", "restart agent-2@5s after=1s",
             "--fault", "freeze agent-3@10s for=1s"]  # fmt: skip
     run = subprocess.run(argv, capture_output=True, text=True, timeout=300, check=False)
     assert run.returncode == 0, run.stdout + run.stderr
+    assert "[swarm] warning: host a runs no robot (the placement gave them none)" in run.stdout
+    assert summary_placement(out) == {"agent-1": "b", "agent-2": "b", "agent-3": "b"}
     summary = json.loads((out / "summary.json").read_text())
     done = [(e["event"], e["process"]) for e in summary["events"] if e["event"] in ("killed", "started", "frozen",
                                                                                      "thawed")]  # fmt: skip
@@ -339,6 +347,9 @@ def test_a_run_whose_host_never_comes_stops_at_the_deadline_naming_it(two_hosts:
     run = subprocess.run([*two_hosts.run_argv(out, "a,b"), "--hosts-timeout", "3"], capture_output=True, text=True,
                          timeout=120, check=False)  # fmt: skip
     assert run.returncode == 1, run.stdout + run.stderr
+    # b at least (a too if it had not reconnected yet: hosts retry their router with a back-off)
+    assert re.search(rf"\[swarm\] waiting up to 3 s for hosts? (a, )?b to connect to {re.escape(two_hosts.endpoint)}",
+                     run.stdout), run.stdout  # fmt: skip
     assert "swarm run: host b did not connect to " in run.stderr
     assert "within 3 s" in run.stderr
     assert time.monotonic() - started < 60
