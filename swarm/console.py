@@ -119,15 +119,22 @@ def _losses(s: Mapping[str, Any]) -> str:
     """The messages the links lost: dropped (the links' drop probability, drop
     and burst faults) and, if any, lost to partitions."""
     cut = sum(t.get("partitioned", 0) for t in (s.get("link_totals") or {}).values() if isinstance(t, Mapping))
-    return f"messages dropped {s.get('drops_total')}" + (f", lost to partitions {cut}" if cut else "")
+    dropped = s.get("drops_total")
+    return f"messages dropped {dropped if isinstance(dropped, int) else '-'}" + (
+        f", lost to partitions {cut}" if cut else "")  # fmt: skip
 
 
 def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, Any]) -> str:
     if m.get("acquired") is False:
         return f"  follower R{rid}: NEVER ACQUIRED its reference (never in its camera's view): no metrics\n"
     killed = f"agent-{rid}" in kills
-    after = (f" (its agent was killed at t={_num(kills[f'agent-{rid}'], '.2f')} s; these figures include the "
-             "robot after that)") if killed else ""  # fmt: skip
+    after = ""
+    if killed:
+        before = m.get("until_stopped") or {}
+        until = (f"; until then RMS {_num(before.get('rms_m'))} m, max {_num(before.get('max_m'))} m"
+                 if before else "")  # fmt: skip
+        after = (f" (its agent was killed at t={_num(kills[f'agent-{rid}'], '.2f')} s{until}; these figures "
+                 "include the robot after that)")  # fmt: skip
     seen, frames = m.get("seen_ticks"), m.get("frames")
     if isinstance(seen, int) and isinstance(frames, int) and seen < frames:
         after += f" (its reference in view in {seen} of {frames} camera frames)"

@@ -346,26 +346,30 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     assert listed == ["follower R2", "follower R10", "follower R11", "follower R100"]
     out = io.StringIO()
     kill = {"event": "killed", "process": "agent-10", "tick": 40, "sim_time_s": 2.0}
-    print_result(RunResult(tmp_path, {**many, "events": [kill]}, 0), out)
+    until = {"time_s": 2.0, "rms_m": 0.05, "max_m": 0.2}  # the world's figures up to the kill
+    stopped = {**many, "followers": {**many["followers"], "10": {"rms_m": 0.1, "until_stopped": until}}}
+    print_result(RunResult(tmp_path, {**stopped, "events": [kill]}, 0), out)
     lines = {line.split(":")[0].strip(): line for line in out.getvalue().splitlines() if "follower R" in line}
-    said = "(its agent was killed at t=2.00 s; these figures include the robot after that)"
+    said = ("(its agent was killed at t=2.00 s; until then RMS 0.050 m, max 0.200 m; these figures include the "
+            "robot after that)")  # fmt: skip
     assert lines["follower R10"].endswith(said)
     assert "killed" not in lines["follower R2"]
     out = io.StringIO()  # real time: its late ticks, not lockstep's misses
     realtime = {**ticked, "mode": "realtime", "late_ticks": 3, "max_tick_lateness_s": 0.0551, "lockstep_misses": 0}
     print_result(RunResult(tmp_path, realtime, 1), out)
-    assert "late ticks 3 (worst 55.1 ms), drops None" in out.getvalue()
+    assert "late ticks 3 (worst 55.1 ms), messages dropped -" in out.getvalue()
     assert "lockstep misses" not in out.getvalue()
     out = io.StringIO()  # a world left in the normal class says so beside its late ticks
     why = "normal (real-time priority 10 refused: Operation not permitted; it needs root or CAP_SYS_NICE)"
     print_result(RunResult(tmp_path, {**realtime, "world_scheduling": why}, 1), out)
-    assert f"late ticks 3 (worst 55.1 ms) (world scheduling {why}), drops None" in out.getvalue()
+    assert f"late ticks 3 (worst 55.1 ms) (world scheduling {why}), messages dropped -" in out.getvalue()
     out = io.StringIO()  # the followers' skipped observations (the leader's are not theirs)
     parts = {"agent-1": {"role": "leader", "answered": 100, "superseded": 50},
              "agent-2": {"role": "follower", "answered": 80, "superseded": 20},
              "agent-3": {"role": "follower", "answered": 90, "superseded": 10}, "world": {"ticks": 5}}  # fmt: skip
     print_result(RunResult(tmp_path, {**realtime, "parts": parts}, 1), out)
-    assert "late ticks 3 (worst 55.1 ms), followers skipped 15.0% of their observations, drops None" in out.getvalue()
+    said = "late ticks 3 (worst 55.1 ms), followers skipped 15.0% of their observations, messages dropped -"
+    assert said in out.getvalue()
     out = io.StringIO()  # a lockstep recording that misses ticks: the console and the report say which
     gap = "the logger recorded 715 of the 880 ticks the world sent (missing: truth ticks 100-264)"
     print_result(RunResult(tmp_path, {**ticked, "mode": "lockstep", "recording_gap": gap}, 0), out)

@@ -300,6 +300,21 @@ def test_a_killed_reference_stands_with_its_command_zeroed() -> None:
     assert (f["samples"], f["turn_samples"]) == (5, 0)
 
 
+def test_a_killed_followers_error_until_its_first_stop_is_kept_apart() -> None:
+    eng = WorldEngine(TURN, 0)
+    _drive(eng, 20, {1: (1.0, 1.0), 2: (1.0, 1.0)})
+    before = eng.summary()["followers"]["2"]
+    assert "until_stopped" not in before
+    eng.kill(2)
+    _drive(eng, 40, {1: (1.0, 1.0)})  # its target drives off: the error grows
+    eng.revive(2)
+    eng.kill(2)  # a second stop keeps the first's figures
+    after = eng.summary()["followers"]["2"]
+    assert after["until_stopped"] == {"time_s": 20 * TURN.dt_s, "rms_m": before["rms_m"], "max_m": before["max_m"]}
+    assert after["rms_m"] > before["rms_m"] + 0.5
+    assert after["samples"] == before["samples"] + 40
+
+
 def test_a_revived_reference_stands_until_its_first_command() -> None:
     eng = WorldEngine(TURN, 0)
     eng.set_command(1, 1.0, 1.5, 0, 0.0)

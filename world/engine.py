@@ -89,6 +89,9 @@ class FollowerMetrics:
             self.turn_samples += 1
             self.turn_along_sum_m += along_m
 
+    def rms_m(self) -> float:
+        return math.sqrt(self.sum_sq_m2 / self.samples) if self.samples else math.nan
+
     def as_dict(self) -> dict[str, float | int | bool | None]:
         """The metrics; all None for a follower whose camera never showed its
         reference ("acquired": false): it never moved, so its error says
@@ -144,6 +147,8 @@ class WorldEngine:
     # Per follower, [sum, largest, ticks] of its formation error in each window of ERROR_WINDOW_S (m).
     error_windows: dict[int, list[list[float]]] = field(init=False, default_factory=dict)
     _window_ticks: int = field(init=False, default=1)
+    # A follower's error until its first stop (its agent killed or lost): time_s, rms_m, max_m.
+    until_stopped: dict[int, dict[str, float]] = field(init=False, default_factory=dict)
     _recorded: int = field(init=False, default=0)  # ticks whose metrics were taken
     cameras: dict[int, CameraFaults] = field(init=False, default_factory=dict)  # followers only
     wheels: dict[int, Wheels] = field(init=False, default_factory=dict)
@@ -245,10 +250,16 @@ class WorldEngine:
             r.formation = formation
 
     def kill(self, rid: int) -> None:
-        """The robot's process is gone: it stops where it is, until revived."""
+        """The robot's process is gone: it stops where it is, until revived.
+        A follower's error up to its first stop is kept (``until_stopped``):
+        its whole run's figures include the robot standing after it."""
         r = self.robots[rid]
         r.alive = False
         r.command = (0.0, 0.0)
+        if rid in self.metrics and rid not in self.until_stopped:
+            self.record()  # the ticks before this one (recording sooner changes nothing but when)
+            m = self.metrics[rid]
+            self.until_stopped[rid] = {"time_s": self.time_s, "rms_m": m.rms_m(), "max_m": m.max_m}
 
     def revive(self, rid: int) -> None:
         """The robot's agent is back (a fresh process, a session regained): it
@@ -417,12 +428,18 @@ class WorldEngine:
             "max_m": {str(r): [round(w[1], 4) for w in ws] for r, ws in windows},
         }
 
+    def _follower_summary(self, rid: int) -> dict[str, object]:
+        out: dict[str, object] = dict(self.metrics[rid].as_dict())
+        if rid in self.until_stopped:
+            out["until_stopped"] = self.until_stopped[rid]
+        return out
+
     def summary(self) -> dict[str, object]:
         self.record()
         return {
             "ticks": self.tick,
             "sim_time_s": self.time_s,
-            "followers": {str(rid): m.as_dict() for rid, m in self.metrics.items()},
+            "followers": {str(rid): self._follower_summary(rid) for rid in self.metrics},
             "min_distance_m": self.min_distance_m,
             "robot_diameter_m": self.scenario.diameter_m,
             "collisions": self.collisions,
