@@ -275,6 +275,8 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
         w(f"rejected {s.get('rejected_total')}\n")
         if s.get("recording_gap"):
             w(f"  RECORDING INCOMPLETE: {s['recording_gap']}\n")
+        if s.get("recording_cut"):
+            w(f"  RECORDING CUT SHORT: {s['recording_cut']}\n")
     for f in s.get("faults") or []:
         w(f"  fault: {describe_fault(f, s.get('ticks'))}\n")
     events = s.get("events") or []

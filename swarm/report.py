@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from formation_swarm import figures
+from formation_swarm import summary as summary_mod
 from formation_swarm.cliargs import USAGE_ERROR, Parser, integer
 from formation_swarm.data import Series, read_folder, robots_in
 from formation_swarm.scenario_keys import ScenarioWarning
@@ -158,6 +159,8 @@ def _ended_early(summary: Mapping[str, Any]) -> str:
     """Why a run has nothing to draw, from its summary."""
     if not summary.get("ticks"):
         return f"the run ended before its first tick (exit code {summary.get('exit_code')}); see its logs/"
+    if cut := summary_mod.recording_cut(summary):
+        return cut
     return "the logger recorded none (see logs/logger.log)"
 
 
@@ -246,6 +249,7 @@ def _markdown(
             if summary.get("recording_gap")
             else []
         ),
+        *([f"**The recording is cut short:** {cut}."] if (cut := summary_mod.recording_cut(summary)) else []),
         "",
         *_warnings_markdown(summary),
         *_events_markdown(summary),

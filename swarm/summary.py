@@ -228,6 +228,21 @@ def _add(a: Mapping[str, Any], b: Mapping[str, Any]) -> dict[str, Any]:
     return out
 
 
+def recording_cut(summary: Mapping[str, Any]) -> str | None:
+    """Where a fault killed the logger, what that did to the recording, in
+    words (None: no such kill). By the fault's design, not a loss to retry
+    (recording_gap): the recording ends there, minus what the logger had not
+    yet written."""
+    for e in summary.get("events") or []:
+        if isinstance(e, Mapping) and e.get("event") == "killed" and e.get("process") == "logger":
+            t = e.get("sim_time_s")
+            when = f" at sim t={t:.2f} s" if isinstance(t, (int, float)) else ""
+            return (f"the logger was killed{when}: the recording ends before that, without what the logger had "
+                    "not yet written (up to its last second of wall time; a lockstep run passes many ticks in a "
+                    "second, so it may hold none)")  # fmt: skip
+    return None
+
+
 def recording_gap(summary: Mapping[str, Any]) -> str | None:
     """What a lockstep run's recording misses of what was sent (None: nothing,
     or nothing to tell: real time may drop by design, or no logger), with where
@@ -390,6 +405,7 @@ def build(
     }
     # Lockstep: what the recording misses of what was sent (None when whole).
     out["recording_gap"] = recording_gap(out)
+    out["recording_cut"] = recording_cut(out)  # a fault killed the logger
     return out
 
 

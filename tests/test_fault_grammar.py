@@ -202,6 +202,20 @@ def test_a_faults_counts_read_as_words_on_the_console() -> None:
     assert describe_fault(fault, ticks=400) == "partition 2@5s for=2s: 40 messages lost to the partition"
 
 
+def test_a_killed_logger_says_the_recording_is_cut_short_and_a_sweep_does_not_retry_it() -> None:
+    from formation_swarm.summary import recording_cut, recording_gap
+
+    kill = {"event": "killed", "process": "logger", "sim_time_s": 3.0, "fault": "kill logger@3s"}
+    summary = {"mode": "lockstep", "events": [kill], "parts": {}, "messages": {}}
+    assert recording_cut(summary) == (
+        "the logger was killed at sim t=3.00 s: the recording ends before that, without what the logger had not "
+        "yet written (up to its last second of wall time; a lockstep run passes many ticks in a second, so it may "
+        "hold none)"
+    )
+    assert recording_gap(summary) is None  # swarm sweep runs a run with a gap again; this one would lose it again
+    assert recording_cut({**summary, "events": [{**kill, "process": "agent-3"}]}) is None
+
+
 # -- exact boundaries, without a scenario ------------------------------------------------
 
 
