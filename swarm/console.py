@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 from formation_swarm import scenario as scenario_mod
 from formation_swarm import summary as summary_mod
 from formation_swarm.children import describe_exit
+from formation_swarm.world.recovery import HOLD_S
 
 if TYPE_CHECKING:
     from formation_swarm.launcher import RunResult
@@ -48,16 +49,28 @@ def describe_event(ev: Mapping[str, Any]) -> str:
 
 
 def describe_recoveries(f: Mapping[str, Any]) -> list[str]:
-    """How long the formation took to come back after a process fault, in words."""
+    """How the formation came back after a process fault, in words: when the
+    watched follower's error first went below the bound after the robot's
+    return, whether it then stayed below it for the hold time (settled), and
+    its largest error in the window after the return. Below the bound at once
+    but never settled is a follower whose error only passed through it."""
     out = []
     for rec in f.get("recoveries") or []:
         who = ", ".join(f"R{r}" for r in rec.get("watched") or [])
+        since = rec.get("since_s")
+        at = f" the return at t={since:.2f} s" if isinstance(since, (int, float)) else " the return"
         after = rec.get("first_below_after_s")
         bound = rec.get("bound_m", 0.5)
-        if isinstance(after, (int, float)):
-            out.append(f"{who} below {bound:g} m {after:.2f} s after tick {rec.get('since_tick')}")
-        else:
+        if not isinstance(after, (int, float)):
             out.append(f"{who} not back below {bound:g} m by the end")
+            continue
+        said = f"{who} below {bound:g} m {after:.2f} s after{at}"
+        settled = rec.get("settled_after_s")
+        said += (f", settled (below it for {HOLD_S:g} s) {settled:.2f} s after" if isinstance(settled, (int, float))
+                 else f", never settled (below it for {HOLD_S:g} s in a row) by the end")  # fmt: skip
+        if isinstance(peak := rec.get("max_in_window_m"), (int, float)):
+            said += f"; largest error in the {rec.get('window_s', 5):g} s after: {peak:.2f} m"
+        out.append(said)
     return out
 
 
@@ -103,6 +116,9 @@ def describe_fault(f: Mapping[str, Any], ticks: Any = None) -> str:
         robot = f" R{e['robot']}" if e.get("robot") is not None else ""
         parts.append(f"{e.get('event')}{robot} at tick {e.get('tick')}")
     counts = describe_counts(f.get("counts") or {})
+    if counts and (cut := f.get("counts_partial_for")):
+        who = ", ".join(f"R{r}" for r in cut)
+        counts += f" (at least: {who}'s agent was killed, and its counts end at its last stats write)"
     parts += describe_recoveries(f)
     said = "; ".join(x for x in ("; ".join(parts), counts) if x)
     return f"{f.get('fault')}" + (f": {said}" if said else "")
@@ -124,7 +140,7 @@ def _losses(s: Mapping[str, Any]) -> str:
         f", lost to partitions {cut}" if cut else "")  # fmt: skip
 
 
-def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, Any]) -> str:
+def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, tuple[Any, Any]]) -> str:
     if m.get("acquired") is False:
         return f"  follower R{rid}: NEVER ACQUIRED its reference (never in its camera's view): no metrics\n"
     killed = f"agent-{rid}" in kills
@@ -133,8 +149,10 @@ def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, Any]) -> 
         before = m.get("until_stopped") or {}
         until = (f"; until then RMS {_num(before.get('rms_m'))} m, max {_num(before.get('max_m'))} m"
                  if before else "")  # fmt: skip
-        after = (f" (its agent was killed at t={_num(kills[f'agent-{rid}'], '.2f')} s{until}; these figures "
-                 "include the robot after that)")  # fmt: skip
+        killed_at, restarted_at = kills[f"agent-{rid}"]
+        back = f" and a fresh one started at t={_num(restarted_at, '.2f')} s" if restarted_at is not None else ""
+        after = (f" (its agent was killed at t={_num(killed_at, '.2f')} s{back}{until}; these figures include "
+                 "the robot after that)")  # fmt: skip
     seen, frames = m.get("seen_ticks"), m.get("frames")
     if isinstance(seen, int) and isinstance(frames, int) and seen < frames:
         after += f" (its reference in view in {seen} of {frames} camera frames)"
@@ -149,7 +167,7 @@ def _lost_sight(m: Mapping[str, Any]) -> bool:
 
 
 def _many_followers(
-    w: Any, followers: list[tuple[str, Mapping[str, Any]]], kills: Mapping[str, Any]
+    w: Any, followers: list[tuple[str, Mapping[str, Any]]], kills: Mapping[str, tuple[Any, Any]]
 ) -> list[tuple[str, Mapping[str, Any]]]:
     """Write the spread of the followers' errors; return the followers to list
     one by one: the worst by RMS, then any other that lost sight of its
@@ -248,10 +266,14 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
         w("  no metrics: the run ended before its first tick\n")
     else:
         followers = sorted((s.get("followers") or {}).items(), key=lambda kv: (len(str(kv[0])), str(kv[0])))
-        kills: dict[str, Any] = {}  # agent-N -> the sim time of its first kill
+        kills: dict[str, tuple[Any, Any]] = {}  # agent-N -> the sim times of its first kill and of its restart
         for ev in s.get("events") or []:
             if isinstance(ev, Mapping) and ev.get("event") == "killed":
-                kills.setdefault(str(ev.get("process")), ev.get("sim_time_s"))
+                kills.setdefault(str(ev.get("process")).split(".")[0], (ev.get("sim_time_s"), None))
+            elif isinstance(ev, Mapping) and ev.get("event") == "started":  # a fresh agent: agent-N.2
+                name = str(ev.get("process")).split(".")[0]
+                if name in kills and kills[name][1] is None:
+                    kills[name] = (kills[name][0], ev.get("sim_time_s"))
         listed = followers  # JSON keys: robot ids as text, listed by number
         if len(followers) > LIST_FOLLOWERS_UP_TO:
             listed = _many_followers(w, followers, kills)

@@ -299,6 +299,8 @@ def _faults_markdown(summary: Mapping[str, Any]) -> list[str]:
             said = [_fault_event(e) for e in f.get("events") or []] + describe_recoveries(f)
             happened = "; ".join(said) or "-"
             counted = describe_counts(f.get("counts") or {}) or "-"
+            if f.get("counts_partial_for"):
+                counted = f"at least {counted} (killed agents' counts end at their last stats write)"
             out.append(f"| `{f.get('fault')}` | {ticks} | {happened} | {counted} |")
         out.append("")
     events = [e for e in summary.get("events") or [] if isinstance(e, Mapping)]

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any
 
 import formation_swarm
 from formation_swarm.children import describe_exit
+from formation_swarm.faults import LINK, LINK_CLASSES, NETWORK
 from formation_swarm.proc import write_json
 from formation_swarm.protocol.links import EFFECTS, link_name
 
@@ -403,6 +404,13 @@ def build(
         "recording": recording,
         "parts": dict(parts),
     }
+    # Counts kept by an agent a signal killed are a lower bound.
+    for f, fault in zip(out["faults"], sc.faults, strict=True):
+        cut = sorted({int(name.split(">")[1]) for name in out["partial_links"]
+                      if fault.group in (LINK, NETWORK) and name.split(":")[0] in (fault.link_classes or LINK_CLASSES)
+                      and fault.applies_to(int(name.split(">")[1]))})  # fmt: skip
+        if cut and f["counts"]:
+            f["counts_partial_for"] = cut  # the robots whose agent's counts end at its last stats write
     # Lockstep: what the recording misses of what was sent (None when whole).
     out["recording_gap"] = recording_gap(out)
     out["recording_cut"] = recording_cut(out)  # a fault killed the logger

@@ -53,7 +53,9 @@ FAULTED = {
         {"fault": "kill agent-3@20s", "kind": "kill", "target": "agent-3", "at_s": 20.0, "for_s": None,
          "start_tick": 400, "end_tick": None, "counts": {},
          "events": [{"tick": 400, "time_s": 20.0, "event": "killed", "robot": 3}],
-         "recoveries": [{"watched": [2], "since_tick": 400, "bound_m": 0.5, "first_below_after_s": 1.25}]},
+         "recoveries": [{"watched": [2], "since_tick": 400, "since_s": 20.0, "bound_m": 0.5,
+                        "first_below_after_s": 1.25, "settled_after_s": None, "window_s": 5.0,
+                        "max_in_window_m": 0.99}]},
         {"fault": "drop obs:2@10s for=5s p=0.3", "kind": "drop", "target": "obs:2", "at_s": 10.0, "for_s": 5.0,
          "start_tick": 200, "end_tick": 300, "counts": {"dropped": 31}, "events": []},
         {"fault": "wheel_noise *@0s sigma_mps=0.1", "kind": "wheel_noise", "target": "*", "at_s": 0.0,
@@ -78,8 +80,9 @@ def test_faults_are_marked_on_the_time_axes_and_listed() -> None:
                      (31.5, None, "logger exited")]  # fmt: skip
     text = "\n".join(_faults_markdown(FAULTED))
     assert (
-        "| `kill agent-3@20s` | from 400 | killed R3 at tick 400 (20.00 s); R2 below 0.5 m 1.25 s after tick 400 | - |"
-        in text
+        "| `kill agent-3@20s` | from 400 | killed R3 at tick 400 (20.00 s); R2 below 0.5 m 1.25 s after the return "
+        "at t=20.00 s, never settled (below it for 1 s in a row) by the end; largest error in the 5 s after: "
+        "0.99 m | - |" in text
     )
     # its last tick, not the first after
     assert "| `drop obs:2@10s for=5s p=0.3` | 200-299 | - | 31 messages dropped |" in text
