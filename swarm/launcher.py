@@ -78,9 +78,9 @@ SIGNALS = {"kill": signal.SIGKILL, "freeze": signal.SIGSTOP, "thaw": signal.SIGC
 @dataclass
 class RunResult:
     run_dir: Path
-    summary: dict[str, Any]
+    summary: dict[str, Any] = field(repr=False)  # several kB: print res.summary to see it
     exit_code: int
-    pids: dict[str, int] = field(default_factory=dict)
+    pids: dict[str, int] = field(default_factory=dict, repr=False)
 
     @property
     def recording(self) -> Path:

@@ -12,7 +12,8 @@ Fixtures:
     ``"drop obs:2@10s for=5s p=0.3"``, ``Fault`` objects or tables (the
     grammar of ``[[faults]]``, docs/faults.md); ``kills`` takes ``"agent-3@20"``.
     Both are checked before any process starts. Every process is reaped when the test ends, pass or fail.
-    A run that does not end within ``timeout_s`` fails the test (its processes
+    A failed test's report lists the folders of the runs it started. A run
+    that does not end within ``timeout_s`` fails the test (its processes
     stopped, the message naming its folder); Ctrl-C during a run stops it and
     then stops the test session, as Ctrl-C does in pytest. A run that ends
     badly (exit code 1: a robot lost, a process that never started) is
@@ -38,10 +39,25 @@ INTERRUPTED = 130  # Launch.wait's exit codes
 TIMED_OUT = 124
 
 
+# The runs a test started, kept on its item: a failed test's report names their folders.
+LAUNCHES = pytest.StashKey[list[Launch]]()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Iterator[None]:
+    report = yield
+    launches = item.stash.get(LAUNCHES, [])
+    if report.failed and call.when == "call" and launches:
+        report.sections.append(("swarm runs", "\n".join(
+            f"{launch.run_dir} (run {launch.run_id}; summary.json, logs/)" for launch in launches)))  # fmt: skip
+    return report
+
+
 @pytest.fixture
-def swarm_launch(tmp_path: Path) -> Iterator[Callable[..., Launch]]:
+def swarm_launch(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[Callable[..., Launch]]:
     """Start runs (``Launch`` objects) that are stopped and reaped at teardown."""
     launches: list[Launch] = []
+    request.node.stash[LAUNCHES] = launches
 
     def start(scenario: str | Path, **kwargs: Any) -> Launch:
         kwargs.setdefault("out", tmp_path / f"run-{len(launches)}")

@@ -55,8 +55,40 @@ def _forkserver() -> Any:
             ctx = multiprocessing.get_context("forkserver")
             ctx.set_forkserver_preload([PRELOAD])
             _leave_main_alone()
+            import atexit
+
+            atexit.register(_stop_server)
             _context = ctx
         return _context
+
+
+STOP_WAIT_S = 2.0  # the longest the launcher's exit waits for its fork server
+
+
+def _stop_server() -> None:
+    """At the launcher's exit: end the fork server and wait for it. Left alone it
+    ends by itself once it sees the launcher gone, about a quarter of a second
+    later, outliving the command that started it. Uses multiprocessing's
+    private fields (Python 3.11-3.13); without them, the server ends alone."""
+    import multiprocessing.forkserver as fs
+    import time
+
+    server = getattr(fs, "_forkserver", None)
+    pid, alive = getattr(server, "_forkserver_pid", None), getattr(server, "_forkserver_alive_fd", None)
+    if not isinstance(pid, int) or not isinstance(alive, int):
+        return
+    with contextlib.suppress(OSError):
+        os.close(alive)  # what the server waits on: closed, it exits
+    server._forkserver_alive_fd = None
+    deadline = time.monotonic() + STOP_WAIT_S
+    while time.monotonic() < deadline:
+        try:
+            if os.waitpid(pid, os.WNOHANG)[0] == pid:
+                break
+        except ChildProcessError:
+            break
+        time.sleep(0.005)
+    server._forkserver_pid = None
 
 
 def _leave_main_alone() -> None:

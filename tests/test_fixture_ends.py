@@ -63,3 +63,24 @@ def test_ctrl_c_during_a_run_stops_the_session(pytester: pytest.Pytester) -> Non
     assert result.ret == pytest.ExitCode.INTERRUPTED
     assert "KeyboardInterrupt" in result.stdout.str()
     result.assert_outcomes()  # test_never_reached did not run: the session stopped at the first test
+
+
+def test_a_failed_test_names_the_folders_of_its_runs_and_a_result_prints_short(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(
+        textwrap.dedent(
+            """
+            def test_strict(swarm_run):
+                res = swarm_run("fig11_obstacles", logger=False, overrides={"run.duration_s": 1})
+                print(res)
+                assert res.summary["followers"]["3"]["rms_m"] < 0.0
+            """
+        )
+    )
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    result.assert_outcomes(failed=1)
+    out = result.stdout.str()
+    section = out.split("swarm runs")[1].splitlines()[1]
+    assert section.endswith("/test_strict0/run-0 (run " + section.split("(run ")[1])
+    assert "; summary.json, logs/)" in section
+    printed = next(line for line in out.splitlines() if line.startswith("RunResult("))
+    assert printed.endswith("/test_strict0/run-0'), exit_code=0)")  # not the summary's kB
