@@ -245,8 +245,11 @@ def _check_sight(ld: Mapping[str, Any], formations: Mapping[str, Formation], cam
             check_switch(avoid, normal, cam)
         except ValueError as exc:
             pair = (forms_raw[ld["formation"]], forms_raw[ld["avoid_formation"]])
-            ahead = any(t.get("shape") == "line" and t.get("follow", "ahead") == "ahead" for t in pair)
-            hint = "; a line with follow = 'pairs' has the references of a wedge" if ahead else ""
+            lines = [n for n, t in zip((ld["formation"], ld["avoid_formation"]), pair, strict=True)
+                     if t.get("shape") == "line" and t.get("follow", "ahead") == "ahead"]  # fmt: skip
+            hint = (f"; a line with follow = 'pairs' has the references of a wedge (--set formations.{lines[0]}"
+                    ".follow=pairs), or fly one formation throughout (--set leader.avoid_formation=''); "
+                    f"docs/paper.md, 'Beyond the paper: formations of many robots'") if lines else ""  # fmt: skip
             raise ScenarioError(f"leader.avoid_formation: {exc}{hint}") from None
 
 
