@@ -63,7 +63,7 @@ docs: $(STAMP)
 	$(BIN)/python -m formation_swarm.faults docs/faults.md
 
 # Mutation testing of the pure modules against their fast tests (tools/mutate.py):
-# a fixed sample of 120 mutants per module (about 25 minutes here), resumable
+# a fixed sample of 120 mutants per module (about an hour and a half here), resumable
 # (sessions in .mutation/), not part of `make test`. MUTATE_ARGS= runs them all;
 # MUTATE_ARGS="--fresh agents/ekf.py" one module from scratch.
 MUTATE_ARGS ?= --sample 120

@@ -250,7 +250,9 @@ class Fault:
     @classmethod
     def make(cls, kind: str, target: str, at_s: Any, for_s: Any = None, **params: Any) -> Fault:
         if kind not in KINDS:
-            raise ValueError(f"unknown fault kind {kind!r}; kinds: {', '.join(KINDS)}")
+            close = difflib.get_close_matches(str(kind), list(KINDS), n=1, cutoff=0.6)
+            hint = f"did you mean {close[0]!r}? " if close else ""
+            raise ValueError(f"unknown fault kind {kind!r}; {hint}kinds: {', '.join(KINDS)}")
         spec = KINDS[kind]
         where = f"fault {kind!r}"
         target = _canonical_target(kind, str(target), where)
@@ -468,6 +470,19 @@ def check_against(faults: Sequence[Fault], robots: Sequence[int], leader_id: int
                 if (e2 is None or start < e2) and (end is None or s2 < end):
                     raise ValueError(f"{where} overlaps '{other}' on the same process")
             busy.setdefault(f.target, []).append((start, end, f))
+
+
+def past_the_end(faults: Sequence[Fault], duration_s: float, dt_s: float) -> list[str]:
+    """Warnings for faults whose window reaches past the run's last tick: they
+    are cut there, which a schedule written for a longer run may not mean."""
+    ticks = int(round(duration_s / dt_s))
+    out = []
+    for f in faults:
+        end = f.end_tick(dt_s)
+        if f.for_s is not None and end is not None and end > ticks:
+            kept = (ticks - f.start_tick(dt_s)) * dt_s
+            out.append(f"fault '{f}' lasts past the run's end ({duration_s:g} s): it is cut there, after {kept:g} s")
+    return out
 
 
 def parse_all(

@@ -200,7 +200,8 @@ class Launch:
         self.started_at = 0.0
         for f in self.sc.faults:
             if f.process is not None and f.process not in self._names():
-                raise ValueError(f"cannot {f.kind} {f.process!r}: processes are {', '.join(self._names()[1:])}")
+                why = " (the run has no logger: --no-logger, or logger=False)" if f.process == "logger" else ""
+                raise ValueError(f"cannot {f.kind} {f.process!r}{why}: processes are {', '.join(self._names()[1:])}")
         self.process_faults = any(f.process is not None for f in self.sc.faults)
         self._setup_hosts(hosts, placement, listen, host_logins, hosts_timeout_s)
 

@@ -37,7 +37,7 @@ from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode, speed_range
 from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.lpsi import LpsiParams
 from formation_swarm.agents.pilot import CORNERS, turn_room
-from formation_swarm.faults import Fault, check_against, parse_all
+from formation_swarm.faults import Fault, check_against, parse_all, past_the_end
 from formation_swarm.protocol.keys import MAX_ROBOT_ID, check_host_name
 from formation_swarm.scenario_files import deep_set, resolve
 from formation_swarm.scenario_keys import (
@@ -593,7 +593,7 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
         faults=faults,
         wheel_noise_mps=float(robot["wheel_noise_mps"]),
     )
-    said = tuple(speed)
+    said = tuple(speed + past_the_end(faults, duration, dt))
     for text in said:  # for a library's user; swarm run prints Scenario.warnings with the run's lines
         warnings.warn(text, ScenarioWarning, stacklevel=2)
     return replace(sc, warnings=said)

@@ -216,6 +216,17 @@ def test_a_killed_logger_says_the_recording_is_cut_short_and_a_sweep_does_not_re
     assert recording_cut({**summary, "events": [{**kill, "process": "agent-3"}]}) is None
 
 
+def test_a_fault_that_lasts_past_the_runs_end_is_warned_of_not_refused() -> None:
+    from formation_swarm.scenario_keys import ScenarioWarning
+
+    with pytest.warns(ScenarioWarning, match="lasts past the run's end"):
+        sc = scenario_mod.load("fig11_obstacles", {"run.duration_s": 15}, faults=["partition 2@14s for=10s"])
+    assert "fault 'partition 2@14s for=10s' lasts past the run's end (15 s): it is cut there, after 1 s" in sc.warnings
+    exact = scenario_mod.load("fig11_obstacles", {"run.duration_s": 15}, faults=["partition 2@14s for=1s",
+                                                                             "kill agent-3@14s"])  # fmt: skip
+    assert not [w for w in exact.warnings if "past the run's end" in w]  # ends on the end; a kill has no window
+
+
 # -- exact boundaries, without a scenario ------------------------------------------------
 
 
