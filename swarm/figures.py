@@ -256,6 +256,9 @@ def trajectories(path: Any, data: Mapping[str, Series], ctx: Context, snapshots:
     poses = {r: data[f"/robots/r{r}/pose"] for r in ctx.robots if len(data[f"/robots/r{r}/pose"])}
     snaps = snapshot_times([t for t, _ in ctx.switches], ctx.t_end, snapshots)
     snaps = snaps if not ctx.switches else snaps[:MAX_PANELS]  # the first switches, when there are many
+    evenly = len(snaps)
+    if not ctx.switches:  # a long formation covers the next snapshot's: fewer, apart
+        snaps = apart([(t, kind, _at(poses, t)) for t, kind in snaps])
     zoomed = [s for s in snaps if s[1] != "even"]
     lo, hi = _extent(poses, ctx.obstacles)
     if zoomed:
@@ -288,8 +291,33 @@ def trajectories(path: Any, data: Mapping[str, Series], ctx: Context, snapshots:
         how = f"snapshots (black) at each formation switch and mid-way through each formation, zoomed in (a)-({last})"
     else:
         how = f"formation every {ctx.t_end / max(1, snapshots - 1):.1f} s (no formation switch)"
+        if len(snaps) < evenly:
+            times = ", ".join(f"{t:.1f}" for t, _ in snaps)
+            how = f"formation at {times} s, apart (no formation switch)"
     fig.suptitle(ctx.title("trajectories", "trajectories") + f"\n{how}", fontsize=11)
     _save(fig, path, dpi)
+
+
+SNAPSHOT_GAP_M = 1.0  # kept snapshots' boxes are at least this far apart
+
+
+def apart(snaps: Sequence[tuple[float, str, Mapping[int, np.ndarray]]]) -> list[tuple[float, str]]:
+    """The snapshots (time, kind, positions) whose robots' bounding boxes,
+    grown by SNAPSHOT_GAP_M / 2, meet none of those kept before them: the
+    first is kept, then each that clears the last kept. A column of 30
+    robots is 40 m long; drawn every 10 s on a path it flies at 1.5 m/s, its
+    snapshots lay over one another."""
+    kept: list[tuple[float, str]] = []
+    boxes: list[tuple[np.ndarray, np.ndarray]] = []
+    for t, kind, pts in snaps:
+        if not pts:
+            continue
+        xy = np.array(list(pts.values()))[:, :2]
+        lo, hi = xy.min(axis=0) - SNAPSHOT_GAP_M / 2, xy.max(axis=0) + SNAPSHOT_GAP_M / 2
+        if all(np.any(hi < blo) or np.any(lo > bhi) for blo, bhi in boxes):
+            kept.append((t, kind))
+            boxes.append((lo, hi))
+    return kept
 
 
 def _extent(poses: Mapping[int, Series], obstacles: list[tuple[float, float, float]]) -> tuple[np.ndarray, np.ndarray]:
@@ -319,6 +347,8 @@ def _overview(
         _links(ax, ctx, pts, t, lw=0.9, label="formation (follower to its reference)" if k == 0 else None)
         ax.scatter(*np.array(list(pts.values())).T, s=12, color="k", zorder=4)
         c = np.mean(np.array(list(pts.values())), axis=0)
+        if ctx.many and (head := [p for r, p in pts.items() if r not in ctx.followers]):
+            c = head[0]  # a long formation's label at its leader, its head
         ax.annotate(
             f"({next(letters)})" if kind != "even" else f"{t:.1f} s",
             c,

@@ -116,6 +116,20 @@ def test_switches_snapshots_and_limits() -> None:
     assert moving_average(np.arange(20) * 0.05, vn, 0.2, 0.05)[5:15] == pytest.approx(np.full(10, 1.75))
 
 
+def test_snapshots_of_a_long_column_are_drawn_apart() -> None:
+    from formation_swarm.figures import apart
+
+    def column(t: float, robots: int) -> dict[int, np.ndarray]:  # 1.5 m apart, the head at 1.5 t m
+        return {r: np.array([0.0, 1.5 * t - 1.5 * (r - 1), 0.0]) for r in range(1, robots + 1)}
+
+    every = [0.0, 10.6, 21.2, 31.8, 42.4, 53.0]
+    # 30 robots span 43.5 m (44.5 with the gap) and travel 15.9 m between snapshots:
+    # 0 s spans -43.5..0, 31.8 s spans 4.2..47.7, 53.0 s spans 36..79.5 (overlapping 31.8 s).
+    assert apart([(t, "even", column(t, 30)) for t in every]) == [(0.0, "even"), (31.8, "even")]
+    # three robots span 3 m: every snapshot is kept
+    assert apart([(t, "even", column(t, 3)) for t in every]) == [(t, "even") for t in every]
+
+
 def test_cf_paper_only_for_a_shipped_scenario_as_shipped(tmp_path: Path) -> None:
     from formation_swarm.report import paper_figures
     from formation_swarm.scenario_files import shipped
