@@ -198,26 +198,43 @@ def _time_marks(ax: Any, ctx: Context) -> None:
                 fontsize=8,
                 color="0.25",
             )
-    for k, (start, end, label) in enumerate(ctx.fault_marks):
-        color = ("tab:red", "darkred", "0.4")[k % 3]  # none of them a robot's (formation_swarm.palette)
+    colors = [("tab:red", "darkred", "0.4")[k % 3] for k in range(len(ctx.fault_marks))]  # none a robot's
+    for color, (start, end, _) in zip(colors, ctx.fault_marks, strict=True):
         if end is None:
             ax.axvline(start, color=color, lw=1.2, ls="--", zorder=1)
         else:
             ax.axvspan(start, min(end, hi), color=color, alpha=0.12, lw=0)
+    for first, said in label_groups([m[0] for m in ctx.fault_marks], LABELS_APART * (hi - lo)):
         ax.text(
-            start,
+            ctx.fault_marks[first][0],
             0.02,
-            f" {label}",
+            f" {' / '.join(ctx.fault_marks[k][2] for k in said)}",
             transform=ax.get_xaxis_transform(),
             rotation=90,
             va="bottom",
             ha="left",
             fontsize=8,
-            color=color,
+            color=colors[first],
             zorder=1.5,  # under the data lines (2): the label must not hide what its window is there to show
             bbox=box,
         )
     ax.set_xlim(lo, hi)
+
+
+LABELS_APART = 0.04  # fault labels closer than this share of the time axis are one label
+
+
+def label_groups(starts: Sequence[float], apart: float) -> list[tuple[int, list[int]]]:
+    """Marks whose starts lie within ``apart`` of a group's first share its
+    label: (the first's index, every index in the group), in order."""
+    groups: list[tuple[int, list[int]]] = []
+    for k, t in enumerate(starts):
+        near = next((g for g in groups if abs(t - starts[g[0]]) < apart), None)
+        if near is None:
+            groups.append((k, [k]))
+        else:
+            near[1].append(k)
+    return groups
 
 
 def _cut_note(ax: Any, cut: float | None, unit: str = "m") -> None:

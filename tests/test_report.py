@@ -116,6 +116,13 @@ def test_switches_snapshots_and_limits() -> None:
     assert moving_average(np.arange(20) * 0.05, vn, 0.2, 0.05)[5:15] == pytest.approx(np.full(10, 1.75))
 
 
+def test_fault_labels_that_would_lie_on_one_another_are_one() -> None:
+    from formation_swarm.figures import label_groups
+
+    # 20 s on the axis, 4% of it is 0.8 s: 6, 6 and 6.5 s share a label, 3 s and 12 s have their own
+    assert label_groups([3.0, 6.0, 6.0, 6.5, 12.0], 0.8) == [(0, [0]), (1, [1, 2, 3]), (4, [4])]
+
+
 def test_snapshots_of_a_long_column_are_drawn_apart() -> None:
     from formation_swarm.figures import apart
 
