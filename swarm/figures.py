@@ -570,7 +570,11 @@ def vn(path: Any, data: Mapping[str, Series], ctx: Context, dpi: int) -> None:
         hist.set_xlabel("share of ticks, %")
         hist.set_title("time at each V_N", fontsize=9)
         hist.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="lower left")
+        if ctx.fault_marks:  # their labels stand at the bottom of the axes: the legend goes under them
+            ax.figure.legend(*ax.get_legend_handles_labels(), fontsize=8, loc="outside lower center", ncol=3,
+                             frameon=False)  # fmt: skip
+        else:
+            ax.legend(fontsize=8, loc="lower left")
     _time_axis(ax, ctx)
     ax.set_ylabel("V_N, m/s")
     note = f"; {held} ticks holding (V_N = 0) not drawn" if held else ""
