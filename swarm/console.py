@@ -131,6 +131,16 @@ WORST_LISTED = 5
 LOST_SIGHT_SHARE = 0.95  # beyond 10 followers, one whose reference was in fewer of its frames is listed
 
 
+def _rejected_why(s: Mapping[str, Any]) -> str:
+    """ " (replayed or reordered 2)": the receivers' reasons, summed over them."""
+    why: dict[str, int] = {}
+    for reasons in (s.get("rejected") or {}).values():
+        for reason, n in (reasons or {}).items() if isinstance(reasons, Mapping) else ():
+            if isinstance(n, int):
+                why[reason] = why.get(reason, 0) + n
+    return f" ({', '.join(f'{r} {n}' for r, n in sorted(why.items(), key=lambda kv: -kv[1]))})" if why else ""
+
+
 def _losses(s: Mapping[str, Any]) -> str:
     """The messages the links lost: dropped (the links' drop probability, drop
     and burst faults) and, if any, lost to partitions."""
@@ -294,7 +304,7 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
               f"{_losses(s)}, ")  # fmt: skip
         else:
             w(f"  lockstep misses {s.get('lockstep_misses')}, {_losses(s)}, ")
-        w(f"rejected {s.get('rejected_total')}\n")
+        w(f"rejected {s.get('rejected_total')}{_rejected_why(s)}\n")
         if s.get("recording_gap"):
             w(f"  RECORDING INCOMPLETE: {s['recording_gap']}\n")
         if s.get("recording_cut"):

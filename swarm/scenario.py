@@ -322,7 +322,8 @@ def chain_warnings(formations: Mapping[str, Formation], followers: Mapping[int, 
         deep = sorted(rid for rid, d in depths.items() if d >= CHAIN_WARN_DEPTH and rid in steers_short)
         if deep:
             low, high = min(depths[r] for r in deep), max(depths[r] for r in deep)
-            links = f"{low}" if low == high else f"{low}-{high}"
+            # Between a follower d references down and the leader: d - 1 other robots.
+            links = f"{low - 1}" if low == high else f"{low - 1}-{high - 1}"
             used = sorted({followers[r].lookahead_m for r in deep})
             if used == [0.0]:
                 steering = "with the paper's steering (controller.lookahead_m = 0) heading swings grow"
@@ -331,9 +332,9 @@ def chain_warnings(formations: Mapping[str, Formation], followers: Mapping[int, 
                 steering = (f"with controller.lookahead_m = {values}, under {CHAIN_LOOKAHEAD_M:g} m, heading swings "
                             "still grow")  # fmt: skip
             out.append(
-                f"formation {name!r}: {_robots(deep, 'is', 'are')} {links} references down a chain from the leader; "
-                f'{steering} at every link (docs/paper.md, "The steering look-ahead"): controller.lookahead_m = '
-                f"{CHAIN_LOOKAHEAD_M:g} keeps them level"
+                f"formation {name!r}: {_robots(deep, 'follows', 'follow')} the leader through a chain of "
+                f'{links} other robots; {steering} at every link (docs/paper.md, "The steering look-ahead"): '
+                f"--set controller.lookahead_m={CHAIN_LOOKAHEAD_M:g} keeps them level"
             )
     return out
 

@@ -202,6 +202,29 @@ def test_a_faults_counts_read_as_words_on_the_console() -> None:
     assert describe_fault(fault, ticks=400) == "partition 2@5s for=2s: 40 messages lost to the partition"
 
 
+def test_the_results_line_says_why_messages_were_rejected() -> None:
+    import io
+    from pathlib import Path
+
+    from formation_swarm.console import print_result
+    from formation_swarm.launcher import RunResult
+
+    summary = {
+        "ticks": 5,
+        "mode": "lockstep",
+        "followers": {},
+        "rejected_total": 3,
+        "lockstep_misses": 0,
+        "drops_total": 0,
+        "rejected": {"world": {"replayed or reordered": 2}, "agent-2": {"unknown key": 1}},
+    }
+    out = io.StringIO()
+    print_result(RunResult(Path("."), summary, 0), out)
+    assert (
+        "lockstep misses 0, messages dropped 0, rejected 3 (replayed or reordered 2, unknown key 1)" in out.getvalue()
+    )
+
+
 def test_a_killed_logger_says_the_recording_is_cut_short_and_a_sweep_does_not_retry_it() -> None:
     from formation_swarm.summary import recording_cut, recording_gap
 

@@ -361,20 +361,22 @@ def test_a_deep_chain_with_the_papers_steering_is_warned_of() -> None:
     turn = SCENARIOS / "fig7_turn_vn_dynamic.toml"
     line = {"run.robots": 10, "formations.two.shape": "line"}
     assert _warned(turn, line) == [
-        "formation 'two': robots 5-10 are 4-9 references down a chain from the leader; with the paper's steering"
-        ' (controller.lookahead_m = 0) heading swings grow at every link (docs/paper.md, "The steering'
-        ' look-ahead"): controller.lookahead_m = 1 keeps them level'
+        "formation 'two': robots 5-10 follow the leader through a chain of 3-8 other robots; with the paper's"
+        ' steering (controller.lookahead_m = 0) heading swings grow at every link (docs/paper.md, "The steering'
+        ' look-ahead"): --set controller.lookahead_m=1 keeps them level'
     ]
-    assert _warned(turn, {**line, "run.robots": 5})[0].startswith("formation 'two': robot 5 is 4 references down")
+    assert _warned(turn, {**line, "run.robots": 5})[0].startswith(
+        "formation 'two': robot 5 follows the leader through a chain of 3 other robots;"
+    )
     # Only of the formations the leader flies: fig11 flying its line alone says nothing of its triangle.
     fig11_line = {"run.robots": 10, "leader.formation": "line"}
     warned = _warned(SCENARIOS / "fig11_obstacles.toml", fig11_line)
-    assert [w[:50] for w in warned] == ["formation 'line': robots 5-10 are 4-9 references d"]
+    assert [w[:50] for w in warned] == ["formation 'line': robots 5-10 follow the leader th"]
     # A look-ahead shorter than the 1 m measured to hold (0.5 m let the swings grow) is warned of too.
     assert _warned(turn, {**line, "controller.lookahead_m": 0.5}) == [
-        "formation 'two': robots 5-10 are 4-9 references down a chain from the leader; with"
+        "formation 'two': robots 5-10 follow the leader through a chain of 3-8 other robots; with"
         ' controller.lookahead_m = 0.5, under 1 m, heading swings still grow at every link (docs/paper.md, "The'
-        ' steering look-ahead"): controller.lookahead_m = 1 keeps them level'
+        ' steering look-ahead"): --set controller.lookahead_m=1 keeps them level'
     ]
     # Three links (the 4-robot line), a look-ahead of 1 m or more, or the l-psi law: no warning.
     quiet_ones = ({"run.robots": 4}, {"controller.lookahead_m": 1.0}, {"controller.lookahead_m": 2.0},
