@@ -132,7 +132,8 @@ LOST_SIGHT_SHARE = 0.95  # beyond 10 followers, one whose reference was in fewer
 
 
 def _rejected_why(s: Mapping[str, Any]) -> str:
-    """ " (replayed or reordered 2)": the receivers' reasons, summed over them."""
+    """The receivers' reasons for what they rejected, summed over them, as
+    " (replayed or reordered 2)"; "" when none."""
     why: dict[str, int] = {}
     for reasons in (s.get("rejected") or {}).values():
         for reason, n in (reasons or {}).items() if isinstance(reasons, Mapping) else ():

@@ -320,8 +320,8 @@ SNAPSHOT_GAP_M = 1.0  # kept snapshots' boxes are at least this far apart
 
 def apart(snaps: Sequence[tuple[float, str, Mapping[int, np.ndarray]]]) -> list[tuple[float, str]]:
     """The snapshots (time, kind, positions) whose robots' bounding boxes,
-    grown by SNAPSHOT_GAP_M / 2, meet none of those kept before them: the
-    first is kept, then each that clears the last kept. A column of 30
+    grown by SNAPSHOT_GAP_M / 2, meet none of those kept before them (the
+    first is always kept). A column of 30
     robots is 40 m long; drawn every 10 s on a path it flies at 1.5 m/s, its
     snapshots lay over one another."""
     kept: list[tuple[float, str]] = []

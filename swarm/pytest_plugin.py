@@ -43,14 +43,14 @@ TIMED_OUT = 124
 LAUNCHES = pytest.StashKey[list[Launch]]()
 
 
-@pytest.hookimpl(wrapper=True)
+@pytest.hookimpl(hookwrapper=True)  # the old-style wrapper: pytest 7 too
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Iterator[None]:
-    report = yield
+    outcome = yield
+    report = outcome.get_result()  # type: ignore[attr-defined]
     launches = item.stash.get(LAUNCHES, [])
     if report.failed and call.when == "call" and launches:
         report.sections.append(("swarm runs", "\n".join(
             f"{launch.run_dir} (run {launch.run_id}; summary.json, logs/)" for launch in launches)))  # fmt: skip
-    return report
 
 
 @pytest.fixture
