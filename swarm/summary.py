@@ -238,9 +238,10 @@ def recording_cut(summary: Mapping[str, Any]) -> str | None:
         if isinstance(e, Mapping) and e.get("event") == "killed" and e.get("process") == "logger":
             t = e.get("sim_time_s")
             when = f" at sim t={t:.2f} s" if isinstance(t, (int, float)) else ""
+            fast = "; a lockstep run passes many ticks in a second, so it may hold none" \
+                if summary.get("mode") == "lockstep" else ""  # fmt: skip
             return (f"the logger was killed{when}: the recording ends before that, without what the logger had "
-                    "not yet written (up to its last second of wall time; a lockstep run passes many ticks in a "
-                    "second, so it may hold none)")  # fmt: skip
+                    f"not yet written (up to its last second of wall time{fast})")  # fmt: skip
     return None
 
 

@@ -236,6 +236,7 @@ def test_a_killed_logger_says_the_recording_is_cut_short_and_a_sweep_does_not_re
         "hold none)"
     )
     assert recording_gap(summary) is None  # swarm sweep runs a run with a gap again; this one would lose it again
+    assert recording_cut({**summary, "mode": "realtime"}).endswith("(up to its last second of wall time)")
     assert recording_cut({**summary, "events": [{**kill, "process": "agent-3"}]}) is None
 
 
