@@ -112,9 +112,15 @@ def describe_fault(f: Mapping[str, Any], ticks: Any = None) -> str:
     if isinstance(ticks, int) and isinstance(start, int) and start >= ticks:
         return f"{f.get('fault')}: never started: the run ended at tick {ticks}, before its tick {start}"
     parts = []
+    said: list[tuple[Any, Any, list[str]]] = []  # events of one robot at one tick: one phrase
     for e in f.get("events") or []:
-        robot = f" R{e['robot']}" if e.get("robot") is not None else ""
-        parts.append(f"{e.get('event')}{robot} at tick {e.get('tick')}")
+        if said and said[-1][:2] == (e.get("robot"), e.get("tick")):
+            said[-1][2].append(str(e.get("event")))
+        else:
+            said.append((e.get("robot"), e.get("tick"), [str(e.get("event"))]))
+    for robot, tick, events in said:
+        what = events[0] if len(events) == 1 else f"{', '.join(events[:-1])} and {events[-1]}"
+        parts.append(f"{what}{f' R{robot}' if robot is not None else ''} at tick {tick}")
     counts = describe_counts(f.get("counts") or {})
     if counts and (cut := f.get("counts_partial_for")):
         who = ", ".join(f"R{r}" for r in cut)
@@ -131,7 +137,7 @@ WORST_LISTED = 5
 LOST_SIGHT_SHARE = 0.95  # beyond 10 followers, one whose reference was in fewer of its frames is listed
 
 
-def _rejected_why(s: Mapping[str, Any]) -> str:
+def rejected_why(s: Mapping[str, Any]) -> str:
     """The receivers' reasons for what they rejected, summed over them, as
     " (replayed or reordered 2)"; "" when none."""
     why: dict[str, int] = {}
@@ -142,7 +148,7 @@ def _rejected_why(s: Mapping[str, Any]) -> str:
     return f" ({', '.join(f'{r} {n}' for r, n in sorted(why.items(), key=lambda kv: -kv[1]))})" if why else ""
 
 
-def _losses(s: Mapping[str, Any]) -> str:
+def losses(s: Mapping[str, Any]) -> str:
     """The messages the links lost: dropped (the links' drop probability, drop
     and burst faults) and, if any, lost to partitions."""
     cut = sum(t.get("partitioned", 0) for t in (s.get("link_totals") or {}).values() if isinstance(t, Mapping))
@@ -154,20 +160,22 @@ def _losses(s: Mapping[str, Any]) -> str:
 def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, tuple[Any, Any]]) -> str:
     if m.get("acquired") is False:
         return f"  follower R{rid}: NEVER ACQUIRED its reference (never in its camera's view): no metrics\n"
-    killed = f"agent-{rid}" in kills
-    after = ""
-    if killed:
-        before = m.get("until_stopped") or {}
-        until = (f"; until then RMS {_num(before.get('rms_m'))} m, max {_num(before.get('max_m'))} m"
-                 if before else "")  # fmt: skip
-        killed_at, restarted_at = kills[f"agent-{rid}"]
-        back = f" and a fresh one started at t={_num(restarted_at, '.2f')} s" if restarted_at is not None else ""
-        after = (f" (its agent was killed at t={_num(killed_at, '.2f')} s{back}{until}; these figures include "
-                 "the robot after that)")  # fmt: skip
     seen, frames = m.get("seen_ticks"), m.get("frames")
+    sight = ""
     if isinstance(seen, int) and isinstance(frames, int) and seen < frames:
-        after += f" (its reference in view in {seen} of {frames} camera frames)"
-    return f"  follower R{rid}: formation error RMS {_num(m.get('rms_m'))} m, max {_num(m.get('max_m'))} m{after}\n"
+        sight = f" (its reference in view in {seen} of {frames} camera frames)"
+    whole = f"RMS {_num(m.get('rms_m'))} m, max {_num(m.get('max_m'))} m"
+    if f"agent-{rid}" not in kills:
+        return f"  follower R{rid}: formation error {whole}{sight}\n"
+    killed_at, restarted_at = kills[f"agent-{rid}"]
+    back = f", a fresh one started at t={_num(restarted_at, '.2f')} s" if restarted_at is not None else ""
+    killed = f"its agent was killed at t={_num(killed_at, '.2f')} s{back}"
+    before = m.get("until_stopped")
+    if not isinstance(before, Mapping):  # a summary from before until_stopped
+        return f"  follower R{rid}: formation error {whole} ({killed}; these include the robot after that){sight}\n"
+    return (f"  follower R{rid}: formation error RMS {_num(before.get('rms_m'))} m, max "
+            f"{_num(before.get('max_m'))} m until {killed}; over the whole run, the robot after that "
+            f"included: {whole}{sight}\n")  # fmt: skip
 
 
 def _lost_sight(m: Mapping[str, Any]) -> bool:
@@ -302,10 +310,10 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
             # A world the machine kept out of the real-time class: its ticks may start late under load.
             note = f" (world scheduling {sched})" if sched.startswith("normal (") else ""
             w(f"  late ticks {s.get('late_ticks')} (worst {late_ms} ms){note}{_skipped(s.get('parts'))}, "
-              f"{_losses(s)}, ")  # fmt: skip
+              f"{losses(s)}, ")  # fmt: skip
         else:
-            w(f"  lockstep misses {s.get('lockstep_misses')}, {_losses(s)}, ")
-        w(f"rejected {s.get('rejected_total')}{_rejected_why(s)}\n")
+            w(f"  lockstep misses {s.get('lockstep_misses')}, {losses(s)}, ")
+        w(f"rejected {s.get('rejected_total')}{rejected_why(s)}\n")
         if s.get("recording_gap"):
             w(f"  RECORDING INCOMPLETE: {s['recording_gap']}\n")
         if s.get("recording_cut"):

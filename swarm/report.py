@@ -155,6 +155,19 @@ def _without_seed(raw: Mapping[str, Any]) -> dict[str, Any]:
     return {**raw, "run": run}
 
 
+def _stopped_markdown(summary: Mapping[str, Any], followers: list[int]) -> list[str]:
+    """A follower whose agent a fault killed: its figures above include the
+    robot standing after the kill; its error until then."""
+    out = []
+    for r in followers:
+        until = ((summary.get("followers") or {}).get(str(r)) or {}).get("until_stopped")
+        if isinstance(until, Mapping):
+            out.append(f"R{r}'s agent was killed at t={_num(until.get('time_s'), '.2f')} s: its figures above "
+                       f"include the robot after that; until then RMS {_num(until.get('rms_m'))} m, max "
+                       f"{_num(until.get('max_m'))} m.")  # fmt: skip
+    return out
+
+
 def _ended_early(summary: Mapping[str, Any]) -> str:
     """Why a run has nothing to draw, from its summary."""
     if not summary.get("ticks"):
@@ -203,6 +216,7 @@ def _num(x: Any, fmt: str = ".3f") -> str:
 def _markdown(
     summary: Mapping[str, Any], followers: list[int], fmt: str = "png", ctx: figures.Context | None = None
 ) -> str:
+    from formation_swarm.console import losses, rejected_why
     from formation_swarm.summary import describe_end
 
     f = _num
@@ -239,8 +253,9 @@ def _markdown(
         f"(diameter {f(summary.get('robot_diameter_m'))} m); collisions {summary.get('collisions')}, "
         f"with obstacles {summary.get('obstacle_collisions')}.",
         *_contacts_markdown(summary),
-        f"Messages dropped by the link layer: {summary.get('drops_total')}; lockstep misses "
-        f"{summary.get('lockstep_misses')}; rejected payloads {summary.get('rejected_total')}.",
+        f"Link layer: {losses(summary)}; lockstep misses {summary.get('lockstep_misses')}; rejected payloads "
+        f"{summary.get('rejected_total')}{rejected_why(summary)}.",
+        *_stopped_markdown(summary, followers),
         *(
             [
                 f"**The recording is incomplete:** {summary['recording_gap']}; the target errors measured "

@@ -247,9 +247,15 @@ def _check_sight(ld: Mapping[str, Any], formations: Mapping[str, Formation], cam
             pair = (forms_raw[ld["formation"]], forms_raw[ld["avoid_formation"]])
             lines = [n for n, t in zip((ld["formation"], ld["avoid_formation"]), pair, strict=True)
                      if t.get("shape") == "line" and t.get("follow", "ahead") == "ahead"]  # fmt: skip
-            hint = (f"; a line with follow = 'pairs' has the references of a wedge (--set formations.{lines[0]}"
-                    ".follow=pairs), or fly one formation throughout (--set leader.avoid_formation=''); "
-                    f"docs/paper.md, 'Beyond the paper: formations of many robots'") if lines else ""  # fmt: skip
+            line = lines[0] if lines else ""
+            alone = f"--set leader.formation={line}" + (
+                "" if ld["avoid_formation"] == line else " --set leader.avoid_formation=''"
+            )
+            hint = (f"; to keep the {line!r} throughout: {alone} (with --set controller.lookahead_m=1 for a long "
+                    f"chain; README, 'Running things'); or a {line!r} with follow = 'pairs', which has the references "
+                    f"of a wedge (--set formations.{line}.follow=pairs): the switch is then accepted, but measured "
+                    "with 30 robots it let them touch (docs/paper.md, 'Beyond the paper: formations of many "
+                    "robots')") if lines else ""  # fmt: skip
             raise ScenarioError(f"leader.avoid_formation: {exc}{hint}") from None
 
 

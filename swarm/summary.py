@@ -175,7 +175,7 @@ def fault_effects(
                 "at_s": f.at_s,
                 "for_s": f.for_s,
                 "start_tick": f.start_tick(sc.dt_s),
-                "end_tick": f.end_tick(sc.dt_s),
+                "end_tick": _within(f.end_tick(sc.dt_s), sc.ticks),  # a fault lasting past the end: cut there
                 "events": [e for e in log if e.get("fault") == text],
                 "counts": counts,
             }
@@ -185,6 +185,10 @@ def fault_effects(
             out[-1]["rejoins"] = [r for r in world.get("rejoins", []) or [] if r.get("fault") == text]
             out[-1]["recoveries"] = [r for r in world.get("recoveries", []) or [] if r.get("fault") == text]
     return out
+
+
+def _within(end: int | None, ticks: int) -> int | None:
+    return None if end is None else min(end, ticks)
 
 
 def _links(parts: Mapping[str, Any]) -> dict[str, Any]:

@@ -354,9 +354,9 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     stopped = {**many, "followers": {**many["followers"], "10": {"rms_m": 0.1, "until_stopped": until}}}
     print_result(RunResult(tmp_path, {**stopped, "events": [kill]}, 0), out)
     lines = {line.split(":")[0].strip(): line for line in out.getvalue().splitlines() if "follower R" in line}
-    said = ("(its agent was killed at t=2.00 s; until then RMS 0.050 m, max 0.200 m; these figures include the "
-            "robot after that)")  # fmt: skip
-    assert lines["follower R10"].endswith(said)
+    said = ("follower R10: formation error RMS 0.050 m, max 0.200 m until its agent was killed at t=2.00 s; over "
+            "the whole run, the robot after that included: RMS 0.100 m, max - m")  # fmt: skip
+    assert lines["follower R10"].strip() == said
     assert "killed" not in lines["follower R2"]
     out = io.StringIO()  # real time: its late ticks, not lockstep's misses
     realtime = {**ticked, "mode": "realtime", "late_ticks": 3, "max_tick_lateness_s": 0.0551, "lockstep_misses": 0}
