@@ -202,6 +202,51 @@ def test_a_faults_counts_read_as_words_on_the_console() -> None:
     assert describe_fault(fault, ticks=400) == "partition 2@5s for=2s: 40 messages lost to the partition"
 
 
+def test_a_fault_cut_by_the_runs_end_lists_its_ticks_in_the_run_and_events_of_one_tick_read_as_one() -> None:
+    import warnings
+
+    from formation_swarm.console import describe_fault
+    from formation_swarm.summary import fault_effects
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # lasting past the end is warned of
+        sc = scenario_mod.load("fig11_obstacles", {"run.duration_s": 15}, faults=["partition 2@14s for=10s"])
+    assert [(f["start_tick"], f["end_tick"]) for f in fault_effects(sc, {})] == [(280, 300)]  # not 480
+    events = [
+        {"event": "killed", "robot": 2, "tick": 240},
+        {"event": "started", "robot": 2, "tick": 260},
+        {"event": "readmitted", "robot": 2, "tick": 260},
+        {"event": "rejoined", "robot": 2, "tick": 260},
+    ]
+    assert describe_fault({"fault": "restart agent-2@12s after=1", "events": events, "counts": {}}) == (
+        "restart agent-2@12s after=1: killed R2 at tick 240; started, readmitted and rejoined R2 at tick 260"
+    )
+
+
+def test_report_md_says_partition_losses_rejection_reasons_and_a_killed_followers_error_until_then() -> None:
+    from formation_swarm.report import _markdown
+
+    summary = {
+        "ticks": 400,
+        "mode": "lockstep",
+        "drops_total": 0,
+        "rejected_total": 1,
+        "lockstep_misses": 0,
+        "link_totals": {"cmd": {"partitioned": 40}},
+        "rejected": {"world": {"replayed or reordered": 1}},
+        "followers": {"3": {"rms_m": 22.75, "until_stopped": {"time_s": 20.0, "rms_m": 0.8, "max_m": 1.5}}},
+    }
+    text = _markdown(summary, [3])
+    assert (
+        "Link layer: messages dropped 0, lost to partitions 40; lockstep misses 0; rejected payloads 1 "
+        "(replayed or reordered 1)."
+    ) in text
+    assert (
+        "R3's agent was killed at t=20.00 s: its figures above include the robot after that; until then RMS "
+        "0.800 m, max 1.500 m."
+    ) in text
+
+
 def test_the_results_line_says_why_messages_were_rejected() -> None:
     import io
     from pathlib import Path
