@@ -70,6 +70,7 @@ class Context:
     paper: Mapping[str, str] = field(default_factory=dict)  # figure stem -> "Fig. 7a", when reproduced
     changes: str | None = None  # else, for a paper's scenario that was changed, what was (report.paper_changes)
     fault_marks: list[Mark] = field(default_factory=list)
+    cut: str = ""  # the recording ends early (its logger killed): said in every title
     switches: list[tuple[float, str]] = field(default_factory=list)  # (time s, formation)
     formation_events: list[Mapping[str, Any]] = field(default_factory=list)
     formations: Mapping[str, Mapping[int, tuple[int, tuple[float, float]]]] = field(default_factory=dict)
@@ -79,7 +80,8 @@ class Context:
 
     def title(self, stem: str, what: str) -> str:
         cf = f" (cf. paper {self.paper[stem]})" if stem in self.paper else ""
-        return f"{self.scenario}, seed {self.seed}: {what}{cf}"
+        cut = f" [{self.cut}]" if self.cut else ""
+        return f"{self.scenario}, seed {self.seed}: {what}{cf}{cut}"
 
     @property
     def many(self) -> bool:
@@ -484,7 +486,8 @@ def formation_error(path: Any, data: Mapping[str, Series], ctx: Context, rms: Ma
         if s is None or not len(s):
             continue
         value = rms.get(r)
-        tag = f" (RMS {value:.2f} m)" if isinstance(value, (int, float)) else " (never acquired its reference)"
+        whole = ", whole run" if ctx.cut else ""  # the lines end at the cut; the world's RMS does not
+        tag = f" (RMS {value:.2f} m{whole})" if isinstance(value, (int, float)) else " (never acquired its reference)"
         if ctx.many:
             ax.plot(*gapped(s.t, s.v, ctx.dt_s), lw=0.7, color=ctx.colour(r), alpha=0.35)
         else:

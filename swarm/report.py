@@ -84,6 +84,8 @@ def _context(run_dir: Path, summary: Mapping[str, Any], data: Mapping[str, Serie
                           followers=followers)  # fmt: skip
     ctx.t_end = max((float(s.t[-1]) for e, s in data.items() if e.endswith("/pose") and len(s)), default=0.0)
     ctx.fault_marks = fault_marks(summary)
+    if summary_mod.recording_cut(summary):  # the lines end there; the legends' RMS are the whole run's
+        ctx.cut = f"recording cut at {ctx.t_end:.1f} s: the logger was killed"
     ctx.formation_events = [e for e in summary.get("formation_events") or [] if isinstance(e, Mapping)]
     ctx.switches = figures.switches(ctx.formation_events)
     try:
