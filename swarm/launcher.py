@@ -435,13 +435,16 @@ class Launch:
 
     def _watch(self) -> None:
         self._read_status()
+        # The world's calls before the thaw at its end: a lockstep run may pass a
+        # freeze's tick and end between two looks (20 ticks take 20 ms here), and
+        # a freeze carried out after the thaw would hold its process to the end.
+        self._execute_calls()
         self._thaw_at_end()
         t = self.sim_time()
         if self.serve_web and self.logger and not self.said_web and self.last_status is not None:
             # The world starts once the logger is there, serving: the address works now.
             self.said_web = True
             self.progress(f"[swarm] watch the run in a browser: {viewer.web_address(*self.web_ports)}")
-        self._execute_calls()
         for h, client in self.clients.items():
             if client.lost and not client.reported:
                 client.reported = True
