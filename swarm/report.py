@@ -158,15 +158,15 @@ def _without_seed(raw: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _stopped_markdown(summary: Mapping[str, Any], followers: list[int]) -> list[str]:
-    """A follower whose agent a fault killed: its figures above include the
-    robot standing after the kill; its error until then."""
+    """A follower whose agent was killed or lost: its figures above include
+    the robot standing after that; its error until then."""
     out = []
     for r in followers:
         until = ((summary.get("followers") or {}).get(str(r)) or {}).get("until_stopped")
         if isinstance(until, Mapping):
-            out.append(f"R{r}'s agent was killed at t={_num(until.get('time_s'), '.2f')} s: its figures above "
-                       f"include the robot after that; until then RMS {_num(until.get('rms_m'))} m, max "
-                       f"{_num(until.get('max_m'))} m.")  # fmt: skip
+            out.append(f"R{r} stopped at t={_num(until.get('time_s'), '.2f')} s (its agent killed or lost): its "
+                       f"figures above include the robot after that; until then RMS {_num(until.get('rms_m'))} m, "
+                       f"max {_num(until.get('max_m'))} m.")  # fmt: skip
     return out
 
 

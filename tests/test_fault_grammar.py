@@ -242,8 +242,8 @@ def test_report_md_says_partition_losses_rejection_reasons_and_a_killed_follower
         "(replayed or reordered 1)."
     ) in text
     assert (
-        "R3's agent was killed at t=20.00 s: its figures above include the robot after that; until then RMS "
-        "0.800 m, max 1.500 m."
+        "R3 stopped at t=20.00 s (its agent killed or lost): its figures above include the robot after that; "
+        "until then RMS 0.800 m, max 1.500 m."
     ) in text
 
 
