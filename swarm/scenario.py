@@ -247,16 +247,18 @@ def _check_sight(ld: Mapping[str, Any], formations: Mapping[str, Formation], cam
             pair = (forms_raw[ld["formation"]], forms_raw[ld["avoid_formation"]])
             lines = [n for n, t in zip((ld["formation"], ld["avoid_formation"]), pair, strict=True)
                      if t.get("shape") == "line" and t.get("follow", "ahead") == "ahead"]  # fmt: skip
-            line = lines[0] if lines else ""
-            alone = f"--set leader.formation={line}" + (
-                "" if ld["avoid_formation"] == line else " --set leader.avoid_formation=''"
-            )
-            hint = (f"; to keep the {line!r} throughout: {alone} (with --set controller.lookahead_m=1 for a long "
-                    f"chain; README, 'Running things'); or a {line!r} with follow = 'pairs', which has the references "
-                    f"of a wedge (--set formations.{line}.follow=pairs): the switch is then accepted, but measured "
-                    "with 30 robots it let them touch (docs/paper.md, 'Beyond the paper: formations of many "
-                    "robots')") if lines else ""  # fmt: skip
+            hint = _switch_hint(lines[0], ld["avoid_formation"]) if lines else ""
             raise ScenarioError(f"leader.avoid_formation: {exc}{hint}") from None
+
+
+def _switch_hint(line: str, avoid: str) -> str:
+    """The ways past a refused switch to a line that follows the robot ahead:
+    the line alone (measured to hold), or the line on pairs (accepted, not safe)."""
+    alone = f"--set leader.formation={line}" + ("" if avoid == line else " --set leader.avoid_formation=''")
+    return (f"; to keep the {line!r} throughout: {alone} (with --set controller.lookahead_m=1 for a long chain; "
+            f"README, 'Running things'); or a {line!r} with follow = 'pairs', which has the references of a wedge "
+            f"(--set formations.{line}.follow=pairs): the switch is then accepted, but measured with 30 robots it "
+            "let them touch (docs/paper.md, 'Beyond the paper: formations of many robots')")  # fmt: skip
 
 
 def id_ranges(ids: Sequence[int]) -> str:

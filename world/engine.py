@@ -108,7 +108,7 @@ class FollowerMetrics:
         return {
             "acquired": bool(self.seen_ticks) if self.frames else None,
             **seen,
-            "rms_m": rms(self.sum_sq_m2, self.samples),
+            "rms_m": self.rms_m(),
             "max_m": self.max_m,
             "samples": self.samples,
             "turn_rms_m": rms(self.turn_sum_sq_m2, self.turn_samples),
