@@ -17,6 +17,14 @@ on a loaded machine:
   Zenoh's default configuration, transport included.
 - bare, low-latency: the same exchange over the transport every ``swarm``
   process uses (protocol.session: Zenoh's low-latency unicast transport).
+- bare + controller: the bare exchange in which each follower, before it
+  answers, runs the paper's controller on a camera reading (agents.follower:
+  the EKF on filterpy and the two-stage fuzzy controller, as a run's
+  follower steps) and, after it, the EKF's next prediction, as a run's
+  follower does while it waits. No decoding, checking, physics, camera,
+  telemetry content or recording: the rate no design of this shape (one
+  process per robot, the paper's controller on filterpy, these messages)
+  can pass on this machine, however lean the rest.
 - full: ``swarm run scenarios/fig11_obstacles.toml`` in lockstep with the
   logger writing its recording; the rate is the world's loop (ticks / wall s).
 - full without the logger (``--no-logger``): what the recording costs.
@@ -121,8 +129,9 @@ def _watchdog(answered: list[int], sub: zenoh.Subscriber, stop: threading.Event)
             return
 
 
-def bare_agent(endpoint: str, run: str, rid: int, lowlatency: bool) -> None:
+def bare_agent(endpoint: str, run: str, rid: int, lowlatency: bool, control: bool = False) -> None:
     k = Keys(run)
+    brain = _Brain() if control and rid != 1 else None
     with zenoh.open(make_config("client", [endpoint], lowlatency=lowlatency)) as s:
         # Received on this thread through a Zenoh FIFO channel, as an agent does;
         # "done" closes it, which ends the loop's recv.
@@ -150,9 +159,36 @@ def bare_agent(endpoint: str, run: str, rid: int, lowlatency: bool) -> None:
                 continue
             if form is not None:
                 form.put(FORM)
+            if brain is not None:
+                brain.step(READINGS[brain.ticks % len(READINGS)])
             cmd.put(CMD)
             if rid != 1:
                 tel.put(TEL)
+            if brain is not None:
+                brain.prepare()
+
+
+# Readings of a reference 1.8-2.2 m ahead, as a follower's camera gives them in a
+# formation (rho_r m, phi rad, beta rad); the controller steps through them.
+READINGS = [(2.0 + 0.2 * math.sin(i / 7), 0.05 * math.cos(i / 11), 0.1 * math.sin(i / 5)) for i in range(200)]
+
+
+class _Brain:
+    """A run's follower controller (agents.follower.Follower), counting its steps."""
+
+    def __init__(self) -> None:
+        from formation_swarm.agents.follower import Follower, FollowerParams
+        from formation_swarm.agents.geometry import Point
+
+        self.follower = Follower(FollowerParams(), Point(-1.5, -1.5))
+        self.ticks = 0
+
+    def step(self, reading: tuple[float, float, float]) -> None:
+        self.follower.step(reading)
+        self.ticks += 1
+
+    def prepare(self) -> None:
+        self.follower.prepare()
 
 
 def bare_logger(endpoint: str, run: str, lowlatency: bool) -> None:
@@ -169,8 +205,9 @@ def bare_logger(endpoint: str, run: str, lowlatency: bool) -> None:
         print(f"{time.process_time() - cpu0:.6f}", flush=True)
 
 
-def measure_bare(ticks: int, lowlatency: bool = False) -> tuple[float, float]:
-    """Ticks per second, and the CPU of every process over the exchange per tick (s)."""
+def measure_bare(ticks: int, lowlatency: bool = False, control: bool = False) -> tuple[float, float]:
+    """Ticks per second, and the CPU of every process over the exchange per tick (s);
+    ``control``: the followers run the controller (bare + controller)."""
     run = f"bench-{uuid.uuid4().hex[:8]}"
     ep = f"tcp/127.0.0.1:{free_port()}"
     me = [sys.executable, __file__, "--role"]
@@ -178,7 +215,8 @@ def measure_bare(ticks: int, lowlatency: bool = False) -> tuple[float, float]:
     world = subprocess.Popen([*me, "world", ep, run, ll, str(ticks)], stdout=subprocess.PIPE, text=True)
     piped = {"stdout": subprocess.PIPE, "text": True}
     others = [subprocess.Popen([*me, "logger", ep, run, ll], **piped)]
-    others += [subprocess.Popen([*me, "agent", ep, run, ll, str(r)], **piped) for r in (1, 2, 3)]
+    brain = ["control"] if control else []
+    others += [subprocess.Popen([*me, "agent", ep, run, ll, str(r), *brain], **piped) for r in (1, 2, 3)]
     cpu = 0.0
     try:
         out, _ = world.communicate(timeout=600)
@@ -234,18 +272,21 @@ def main() -> None:
         if role == "world":
             bare_world(ep, run, int(rest[0]), ll)
         elif role == "agent":
-            bare_agent(ep, run, int(rest[0]), ll)
+            bare_agent(ep, run, int(rest[0]), ll, control=rest[1:] == ["control"])
         else:
             bare_logger(ep, run, ll)
         return
-    bare, bare_ll, full, quiet, open_ = [], [], [], [], []
-    bare_cpu, full_cpu = [], []
+    bare, bare_ll, floor, full, quiet, open_ = [], [], [], [], [], []
+    bare_cpu, floor_cpu, full_cpu = [], [], []
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
     for i in range(args.repeat):
         rate, cpu = measure_bare(args.ticks)
         bare.append(rate)
         bare_cpu.append(cpu)
         bare_ll.append(measure_bare(args.ticks, lowlatency=True)[0])
+        rate, cpu = measure_bare(args.ticks, control=True)
+        floor.append(rate)
+        floor_cpu.append(cpu)
         rate, summary = measure_full(args.ticks * 0.05)
         full.append(rate)
         full_cpu.append(full_cpu_per_tick(summary))
@@ -253,22 +294,27 @@ def main() -> None:
         open_.append(measure_full(args.ticks * 0.05, auth=False)[0])
         print(
             f"  round {i + 1}: bare {bare[-1]:7.0f} ticks/s   bare low-latency {bare_ll[-1]:7.0f}   "
+            f"bare + controller {floor[-1]:7.0f}   "
             f"full (controller + logger) {full[-1]:7.0f} ticks/s ({summary['ticks']} ticks, "
             f"misses {summary['lockstep_misses']})   without the logger {quiet[-1]:7.0f} ticks/s   "
             f"without authentication {open_[-1]:7.0f} ticks/s   "
-            f"CPU per tick, all processes: bare {1e6 * bare_cpu[-1]:.0f} us, full {1e6 * full_cpu[-1]:.0f} us",
+            f"CPU per tick, all processes: bare {1e6 * bare_cpu[-1]:.0f} us, "
+            f"bare + controller {1e6 * floor_cpu[-1]:.0f} us, full {1e6 * full_cpu[-1]:.0f} us",
             flush=True,
         )
-    b, bl = statistics.median(bare), statistics.median(bare_ll)
+    b, bl, fl = statistics.median(bare), statistics.median(bare_ll), statistics.median(floor)
     f, q, o = statistics.median(full), statistics.median(quiet), statistics.median(open_)
     print(f"median: bare {b:.0f} ticks/s, bare low-latency {bl:.0f} ticks/s, full {f:.0f} ticks/s "
           f"(full/bare {f / b:.2f}, full/bare low-latency {f / bl:.2f}), "
           f"without the logger {q:.0f} ticks/s ({q / b:.2f} of bare), "
           f"without authentication {o:.0f} ticks/s ({o / b:.2f} of bare)")  # fmt: skip
-    bc, fc = statistics.median(bare_cpu), statistics.median(full_cpu)
+    print(f"bare + controller (no design of this shape passes it here): {fl:.0f} ticks/s, "
+          f"{fl / b:.2f} of bare; full/(bare + controller) {f / fl:.2f}")  # fmt: skip
+    bc, flc, fc = statistics.median(bare_cpu), statistics.median(floor_cpu), statistics.median(full_cpu)
     # Two cores give 2 s of CPU per wall second: a run needing fc per tick cannot
     # pass 2 / fc ticks/s, however its work overlaps.
-    print(f"CPU per tick, all processes: bare {1e6 * bc:.0f} us, full {1e6 * fc:.0f} us; the full run's ceiling "
+    print(f"CPU per tick, all processes: bare {1e6 * bc:.0f} us, bare + controller {1e6 * flc:.0f} us, "
+          f"full {1e6 * fc:.0f} us; the full run's ceiling "
           f"on {os.cpu_count()} cores, all busy: {os.cpu_count() / fc:.0f} ticks/s "
           f"({os.cpu_count() / fc / b:.2f} of bare)")  # fmt: skip
     print(f"load average after: {os.getloadavg()[0]:.2f}")

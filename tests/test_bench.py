@@ -37,6 +37,29 @@ def test_bare_exchange_runs_its_ticks_and_reports_every_process_cpu():
     assert cpu > 0
 
 
+def test_bare_exchange_with_the_controller_steps_the_followers_filter():
+    """The floor variant's followers run the paper's controller on each reading:
+    the EKF starts on the first, tracks the reference (about 2 m ahead) and the
+    wheels turn; and the exchange with it runs its ticks."""
+    bench = _lockstep_bench()
+    brain = bench._Brain()
+    for reading in bench.READINGS[:40]:
+        brain.step(reading)
+        brain.prepare()
+    assert brain.ticks == 40
+    assert brain.follower.ekf.initialized
+    x, y, _phi, _v, _w = brain.follower.ekf.state
+    assert 1.5 < math.hypot(x, y) < 2.5
+    decision = brain.follower.step(bench.READINGS[40])
+    assert decision.left_mps > 0.5
+    assert decision.right_mps > 0.5
+    rate, cpu = bench.measure_bare(200, control=True)
+    assert math.isfinite(rate)
+    assert rate > 0
+    assert math.isfinite(cpu)
+    assert cpu > 0
+
+
 @pytest.mark.parametrize(
     ("script", "argv", "said"),
     [
