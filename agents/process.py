@@ -56,7 +56,7 @@ from formation_swarm.protocol import session, trust
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.protocol.links import Link, faults_on, link_name
+from formation_swarm.protocol.links import COUNTS_FINAL_AFTER_TICKS, Link, faults_on, link_name
 from formation_swarm.protocol.messages import Command, FormationCode, Observation, Status, Telemetry
 from formation_swarm.world.kinematics import Pose
 
@@ -124,6 +124,11 @@ class Agent:
             link_name("formation", sc.leader.robot_id, rid), sc.links.formation_drop, seed,
             faults_on(sc.faults, "formation", rid), sc.dt_s,
         )  # fmt: skip
+        # A link fault's counts are final a little after its window ends: the stats
+        # are written then, so an agent a later fault kills leaves them whole.
+        self.stats_at_ticks = collections.deque(sorted(
+            {end + COUNTS_FINAL_AFTER_TICKS for lk in (self.obs_link, self.formation_link) for end in lk.fault_ends}
+        ))  # fmt: skip
         self.world_seen = False
         self.world_gone = False
         self.world_grace_s = world_grace_s  # how long a world lost mid-run is waited for
@@ -137,7 +142,8 @@ class Agent:
         self.done = False
         self.end_note = "not started"  # why the loop ended, for the last report line
         self.answered = 0
-        self.answered_tick: int | None = None  # the tick of the last observation answered
+        self.answered_tick: int | None = None  # the tick of the last observation a follower answered
+        self.last_tick: int | None = None  # the tick of the last observation answered, leader or follower
         self.busy_s = 0.0  # time handling messages in the loop, summed
         self.loop_cpu_s = 0.0  # CPU time of this process over the loop (all its threads)
         self.formation_changes: list[dict[str, Any]] = []
@@ -356,7 +362,11 @@ class Agent:
             if newest is not None:
                 self._on_observation(newest, reading)
             self.busy_s += time.perf_counter() - t0
-            if self.stats_path and time.monotonic() - self.stats_written_at >= self.stats_period_s:
+            fault_over = False
+            while newest is not None and self.stats_at_ticks and self.stats_at_ticks[0] <= newest.tick:
+                self.stats_at_ticks.popleft()
+                fault_over = True
+            if self.stats_path and (fault_over or time.monotonic() - self.stats_written_at >= self.stats_period_s):
                 self.stats_writer.offer(self.stats())  # written by its own thread: a slow disk stalls no tick
                 self.stats_written_at = time.monotonic()
 
@@ -441,6 +451,7 @@ class Agent:
         else:
             self._follow(obs, reading)
         self.answered += 1
+        self.last_tick = obs.tick
 
     def _send_cmd(self, tick: int, left: float, right: float, done: bool = False) -> None:
         self.seq += 1
@@ -531,6 +542,7 @@ class Agent:
             "role": "leader" if self.is_leader else "follower",
             "lockstep": self.lockstep,  # its telemetry waits for the logger (lockstep) or may be dropped
             "answered": self.answered,
+            "last_tick": self.last_tick,  # of the newest observation answered (None: none yet)
             "superseded": self.superseded,
             "ekf_resets": 0 if self.is_leader else self.follower.ekf.resets,
             "held_ticks": self.held_ticks,  # a follower's ticks held at a standing reference

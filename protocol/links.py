@@ -55,6 +55,10 @@ T = TypeVar("T")
 # What happened to messages, as counted per link and per fault.
 DROPPED = "dropped"  # lost: the steady drop probability, a drop fault or a burst
 PARTITIONED = "partitioned"  # lost to a partition
+# A fault window's counts at the receiver are final this many ticks after it
+# ends: a message stamped with its last tick may arrive after the observation
+# of the next (a formation code and the observation take different paths).
+COUNTS_FINAL_AFTER_TICKS = 2
 DELAYED = "delayed"  # held for a number of ticks
 DUPLICATED = "duplicated"  # handed over twice
 REORDERED = "reordered"  # held until the link's next message had been handed over
@@ -173,6 +177,12 @@ class Link(Generic[T]):
         self._delayed: list[tuple[int, int, list[T]]] = []  # heap of (release tick, arrival order, copies)
         self._order = 0
         self._reorder_held: list[T] | None = None
+
+    @property
+    def fault_ends(self) -> tuple[int, ...]:
+        """The ticks at which a fault window of this link ends (sorted; a fault
+        to the run's end has none): after one, its counts are final."""
+        return tuple(sorted({r.end for r in self.rules if r.end is not None}))
 
     @property
     def lost(self) -> int:

@@ -122,9 +122,12 @@ def describe_fault(f: Mapping[str, Any], ticks: Any = None) -> str:
         what = events[0] if len(events) == 1 else f"{', '.join(events[:-1])} and {events[-1]}"
         parts.append(f"{what}{f' R{robot}' if robot is not None else ''} at tick {tick}")
     counts = describe_counts(f.get("counts") or {})
-    if counts and (cut := f.get("counts_partial_for")):
+    if cut := f.get("counts_partial_for"):
         who = ", ".join(f"R{r}" for r in cut)
-        counts += f" (at least: {who}'s agent was killed, and its counts end at its last stats write)"
+        if counts:
+            counts += f" (at least: {who}'s agent was killed, and its counts end at its last stats write)"
+        else:
+            counts = f"not counted: {who}'s agent was killed before it wrote its counts of this fault"
     parts += describe_recoveries(f)
     said = "; ".join(x for x in ("; ".join(parts), counts) if x)
     return f"{f.get('fault')}" + (f": {said}" if said else "")

@@ -316,8 +316,10 @@ def _faults_markdown(summary: Mapping[str, Any]) -> list[str]:
             said = [_fault_event(e) for e in f.get("events") or []] + describe_recoveries(f)
             happened = "; ".join(said) or "-"
             counted = describe_counts(f.get("counts") or {}) or "-"
-            if f.get("counts_partial_for"):
+            if (cut := f.get("counts_partial_for")) and f.get("counts"):
                 counted = f"at least {counted} (killed agents' counts end at their last stats write)"
+            elif cut:
+                counted = f"not counted: {', '.join(f'R{r}' for r in cut)}'s agent killed before it wrote them"
             out.append(f"| `{f.get('fault')}` | {ticks} | {happened} | {counted} |")
         out.append("")
     events = [e for e in summary.get("events") or [] if isinstance(e, Mapping)]

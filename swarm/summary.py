@@ -36,7 +36,7 @@ import formation_swarm
 from formation_swarm.children import describe_exit
 from formation_swarm.faults import LINK, LINK_CLASSES, NETWORK
 from formation_swarm.proc import write_json
-from formation_swarm.protocol.links import EFFECTS, link_name
+from formation_swarm.protocol.links import COUNTS_FINAL_AFTER_TICKS, EFFECTS, link_name
 
 if TYPE_CHECKING:
     from formation_swarm.scenario import Scenario
@@ -218,6 +218,19 @@ def partial_links(processes: Mapping[str, Any], sc: Scenario) -> list[str]:
     out = [link_name("obs", 0, r) for r in killed]
     out += [link_name("formation", leader, r) for r in killed if r != leader]
     return sorted(out)
+
+
+def _last_written_ticks(processes: Mapping[str, Any], parts: Mapping[str, Any]) -> dict[int, list[int | None]]:
+    """Per robot, for each of its agents a signal killed, the tick its counts
+    were last written at (its stats' ``last_tick``; None: no stats, or none
+    answered)."""
+    out: dict[int, list[int | None]] = {}
+    for name, proc in processes.items():
+        code = (proc or {}).get("exit_code")
+        if (rid := _robot_of(name)) is not None and isinstance(code, int) and code < 0:
+            tick = (parts.get(name) or {}).get("last_tick")
+            out.setdefault(rid, []).append(tick if isinstance(tick, int) and not isinstance(tick, bool) else None)
+    return out
 
 
 def _add(a: Mapping[str, Any], b: Mapping[str, Any]) -> dict[str, Any]:
@@ -409,12 +422,17 @@ def build(
         "recording": recording,
         "parts": dict(parts),
     }
-    # Counts kept by an agent a signal killed are a lower bound.
+    # Counts kept by an agent a signal killed are a lower bound, unless it wrote
+    # them after the fault's window had ended (it does, COUNTS_FINAL_AFTER_TICKS later).
+    written = _last_written_ticks(processes, parts)
     for f, fault in zip(out["faults"], sc.faults, strict=True):
         cut = sorted({int(name.split(">")[1]) for name in out["partial_links"]
                       if fault.group in (LINK, NETWORK) and name.split(":")[0] in (fault.link_classes or LINK_CLASSES)
                       and fault.applies_to(int(name.split(">")[1]))})  # fmt: skip
-        if cut and f["counts"]:
+        end = f.get("end_tick")
+        cut = [r for r in cut if not isinstance(end, int)
+               or any(t is None or t < end + COUNTS_FINAL_AFTER_TICKS for t in written.get(r, ()))]  # fmt: skip
+        if cut:
             f["counts_partial_for"] = cut  # the robots whose agent's counts end at its last stats write
     # Lockstep: what the recording misses of what was sent (None when whole).
     out["recording_gap"] = recording_gap(out)

@@ -200,6 +200,16 @@ def test_a_faults_counts_read_as_words_on_the_console() -> None:
     )
     fault = {"fault": "partition 2@5s for=2s", "start_tick": 100, "events": [], "counts": {"partitioned": 40}}
     assert describe_fault(fault, ticks=400) == "partition 2@5s for=2s: 40 messages lost to the partition"
+    # The receiving agent was killed inside the window: a lower bound, or nothing it wrote.
+    fault["counts_partial_for"] = [2]
+    assert describe_fault(fault, ticks=400) == (
+        "partition 2@5s for=2s: 40 messages lost to the partition"
+        " (at least: R2's agent was killed, and its counts end at its last stats write)"
+    )
+    fault["counts"] = {}
+    assert describe_fault(fault, ticks=400) == (
+        "partition 2@5s for=2s: not counted: R2's agent was killed before it wrote its counts of this fault"
+    )
 
 
 def test_a_fault_cut_by_the_runs_end_lists_its_ticks_in_the_run_and_events_of_one_tick_read_as_one() -> None:
@@ -455,3 +465,16 @@ def test_one_fault_given_alone_is_one_fault(tmp_path: Path) -> None:
     assert [str(f) for f in parse_all({"kind": "kill", "target": "agent-3", "at_s": 5})] == ["kill agent-3@5s"]
     launch = Launch("fig11_obstacles", out=tmp_path / "run", faults="kill agent-3@5s", kills="agent-2@7")
     assert sorted(str(f) for f in launch.sc.faults) == ["kill agent-2@7s", "kill agent-3@5s"]
+
+
+def test_report_md_marks_the_counts_a_killed_agent_left_partial_or_unwritten() -> None:
+    from formation_swarm.report import _faults_markdown
+
+    fault = {"fault": "partition 2@5s for=2s", "start_tick": 100, "end_tick": 140, "events": [],
+             "counts": {"partitioned": 12}, "counts_partial_for": [2]}  # fmt: skip
+    rows = [line for line in _faults_markdown({"faults": [fault]}) if line.startswith("| `")]
+    assert rows == ["| `partition 2@5s for=2s` | 100-139 | - | at least 12 messages lost to the partition "
+                    "(killed agents' counts end at their last stats write) |"]  # fmt: skip
+    fault["counts"] = {}
+    rows = [line for line in _faults_markdown({"faults": [fault]}) if line.startswith("| `")]
+    assert rows == ["| `partition 2@5s for=2s` | 100-139 | - | not counted: R2's agent killed before it wrote them |"]

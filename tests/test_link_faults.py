@@ -130,6 +130,37 @@ def test_a_formation_cut_off_from_the_world_stops_then_flies_on(swarm_run: Calla
     assert max(recovered.values()) <= 5.0
 
 
+def test_a_partitions_count_outlives_a_later_restart_and_a_kill_inside_it_is_marked(
+    swarm_run: Callable[..., RunResult],
+) -> None:
+    """The receiving agent keeps a link's counts. It writes them two ticks after
+    a fault's window ends, so restarting it later loses none of them (before,
+    its last periodic write came before the partition and the line said
+    nothing); an agent killed inside the window leaves counts that are marked
+    as a lower bound, on the console line too."""
+    from formation_swarm.console import describe_fault
+
+    alone = swarm_run(FIG11, mode="lockstep", logger=False, faults=["partition 2@30s for=5s from=leader"]).summary
+    later = swarm_run(FIG11, mode="lockstep", logger=False,
+                      faults=["partition 2@30s for=5s from=leader", "restart agent-2@45s"]).summary  # fmt: skip
+    # Codes the leader sent in ticks 600..699: every 10 ticks, and every tick for
+    # 1 s after its change to triangle at tick 608.
+    assert alone["faults"][0]["counts"] == {"partitioned": 29}
+    assert later["faults"][0]["counts"] == {"partitioned": 29}
+    assert "counts_partial_for" not in later["faults"][0]
+    assert describe_fault(later["faults"][0]) == "partition 2@30s for=5s from=leader: 29 messages lost to the partition"
+    inside = swarm_run(FIG11, mode="lockstep", logger=False,
+                       faults=["partition 2@30s for=5s from=leader", "restart agent-2@32s"]).summary  # fmt: skip
+    cut = inside["faults"][0]
+    assert cut["counts_partial_for"] == [2]
+    # The restarted agent (from tick 660) counts the rest; the killed one's last write is wall-timed.
+    assert cut["counts"].get("partitioned", 0) < 29
+    line = describe_fault(cut)
+    assert line.endswith("R2's agent was killed, and its counts end at its last stats write)") or line.endswith(
+        "not counted: R2's agent was killed before it wrote its counts of this fault"
+    ), line
+
+
 def test_a_follower_cut_off_from_its_leader_misses_the_switch_and_catches_up(
     swarm_run: Callable[..., RunResult],
 ) -> None:
