@@ -183,10 +183,11 @@ def moving_average(t: np.ndarray, v: np.ndarray, window_s: float, dt_s: float) -
 
 
 def _time_marks(ax: Any, ctx: Context) -> None:
-    """Formation switches (dotted grey) and faults (dashed instants, shaded windows),
-    each labelled at the top of the axes."""
+    """Formation switches (dotted grey, labelled above the axes) and faults:
+    shaded windows and dashed instants on the axes, and under them a lane
+    with each fault's bar and label, in as many rows as keep the labels
+    apart. The lane takes over the time axis's ticks and label."""
     lo, hi = ax.get_xlim()
-    box = {"facecolor": "white", "alpha": 0.85, "edgecolor": "none", "pad": 1.0}
     for t, name in ctx.switches:  # labelled above the axes, out of the data's way
         ax.axvline(t, color="0.35", lw=1.0, ls=":", zorder=1)
         if lo <= t <= hi:
@@ -200,43 +201,61 @@ def _time_marks(ax: Any, ctx: Context) -> None:
                 fontsize=8,
                 color="0.25",
             )
-    colors = [("tab:red", "darkred", "0.4")[k % 3] for k in range(len(ctx.fault_marks))]  # none a robot's
-    for color, (start, end, _) in zip(colors, ctx.fault_marks, strict=True):
+    marks = [(start, end, label) for start, end, label in ctx.fault_marks if start <= hi]
+    if not marks:
+        ax.set_xlim(lo, hi)
+        return
+    colors = [("tab:red", "darkred", "0.4")[k % 3] for k in range(len(marks))]  # none a robot's
+    for color, (start, end, _) in zip(colors, marks, strict=True):
         if end is None:
             ax.axvline(start, color=color, lw=1.2, ls="--", zorder=1)
         else:
             ax.axvspan(start, min(end, hi), color=color, alpha=0.12, lw=0)
-    for first, said in label_groups([m[0] for m in ctx.fault_marks], LABELS_APART * (hi - lo)):
-        ax.text(
-            ctx.fault_marks[first][0],
-            0.02,
-            f" {' / '.join(ctx.fault_marks[k][2] for k in said)}",
-            transform=ax.get_xaxis_transform(),
-            rotation=90,
-            va="bottom",
-            ha="left",
-            fontsize=8,
-            color=colors[first],
-            zorder=1.5,  # under the data lines (2): the label must not hide what its window is there to show
-            bbox=box,
-        )
+    fig = ax.figure
+    axes_width_pt = fig.get_figwidth() * 72.0 * ax.get_position().width
+    per_s = (hi - lo) / max(axes_width_pt, 1.0)  # seconds of the axis per point
+    widths = [(len(label) + 1) * LANE_FONT_PT * CHAR_WIDTH * per_s for _, _, label in marks]
+    rows = lane_rows([(a, min(b, hi) if b is not None else None) for a, b, _ in marks], widths)
+    n_rows = max(rows) + 1
+    height = LANE_ROW_IN * n_rows / max(fig.get_figheight() * ax.get_position().height, 1e-6)
+    lane = ax.inset_axes((0.0, -height, 1.0, height), sharex=ax)
+    for color, row, (start, end, label) in zip(colors, rows, marks, strict=True):
+        if end is None:
+            lane.plot([start, start], [row - 0.4, row + 0.4], color=color, lw=1.5, ls="--")
+        else:
+            lane.barh(row, min(end, hi) - start, left=start, height=0.8, color=color, alpha=0.3, lw=0)
+        lane.text(start, row, f" {label}", va="center", ha="left", fontsize=LANE_FONT_PT, color=color, clip_on=True)
+    lane.set_ylim(n_rows - 0.5, -0.5)
+    lane.set_yticks([])
+    lane.set_ylabel("faults", rotation=0, ha="right", va="center", fontsize=8)
+    lane.grid(axis="x", alpha=0.3)
+    lane.set_xlabel(ax.get_xlabel())
+    ax.set_xlabel("")
+    ax.tick_params(axis="x", labelbottom=False)
     ax.set_xlim(lo, hi)
 
 
-LABELS_APART = 0.04  # fault labels closer than this share of the time axis are one label
+LANE_FONT_PT = 7.5  # the fault lane's labels
+LANE_ROW_IN = 0.2  # height of one row of the fault lane
+CHAR_WIDTH = 0.6  # a label character's width, as a share of its font size (DejaVu Sans, about)
 
 
-def label_groups(starts: Sequence[float], apart: float) -> list[tuple[int, list[int]]]:
-    """Marks whose starts lie within ``apart`` of a group's first share its
-    label: (the first's index, every index in the group), in order."""
-    groups: list[tuple[int, list[int]]] = []
-    for k, t in enumerate(starts):
-        near = next((g for g in groups if abs(t - starts[g[0]]) < apart), None)
-        if near is None:
-            groups.append((k, [k]))
+def lane_rows(spans: Sequence[tuple[float, float | None]], label_widths: Sequence[float]) -> list[int]:
+    """A row of the fault lane for each (start, end or None) span, whose label
+    takes ``label_widths`` (same unit) from its start: the first row where it
+    overlaps neither another span nor another label, in order of start."""
+    ends: list[float] = []  # per row: where its last span or label ends
+    out = [0] * len(spans)
+    for k in sorted(range(len(spans)), key=lambda k: spans[k][0]):
+        start, end = spans[k]
+        reach = max(start + label_widths[k], end if end is not None else start)
+        row = next((i for i, e in enumerate(ends) if e <= start), len(ends))
+        if row == len(ends):
+            ends.append(reach)
         else:
-            near[1].append(k)
-    return groups
+            ends[row] = reach
+        out[k] = row
+    return out
 
 
 def _cut_note(ax: Any, cut: float | None, unit: str = "m") -> None:
@@ -573,20 +592,18 @@ def vn(path: Any, data: Mapping[str, Series], ctx: Context, dpi: int) -> None:
         hist.set_xlabel("share of ticks, %")
         hist.set_title("time at each V_N", fontsize=9)
         hist.grid(alpha=0.3)
-        if ctx.fault_marks:  # their labels stand at the bottom of the axes: the legend goes under them
-            ax.figure.legend(*ax.get_legend_handles_labels(), fontsize=8, loc="outside lower center", ncol=3,
-                             frameon=False)  # fmt: skip
-        else:
-            ax.legend(fontsize=8, loc="lower left")
+        # Under the figure: inside, it would hide the V_N lines it names.
+        ax.figure.legend(*ax.get_legend_handles_labels(), fontsize=8, loc="outside lower center", ncol=3,
+                         frameon=False)  # fmt: skip
     _time_axis(ax, ctx)
     ax.set_ylabel("V_N, m/s")
-    note = f"; {held} ticks holding (V_N = 0) not drawn" if held else ""
+    note = f"\n{held} ticks holding (V_N = 0) not drawn" if held else ""
     faint = f"each follower's {VN_SMOOTH_S:g} s" if ctx.many else f"every tick; bold: {VN_SMOOTH_S:g} s"
-    ax.set_title(
+    # Over the whole figure: over the V_N axes alone its lines ran past the figure's left edge.
+    ax.figure.suptitle(
         ctx.title("vn", "FIS-2's normal speed V_N") + f"\nfaint: {faint} "
         f"centred moving average, for the eye only (the controller is not filtered){note}",
         fontsize=10,
-        pad=14,
     )
     _time_marks(ax, ctx)
     _save(fig, path, dpi)

@@ -116,11 +116,16 @@ def test_switches_snapshots_and_limits() -> None:
     assert moving_average(np.arange(20) * 0.05, vn, 0.2, 0.05)[5:15] == pytest.approx(np.full(10, 1.75))
 
 
-def test_fault_labels_that_would_lie_on_one_another_are_one() -> None:
-    from formation_swarm.figures import label_groups
+def test_fault_lane_rows_keep_every_bar_and_label_apart() -> None:
+    from formation_swarm.figures import lane_rows
 
-    # 20 s on the axis, 4% of it is 0.8 s: 6, 6 and 6.5 s share a label, 3 s and 12 s have their own
-    assert label_groups([3.0, 6.0, 6.0, 6.5, 12.0], 0.8) == [(0, [0]), (1, [1, 2, 3]), (4, [4])]
+    # Labels 2 s wide. 3 s alone; 6-8 s and an instant at 6 s overlap: two rows; 6.5 s
+    # (its label to 8.5 s) overlaps both: a third; 12 s is clear of all: row 0 again.
+    spans = [(3.0, 4.0), (6.0, 8.0), (6.0, None), (6.5, 7.0), (12.0, None)]
+    assert lane_rows(spans, [2.0] * 5) == [0, 0, 1, 2, 0]
+    # A window longer than its label keeps its row to its end; one to the run's end, to the axis's.
+    assert lane_rows([(0.0, 30.0), (10.0, None), (31.0, None)], [1.0] * 3) == [0, 1, 0]
+    assert lane_rows([], []) == []
 
 
 def test_snapshots_of_a_long_column_are_drawn_apart() -> None:
@@ -234,7 +239,7 @@ def test_a_swarm_figure_draws_the_median_and_names_the_worst(monkeypatch: pytest
     median = saved[-1].axes[0].get_lines()[13]  # after the 12 faint ones and the legend's proxy
     assert np.nanmedian(median.get_ydata()) == pytest.approx(0.75)  # of 0.2 ... 1.3
     figures.vn("unused", data, ctx, 50)
-    labels = [x.get_text() for x in saved[-1].axes[0].get_legend().get_texts()]
+    labels = [x.get_text() for x in saved[-1].legends[0].get_texts()]  # under the figure
     assert labels == ["each follower's 1 s moving average (12), faint", "median over the 12 followers' averages"]
     figures.targets("unused", data, ctx, {}, 50, rms)
     rows = [a.get_title() for a in saved[-1].axes if a.get_title().endswith("whole run")]
@@ -260,3 +265,32 @@ def test_the_report_names_the_first_contacts_and_the_scenario_warnings() -> None
     quiet = _markdown({"run_id": "r1", "collisions": 0, "obstacle_collisions": 0}, [])
     assert "contact" not in quiet.lower().replace("collisions 0", "")
     assert "Scenario warnings" not in quiet
+
+
+def test_faults_get_a_lane_under_the_time_axis_with_their_labels(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The labels stand in their own lane, each in full, not over the data; the
+    lane carries the time axis."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from formation_swarm import figures
+    from formation_swarm.data import Series
+
+    saved = []
+    monkeypatch.setattr(figures, "_save", lambda fig, path, dpi: saved.append(fig))
+    t = np.arange(400) * 0.05
+    data = {f"/robots/r{r}/error/formation": Series(t, np.full(400, r / 10)) for r in (2, 3)}
+    ctx = figures.Context(scenario="s", seed=1, robots=[1, 2, 3], followers=[2, 3], t_end=20.0)
+    ctx.fault_marks = [(5.0, 7.0, "partition 2"), (5.0, None, "kill agent-3"), (12.0, math.inf, "blackout 3")]
+    figures.formation_error("unused", data, ctx, {2: 0.2, 3: 0.3}, 50)
+    (ax,) = saved[-1].axes[:1]
+    (lane,) = ax.child_axes
+    assert [x.get_text() for x in lane.texts] == [" partition 2", " kill agent-3", " blackout 3"]
+    rows = [round(x.get_position()[1]) for x in lane.texts]
+    assert rows == [0, 1, 0]  # the kill at the partition's start: a row of its own
+    assert lane.get_ylim() == (1.5, -0.5)
+    assert lane.get_xlabel() == "time, s"
+    assert ax.get_xlabel() == ""
+    # The window to the end is shaded to the axis's end on the lane.
+    (bar,) = [p for p in lane.patches if p.get_x() == 12.0]
+    assert bar.get_width() == pytest.approx(8.0)
