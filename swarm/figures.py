@@ -307,9 +307,12 @@ def trajectories(path: Any, data: Mapping[str, Series], ctx: Context, snapshots:
         panels = [fig.add_subplot(grid[i // cols, 1 + i % cols]) for i in range(len(zoomed))]
         spare = [grid[i // cols, 1 + i % cols] for i in range(len(zoomed), 2 * cols)]
     else:
-        span = hi - lo
-        height = float(np.clip(6.0 * span[1] / max(span[0], 1e-9), 4.5, 7.5))
-        fig, over = plt.subplots(figsize=(6.5, height), layout="constrained")
+        # As wide as the view's equal scales need (a column is narrow), no wider.
+        _, span = _view(lo, hi)
+        height = float(np.clip(6.0 * span[1] / span[0], 4.5, 7.5))
+        least = 4.0 if ctx.many else 5.5  # the title's width (a swarm's legend beside the axes adds to it)
+        width = float(np.clip((height - 1.4) * span[0] / span[1] + 1.3, least, 12.0))
+        fig, over = plt.subplots(figsize=(width, height), layout="constrained")
         panels, spare = [], []
     _overview(over, poses, ctx, snaps, lo, hi)
     for k, (ax, (t, kind)) in enumerate(zip(panels, zoomed, strict=True)):
@@ -322,6 +325,7 @@ def trajectories(path: Any, data: Mapping[str, Series], ctx: Context, snapshots:
     elif not zoomed and ctx.many:  # a swarm's column of robots: beside the axes, in a figure made wider for it
         fig.set_figwidth(fig.get_figwidth() + LEGEND_WIDTH_IN)
         over.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
+        over.set_anchor("E")  # the axes beside their legend; any spare width goes to the left
     else:
         over.legend(handles, labels, loc="best", fontsize=8)
     if zoomed:
@@ -396,15 +400,20 @@ def _overview(
             va="center",
             bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none", "pad": 0.5},
         )
-    # Equal scales; a long thin path gets a wider view rather than a squashed one.
-    centre, span = 0.5 * (lo + hi), np.maximum(hi - lo, 1.0) + 3.0
-    span = np.maximum(span, span.max() / 3.0)
+    centre, span = _view(lo, hi)
     ax.set_xlim(centre[0] - span[0] / 2, centre[0] + span[0] / 2)
     ax.set_ylim(centre[1] - span[1] / 2, centre[1] + span[1] / 2)
     ax.set_aspect("equal", adjustable="box")
     ax.set_xlabel("x, m")
     ax.set_ylabel("y, m")
     ax.grid(alpha=0.3)
+
+
+def _view(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The overview's centre and (x, y) span, m, for data from ``lo`` to ``hi``:
+    equal scales, and a long thin path gets a wider view rather than a squashed one."""
+    span = np.maximum(hi - lo, 1.0) + 3.0
+    return 0.5 * (lo + hi), np.maximum(span, span.max() / 3.0)
 
 
 def _at(poses: Mapping[int, Series], t: float) -> dict[int, np.ndarray]:
