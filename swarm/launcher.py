@@ -614,7 +614,7 @@ class Launch:
                 robots = ", ".join(str(r) for r, ph in self.placement.items() if ph == h)
                 self.progress(f"[swarm] the run failed: host {h} was lost; its robots ({robots}) were counted dead")
             code = 1
-        summary = self._summary(code, interrupted, timed_out)
+        summary = self._summary(code, interrupted, timed_out, timeout_s if timed_out else None)
         return RunResult(self.run_dir, summary, code, self.pids())
 
     def _show_progress(self) -> int:
@@ -685,7 +685,7 @@ class Launch:
             time.sleep(0.02)
 
     # -- summary ------------------------------------------------------------------
-    def _summary(self, code: int, interrupted: bool, timed_out: bool) -> dict[str, Any]:
+    def _summary(self, code: int, interrupted: bool, timed_out: bool, limit_s: float | None = None) -> dict[str, Any]:
         parts = summary_mod.read_parts(self.run_dir / "stats")
         if self.call_rejections.total:  # fault calls refused: counted like every receiver's rejections
             parts["launcher"] = {"rejected": dict(self.call_rejections.by_reason)}
@@ -721,6 +721,7 @@ class Launch:
             ended_at_s=reached,
             interrupted=interrupted,
             timed_out=timed_out,
+            limit_s=limit_s,
             processes=procs,
             events=self.events,
             recording="recording.rrd" if self.logger else None,

@@ -44,13 +44,14 @@ if TYPE_CHECKING:
 LEADER_FINISHED = "leader_finished"  # the leader reached its last waypoint
 DURATION_REACHED = "duration_reached"  # the scenario's duration_s ran out
 INTERRUPTED = "interrupted"  # SIGINT or SIGTERM
-TIMED_OUT = "timed_out"  # swarm run --timeout: the wall-clock limit
+TIMED_OUT = "timed_out"  # the wall-clock limit: swarm run --timeout, Launch.wait's, the fixture's timeout_s
 PEERS_TIMEOUT = "peers_timeout"  # the world's peers did not appear within --peers-timeout
 ROLE_FAILED = "role_failed"  # the world exited with an error (see "events" and "processes")
 END_REASONS = (LEADER_FINISHED, DURATION_REACHED, INTERRUPTED, TIMED_OUT, PEERS_TIMEOUT, ROLE_FAILED)
 
 
-def describe_end(reason: str | None, ended_at_s: float | None, events: list[Mapping[str, Any]] | None = None) -> str:
+def describe_end(reason: str | None, ended_at_s: float | None, events: list[Mapping[str, Any]] | None = None,
+                 limit_s: float | None = None) -> str:  # fmt: skip
     """``end_reason`` in words, for a report line; for a failed run, with the
     processes that exited on their own (from the launcher's ``events``)."""
     at = "" if ended_at_s is None else f" at t={ended_at_s:.2f} s"
@@ -67,7 +68,7 @@ def describe_end(reason: str | None, ended_at_s: float | None, events: list[Mapp
         LEADER_FINISHED: f"the leader reached its last waypoint{at}",
         DURATION_REACHED: f"the scenario's duration was reached{at}",
         INTERRUPTED: f"stopped by a signal (Ctrl-C, SIGINT or SIGTERM){at}",
-        TIMED_OUT: f"the wall-clock limit (--timeout) was reached{at}",
+        TIMED_OUT: f"the wall-clock limit{f' of {limit_s:g} s' if limit_s else ''} was reached{at}",
         PEERS_TIMEOUT: "the peers did not appear in time",
     }.get(reason or "", f"unknown ({reason})")
 
@@ -358,6 +359,7 @@ def build(
     ended_at_s: float | None,
     interrupted: bool,
     timed_out: bool,
+    limit_s: float | None = None,
     processes: Mapping[str, Any],
     events: list[dict[str, Any]],
     recording: str | None,
@@ -381,7 +383,7 @@ def build(
         "git_commit": git_commit(),
         "exit_code": exit_code,
         "end_reason": end_reason,
-        "ended": describe_end(end_reason, ended_at_s, events),  # the same in words
+        "ended": describe_end(end_reason, ended_at_s, events, limit_s),  # the same in words
         "failure": failure,
         "ended_at_s": ended_at_s,
         "interrupted": interrupted,

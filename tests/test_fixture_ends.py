@@ -4,7 +4,9 @@ as a run), Ctrl-C stops the session after every process is stopped."""
 
 from __future__ import annotations
 
+import json
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -28,6 +30,10 @@ def test_a_run_past_its_timeout_fails_the_test_and_names_its_folder(pytester: py
     assert "every process is stopped; its folder: " in out
     assert "swarm_run returned" not in out
     assert "Traceback" not in out  # one line, not the plugin's own stack
+    # The run's summary says which limit ended it, in the fixture's terms (no CLI flag).
+    folder = out.split("its folder: ", 1)[1].split()[0].rstrip(".;,")
+    ended = json.loads((Path(folder) / "summary.json").read_text())["ended"]
+    assert ended.startswith("the wall-clock limit of 0.5 s was reached"), ended
 
 
 def test_ctrl_c_during_a_run_stops_the_session(pytester: pytest.Pytester) -> None:
