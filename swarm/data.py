@@ -112,8 +112,9 @@ class RunData:
             raise ValueError(f"robot must be one of {list(self.robots)}, got {robot!r}") from None
 
 
-def read_folder(run_dir: str | Path) -> tuple[Path, dict[str, Any], dict[str, Series]]:
-    """A run folder's path, summary and recording; ValueError naming what is missing."""
+def read_folder(run_dir: str | Path, need_recording: bool = True) -> tuple[Path, dict[str, Any], dict[str, Series]]:
+    """A run folder's path, summary and recording; ValueError naming what is missing
+    (``need_recording=False``: a folder without recording.rrd gives no series)."""
     run_dir = Path(run_dir)
     summary_path, rrd = run_dir / "summary.json", run_dir / "recording.rrd"
     if not run_dir.is_dir():
@@ -128,6 +129,8 @@ def read_folder(run_dir: str | Path) -> tuple[Path, dict[str, Any], dict[str, Se
     if not isinstance(summary, dict) or not isinstance(summary.get("run_id"), str):
         raise ValueError(f"{summary_path} is not a run summary (a JSON object with the run's run_id)")
     if not rrd.is_file():
+        if not need_recording:
+            return run_dir, summary, {}
         raise ValueError(f"{run_dir} has no recording.rrd: run it with its logger (without --no-logger)")
     try:
         data = read_recording(rrd)

@@ -1,7 +1,8 @@
 """Figures and a markdown summary of one run folder, beside the paper's.
 
-Reads RUN_DIR/recording.rrd (so the run needs its logger), summary.json and
-scenario.toml, and writes into RUN_DIR/report/ (as PNG, SVG or PDF):
+Reads RUN_DIR/recording.rrd, summary.json and scenario.toml, and writes into
+RUN_DIR/report/ (as PNG, SVG or PDF; a run without its logger has no
+recording and gets report.md alone):
 
     trajectories      paths, obstacles and the formation at each switch (Fig. 6a/c, 7a, 11)
     formation_error   each follower's distance to its true target (Fig. 6b/d, 7b)
@@ -15,6 +16,7 @@ What each figure shows and why: formation_swarm.figures. A title says
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 import tomllib
@@ -44,16 +46,24 @@ PAPER = {
 
 
 def make_report(run_dir: str | Path, snapshots: int = 6, fmt: str = "png", dpi: int = DEFAULT_DPI) -> Path:
-    """Writes RUN_DIR/report/ and returns it. Raises ValueError for a folder it
-    cannot use (not a run folder, no recording, a run that ended before its
-    first tick) and OSError when it cannot write the report."""
+    """Writes RUN_DIR/report/ and returns it (a folder without recording.rrd:
+    report.md alone, saying why). Raises ValueError for a folder it cannot use
+    (not a run folder, a recording with no robot in it: a run that ended
+    before its first tick) and OSError when it cannot write the report."""
     run_dir = Path(run_dir)
     if not 0 <= snapshots <= MAX_SNAPSHOTS:
         raise ValueError(f"snapshots must be in [0, {MAX_SNAPSHOTS}], got {snapshots!r}")
     if fmt not in FORMATS:
         raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
-    run_dir, summary, data = read_folder(run_dir)
+    run_dir, summary, data = read_folder(run_dir, need_recording=False)
     rrd = run_dir / "recording.rrd"
+    if not rrd.is_file():  # the summary's tables alone
+        out = run_dir / "report"
+        out.mkdir(exist_ok=True)
+        followers = sorted(int(r) for r in summary.get("followers") or {} if str(r).isdigit())
+        ctx = _context(run_dir, summary, {}, [], followers)  # what the scenario reproduces of the paper
+        (out / "report.md").write_text(_markdown(summary, followers, ctx=ctx, without=no_recording(summary)))
+        return out
     robots = robots_in(data)
     if not robots:
         raise ValueError(f"{rrd} holds no robot poses: " + _ended_early(summary))
@@ -215,9 +225,21 @@ def _num(x: Any, fmt: str = ".3f") -> str:
     return "-" if not isinstance(x, (int, float)) or isinstance(x, bool) else format(x, fmt)
 
 
+def no_recording(summary: Mapping[str, Any]) -> str:
+    """Why a run folder has no recording.rrd, for a report made without it."""
+    if summary.get("recording") is None:
+        return "the run had no logger (--no-logger), so it has no recording"
+    return "its recording.rrd is missing from the folder"
+
+
 def _markdown(
-    summary: Mapping[str, Any], followers: list[int], fmt: str = "png", ctx: figures.Context | None = None
+    summary: Mapping[str, Any],
+    followers: list[int],
+    fmt: str = "png",
+    ctx: figures.Context | None = None,
+    without: str | None = None,
 ) -> str:
+    """report.md; ``without``: why there are no figures (no recording), said in their place."""
     from formation_swarm.console import losses, rejected_why
     from formation_swarm.summary import describe_end
 
@@ -271,7 +293,11 @@ def _markdown(
         *_warnings_markdown(summary),
         *_events_markdown(summary),
         *_faults_markdown(summary),
-        *[f"![{stem}]({stem}.{fmt})" for stem in FIGURES],
+        *(
+            [f"No figures and no measured or EKF target errors (the last two columns): {without}."]
+            if without
+            else [f"![{stem}]({stem}.{fmt})" for stem in FIGURES]
+        ),
         "",
     ]
     return "\n".join(lines)
@@ -369,5 +395,9 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"swarm report: cannot write the report into {args.run_dir}: {exc}", file=sys.stderr)
         return USAGE_ERROR
-    print(f"[report] {out}: {', '.join(f'{stem}.{args.format}' for stem in FIGURES)}, report.md")
+    if (out.parent / "recording.rrd").is_file():
+        print(f"[report] {out}: {', '.join(f'{stem}.{args.format}' for stem in FIGURES)}, report.md")
+    else:
+        summary = json.loads((out.parent / "summary.json").read_text())
+        print(f"[report] {out}: report.md only, no figures: {no_recording(summary)}")
     return 0

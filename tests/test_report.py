@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import tomllib
 from collections.abc import Callable
@@ -43,9 +44,25 @@ def test_clear_errors_for_folders_it_cannot_use(tmp_path: Path, capsys: pytest.C
     (tmp_path / "summary.json").write_text("{}")
     assert main([str(tmp_path)]) == 2
     assert "summary.json is not a run summary (a JSON object with the run's run_id)" in capsys.readouterr().err
-    (tmp_path / "summary.json").write_text('{"run_id": "r1"}')
-    assert main([str(tmp_path)]) == 2
-    assert "no recording.rrd" in capsys.readouterr().err
+
+
+def test_a_run_without_a_recording_gets_report_md_and_says_why_no_figures(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    summary = {"run_id": "r1", "scenario": "s", "recording": None, "followers": {"2": {"rms_m": 0.521}}}
+    (tmp_path / "summary.json").write_text(json.dumps(summary))
+    assert main([str(tmp_path)]) == 0
+    why = "the run had no logger (--no-logger), so it has no recording"
+    assert capsys.readouterr().out == f"[report] {tmp_path / 'report'}: report.md only, no figures: {why}\n"
+    md = (tmp_path / "report" / "report.md").read_text()
+    assert "| R2 | 0.521 |" in md
+    assert f"No figures and no measured or EKF target errors (the last two columns): {why}." in md
+    assert "![" not in md
+    assert not list((tmp_path / "report").glob("*.png"))
+    # A run that had a logger, whose recording is gone:
+    (tmp_path / "summary.json").write_text(json.dumps({**summary, "recording": "recording.rrd"}))
+    assert main([str(tmp_path)]) == 0
+    assert "no figures: its recording.rrd is missing from the folder" in capsys.readouterr().out
 
 
 FAULTED = {
