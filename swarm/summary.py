@@ -221,17 +221,38 @@ def partial_links(processes: Mapping[str, Any], sc: Scenario) -> list[str]:
     return sorted(out)
 
 
-def _last_written_ticks(processes: Mapping[str, Any], parts: Mapping[str, Any]) -> dict[int, list[int | None]]:
-    """Per robot, for each of its agents a signal killed, the tick its counts
+def _killed_agents(
+    processes: Mapping[str, Any], parts: Mapping[str, Any], events: list[dict[str, Any]]
+) -> dict[int, list[tuple[int | None, int | None]]]:
+    """Per robot, for each of its agents a signal killed: the tick its counts
     were last written at (its stats' ``last_tick``; None: no stats, or none
-    answered)."""
-    out: dict[int, list[int | None]] = {}
+    answered) and the tick it was killed at (None: unknown)."""
+    at: dict[str, int] = {}
+    for e in events:
+        if e.get("event") in ("killed", "exited") and _int(e.get("tick")) is not None:
+            at.setdefault(str(e.get("process")), e["tick"])
+    out: dict[int, list[tuple[int | None, int | None]]] = {}
     for name, proc in processes.items():
         code = (proc or {}).get("exit_code")
         if (rid := _robot_of(name)) is not None and isinstance(code, int) and code < 0:
-            tick = (parts.get(name) or {}).get("last_tick")
-            out.setdefault(rid, []).append(tick if isinstance(tick, int) and not isinstance(tick, bool) else None)
+            out.setdefault(rid, []).append((_int((parts.get(name) or {}).get("last_tick")), at.get(name)))
     return out
+
+
+def _counts_cut(killed: list[tuple[int | None, int | None]], start: Any, end: Any) -> bool:
+    """Whether the robot's killed agents leave a fault's counts partial: one
+    killed after the fault's start that last wrote them before they were final
+    (COUNTS_FINAL_AFTER_TICKS after its end; a fault to the run's end never is)."""
+    for written, died in killed:
+        if isinstance(start, int) and died is not None and died <= start:
+            continue  # gone before the fault began: it counted none of it
+        if not isinstance(end, int) or written is None or written < end + COUNTS_FINAL_AFTER_TICKS:
+            return True
+    return False
+
+
+def _int(x: Any) -> int | None:
+    return x if isinstance(x, int) and not isinstance(x, bool) else None
 
 
 def _add(a: Mapping[str, Any], b: Mapping[str, Any]) -> dict[str, Any]:
@@ -426,14 +447,12 @@ def build(
     }
     # Counts kept by an agent a signal killed are a lower bound, unless it wrote
     # them after the fault's window had ended (it does, COUNTS_FINAL_AFTER_TICKS later).
-    written = _last_written_ticks(processes, parts)
+    killed = _killed_agents(processes, parts, events)
     for f, fault in zip(out["faults"], sc.faults, strict=True):
         cut = sorted({int(name.split(">")[1]) for name in out["partial_links"]
                       if fault.group in (LINK, NETWORK) and name.split(":")[0] in (fault.link_classes or LINK_CLASSES)
                       and fault.applies_to(int(name.split(">")[1]))})  # fmt: skip
-        end = f.get("end_tick")
-        cut = [r for r in cut if not isinstance(end, int)
-               or any(t is None or t < end + COUNTS_FINAL_AFTER_TICKS for t in written.get(r, ()))]  # fmt: skip
+        cut = [r for r in cut if _counts_cut(killed.get(r, []), f.get("start_tick"), f.get("end_tick"))]
         if cut:
             f["counts_partial_for"] = cut  # the robots whose agent's counts end at its last stats write
     # Lockstep: what the recording misses of what was sent (None when whole).

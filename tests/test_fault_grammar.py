@@ -478,3 +478,18 @@ def test_report_md_marks_the_counts_a_killed_agent_left_partial_or_unwritten() -
     fault["counts"] = {}
     rows = [line for line in _faults_markdown({"faults": [fault]}) if line.startswith("| `")]
     assert rows == ["| `partition 2@5s for=2s` | 100-139 | - | not counted: R2's agent killed before it wrote them |"]
+
+
+def test_a_killed_agents_counts_are_partial_only_if_it_lived_in_the_fault_and_wrote_them_before_final() -> None:
+    from formation_swarm.summary import _counts_cut
+
+    # A fault over ticks 600-699; counts final at 701 (two ticks after its end).
+    assert _counts_cut([(516, 900)], 600, 700)  # killed after it, last wrote before it
+    assert not _counts_cut([(702, 900)], 600, 700)  # wrote them once final, killed later
+    assert not _counts_cut([(300, 400)], 600, 700)  # killed before it began: counted none of it
+    assert _counts_cut([(650, 660)], 600, 700)  # killed inside it
+    assert _counts_cut([(None, 660)], 600, 700)  # killed before its first write
+    assert _counts_cut([(900, 950)], 600, None)  # a fault to the run's end is never final
+    assert not _counts_cut([], 600, 700)
+    # Two agents of the robot: one partial is enough.
+    assert _counts_cut([(300, 400), (650, 660)], 600, 700)
