@@ -38,18 +38,17 @@ import shutil
 import signal
 import subprocess
 import sys
-import threading
 import time
 import uuid
 import warnings
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import zenoh
 
-from formation_swarm import __version__, remote, scenario_files, viewer
+from formation_swarm import __version__, proc, remote, scenario_files, viewer
 from formation_swarm import scenario as scenario_mod
 from formation_swarm import summary as summary_mod
 from formation_swarm.children import Child, describe_exit, free_port, log_tail
@@ -629,7 +628,7 @@ class Launch:
         """End of run: give everyone END_GRACE_S to leave on the world's "done",
         then SIGTERM, then SIGKILL after STOP_GRACE_S. Always reaps; a second
         Ctrl-C meanwhile does not interrupt the reaping."""
-        with _sigint_ignored():
+        with proc.sigint_ignored():
             self._stop(graceful_first)
 
     def _stop(self, graceful_first: bool) -> None:
@@ -738,18 +737,6 @@ class Launch:
                 proc["host"] = child.host if isinstance(child, remote.RemoteChild) else "local"
         summary_mod.write(self.run_dir, summary)
         return summary
-
-
-@contextlib.contextmanager
-def _sigint_ignored() -> Iterator[None]:
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 def _slug(name: str) -> str:

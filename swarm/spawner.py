@@ -22,6 +22,7 @@ import contextlib
 import ctypes
 import importlib
 import multiprocessing
+import multiprocessing.forkserver
 import os
 import signal
 import subprocess
@@ -30,6 +31,8 @@ import threading
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+from formation_swarm import proc
 
 # The roles the server imports ahead (the logger's rerun starts threads on
 # import, so the logger is forked too but imports rerun itself, after the fork).
@@ -55,6 +58,12 @@ def _forkserver() -> Any:
             ctx = multiprocessing.get_context("forkserver")
             ctx.set_forkserver_preload([PRELOAD])
             _leave_main_alone()
+            # Started with SIGINT ignored, which the exec'd server inherits: a Ctrl-C
+            # meant for the launcher would otherwise end its imports with a traceback
+            # (the server only ignores it itself once they are done). The roles set
+            # their own handlers.
+            with proc.sigint_ignored():
+                multiprocessing.forkserver.ensure_running()
             import atexit
 
             atexit.register(_stop_server)

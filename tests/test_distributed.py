@@ -420,6 +420,34 @@ def test_every_process_exits_within_2s_of_the_run_end(swarm_run: Callable[..., R
     assert all(p["exit_after_stop_s"] is None for p in procs.values()), procs
 
 
+@pytest.mark.parametrize("after_s", [0.3, 0.6, 1.0])
+def test_ctrl_c_from_a_terminal_while_swarm_run_starts_prints_no_traceback(tmp_path: Path, after_s: float) -> None:
+    """A terminal's Ctrl-C goes to its whole process group: the launcher and the
+    spawner's server, which may still be importing the roles' modules (here
+    0.2-0.8 s after the start). The server ignores it; the launcher stops the run
+    and says so in one line."""
+    before = {pid for pid, _ in our_processes()}
+    cmd = [sys.executable, "-m", "formation_swarm.cli", "run", str(FIG11), "--out", str(tmp_path / "r")]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    time.sleep(after_s)  # the moment of the Ctrl-C is the test's subject
+    os.killpg(proc.pid, signal.SIGINT)
+    out, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 130, out
+    assert "Traceback" not in out
+    assert "Fatal Python error" not in out
+    assert "KeyboardInterrupt" not in out
+    # One line says so: while starting, the last; once running, before the result block.
+    assert [line for line in out.splitlines() if line.startswith(("[swarm] interrupted", "interrupted"))], out
+
+    def mine() -> list[str]:  # this run's roles: their command lines name its folder
+        return [c for p, c in our_processes() if p not in before and str(tmp_path) in c]
+
+    deadline = time.monotonic() + 15
+    while time.monotonic() < deadline and mine():
+        time.sleep(0.05)
+    assert mine() == []
+
+
 @pytest.mark.parametrize("when", ["starting", "running", "sigkill"])
 def test_ctrl_c_on_swarm_run_leaves_no_process(tmp_path: Path, when: str) -> None:
     """Ctrl-C while the processes start or run: a clean stop and a summary. SIGKILL
