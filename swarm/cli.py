@@ -101,11 +101,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from formation_swarm.proc import interrupt_on_stop_signals
     from formation_swarm.remote import HostError, parse_placement
     from formation_swarm.scenario import ScenarioError
-    from formation_swarm.scenario_files import parse_override
+    from formation_swarm.scenario_files import parse_overrides
 
     try:
         kills = [KillAt.parse(spec) for spec in args.kill]
-        overrides = dict(parse_override(text) for text in args.set)
+        overrides = parse_overrides(args.set)
         hosts = [h.strip() for h in (args.hosts or "").split(",") if h.strip()]
         launch = Launch(
             args.scenario, mode=args.mode, seed=args.seed, out=args.out, overrides=overrides, logger=not args.no_logger,

@@ -38,6 +38,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 import uuid
 import warnings
@@ -153,8 +154,13 @@ class Launch:
             raise ValueError(f"rt_priority: 0-99 and only in real time, got {rt_priority!r} in {mode}")
         self.rt_priority = rt_priority  # the real-time world's (None: swarm world's default)
         self.scenario_path = scenario_files.resolve(scenario_path)
+        if overrides is not None and not isinstance(overrides, Mapping):
+            raise ValueError(f"overrides must map scenario keys to values, e.g. {{'leader.speed_mps': 1.6}}, "
+                             f"got {type(overrides).__name__} {overrides!r:.80}")  # fmt: skip
         ov = dict(overrides or {})
         if seed is not None:
+            if "run.seed" in ov and ov["run.seed"] != seed:
+                raise ValueError(f"seed {seed} and run.seed {ov['run.seed']!r} in the overrides: give the seed once")
             ov["run.seed"] = seed
         # One given alone (faults="kill agent-3@5s") is one, not a sequence of letters.
         kills = [kills] if isinstance(kills, str) else kills
@@ -197,6 +203,7 @@ class Launch:
         self.frozen_by: dict[str, str] = {}  # the fault that froze (or thawed) each, last
         self.events: list[dict[str, Any]] = []
         self.started_at = 0.0
+        self._interrupt = threading.Event()  # interrupt(): another thread's Ctrl-C (a sweep's runs)
         for f in self.sc.faults:
             if f.process is not None and f.process not in self._names():
                 why = " (the run has no logger: --no-logger, or logger=False)" if f.process == "logger" else ""
@@ -420,6 +427,11 @@ class Launch:
             if st is not None and (self.last_status is None or st.seq > self.last_status.seq):
                 self.last_status = st
 
+    def interrupt(self) -> None:
+        """Stop the run as a Ctrl-C would, from any thread: :meth:`wait` stops
+        every process and ends with exit code 130, the summary ``interrupted``."""
+        self._interrupt.set()
+
     def wait_until(self, predicate: Callable[[], bool], timeout_s: float) -> bool:
         """Poll ``predicate`` (and watch the children) until true or the timeout."""
         deadline = time.monotonic() + timeout_s
@@ -590,7 +602,8 @@ class Launch:
                     timed_out = True
                     self.progress(f"[swarm] timeout after {timeout_s:g} s: stopping the run")
                     break
-                time.sleep(0.05)
+                if self._interrupt.wait(0.05):
+                    raise KeyboardInterrupt
         except KeyboardInterrupt:
             interrupted = True
             self.progress("[swarm] interrupted: stopping every process")

@@ -25,7 +25,7 @@ from typing import Any
 from formation_swarm import claims, sensitivity
 from formation_swarm.cliargs import USAGE_ERROR, Parser, integer, make_folder
 from formation_swarm.proc import interrupt_on_stop_signals
-from formation_swarm.scenario_files import parse_override
+from formation_swarm.scenario_files import parse_overrides
 from formation_swarm.sweep import MAX_JOBS, MAX_SEEDS, Job, Sweep, aggregate
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -247,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("--axis needs --sensitivity")
         if args.rows and not args.claims:
             raise ValueError("--rows needs --claims")
-        settings = dict(parse_override(text) for text in args.set)
+        settings = parse_overrides(args.set)
         if args.sensitivity:
             axes = [sensitivity.AXIS_NAMES[a] for a in args.axis] or list(sensitivity.AXES)
             for target in writes:  # before the runs, not after

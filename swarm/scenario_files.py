@@ -7,7 +7,7 @@ from __future__ import annotations
 import difflib
 import importlib.resources
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -60,6 +60,18 @@ def parse_override(text: str) -> tuple[str, Any]:
     if not sep or not key.strip() or not value.strip():
         raise ScenarioError(f"--set takes KEY=VALUE (e.g. leader.speed_mps=1.6), got {text!r}")
     return key.strip(), parse_value(value)
+
+
+def parse_overrides(texts: Sequence[str]) -> dict[str, Any]:
+    """Each ``--set KEY=VALUE`` parsed; ScenarioError for a key given twice
+    (which one would count is not for us to guess)."""
+    out: dict[str, Any] = {}
+    for text in texts:
+        key, value = parse_override(text)
+        if key in out:
+            raise ScenarioError(f"--set {key} is given twice ({out[key]!r} and {value!r}): give it once")
+        out[key] = value
+    return out
 
 
 def deep_set(raw: Mapping[str, Any], path: tuple[str, ...], value: Any) -> dict[str, Any]:

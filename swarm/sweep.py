@@ -72,8 +72,21 @@ def parse_set(text: str) -> tuple[str, list[Any]]:
         raise ValueError(f"--set takes key=v1,v2,..., got {text!r}")
     from formation_swarm.scenario_files import parse_value
 
+    key = key.strip()
+    if key == "run.seed":
+        raise ValueError("--set run.seed: a sweep gives every combination its seeds; use --seeds N and --seed-start S")
     out = [parse_value(raw) for raw in values.split(",")]
-    return key.strip(), out
+    for i, v in enumerate(out):
+        # Equal values (1.5 and 1.50, 2 and 2.0) would make one run twice, in one folder at once.
+        if any(v == w and type(v) is type(w) or _numbers_equal(v, w) for w in out[:i]):
+            raise ValueError(f"--set {key}: the value {values.split(',')[i].strip()!r} is given twice")
+    return key, out
+
+
+def _numbers_equal(a: Any, b: Any) -> bool:
+    numbers = (int, float)
+    return (isinstance(a, numbers) and isinstance(b, numbers) and not isinstance(a, bool)
+            and not isinstance(b, bool) and a == b)  # fmt: skip
 
 
 def grid(sets: Sequence[tuple[str, list[Any]]]) -> list[tuple[str, dict[str, Any]]]:
@@ -198,38 +211,23 @@ class Sweep:
         total = len(self.jobs)
         if rows:
             self.progress(f"[sweep] {len(rows)}/{total} runs already done in {runs_dir}; {len(todo)} to go")
-        started = time.monotonic()
-        finished = 0
+        if todo:  # the spawner's server, from this thread: it starts it with Ctrl-C ignored (a pool's cannot)
+            from formation_swarm import spawner
+
+            spawner.warm()
         try:
             with ThreadPoolExecutor(max_workers=self.workers) as pool:
-                pending: dict[Future[RunResult | None], Job] = {}
-                queue = list(reversed(todo))
-                while queue or pending:
-                    while queue and len(pending) < self.workers and not self._stop.is_set():
-                        job = queue.pop()
-                        pending[pool.submit(self._one, job, runs_dir / job.name)] = job
-                    if not pending:
-                        break
-                    done_set, _ = wait(pending, return_when=FIRST_COMPLETED)
-                    for fut in done_set:
-                        job = pending.pop(fut)
-                        res = fut.result()
-                        if res is None:
-                            continue
-                        finished += 1
-                        rows[job.name] = self._row(job, res.summary)
-                        self._write(rows)
-                        el = time.monotonic() - started
-                        eta = el / finished * (len(todo) - finished)
-                        self.progress(f"[sweep] {len(rows)}/{total} {job.name}: exit {res.exit_code}, "
-                                      f"{_brief(rows[job.name])} ({el:.0f} s, about {eta:.0f} s left)")  # fmt: skip
-        except KeyboardInterrupt:
-            self.progress("[sweep] interrupted: stopping the runs in flight (finished runs are kept)")
-            self._stop.set()
-            with self._lock:
-                for launch in list(self._live):
-                    launch.stop(graceful_first=False)
-            raise
+                try:
+                    self._loop(pool, todo, rows, total)
+                except KeyboardInterrupt:
+                    # Inside the pool's block: leaving it waits for every run in flight,
+                    # which must be told to stop first.
+                    self.progress("[sweep] interrupted: stopping the runs in flight (finished runs are kept)")
+                    self._stop.set()
+                    with self._lock:
+                        for launch in list(self._live):
+                            launch.interrupt()
+                    raise
         finally:
             self._write(rows)
         ordered = [rows[j.name] for j in self.jobs if j.name in rows]
@@ -238,6 +236,34 @@ class Sweep:
 
             sweep_figure.write(self.out / "aggregate.png", aggregate(ordered), self.jobs, self.scenario.stem)
         return ordered
+
+    def _loop(self, pool: ThreadPoolExecutor, todo: list[Job], rows: dict[str, dict[str, Any]], total: int) -> None:
+        """Keeps ``workers`` runs of ``todo`` going until all are done; each one's
+        row goes into ``rows`` and the tables as it ends."""
+        runs_dir = self.out / "runs"
+        started = time.monotonic()
+        finished = 0
+        pending: dict[Future[RunResult | None], Job] = {}
+        queue = list(reversed(todo))
+        while queue or pending:
+            while queue and len(pending) < self.workers and not self._stop.is_set():
+                job = queue.pop()
+                pending[pool.submit(self._one, job, runs_dir / job.name)] = job
+            if not pending:
+                break
+            done_set, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done_set:
+                job = pending.pop(fut)
+                res = fut.result()
+                if res is None:
+                    continue
+                finished += 1
+                rows[job.name] = self._row(job, res.summary)
+                self._write(rows)
+                el = time.monotonic() - started
+                eta = el / finished * (len(todo) - finished)
+                self.progress(f"[sweep] {len(rows)}/{total} {job.name}: exit {res.exit_code}, "
+                              f"{_brief(rows[job.name])} ({el:.0f} s, about {eta:.0f} s left)")  # fmt: skip
 
     def _one(self, job: Job, run_dir: Path) -> RunResult | None:
         from formation_swarm.launcher import Launch
@@ -249,6 +275,8 @@ class Sweep:
                         faults=self.faults, progress=lambda _line: None) as launch:  # fmt: skip
                 with self._lock:
                     self._live.add(launch)
+                    if self._stop.is_set():  # a Ctrl-C came while it started
+                        launch.interrupt()
                 try:
                     res = launch.wait(timeout_s=self.run_timeout_s)
                 finally:
@@ -346,6 +374,9 @@ def main(argv: list[str] | None = None) -> int:
         return USAGE_ERROR
     try:
         sets = [parse_set(s) for s in args.set]
+        if len({k for k, _ in sets}) < len(sets):
+            twice = next(k for i, (k, _) in enumerate(sets) if k in [j for j, _ in sets[:i]])
+            raise ValueError(f"--set {twice} is given twice: put its values in one, e.g. {twice}=1.5,2")
         from formation_swarm import scenario as scenario_mod
 
         sc = scenario_mod.load(args.scenario)

@@ -100,6 +100,14 @@ REJECTED = {
     "run: unknown mode": ([*RUN, "--mode", "fast"], "argument --mode: invalid choice: 'fast'"),
     "run: unknown scenario key": ([*RUN, "--set", "run.sede=1"], "unknown key run.sede; did you mean 'seed'?"),
     "run: --set without a value": ([*RUN, "--set", "nonsense"], "--set takes KEY=VALUE"),
+    "run: a key set twice": (
+        [*RUN, "--set", "leader.speed_mps=1.6", "--set", "leader.speed_mps=2"],
+        "--set leader.speed_mps is given twice (1.6 and 2): give it once",
+    ),
+    "run: --seed and another run.seed": (
+        [*RUN, "--seed", "3", "--set", "run.seed=5"],
+        "seed 3 and run.seed 5 in the overrides: give the seed once",
+    ),
     "run: unknown scenario": (
         ["run", "fig11_obstacle"],
         "no scenario file or shipped scenario named 'fig11_obstacle'; did you mean 'fig11_obstacles'?",
@@ -120,6 +128,8 @@ REJECTED = {
         [*SWEEP, "--out", "{tmp}/a_file"],
         "--out {tmp}/a_file: is an existing file, not a folder",
     ),
+    "sweep: a value twice": ([*SWEEP, "--set", "controller.vn=1.5,1.50"], "the value '1.50' is given twice"),
+    "sweep: --set run.seed": ([*SWEEP, "--set", "run.seed=5,6"], "use --seeds N and --seed-start S"),
     "sweep: bad --set value": (
         [*SWEEP, "--set", "controller.vn=1.5,0"],
         "controller.vn: static_vn must be > 0, got 0.0",
@@ -535,3 +545,16 @@ def test_a_remote_agents_log_not_fetched_is_said_in_a_sentence() -> None:
 
     ev = {"event": "not fetched", "process": "agent-2", "host": "c", "why": "host c is lost; they stay on it"}
     assert describe_event(ev) == "agent-2's log and stats were not fetched: host c is lost; they stay on it"
+
+
+def test_launch_refuses_overrides_that_are_not_a_mapping_and_a_second_seed(tmp_path: Path) -> None:
+    """The fixture's and the API's arguments, in the CLI's style by mistake: a
+    sentence, not dict()'s 'dictionary update sequence element #0 has length 20'."""
+    from formation_swarm.launcher import Launch
+
+    said = r"^overrides must map scenario keys to values, e.g. \{'leader.speed_mps': 1.6\}, got list \['leader"
+    with pytest.raises(ValueError, match=said):
+        Launch("fig11_obstacles", out=tmp_path / "r", overrides=["leader.speed_mps=1.6"])  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"^seed 3 and run.seed 5 in the overrides: give the seed once$"):
+        Launch("fig11_obstacles", out=tmp_path / "r", seed=3, overrides={"run.seed": 5})
+    assert not (tmp_path / "r").exists()

@@ -25,6 +25,29 @@ def test_set_values_are_toml_or_bare_strings() -> None:
             parse_set(bad)
 
 
+def test_a_value_given_twice_or_a_seed_is_refused_before_any_run(tmp_path: Path, capsys) -> None:
+    """Two equal values made one run twice, in one folder at once (the second
+    overwrote the first with a failure); a --set run.seed was overridden by the
+    sweep's own seeds, so both 'seeds' ran seed 0."""
+    for text, said in (
+        ("controller.vn=1.5,1.5", "--set controller.vn: the value '1.5' is given twice"),
+        ("controller.vn=1.5,1.50", "--set controller.vn: the value '1.50' is given twice"),
+        ("controller.vn=2,2.0", "--set controller.vn: the value '2.0' is given twice"),
+        ("run.seed=5,6", "--set run.seed: a sweep gives every combination its seeds; use --seeds N and --seed-start S"),
+    ):
+        with pytest.raises(ValueError, match="^" + said.replace("(", r"\(").replace(")", r"\)") + "$"):
+            parse_set(text)
+    assert parse_set("controller.use_ekf=true,1") == ("controller.use_ekf", [True, 1])  # not the same value
+    out = tmp_path / "sw"
+    argv = ["fig7_turn_vn_dynamic", "--seeds", "1", "--out", str(out)]
+    assert sweep.main([*argv, "--set", "controller.vn=1.5", "--set", "controller.vn=2"]) == 2
+    err = capsys.readouterr().err
+    assert err == "swarm sweep: --set controller.vn is given twice: put its values in one, e.g. controller.vn=1.5,2\n"
+    assert sweep.main([*argv, "--set", "controller.vn=1.5,1.5"]) == 2
+    assert "given twice" in capsys.readouterr().err
+    assert not out.exists()  # nothing made
+
+
 def test_grid_is_the_product() -> None:
     g = grid([("a", [1, 2]), ("b", ["x", "y", "z"])])
     assert len(g) == 6
@@ -213,3 +236,37 @@ def test_a_run_that_lost_ticks_is_run_again_and_the_lossy_attempt_kept(tmp_path:
     again = [line for line in lines if "running it again" in line]
     assert again == [f"[sweep] {name}: the logger recorded 25 of the 40 ticks the world sent; running it again "
                      f"(its metrics would miss those ticks; this attempt is kept in {kept})"]  # fmt: skip
+
+
+def test_ctrl_c_stops_the_run_in_flight_and_marks_it_interrupted(tmp_path: Path) -> None:
+    """The pool waited for its runs before the handler could stop them: the run
+    in flight went on to its end (leader_finished) while the console said it
+    was being stopped."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from tests.conftest import our_processes
+
+    out = tmp_path / "sw"
+    cmd = [sys.executable, "-m", "formation_swarm.cli", "sweep", "fig11_obstacles", "--seeds", "2", "--jobs", "1",
+           "--set", "run.robots=20", "--set", "leader.formation=line", "--out", str(out)]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not list(out.glob("runs/*/stats/agent-2.json")):
+        time.sleep(0.05)  # the first run is flying: an agent wrote its stats (once a second)
+    assert list(out.glob("runs/*/stats/agent-2.json")), "the first run never started"
+    os.killpg(proc.pid, signal.SIGINT)  # a terminal's Ctrl-C
+    said, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 130, said
+    assert "[sweep] interrupted: stopping the runs in flight (finished runs are kept)" in said
+    assert "Traceback" not in said
+    (run,) = [p.parent for p in out.glob("runs/*/summary.json")]
+    summary = json.loads((run / "summary.json").read_text())
+    assert summary["end_reason"] == "interrupted", summary["ended"]
+    assert summary["exit_code"] == 130
+    assert summary["ticks"] < 1061  # it did not fly to its end
+    assert not (out / "runs.csv").read_text().strip().splitlines()[1:]  # no row for it: it is run again on resume
+    assert [c for _, c in our_processes() if str(out) in c] == []
