@@ -100,6 +100,7 @@ class Logger:
         self.started = False  # the run's first status or truth has been handled
         self.done = False
         self.last_tick: dict[int, int] = {}  # per sender (WORLD_ID: truth), the last tick taken
+        self.taken: dict[int, bytearray] = {}  # per sender, 1 at each tick taken
         # Per sender, the first GAPS_KEPT runs of ticks missing between two taken
         # ([first, last] missing) and how many ticks were missing in all. Real time
         # drops by design; in lockstep every tick is sent, so a gap is a loss.
@@ -233,24 +234,40 @@ class Logger:
             self.counts["other"] += 1
 
     def _fresh(self, msg: Truth | Telemetry) -> bool:
-        """Newer than the sender's last message and not past the run's end (one
-        with a huge tick would make every later real one look replayed); counts
-        what is refused."""
-        last = self.last_tick.get(msg.sender, -1)
-        if msg.tick <= last:
-            self.rejections.reject("replayed or reordered")
-            return False
-        if msg.tick > self.last_run_tick:
+        """A tick of the run the sender has not given yet, in any order; counts
+        what is refused. Each tick is taken once: a message with a tick far
+        ahead (a stolen login's, say) costs the real one of that tick alone,
+        where keeping only the newest tick made every later real one look
+        replayed."""
+        tick, sender = msg.tick, msg.sender
+        if tick > self.last_run_tick:
             self.rejections.reject("tick past the run's end")
             return False
-        if last >= 0 and msg.tick > last + 1:
-            self.missing[msg.sender] = self.missing.get(msg.sender, 0) + msg.tick - last - 1
-            kept = self.gaps.setdefault(msg.sender, [])
-            if len(kept) < GAPS_KEPT:
-                kept.append([last + 1, msg.tick - 1])
-        elif last < 0:
-            self.first_tick[msg.sender] = msg.tick
-        self.last_tick[msg.sender] = msg.tick
+        taken = self.taken.get(sender)
+        if taken is None:
+            taken = self.taken[sender] = bytearray(self.last_run_tick + 1)
+        if taken[tick]:
+            self.rejections.reject("replayed or reordered")
+            return False
+        taken[tick] = 1
+        first, last = self.first_tick.get(sender), self.last_tick.get(sender)
+        kept = self.gaps.setdefault(sender, [])
+        if first is None or last is None:
+            self.first_tick[sender] = self.last_tick[sender] = tick
+        elif tick > last:
+            if tick > last + 1:
+                self.missing[sender] = self.missing.get(sender, 0) + tick - last - 1
+                kept.append([last + 1, tick - 1])
+            self.last_tick[sender] = tick
+        elif tick < first:  # late, before the first: the ticks between are missing now
+            if tick < first - 1:
+                self.missing[sender] = self.missing.get(sender, 0) + first - tick - 1
+                kept.insert(0, [tick + 1, first - 1])
+            self.first_tick[sender] = tick
+        else:  # late, inside a gap: fills it
+            self.missing[sender] -= 1
+            _fill(kept, tick)
+        del kept[GAPS_KEPT:]
         return True
 
     def _start(self) -> None:
@@ -342,6 +359,14 @@ def build_parser() -> cliargs.Parser:
     role_mod.add_arguments(ap, waits_for="the world")
     session.add_arguments(ap, default_mode="client")
     return ap
+
+
+def _fill(gaps: list[list[int]], tick: int) -> None:
+    """Take ``tick`` out of the [first, last] runs of missing ticks it falls in."""
+    for i, (a, b) in enumerate(gaps):
+        if a <= tick <= b:
+            gaps[i : i + 1] = [g for g in ([a, tick - 1], [tick + 1, b]) if g[0] <= g[1]]
+            return
 
 
 def main(argv: list[str] | None = None) -> int:

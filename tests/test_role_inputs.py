@@ -123,6 +123,29 @@ def test_lockstep_world_takes_an_answer_only_for_the_tick_it_published() -> None
     assert world.stats(1.0)["late_answers"] == 1
 
 
+def test_a_command_with_a_huge_seq_costs_the_real_agent_that_tick_only() -> None:
+    """Commands are ordered by (tick, seq) and the tick cannot pass the world's:
+    a plausible forgery with seq 2**53 - 10**6 (a stolen login's) is taken for its
+    tick, then the real agent's next answer is newer. Ordered by seq alone, every
+    real command after it looked replayed, for the rest of the run."""
+    world = _world("realtime")
+    eng = world.engine
+    for _ in range(5):
+        eng.step(eng.time_s)
+    world._on_command(Command(2, 9, 5, 1.0, 1.0, 0, False))  # the real agent, tick 5
+    world._on_command(Command(2, 2**53 - 10**6, 5, 2.0, 2.0, 0, False))  # the forgery, same tick
+    assert eng.robots[2].command == (2.0, 2.0)
+    world._on_command(Command(2, 10, 5, 1.0, 1.0, 0, False))  # the real one's retry of tick 5: older
+    assert world.rejections.by_reason == {"replayed or reordered": 1}
+    eng.step(eng.time_s)
+    world._on_command(Command(2, 11, 6, 1.1, 1.1, 0, False))  # tick 6: taken
+    assert eng.robots[2].command == (1.1, 1.1)
+    world._on_command(Command(2, 11, 6, 1.1, 1.1, 0, False))  # its replay: refused
+    world._on_command(Command(2, 2**53 - 10**6, 9, 2.0, 2.0, 0, False))  # a tick to come: refused
+    assert world.rejections.by_reason == {"replayed or reordered": 2, "tick ahead of the world": 1}
+    assert eng.robots[2].command == (1.1, 1.1)
+
+
 def test_the_world_rejects_and_counts_a_command_for_an_unknown_formation() -> None:
     world = _world()
     eng = world.engine
@@ -171,12 +194,27 @@ def test_the_logger_takes_telemetry_far_ahead_of_its_truth_but_nothing_past_the_
     assert not log._fresh(SimpleNamespace(sender=2, tick=510))
     assert log._fresh(SimpleNamespace(sender=2, tick=511))  # a huge tick refused did not mute the robot
     assert log.rejections.by_reason == {"tick past the run's end": 2, "replayed or reordered": 1}
+    # A tick far ahead but within the run (a stolen login's) mutes no tick but its own:
+    # the real telemetry before it still comes in, and fills the gap it opened.
+    assert log._fresh(SimpleNamespace(sender=2, tick=1119))
+    assert log._fresh(SimpleNamespace(sender=2, tick=512))
+    assert log._fresh(SimpleNamespace(sender=2, tick=513))
+    assert not log._fresh(SimpleNamespace(sender=2, tick=512))  # each tick once
+    assert log.tick_stats()["2"] == {"first": 510, "last": 1119, "missing": 1119 - 514, "gaps": [[514, 1118]]}
+    for tick in range(514, 1119):
+        assert log._fresh(SimpleNamespace(sender=2, tick=tick))
+    assert log.tick_stats()["2"] == {"first": 510, "last": 1119, "missing": 0, "gaps": []}
+    assert not log._fresh(SimpleNamespace(sender=2, tick=1119))  # the real one of that tick: the forgery's
+    assert log.rejections.by_reason == {"tick past the run's end": 2, "replayed or reordered": 3}
     # Where ticks were missing, per sender: truth from tick 10, R2 from 510, R3 only its last.
     for tick in (11, 12, 20, 21, 40):
         assert log._fresh(SimpleNamespace(sender=WORLD_ID, tick=tick))
+    # A late one fills its gap; one before the first opens one.
+    assert log._fresh(SimpleNamespace(sender=WORLD_ID, tick=30))
+    assert log._fresh(SimpleNamespace(sender=WORLD_ID, tick=5))
     assert log.tick_stats() == {
-        "0": {"first": 10, "last": 40, "missing": 7 + 18, "gaps": [[13, 19], [22, 39]]},
-        "2": {"first": 510, "last": 511, "missing": 0, "gaps": []},
+        "0": {"first": 5, "last": 40, "missing": 4 + 7 + 17, "gaps": [[6, 9], [13, 19], [22, 29], [31, 39]]},
+        "2": {"first": 510, "last": 1119, "missing": 0, "gaps": []},
         "3": {"first": last + 2, "last": last + 2, "missing": 0, "gaps": []},
     }
 

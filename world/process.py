@@ -168,9 +168,10 @@ class World:
             for rid in sc.robots
         }
         self.cmd_ids = {self.keys.cmd(rid): rid for rid in sc.robots}  # each robot's command key, parsed once
-        self.applied_seq = {rid: -1 for rid in sc.robots}  # of the last command a cmd link handed over and taken
-        # Per robot, the last command taken: (seq, tick). A command must be newer on both.
+        # Per robot, (tick, seq) of the last command taken, and of the last one its
+        # cmd link handed over and was applied: each must be newer, in that order.
         self.last_cmd: dict[int, tuple[int, int]] = {rid: (-1, -1) for rid in sc.robots}
+        self.applied: dict[int, tuple[int, int]] = {rid: (-1, -1) for rid in sc.robots}
         self.wheel_limit = sc.max_wheel_mps * (1.0 + 1e-9)
         self.misses = 0
         self.late_answers = 0
@@ -376,14 +377,16 @@ class World:
         if msg.formation >= len(self.sc.formation_names):
             self.rejections.reject("unknown formation")
             return
-        last_seq, last_tick = self.last_cmd[msg.sender]
         if msg.tick > eng.tick:
             self.rejections.reject("tick ahead of the world")
             return
-        if msg.seq <= last_seq or msg.tick < last_tick:
+        # Ordered by (tick, seq), the tick bounded by the world's own: a command
+        # with a huge seq (a stolen login, say) cannot make the agent's real ones
+        # look replayed beyond the tick it answers, as ordering by seq alone did.
+        if (msg.tick, msg.seq) <= self.last_cmd[msg.sender]:
             self.rejections.reject("replayed or reordered")
             return
-        self.last_cmd[msg.sender] = (msg.seq, msg.tick)
+        self.last_cmd[msg.sender] = (msg.tick, msg.seq)
         if self.mode == "lockstep" and msg.tick != eng.tick:
             self.late_answers += 1
             return
@@ -401,10 +404,10 @@ class World:
         """A command its link hands over (now, or held until this tick): taken if
         newer than the last one taken, else (a duplicate, one held behind a
         newer one) "replayed or reordered"."""
-        if msg.seq <= self.applied_seq[msg.sender]:
+        if (msg.tick, msg.seq) <= self.applied[msg.sender]:
             self.rejections.reject("replayed or reordered")
             return
-        self.applied_seq[msg.sender] = msg.seq
+        self.applied[msg.sender] = (msg.tick, msg.seq)
         if not self.engine.robots[msg.sender].alive:
             return
         now = self.engine.time_s if self.mode == "lockstep" else self.wall_s
@@ -534,7 +537,7 @@ class World:
             # A fresh agent counts its messages from 1; what its predecessor's link
             # still held would be taken for newer than all of them.
             self.last_cmd[rid] = (-1, -1)
-            self.applied_seq[rid] = -1
+            self.applied[rid] = (-1, -1)
             self.cmd_links[rid].forget_held()
             print(f"world: robot {rid} is back at t={self.engine.time_s:.2f} s", flush=True)
 
