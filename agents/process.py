@@ -82,7 +82,6 @@ TELEMETRY_TICKS = 5
 TELEMETRY_WINDOW_S = 0.02
 PENDING_CODES = 64  # formation codes waiting for their tick
 MAX_HOLDS = 100  # holds listed in a follower's stats (all are counted in held_ticks)
-DUPLICATE_QUERY_S = 1.0  # how long the start-up check for another agent of the same robot waits
 
 
 class Agent:
@@ -317,8 +316,8 @@ class Agent:
 
     def _already_flying(self) -> bool:
         """Whether another process holds this robot's liveliness token (asked of
-        the router, bounded: DUPLICATE_QUERY_S)."""
-        replies = self.session.liveliness().get(self.keys.alive("agent", self.rid), timeout=DUPLICATE_QUERY_S)
+        the router, bounded: role.DUPLICATE_QUERY_S)."""
+        replies = self.session.liveliness().get(self.keys.alive("agent", self.rid), timeout=role_mod.DUPLICATE_QUERY_S)
         return any(reply.ok is not None for reply in replies)
 
     def _loop(self) -> int:

@@ -38,7 +38,7 @@ EXIT_OK = 0
 EXIT_FAILED = 1  # the Zenoh session (or the logger's recording) could not be opened
 EXIT_USAGE = 2  # bad flags or scenario (argparse's own code for bad flags)
 EXIT_NO_PEERS = 3  # the router or the peers did not appear within --peers-timeout
-EXIT_DUPLICATE = 4  # an agent for this robot is already in the run
+EXIT_DUPLICATE = 4  # an agent for this robot, or a world, is already in the run
 # Stopped by a signal: 128 + its number (130 SIGINT, 143 SIGTERM), the code a
 # shell reports for a process that signal kills. A signal that comes while the
 # process still imports its modules (its first second or so, before main()
@@ -50,9 +50,11 @@ exit codes:
        (e.g. the --listen port is taken)
   2    bad flags or scenario
   3    the router or the peers did not appear within --peers-timeout
-  4    (agent) this robot already has an agent in the run
+  4    (agent) this robot already has an agent in the run;
+       (world) the run already has a world
   130  stopped by SIGINT (Ctrl-C)
   143  stopped by SIGTERM"""
+DUPLICATE_QUERY_S = 1.0  # how long the start-up check for another agent or world of the run waits
 DEFAULT_PEERS_TIMEOUT_S = 60.0
 MAX_PEERS_TIMEOUT_S = 1e6  # 11 days: beyond, a deadline overflows the clock's timestamps
 # Zenoh's own connect timeout is set this much past ours, so that ours, which

@@ -229,6 +229,32 @@ def test_a_second_agent_for_a_flying_robot_is_refused(swarm_launch: Callable[...
         launch.stop(graceful_first=False)
 
 
+def test_a_second_world_for_a_running_run_is_refused(swarm_launch: Callable[..., Launch], tmp_path: Path) -> None:
+    """Started twice (by hand, or by a service manager), a world joined the run and
+    stepped phantom robots to its end, saying exit 0. It now refuses, as a second
+    agent does, and writes neither stats nor a summary over the first one's."""
+    launch = swarm_launch(FIG11, logger=False, auth=False, overrides={
+        "run.duration_s": 600.0, "leader.waypoints": [[0.0, 0.0], [0.0, 1000.0]]})  # fmt: skip
+    assert launch.wait_until(lambda: launch.sim_time() >= 1.0, timeout_s=60)
+    argv = [sys.executable, "-m", "formation_swarm.world.process", "--scenario", str(launch.run_dir / "scenario.toml"),
+            "--run", launch.run_id, "--zenoh-mode", "client", "--connect", launch.endpoint, "--mode", "realtime",
+            "--stats", str(tmp_path / "second.json"), "--out", str(tmp_path / "second"),
+            "--peers-timeout", "20"]  # fmt: skip
+    try:
+        second = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+        assert second.returncode == 4, second.stderr
+        assert f"run {launch.run_id!r} already has a world" in second.stderr
+        assert "two worlds would both step its robots: not starting" in second.stderr
+        assert "Traceback" not in second.stderr
+        assert not (tmp_path / "second.json").exists()
+        assert not (tmp_path / "second" / "summary.json").exists()
+        at = launch.sim_time()
+        assert launch.wait_until(lambda: launch.sim_time() > at, timeout_s=30)  # the run goes on
+        assert launch.children["world"].poll() is None
+    finally:
+        launch.stop(graceful_first=False)
+
+
 def test_the_deploy_router_refuses_strangers_and_keeps_each_role_to_its_keys(tmp_path: Path) -> None:
     """deploy/router.json5 with the rules of swarm secure, as deploy/README.md
     starts it: no login, no connection; a robot's login drives that robot only."""

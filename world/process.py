@@ -204,6 +204,16 @@ class World:
 
     def run(self) -> int:
         s, k, sc = self.session, self.keys, self.sc
+        # A second world of the run (started twice by hand or by a service) would
+        # step the same robots and say the run is its own: asked of the router first
+        # (before our liveliness subscriber: with it, Zenoh 1.10 answered this query empty).
+        replies = s.liveliness().get(k.alive("world", 0), timeout=role_mod.DUPLICATE_QUERY_S)
+        if any(reply.ok is not None for reply in replies):
+            self.role.complain(
+                f"run {k.run_id!r} already has a world ({self.where}); two worlds would both step its robots: "
+                "not starting"
+            )
+            return role_mod.EXIT_DUPLICATE
         block = zenoh.CongestionControl.BLOCK  # Zenoh never drops an observation; our link layer may
         obs_pubs = {rid: s.declare_publisher(k.obs(rid), congestion_control=block) for rid in sc.robots}
         # For the logger only, batched; in lockstep it may hold the run back rather
@@ -703,6 +713,8 @@ def main(argv: list[str] | None = None) -> int:
         role.say(f"{where}; run {args.run}: waiting up to {role.peers_timeout_s:g} s for {waits}")
         world = World(sess, sc, args.run, sc.seed, args.mode, args.expect_logger, role, where, args.process_faults)
         code = world.run()
+        if code == role_mod.EXIT_DUPLICATE:
+            return code  # the run's stats and summary are the other world's: nothing written over them
         stats = world.stats(time.monotonic() - started)
         stats["exit_code"] = code
         stats["scheduling"] = scheduling
