@@ -34,6 +34,7 @@ on the whole run); rules apply only at the router that holds them.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -253,6 +254,17 @@ def write_run_secrets(
     )
     _write_private(out["router"], json.dumps(router, indent=1))
     return out
+
+
+def forget_router_secrets(folder: Path) -> None:
+    """Remove from a run's secrets what lasts beyond it, once the router has read
+    it (Zenoh reads both when its session opens): the password list, which
+    holds the hosts' lasting logins, and the copy of the router's TLS key. A
+    launcher killed with SIGKILL cannot remove its secrets at the end; these
+    are the ones worth stealing from a run folder it leaves."""
+    for name in (PASSWORDS, PRIVATE_KEY):
+        with contextlib.suppress(FileNotFoundError):
+            (folder / name).unlink()
 
 
 HOST_LOGINS = "hosts.txt"  # swarm secure --hosts: the hosts' logins, user:password a line, for swarm run

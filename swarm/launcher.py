@@ -324,6 +324,7 @@ class Launch:
             settings = trust.read_settings(secrets["router"]) if secrets else None
             conf = make_config("router", listen=[self.listen, self.endpoint], settings=settings)
             self.session = zenoh.open(conf)
+            trust.forget_router_secrets(self.run_dir / SECRETS)  # read: the hosts' lasting logins leave the disk
         specs = {
             "world": [*py("world.process"), *common, "--mode", self.mode, "--stats", str(stats / "world.json"),
                       *zenoh_role, *["--expect-logger"] * self.logger, *["--process-faults"] * self.process_faults,

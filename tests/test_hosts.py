@@ -317,6 +317,13 @@ def test_the_hosts_stop_a_run_s_agents_when_its_launcher_dies(two_hosts: Hosts, 
             time.sleep(0.05)
         assert "its launcher's token went" in two_hosts.log(n), two_hosts.log(n)
         assert two_hosts.procs[n].poll() is None  # still serving
+    # The killed launcher could not remove the run's secrets; what outlasts the run
+    # (the hosts' logins in the router's password list) was gone once the router read it.
+    left = sorted(p.name for p in (out / "secrets").iterdir())
+    assert "passwords.txt" not in left, left
+    lasting = [line.split(":", 1)[1] for line in (two_hosts.tmp / "sec" / "hosts.txt").read_text().splitlines()]
+    assert len(lasting) == 2
+    assert not any(pw in p.read_text() for p in (out / "secrets").iterdir() for pw in lasting), left
 
 
 def test_doctor_hears_the_hosts_then_names_the_one_that_went(two_hosts: Hosts, tmp_path: Path) -> None:
