@@ -29,6 +29,7 @@ filter): deploy/router.json5 sets them for a standalone router.
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import json
 import re
 import socket
@@ -109,6 +110,15 @@ def check_endpoint(ep: Any) -> str:
     if ep.split("/", 1)[0] in ("tcp", "tls", "udp", "quic") and not (port.isdigit() and 0 < int(port) < 65536):
         raise ValueError(f"endpoint {ep!r}: the port must be a number in [1, 65535]")
     return ep
+
+
+def loopback(ep: str) -> bool:
+    """Whether an endpoint's address is this machine's loopback (127.0.0.0/8, ::1, localhost)."""
+    host = ep.split("/", 1)[-1].split("#", 1)[0].rpartition(":")[0].strip("[]")
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return host == "localhost"
 
 
 def listen_problem(ep: str) -> str | None:

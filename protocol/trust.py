@@ -49,6 +49,7 @@ from formation_swarm.protocol.keys import HostKeys, Keys, check_host_name, check
 _USER = re.compile(r"^[a-z][a-z0-9-]{0,31}$")
 PASSWORDS = "passwords.txt"  # the router's list of user:password, one per line
 CA, CERTIFICATE, PRIVATE_KEY = "ca.pem", "router.pem", "router.key"
+TLS_ROOT_CA = "transport/link/tls/root_ca_certificate"  # a client's setting: the CA its router's certificate is from
 
 
 @dataclass(frozen=True)
@@ -203,7 +204,7 @@ def client_settings(cred: Credential, ca: str | None = None) -> dict[str, Any]:
     (and, with ``ca``, accept only a router certified by it)."""
     out: dict[str, Any] = {"transport/auth/usrpwd": {"user": cred.user, "password": cred.password}}
     if ca:
-        out["transport/link/tls/root_ca_certificate"] = ca
+        out[TLS_ROOT_CA] = ca
     return out
 
 

@@ -403,6 +403,10 @@ def main(argv: list[str] | None = None) -> int:
         _check_login(settings, name, args.auth)
         if not args.connect and args.config is None:
             raise ValueError("--connect ENDPOINT: the router to serve runs through (scouting is off)")
+        plain = [e for e in args.connect if not e.startswith("tls/") and not session.loopback(e)]
+        if settings.get(trust.TLS_ROOT_CA) and plain:  # on this machine, a router's local endpoint may be tcp/
+            raise ValueError(f"--connect {plain[0]}: this login ({args.auth}) names a CA, for TLS: connect with "
+                             "tls/ROUTER:PORT, or the agents' passwords would cross the network in clear")  # fmt: skip
         conf = session.make_config("client", args.connect, (), args.config, settings=settings)
         # The router may come and go (a run's world is one): keep trying, in the background.
         conf.insert_json5("connect/exit_on_failure", "false")

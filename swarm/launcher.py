@@ -60,7 +60,7 @@ from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.hostmsg import HostReply, HostRequest
 from formation_swarm.protocol.keys import Keys, check_host_name
 from formation_swarm.protocol.messages import FaultCall, Status
-from formation_swarm.protocol.session import listen_problem, make_config
+from formation_swarm.protocol.session import listen_problem, loopback, make_config
 from formation_swarm.scenario_keys import ScenarioWarning
 
 STOP_GRACE_S = 2.0
@@ -241,6 +241,12 @@ class Launch:
         self.host_logins = None
         if self.tls is not None and not (self.hosts and self.auth and listen and listen.startswith("tls/")):
             raise ValueError("TLS files are for --hosts with --listen tls/ADDRESS:PORT and logins")
+        if self.hosts and listen and listen.startswith("tls/") and self.tls is None:
+            raise ValueError(f"--listen {listen}: a TLS router needs --tls-ca, --tls-cert and --tls-key (the CA the "
+                             "hosts trust, this router's certificate and key)")  # fmt: skip
+        if self.hosts and listen and listen.startswith("tcp/") and not loopback(listen):
+            self.progress(f"[swarm] warning: --listen {listen} is plain TCP: the hosts get their agents' passwords, "
+                          "and the run's data crosses the network, unencrypted (deploy/README.md: TLS)")  # fmt: skip
         if self.hosts and self.auth:
             if host_logins is None:
                 raise ValueError("--hosts needs --host-logins FILE: the hosts' logins the run's router lets in "

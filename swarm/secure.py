@@ -132,6 +132,9 @@ def _hosts(ap: cliargs.Parser, args: argparse.Namespace) -> int:
           f"{files[trust.HOST_LOGINS]}{tls}")  # fmt: skip
     if args.tls_ca:
         print(f"  copy {out / trust.CA} beside each host-NAME.json: the login names it relative to itself")
+    else:
+        print("  links are plain TCP: each run sends the hosts its agents' passwords, and its data, unencrypted; "
+              "see deploy/README.md for TLS (--tls-ca)")  # fmt: skip
     return 0
 
 

@@ -343,6 +343,9 @@ def test_the_deploy_router_without_rules_forwards_nothing() -> None:
     try:
         assert router.stdout is not None
         assert "listening on" in router.stdout.readline()
+        said = router.stdout.readline()  # what it enforces is the file's, until --auth gives a run's rules
+        assert "no --auth: the access rules, logins and TLS are" in said, said
+        assert "denies everything until --auth gives a run's rules" in said
         k = Keys("open-check")
         got: list[str] = []
         conf = make_config("client", [endpoint], connect_timeout_s=3.0)
@@ -353,6 +356,21 @@ def test_the_deploy_router_without_rules_forwards_nothing() -> None:
             time.sleep(0.5)  # nothing must arrive: a wait for an absence has no condition to wait on
             assert not pub.matching_status.matching  # the router told it of no subscriber
         assert got == []
+    finally:
+        router.terminate()
+        router.wait(timeout=10)
+
+
+def test_a_router_without_auth_says_that_anyone_who_reaches_it_can_join() -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    argv = [sys.executable, "-m", "formation_swarm.router", "--listen", endpoint]
+    router = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert router.stdout is not None
+        assert router.stdout.readline().startswith(f"router: listening on {endpoint}")
+        said = router.stdout.readline()
+        assert said.startswith("router: no --auth: no logins and no access rules; anyone who reaches this port can "
+                               "join any run through it and drive its robots"), said  # fmt: skip
     finally:
         router.terminate()
         router.wait(timeout=10)

@@ -532,10 +532,32 @@ def test_secure_hosts_with_a_ca_suggests_tls_endpoints_and_says_to_copy_the_ca(
     assert "--listen tls/0.0.0.0:7447" in said
     assert "tcp/" not in said
     assert f"copy {tmp_path / 'tls' / trust.CA} beside each host-NAME.json" in said
+    assert "unencrypted" not in said
     assert secure.main(["--hosts", "b", "--out", str(tmp_path / "plain")]) == 0
     plain = capsys.readouterr().out
     assert "--connect tcp/ROUTER:7447" in plain
     assert "tls/" not in plain
+    assert "links are plain TCP: each run sends the hosts its agents' passwords, and its data, unencrypted" in plain
+    # A host whose login names the CA refuses a plain endpoint off this machine before it connects.
+    argv = [*PY, "host", "--connect", "tcp/192.0.2.1:7447", "--name", "b", "--auth",
+            str(tmp_path / "tls" / "host-b.json"), "--workdir", str(tmp_path / "work")]  # fmt: skip
+    res = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert "names a CA, for TLS: connect with tls/ROUTER:PORT" in res.stderr
+    assert "waiting for a router" not in res.stdout
+
+
+def test_a_tls_listen_needs_the_tls_files_and_a_loopback_one_is_told_apart() -> None:
+    from formation_swarm.launcher import Launch
+    from formation_swarm.protocol.session import loopback
+
+    with pytest.raises(ValueError, match=r"a TLS router needs --tls-ca, --tls-cert and --tls-key"):
+        Launch("fig11_obstacles", hosts=["a"], listen=f"tls/127.0.0.1:{free_port()}", progress=lambda _l: None)
+    assert loopback("tcp/127.0.0.1:7447")
+    assert loopback("tcp/[::1]:7447")
+    assert loopback("tcp/localhost:7447")
+    assert not loopback("tcp/192.168.1.10:7447")
+    assert not loopback("tcp/0.0.0.0:7447")
 
 
 def test_a_host_whose_login_is_another_host_s_says_so_at_start(tmp_path: Path) -> None:
