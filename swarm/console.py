@@ -160,7 +160,7 @@ def losses(s: Mapping[str, Any]) -> str:
         f", lost to partitions {cut}" if cut else "")  # fmt: skip
 
 
-def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, tuple[Any, Any]]) -> str:
+def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, tuple[Any, ...]]) -> str:
     if m.get("acquired") is False:
         return f"  follower R{rid}: NEVER ACQUIRED its reference (never in its camera's view): no metrics\n"
     seen, frames = m.get("seen_ticks"), m.get("frames")
@@ -170,9 +170,9 @@ def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, tuple[Any
     whole = f"RMS {_num(m.get('rms_m'))} m, max {_num(m.get('max_m'))} m"
     if f"agent-{rid}" not in kills:
         return f"  follower R{rid}: formation error {whole}{sight}\n"
-    killed_at, restarted_at = kills[f"agent-{rid}"]
+    killed_at, restarted_at, *how = kills[f"agent-{rid}"]
     back = f", a fresh one started at t={_num(restarted_at, '.2f')} s" if restarted_at is not None else ""
-    killed = f"its agent was killed at t={_num(killed_at, '.2f')} s{back}"
+    killed = f"its agent was {(how or ['killed'])[0]} at t={_num(killed_at, '.2f')} s{back}"
     before = m.get("until_stopped")
     if not isinstance(before, Mapping):  # a summary from before until_stopped
         return f"  follower R{rid}: formation error {whole} ({killed}; these include the robot after that){sight}\n"
@@ -189,7 +189,7 @@ def _lost_sight(m: Mapping[str, Any]) -> bool:
 
 
 def _many_followers(
-    w: Any, followers: list[tuple[str, Mapping[str, Any]]], kills: Mapping[str, tuple[Any, Any]]
+    w: Any, followers: list[tuple[str, Mapping[str, Any]]], kills: Mapping[str, tuple[Any, ...]]
 ) -> list[tuple[str, Mapping[str, Any]]]:
     """Write the spread of the followers' errors; return the followers to list
     one by one: the worst by RMS, then any other that lost sight of its
@@ -288,7 +288,7 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
         w("  no metrics: the run ended before its first tick\n")
     else:
         followers = sorted((s.get("followers") or {}).items(), key=lambda kv: (len(str(kv[0])), str(kv[0])))
-        kills: dict[str, tuple[Any, Any]] = {}  # agent-N -> the sim times of its first kill and of its restart
+        kills: dict[str, tuple[Any, ...]] = {}  # agent-N -> the sim times of its first kill and of its restart
         for ev in s.get("events") or []:
             if isinstance(ev, Mapping) and ev.get("event") == "killed":
                 kills.setdefault(str(ev.get("process")).split(".")[0], (ev.get("sim_time_s"), None))
@@ -296,6 +296,9 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
                 name = str(ev.get("process")).split(".")[0]
                 if name in kills and kills[name][1] is None:
                     kills[name] = (kills[name][0], ev.get("sim_time_s"))
+        for d in s.get("deaths") or []:  # lost otherwise (a crash, its host gone): its error until then too
+            if isinstance(d, Mapping) and f"agent-{d.get('robot')}" not in kills:
+                kills[f"agent-{d.get('robot')}"] = (d.get("time_s"), None, "lost")
         listed = followers  # JSON keys: robot ids as text, listed by number
         if len(followers) > LIST_FOLLOWERS_UP_TO:
             listed = _many_followers(w, followers, kills)

@@ -471,8 +471,9 @@ class Launch:
                 self.events.append({"event": "host lost", "host": h, "robots": robots, "sim_time_s": t,
                                     "wall_s": time.monotonic() - self.started_at})  # fmt: skip
                 wall = time.monotonic() - self.started_at
+                dead = f"robot{'s' if len(robots) > 1 else ''} {', '.join(map(str, robots))}" if robots else "none"
                 self.progress(f"[swarm] host {h} was lost {wall:.1f} s of wall time into the run (its token went): "
-                              f"robots {', '.join(map(str, robots))} counted dead")  # fmt: skip
+                              f"{dead} counted dead")  # fmt: skip
         for child in self.children.values():
             code = child.poll()
             if code is not None and not child.reported:

@@ -368,6 +368,11 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
             "the whole run, the robot after that included: RMS 0.100 m, max - m")  # fmt: skip
     assert lines["follower R10"].strip() == said
     assert "killed" not in lines["follower R2"]
+    out = io.StringIO()  # lost otherwise (its host gone, a crash): the world's death, the same way
+    death = {"robot": 10, "tick": 40, "time_s": 2.0}
+    print_result(RunResult(tmp_path, {**stopped, "deaths": [death]}, 1), out)
+    lines = {line.split(":")[0].strip(): line for line in out.getvalue().splitlines() if "follower R" in line}
+    assert lines["follower R10"].strip() == said.replace("was killed", "was lost")
     out = io.StringIO()  # real time: its late ticks, not lockstep's misses
     realtime = {**ticked, "mode": "realtime", "late_ticks": 3, "max_tick_lateness_s": 0.0551, "lockstep_misses": 0}
     print_result(RunResult(tmp_path, realtime, 1), out)

@@ -243,6 +243,10 @@ def test_a_host_that_dies_mid_run_has_its_robots_counted_dead_and_fails_the_run(
     assert code == 1, text
     assert "host b was lost" in text, text
     assert "robots (2) were counted dead" in text, text
+    assert "(its token went): robot 2 counted dead" in text, text
+    # Its follower's error until then, as for a killed agent (the figures after are of a robot nobody drives).
+    assert "follower R2: formation error RMS" in text
+    assert "until its agent was lost at t=" in text, text
     summary = json.loads((out / "summary.json").read_text())
     assert summary["hosts"]["b"]["lost"] is True
     assert any(e["event"] == "host lost" and e["host"] == "b" and e["robots"] == [2] for e in summary["events"])
