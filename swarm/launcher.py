@@ -716,6 +716,8 @@ class Launch:
             reached = self.last_status.time_s
         if interrupted:
             reason = summary_mod.INTERRUPTED
+        elif any(e.get("event") == "start failed" for e in self.events):
+            reason = summary_mod.START_FAILED
         elif timed_out:
             reason = summary_mod.TIMED_OUT
         elif world_proc is not None and world_proc.returncode == 0 and world.get("end_reason"):

@@ -47,7 +47,8 @@ INTERRUPTED = "interrupted"  # SIGINT or SIGTERM
 TIMED_OUT = "timed_out"  # the wall-clock limit: swarm run --timeout, Launch.wait's, the fixture's timeout_s
 PEERS_TIMEOUT = "peers_timeout"  # the world's peers did not appear within --peers-timeout
 ROLE_FAILED = "role_failed"  # the world exited with an error (see "events" and "processes")
-END_REASONS = (LEADER_FINISHED, DURATION_REACHED, INTERRUPTED, TIMED_OUT, PEERS_TIMEOUT, ROLE_FAILED)
+START_FAILED = "start_failed"  # the launcher could not start the run (a host missing, refusing, unfit)
+END_REASONS = (LEADER_FINISHED, DURATION_REACHED, INTERRUPTED, TIMED_OUT, PEERS_TIMEOUT, ROLE_FAILED, START_FAILED)
 
 
 def describe_end(reason: str | None, ended_at_s: float | None, events: list[Mapping[str, Any]] | None = None,
@@ -64,6 +65,9 @@ def describe_end(reason: str | None, ended_at_s: float | None, events: list[Mapp
             and e.get("process") not in killed
         ]  # fmt: skip
         return f"a process failed{at}" + (f" ({'; '.join(died)})" if died else "")
+    if reason == START_FAILED:
+        why = [str(e.get("why")) for e in events or [] if e.get("event") == "start failed"]
+        return "the run could not start" + (f": {why[0]}" if why else "")
     return {
         LEADER_FINISHED: f"the leader reached its last waypoint{at}",
         DURATION_REACHED: f"the scenario's duration was reached{at}",
@@ -392,6 +396,8 @@ def build(
     world = parts.get("world", {})
     hosts_lost = [describe_host_lost(e) for e in events if e.get("event") == "host lost"]
     failure = "; ".join(hosts_lost) or robots_lost(world, sc)  # a lost host fails the run, its robots with it
+    if end_reason == START_FAILED:
+        failure = describe_end(end_reason, None, events)
     rejected = {name: part.get("rejected", {}) for name, part in parts.items() if part.get("rejected")}
     links = _links(parts)
     link_totals, link_faults = _link_sums(links, sc)

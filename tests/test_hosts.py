@@ -367,6 +367,10 @@ def test_a_run_whose_host_never_comes_stops_at_the_deadline_naming_it(two_hosts:
     summary = json.loads((out / "summary.json").read_text())
     assert summary["exit_code"] == 1
     assert any(e["event"] == "start failed" and "host b did not connect" in e["why"] for e in summary["events"])
+    # Said as what happened: no process failed, the run never started.
+    assert summary["end_reason"] == "start_failed"
+    assert summary["ended"].startswith("the run could not start: host b did not connect to "), summary["ended"]
+    assert summary["failure"] == summary["ended"]
     assert "started agent" not in two_hosts.log("a")  # every host is waited for before any agent starts
 
 
