@@ -465,6 +465,8 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
     run = _table(raw.get("run"), "run", RUN_KEYS)
     dt = float(run["dt_s"])
     duration = float(run["duration_s"])
+    if round(duration / dt) < 1:  # no tick at all: a run with nothing to measure
+        raise ScenarioError(f"run.duration_s: at least one control step (run.dt_s = {dt:g} s), got {duration:g}")
     n = run["robots"]
     robot = _table(raw.get("robot"), "robot", ROBOT_KEYS)
     cam = _table(raw.get("camera"), "camera", CAMERA_KEYS)

@@ -100,6 +100,10 @@ REJECTED = {
     "run: unknown mode": ([*RUN, "--mode", "fast"], "argument --mode: invalid choice: 'fast'"),
     "run: unknown scenario key": ([*RUN, "--set", "run.sede=1"], "unknown key run.sede; did you mean 'seed'?"),
     "run: --set without a value": ([*RUN, "--set", "nonsense"], "--set takes KEY=VALUE"),
+    "run: a duration under one tick": (
+        [*RUN, "--set", "run.duration_s=0.01"],
+        "run.duration_s: at least one control step (run.dt_s = 0.05 s), got 0.01",
+    ),
     "run: a key set twice": (
         [*RUN, "--set", "leader.speed_mps=1.6", "--set", "leader.speed_mps=2"],
         "--set leader.speed_mps is given twice (1.6 and 2): give it once",

@@ -346,7 +346,7 @@ def test_a_stale_reversing_command_is_counted_too() -> None:
 
 
 def test_follower_metrics_from_samples() -> None:
-    from formation_swarm.world.engine import FollowerMetrics
+    from formation_swarm.world.engine import METRICS, FollowerMetrics
 
     m = FollowerMetrics()
     m.add(3.0, 2.0, turning=True)
@@ -361,9 +361,15 @@ def test_follower_metrics_from_samples() -> None:
     solo = FollowerMetrics()
     solo.add(1.0)  # no along-heading error given: neither behind nor ahead
     assert (solo.max_lag_m, solo.max_ahead_m) == (0.0, 0.0)
+    # No sample (a run that ended before its first tick): every metric unknown, none a 0 m that reads as perfect.
     empty = FollowerMetrics().as_dict()
-    assert (empty["max_m"], empty["turn_max_m"], empty["max_lag_m"], empty["max_ahead_m"]) == (0.0, 0.0, 0.0, 0.0)
-    assert all(math.isnan(empty[k]) for k in ("rms_m", "turn_rms_m", "straight_rms_m", "turn_mean_lag_m"))
+    assert empty["samples"] == 0
+    assert all(empty[k] is None for k in METRICS), empty
+    # Samples but no turn: the turn's largest error is unknown too, not 0 m.
+    straight = FollowerMetrics()
+    straight.add(0.5)
+    assert straight.as_dict()["turn_max_m"] is None
+    assert math.isnan(straight.as_dict()["turn_rms_m"])  # written as null
 
 
 def test_error_windows_give_each_followers_mean_and_largest_error_per_second() -> None:

@@ -105,6 +105,9 @@ class FollowerMetrics:
         seen = {"frames": self.frames, "seen_ticks": self.seen_ticks}
         if self.frames and not self.seen_ticks:
             return {"acquired": False, **seen, "samples": self.samples, **dict.fromkeys(METRICS)}
+        if not self.samples:  # no tick measured (a run that ended before its first): nothing to say, not 0 m
+            return {"acquired": bool(self.seen_ticks) if self.frames else None, **seen, "samples": 0,
+                    **dict.fromkeys(METRICS)}  # fmt: skip
         return {
             "acquired": bool(self.seen_ticks) if self.frames else None,
             **seen,
@@ -113,7 +116,7 @@ class FollowerMetrics:
             "samples": self.samples,
             "turn_rms_m": rms(self.turn_sum_sq_m2, self.turn_samples),
             "straight_rms_m": rms(self.sum_sq_m2 - self.turn_sum_sq_m2, straight),
-            "turn_max_m": self.turn_max_m,
+            "turn_max_m": self.turn_max_m if self.turn_samples else None,  # no turn: no largest error in one
             "turn_samples": self.turn_samples,
             "turn_mean_lag_m": self.turn_along_sum_m / self.turn_samples if self.turn_samples else math.nan,
             "max_lag_m": self.max_lag_m,
