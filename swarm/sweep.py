@@ -112,11 +112,11 @@ def metrics(summary: Mapping[str, Any]) -> dict[str, Any]:
         "rejected": summary.get("rejected_total"),
         "ticks_per_s": summary.get("ticks_per_s"),
     }
-    for rid, m in sorted(summary.get("followers", {}).items()):
+    for rid, m in sorted(summary.get("followers", {}).items(), key=_by_robot):
         for k in ("rms_m", "max_m", "turn_rms_m", "straight_rms_m", "turn_mean_lag_m", "max_lag_m", "max_ahead_m"):
             row[f"r{rid}_{k}"] = m.get(k)
     errs = summary.get("parts", {}).get("logger", {}).get("target_errors", {})
-    for rid, e in sorted(errs.items()):
+    for rid, e in sorted(errs.items(), key=_by_robot):
         row[f"r{rid}_measured_rms_m"] = e.get("measured_rms_m")
         row[f"r{rid}_ekf_rms_m"] = e.get("ekf_rms_m")
         if e.get("measured_rms_m") and e.get("ekf_rms_m") is not None:
@@ -127,6 +127,12 @@ def metrics(summary: Mapping[str, Any]) -> dict[str, Any]:
     for rid, names in sorted(seq.items()):
         row[f"r{rid}_formations"] = ">".join(names)
     return row
+
+
+def _by_robot(kv: tuple[Any, Any]) -> tuple[int, str]:
+    """A summary's per-robot entry in robot order (its JSON keys are text: R10 would come before R2)."""
+    key = str(kv[0])
+    return (int(key), key) if key.isdigit() else (1 << 62, key)
 
 
 def t975(n: int) -> float:
@@ -323,10 +329,17 @@ def _write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:
     tmp.replace(path)  # never a half-written table
 
 
+BRIEF_FOLLOWERS = 4  # beyond, a progress line gives the followers' median and worst RMS, not each
+
+
 def _brief(row: Mapping[str, Any]) -> str:
-    parts = [f"{k[:-2]} {row[k]:.2f} m" for k in row if k.endswith("_rms_m") and k.count("_") == 2
-             and _is_number(row[k])]  # fmt: skip
-    return ", ".join(parts) or "no follower metrics"
+    rms = [(k[1:-6], float(row[k])) for k in row if k.endswith("_rms_m") and k.count("_") == 2 and _is_number(row[k])]
+    if len(rms) > BRIEF_FOLLOWERS:
+        values = sorted(v for _, v in rms)
+        worst = max(rms, key=lambda kv: kv[1])
+        return (f"{len(rms)} followers' RMS: median {statistics.median(values):.2f} m, "
+                f"worst {worst[1]:.2f} m (R{worst[0]})")  # fmt: skip
+    return ", ".join(f"r{rid}_rms {v:.2f} m" for rid, v in rms) or "no follower metrics"
 
 
 def _slug(text: str) -> str:

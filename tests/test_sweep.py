@@ -270,3 +270,16 @@ def test_ctrl_c_stops_the_run_in_flight_and_marks_it_interrupted(tmp_path: Path)
     assert summary["ticks"] < 1061  # it did not fly to its end
     assert not (out / "runs.csv").read_text().strip().splitlines()[1:]  # no row for it: it is run again on resume
     assert [c for _, c in our_processes() if str(out) in c] == []
+
+
+def test_a_sweeps_rows_and_progress_list_followers_by_number() -> None:
+    """JSON's keys are text: r10 came before r2 in the tables and on the progress line."""
+    row = sweep.metrics({"followers": {str(r): {"rms_m": r / 10} for r in (2, 10, 3, 11)}})
+    assert [k for k in row if k.endswith("_rms_m") and k.count("_") == 2] == [
+        "r2_rms_m", "r3_rms_m", "r10_rms_m", "r11_rms_m"]  # fmt: skip
+    few = sweep.metrics({"followers": {str(r): {"rms_m": r / 10} for r in (3, 2)}})
+    assert sweep._brief(few) == "r2_rms 0.20 m, r3_rms 0.30 m"
+    # Beyond four followers, one line says their spread, not each.
+    five = sweep.metrics({"followers": {str(r): {"rms_m": r / 10} for r in (2, 10, 3, 11, 4)}})
+    assert sweep._brief(five) == "5 followers' RMS: median 0.40 m, worst 1.10 m (R11)"
+    assert sweep._brief(sweep.metrics({"followers": {"2": {"rms_m": None}}})) == "no follower metrics"
