@@ -302,8 +302,10 @@ def recording_gap(summary: Mapping[str, Any]) -> str | None:
 
     Telemetry is compared robot by robot with what each follower answered,
     except for a robot whose agent a fault killed or restarted: the batch it
-    held when killed dies with it, by the fault's design."""
-    if summary.get("mode") != "lockstep":
+    held when killed dies with it, by the fault's design. A run stopped from
+    outside (Ctrl-C, a timeout) loses what was in flight when its processes
+    stopped: nothing to tell either (its summary says it was stopped)."""
+    if summary.get("mode") != "lockstep" or summary.get("interrupted") or summary.get("timed_out"):
         return None
     parts = summary.get("parts") or {}
     logger = parts.get("logger") or {}

@@ -190,6 +190,9 @@ def test_a_lockstep_run_whose_recording_misses_ticks_is_not_taken_as_done(tmp_pa
     assert summary_mod.recording_gap(cut) == (
         "the logger recorded 715 of the 880 ticks the world sent (missing: truth ticks 100-264)"
     )
+    # A run stopped from outside (Ctrl-C, a timeout): what was in flight is lost with it; nothing to tell.
+    assert summary_mod.recording_gap({**cut, "interrupted": True}) is None
+    assert summary_mod.recording_gap({**cut, "timed_out": True}) is None
     # A follower a fault killed: the batch it held died with it, by design; not a loss of the recording.
     killed = {**placed, "events": [{"event": "killed", "process": "agent-2", "fault": "kill agent-2@20s"}]}
     assert summary_mod.recording_gap(killed) is None
