@@ -45,6 +45,7 @@ EVENT_GAP_S = 1.0  # formation events closer than this are one switch (leader, t
 LETTERS = "abcdefghijklmnopqrstuvwxyz"  # panel letters, as the paper's Fig. 11 (a-d)
 MAX_PANELS = 9  # zoomed snapshots on the trajectory figure
 MIN_HELD_S = 2.0  # a formation flown shorter than this gets no mid-way snapshot
+NARROW_VIEW_IN = 3.5  # a trajectory view narrower than this gets its legend beside it, not over it
 LEGEND_WIDTH_IN = 3.0  # what a swarm's trajectory figure without zoomed panels grows by, for its legend beside it
 QUANTILE = 99.5  # robust axis limits: this percentile, with a margin
 # Beyond this many followers a figure draws them together (each faint, their
@@ -306,12 +307,15 @@ def trajectories(path: Any, data: Mapping[str, Series], ctx: Context, snapshots:
         over = fig.add_subplot(grid[:, 0])
         panels = [fig.add_subplot(grid[i // cols, 1 + i % cols]) for i in range(len(zoomed))]
         spare = [grid[i // cols, 1 + i % cols] for i in range(len(zoomed), 2 * cols)]
+        beside = False  # the legend has a panel of its own, or the overview's room
     else:
-        # As wide as the view's equal scales need (a column is narrow), no wider.
+        # As wide as the view's equal scales need (a column is narrow), no wider; a
+        # swarm's legend, or one a narrow view could not hold, goes beside it.
         _, span = _view(lo, hi)
         height = float(np.clip(6.0 * span[1] / span[0], 4.5, 7.5))
-        least = 4.0 if ctx.many else 5.5  # the title's width (a swarm's legend beside the axes adds to it)
-        width = float(np.clip((height - 1.4) * span[0] / span[1] + 1.3, least, 12.0))
+        axes_width = (height - 1.4) * span[0] / span[1]
+        beside = ctx.many or axes_width < NARROW_VIEW_IN
+        width = float(np.clip(axes_width + 1.3 + LEGEND_WIDTH_IN * beside, 5.5, 12.0 + LEGEND_WIDTH_IN))
         fig, over = plt.subplots(figsize=(width, height), layout="constrained")
         panels, spare = [], []
     _overview(over, poses, ctx, snaps, lo, hi)
@@ -322,8 +326,7 @@ def trajectories(path: Any, data: Mapping[str, Series], ctx: Context, snapshots:
         leg_ax = fig.add_subplot(spare[0])
         leg_ax.axis("off")
         leg_ax.legend(handles, labels, loc="center", fontsize=9, frameon=False)
-    elif not zoomed and ctx.many:  # a swarm's column of robots: beside the axes, in a figure made wider for it
-        fig.set_figwidth(fig.get_figwidth() + LEGEND_WIDTH_IN)
+    elif not zoomed and beside:  # beside the axes, in a figure made wider for it
         over.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
         over.set_anchor("E")  # the axes beside their legend; any spare width goes to the left
     else:
@@ -335,7 +338,7 @@ def trajectories(path: Any, data: Mapping[str, Series], ctx: Context, snapshots:
         how = f"formation every {ctx.t_end / max(1, snapshots - 1):.1f} s (no formation switch)"
         if len(snaps) < evenly:
             times = ", ".join(f"{t:.1f}" for t, _ in snaps)
-            how = f"formation at {times} s, apart (no formation switch)"
+            how = f"formation at {times} s (no formation switch; overlapping ones left out)"
     fig.suptitle(ctx.title("trajectories", "trajectories") + f"\n{how}", fontsize=11)
     _save(fig, path, dpi)
 

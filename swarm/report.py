@@ -111,6 +111,10 @@ def _context(run_dir: Path, summary: Mapping[str, Any], data: Mapping[str, Serie
     ctx.start_formation = sc.leader.formation
     ctx.paper = paper_figures(run_dir / "scenario.toml")
     ctx.changes = None if ctx.paper else paper_changes(run_dir / "scenario.toml")
+    if ctx.paper and summary.get("end_reason") not in (summary_mod.LEADER_FINISHED, summary_mod.DURATION_REACHED):
+        # The paper's scenario, cut short (Ctrl-C, a timeout, a failure): not its figure.
+        ctx.paper = {}
+        ctx.changes = f"the run did not end as the scenario does: {summary.get('ended') or summary.get('end_reason')}"
     return ctx
 
 

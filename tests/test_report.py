@@ -171,6 +171,18 @@ def test_cf_paper_only_for_a_shipped_scenario_as_shipped(tmp_path: Path) -> None
     assert paper_figures(tmp_path / "b.toml") == {}
     (tmp_path / "c.toml").write_text(text + '\n[[faults]]\nfault = "kill agent-2@5s"\n')
     assert paper_figures(tmp_path / "c.toml") == {}
+    # The scenario as shipped, but the run cut short: not the paper's figure either.
+    from formation_swarm.report import _context
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "scenario.toml").write_text(text)
+    whole = _context(run, {"end_reason": "duration_reached"}, {}, [], [2])
+    assert whole.paper == {"trajectories": "Fig. 7a", "formation_error": "Fig. 7b", "vn": "Fig. 8"}
+    ended = "stopped by a signal (Ctrl-C, SIGINT or SIGTERM) at t=2.55 s"
+    cut = _context(run, {"end_reason": "interrupted", "ended": ended}, {}, [], [2])
+    assert cut.paper == {}
+    assert cut.changes == f"the run did not end as the scenario does: {ended}"
 
 
 def test_formats_dpi_and_the_events_listed(swarm_run: Callable[..., RunResult]) -> None:
