@@ -27,6 +27,7 @@ Fixtures:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -79,6 +80,8 @@ def swarm_run(swarm_launch: Callable[..., Launch]) -> Callable[..., RunResult]:
     """Run a scenario to its end as real processes; returns a ``RunResult``."""
 
     def run(scenario: str | Path, *, timeout_s: float = 300.0, **kwargs: Any) -> RunResult:
+        if isinstance(timeout_s, bool) or not isinstance(timeout_s, (int, float)) or not 0 < timeout_s < math.inf:
+            raise ValueError(f"swarm_run: timeout_s must be a number of seconds > 0, got {timeout_s!r}")
         launch = swarm_launch(scenario, **kwargs)
         res = launch.wait(timeout_s=timeout_s)
         if res.exit_code == INTERRUPTED:

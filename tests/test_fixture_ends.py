@@ -90,3 +90,46 @@ def test_a_failed_test_names_the_folders_of_its_runs_and_a_result_prints_short(p
     assert "; summary.json, logs/)" in section
     printed = next(line for line in out.splitlines() if line.startswith("RunResult("))
     assert printed.endswith("/test_strict0/run-0'), exit_code=0)")  # not the summary's kB
+
+
+def test_the_fixture_refuses_wrong_arguments_in_a_sentence(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(
+        textwrap.dedent(
+            """
+            import pytest
+
+            def test_bad(swarm_run):
+                with pytest.raises(ValueError, match=r"^swarm_run: timeout_s must be a number of seconds > 0, got -1$"):
+                    swarm_run("fig11_obstacles", timeout_s=-1)
+                with pytest.raises(ValueError, match=r"^a scenario is a shipped scenario's name or a TOML file's path, "
+                                                     r"got int 11$"):
+                    swarm_run(11)
+                with pytest.raises(ValueError, match=r"^overrides must map scenario keys to values"):
+                    swarm_run("fig11_obstacles", overrides=["leader.speed_mps=1.6"])
+                with pytest.raises(ValueError, match=r"file not found: my_scn.toml \\(relative to the working"):
+                    swarm_run("my_scn.toml")
+            """
+        )
+    )
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    result.assert_outcomes(passed=1)
+
+
+def test_the_readmes_fixture_examples_pass_as_written(pytester: pytest.Pytester) -> None:
+    """Every code block of README's "In your own test suite", run as a user's test file."""
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    section = readme.split("### In your own test suite", 1)[1].split("\n## ", 1)[0]
+    blocks: list[str] = []
+    block: list[str] = []
+    for line in [*section.splitlines(), "end"]:
+        if line.startswith("    ") or (block and not line.strip()):
+            block.append(line[4:])
+        elif block:
+            blocks.append("\n".join(block).strip())
+            block = []
+    source = "\n\n\n".join(b for b in blocks if b.startswith("def test_"))
+    tests = source.count("\ndef test_") + source.startswith("def test_")
+    assert tests == 4, source
+    pytester.makepyfile(source + "\n")
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider")
+    result.assert_outcomes(passed=tests)
