@@ -109,7 +109,7 @@ def grants(run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[s
             watch=(f"{k.prefix}/alive/*/*",),
         ),
         "logger": Grants(
-            subscribe=(k.world_all, k.all_telemetry),
+            subscribe=(k.world_all, k.all_telemetry, k.codes),  # the leader's codes: its switches, for the events
             tokens=(k.alive("logger", 0),),
             watch=(k.alive("world", 0), k.alive_all("agent")),  # the agents': a follower gone sends no more
         ),

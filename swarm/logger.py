@@ -7,8 +7,9 @@ The recording file is complete whatever live outputs are added: they are fed
 by a second Rerun stream, which is never waited on while the run lasts
 (formation_swarm.recording.Recording).
 
-It subscribes to the world's keys and to every follower's telemetry (not
-to observations, commands and formation codes: they would double the
+It subscribes to the world's keys, to every follower's telemetry and to
+the leader's formation codes (one put every 10 ticks: the leader's switches,
+for the event log), not to observations and commands (they would double the
 router's work for nothing), holds a liveliness token the world waits for,
 and watches the world's token: it gives up when the world has not appeared
 within ``--peers-timeout`` and ends when the world says "done" or leaves.
@@ -42,7 +43,7 @@ from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import pack_batch
 from formation_swarm.protocol.codec import WORLD_ID, Rejections
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.protocol.messages import FaultCall, Status, Telemetry, Truth
+from formation_swarm.protocol.messages import FaultCall, FormationCode, Status, Telemetry, Truth
 from formation_swarm.recording import Recorder, open_recording
 
 SEND_PERIOD_S = 0.25
@@ -138,6 +139,7 @@ class Logger:
         self.recorder.log_static()
         s.declare_subscriber(k.world_all, self._on_sample)
         s.declare_subscriber(k.all_telemetry, self._on_sample)
+        s.declare_subscriber(k.codes, self._on_sample)
         s.liveliness().declare_subscriber(k.alive("world", 0), self._on_world_alive, history=True)
         # Its token goes after its last telemetry (same link, in order): a follower
         # gone has nothing more on its way.
@@ -225,6 +227,10 @@ class Logger:
             if st is not None:
                 self._start()
                 self.done = self.done or st.state == "done"
+        elif key == self.keys.codes:
+            code = self.rejections.decode(FormationCode, payload, sender=self.sc.leader.robot_id)
+            if code is not None and code.tick <= self.last_run_tick:
+                self.recorder.add_leader_code(code)
         elif key == self.keys.faults:
             call = self.rejections.decode(FaultCall, payload, sender=WORLD_ID)
             if call is not None:

@@ -50,8 +50,15 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     report = outcome.get_result()  # type: ignore[attr-defined]
     launches = item.stash.get(LAUNCHES, [])
     if report.failed and call.when == "call" and launches:
-        report.sections.append(("swarm runs", "\n".join(
-            f"{launch.run_dir} (run {launch.run_id}; summary.json, logs/)" for launch in launches)))  # fmt: skip
+        report.sections.append(("swarm runs", "\n".join(_run_line(launch) for launch in launches)))
+
+
+def _run_line(launch: Launch) -> str:
+    """A run's folder and what it holds now: a run the test left while it went
+    on has no summary.json (the fixture then stops it)."""
+    held = [name for name in ("summary.json", "recording.rrd", "logs/") if (launch.run_dir / name.rstrip("/")).exists()]
+    note = "" if "summary.json" in held else "; no summary.json: the test ended while the run went on"
+    return f"{launch.run_dir} (run {launch.run_id}; {', '.join(held) or 'nothing yet'}{note})"
 
 
 @pytest.fixture

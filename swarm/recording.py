@@ -48,7 +48,7 @@ from formation_swarm.palette import OBSTACLE, PATH, lighter, robot_colour
 from formation_swarm.world.kinematics import Pose, from_body_frame
 
 if TYPE_CHECKING:
-    from formation_swarm.protocol.messages import FaultCall, Telemetry, Truth
+    from formation_swarm.protocol.messages import FaultCall, FormationCode, Telemetry, Truth
     from formation_swarm.scenario import Scenario
 
 TIMELINE = "sim_time"
@@ -234,6 +234,9 @@ class Recorder:
         self.poses: dict[int, dict[int, Pose]] = {}  # tick -> robot -> pose, bounded history
         self.targets: dict[int, dict[int, tuple[float, float]]] = {}
         self.formation: dict[int, int] = {}
+        self.leader_code: int | None = None  # the last formation code taken from the leader, and its tick
+        self.leader_code_tick: int | None = None
+        self.pending_events: list[tuple[float, str]] = []  # (sim time s, text) for /events at the next send
         # Per follower: squared error of the measured and of the EKF target vs the true one.
         self.target_errors: dict[int, dict[str, float]] = defaultdict(lambda: defaultdict(float))
         self.counts = {"log_errors": 0, "rows": 0, "unjoined": 0}
@@ -245,6 +248,14 @@ class Recorder:
 
     def add_telemetry(self, tels: list[Telemetry]) -> None:
         self.tels.extend(tels)
+
+    def add_leader_code(self, code: FormationCode) -> None:
+        """The leader's formation code: a change is the leader's switch, an event."""
+        if code.code != self.leader_code and (self.leader_code_tick is None or code.tick > self.leader_code_tick):
+            self.leader_code, self.leader_code_tick = code.code, code.tick
+            names = self.sc.formation_names
+            name = names[code.code] if code.code < len(names) else "?"
+            self.pending_events.append((code.tick * self.sc.dt_s, f"R{code.sender} (leader) flies {name}"))
 
     def guard(self, fn: Any, *args: Any, **kwargs: Any) -> None:
         try:
@@ -319,6 +330,9 @@ class Recorder:
     def send(self, final: bool = False) -> None:
         self.guard(self._send_truth)
         self.guard(self._send_telemetry, final)
+        events, self.pending_events = self.pending_events, []
+        for t, text in events:
+            self._event(t, text)
 
     def _columns(self, entity: str, kind: str, times: np.ndarray, values: Any) -> None:
         """One entity's rows since the last send, as Rerun columns."""

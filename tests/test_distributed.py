@@ -331,12 +331,12 @@ def test_random_bytes_on_every_key_kill_nothing(swarm_launch: Callable[..., Laun
     rej = {name: sum(v.values()) for name, v in s["rejected"].items()}
     # The world decodes commands (3 keys); each agent its inbox (its obs, cmd,
     # telemetry and formation keys, and the codes' key) and the status key; the
-    # logger truth, status and 3 telemetry keys.
+    # logger truth, status, 3 telemetry keys and the codes' key (the leader's switches).
     assert rej["world"] == 3 * n
     for r in (1, 2, 3):
         assert rej[f"agent-{r}"] == 6 * n
-    assert rej["logger"] == 5 * n
-    assert s["rejected_total"] == 26 * n
+    assert rej["logger"] == 6 * n
+    assert s["rejected_total"] == 27 * n
     assert s["rejected"]["world"]["oversized"] == 3
 
 

@@ -79,15 +79,24 @@ def test_a_failed_test_names_the_folders_of_its_runs_and_a_result_prints_short(p
                 res = swarm_run("fig11_obstacles", logger=False, overrides={"run.duration_s": 1})
                 print(res)
                 assert res.summary["followers"]["3"]["rms_m"] < 0.0
+
+            def test_mid_run(swarm_launch):
+                launch = swarm_launch("fig11_obstacles", mode="realtime")
+                assert launch.wait_until(lambda: launch.sim_time() >= 0.2, timeout_s=60)
+                assert launch.sim_time() < 0.0
             """
         )
     )
     result = pytester.runpytest_subprocess("-p", "no:cacheprovider")
-    result.assert_outcomes(failed=1)
+    result.assert_outcomes(failed=2)
     out = result.stdout.str()
     section = out.split("swarm runs")[1].splitlines()[1]
     assert section.endswith("/test_strict0/run-0 (run " + section.split("(run ")[1])
     assert "; summary.json, logs/)" in section
+    # A test that failed while its run went on: what its folder holds then, and why no summary.
+    mid = out.split("swarm runs")[2].splitlines()[1]
+    assert "/test_mid_run0/run-0 (run " in mid
+    assert mid.endswith("; recording.rrd, logs/; no summary.json: the test ended while the run went on)"), mid
     printed = next(line for line in out.splitlines() if line.startswith("RunResult("))
     assert printed.endswith("/test_strict0/run-0'), exit_code=0)")  # not the summary's kB
 

@@ -41,7 +41,7 @@ def test_the_grants_of_a_three_robot_run() -> None:
         watch=(f"{R}/alive/*/*",),
     )  # fmt: skip
     assert g["logger"] == Grants(
-        subscribe=(f"{R}/world/**", f"{R}/robot/*/telemetry"),
+        subscribe=(f"{R}/world/**", f"{R}/robot/*/telemetry", f"{R}/robot/*/formation"),  # codes: the leader's switches
         tokens=(f"{R}/alive/logger/0",),
         watch=(f"{R}/alive/world/0", f"{R}/alive/agent/*"),  # the agents': a follower gone sends no more
     )
@@ -102,8 +102,9 @@ def test_the_router_rules_of_a_two_robot_run() -> None:
             ("seen", "egress", SEEN, [f"{R}/alive/*/*"]),
         ],
         "logger": [
-            ("sub", "ingress", ["declare_subscriber"], [f"{R}/world/**", f"{R}/robot/*/telemetry"]),
-            ("data", "egress", ["put"], [f"{R}/world/**", f"{R}/robot/*/telemetry"]),
+            ("sub", "ingress", ["declare_subscriber"], [f"{R}/world/**", f"{R}/robot/*/telemetry",
+                                                        f"{R}/robot/*/formation"]),
+            ("data", "egress", ["put"], [f"{R}/world/**", f"{R}/robot/*/telemetry", f"{R}/robot/*/formation"]),
             ("token", "ingress", ["liveliness_token"], [f"{R}/alive/logger/0"]),
             ("watch", "ingress", WATCHING, [f"{R}/alive/world/0", f"{R}/alive/agent/*"]),
             ("seen", "egress", SEEN, [f"{R}/alive/world/0", f"{R}/alive/agent/*"]),

@@ -188,6 +188,35 @@ def test_every_path_the_viewer_shows_is_in_the_recording(swarm_run: Callable[...
             assert timed[path] == ticks if every_tick else timed[path] > 0, (path, timed[path], ticks)
 
 
+def _texts(rrd: Path, entity: str) -> list[tuple[float, str]]:
+    from rerun.chunk import RrdReader
+
+    out = []
+    for chunk in RrdReader(str(rrd)).stream():
+        batch = chunk.to_record_batch()
+        if str(chunk.entity_path) != entity or chunk.is_static:
+            continue
+        text = next(n for n in batch.schema.names if n.endswith(":text"))
+        times = batch.column("sim_time").cast("int64").to_pylist()
+        rows = zip(times, batch.column(text).to_pylist(), strict=True)
+        out += [(round(t / 1e9, 2), row[0]) for t, row in rows if row]
+    return sorted(out)
+
+
+def test_the_event_log_has_every_robots_formation_switch_the_leaders_too(swarm_run: Callable[..., RunResult]) -> None:
+    """The followers' switches come from their telemetry; the leader sends none,
+    and its switch (the world's formation events list it) was missing."""
+    res = swarm_run(FIG11)
+    logged = [e for e in _texts(res.recording, "/events") if " flies " in e[1]]
+    # Each robot's first formation, at its first tick; then its switches, as the world saw them.
+    assert [text for t, text in logged if t == 0.0] == ["R1 (leader) flies triangle", "R2 flies triangle",
+                                                       "R3 flies triangle"]  # fmt: skip
+    expected = [(round(e["time_s"], 2), e["robot"], e["formation"]) for e in res.summary["formation_events"]]
+    assert [(t, text.split()[0], text.split()[-1]) for t, text in logged if t > 0] == sorted(
+        (t, f"R{r}", f) for t, r, f in expected)  # fmt: skip
+    assert (19.6, "R1 (leader) flies line") in logged
+
+
 def _times(rrd: Path, entity: str) -> list[float]:
     from rerun.chunk import RrdReader
 
