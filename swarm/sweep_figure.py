@@ -10,6 +10,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from formation_swarm.palette import robot_colour
+
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
@@ -80,15 +82,22 @@ def figure(agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "
     span = (max(xs.values()) - min(xs.values())) if len(xs) > 1 else 1.0
     step = span / max(1, len(xs) - 1)
     for ax, (ylabel, lines) in zip(axes, panels, strict=False):
+        many = len(lines) > MANY_LINES
         for k, (metric, line_label) in enumerate(lines):
-            dodge = (k - (len(lines) - 1) / 2) * 0.06 * step  # the bars of several robots side by side
+            dodge = 0.0 if many else (k - (len(lines) - 1) / 2) * 0.06 * step  # several robots' bars side by side
             pts = [(xs[lab] + dodge, by[lab, metric]) for lab in labels if (lab, metric) in by]
             x = [p[0] for p in pts]
             mean = [p[1]["mean"] for p in pts]
             low = [p[1]["mean"] - p[1]["ci95_low"] if p[1]["n"] > 1 else 0.0 for p in pts]
             high = [p[1]["ci95_high"] - p[1]["mean"] if p[1]["n"] > 1 else 0.0 for p in pts]
-            ax.errorbar(x, mean, yerr=[low, high], marker="o", ms=4, capsize=4, lw=1.2, label=line_label,
-                        ls="-" if numeric else "none")  # fmt: skip
+            colour = robot_colour(int(line_label[1:])) if line_label[1:].isdigit() else "0.3"
+            if many:  # each faint, unlabelled: their median and the worst are drawn over them
+                ax.plot(x, mean, marker="o", ms=2, lw=0.7, color=colour, alpha=0.35, ls="-" if numeric else "none")
+            else:
+                ax.errorbar(x, mean, yerr=[low, high], marker="o", ms=4, capsize=4, lw=1.2, label=line_label,
+                            color=colour, ls="-" if numeric else "none")  # fmt: skip
+        if many:
+            _median_and_worst(ax, lines, labels, xs, by, numeric)
         ax.set_ylabel(ylabel)
         ax.set_xlabel(xlabel)
         ax.grid(alpha=0.3)
@@ -99,11 +108,44 @@ def figure(agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "
             ax.set_xticks([xs[lab] for lab in labels], [names[lab] for lab in labels],
                           rotation=20 if sum(len(names[lab]) for lab in labels) > 60 else 0, fontsize=8)  # fmt: skip
     for ax in axes[len(panels) :]:
-        ax.set_visible(False)
+        ax.axis("off")
+    if "ekf_rms_m" not in {name for name in PER_FOLLOWER if any(m.endswith("_" + name) for m in metrics)}:
+        spare = axes[len(panels)] if len(panels) < len(axes) else None
+        note = "no EKF target errors: they come from the recordings (swarm sweep --logger)"
+        if spare is not None:
+            spare.text(0.5, 0.5, note, ha="center", va="center", fontsize=9, color="0.35", transform=spare.transAxes)
     seeds = sorted({j.seed for j in jobs})
     head = f"{title}: " if title else ""
-    fig.suptitle(f"{head}mean and 95% confidence interval over {len(seeds)} seeds per value")
+    per = f"{len(seeds)} seed{'s' if len(seeds) != 1 else ''} per value"
+    fig.suptitle(f"{head}mean and 95% confidence interval over {per}" if len(seeds) > 1 else f"{head}{per}, "
+                 "no confidence interval")  # fmt: skip
     return fig
+
+
+MANY_LINES = 8  # beyond this many followers a panel draws each faint, with their median and the worst
+
+
+def _median_and_worst(ax: Any, lines: list[tuple[str, str]], labels: list[str], xs: Mapping[str, float],
+                      by: Mapping[tuple[str, str], Mapping[str, Any]], numeric: bool) -> None:  # fmt: skip
+    """Over a panel's faint follower lines: the median of their means at each
+    value, and the follower whose mean is largest, named."""
+    import statistics
+
+    ls = "-" if numeric else "none"
+    xs_drawn, medians = [], []
+    for lab in labels:
+        means = [by[lab, metric]["mean"] for metric, _ in lines if (lab, metric) in by]
+        if means:
+            xs_drawn.append(xs[lab])
+            medians.append(statistics.median(means))
+    ax.plot(xs_drawn, medians, marker="o", ms=4, lw=2.0, color="k", ls=ls,
+            label=f"median over the {len(lines)} followers")  # fmt: skip
+    worst_metric, worst_label = max(
+        lines, key=lambda ml: max((by[lab, ml[0]]["mean"] for lab in labels if (lab, ml[0]) in by), default=-1.0)
+    )
+    pts = [(xs[lab], by[lab, worst_metric]["mean"]) for lab in labels if (lab, worst_metric) in by]
+    ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", ms=4, lw=1.5, ls=ls,
+            color=robot_colour(int(worst_label[1:])), label=f"largest: {worst_label}")  # fmt: skip
 
 
 def write(path: Path, agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "") -> Path:

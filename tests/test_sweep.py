@@ -123,7 +123,10 @@ def test_sweep_figure_draws_each_metric_with_its_interval() -> None:
             for s in range(3)]  # fmt: skip
     agg = aggregate(_rows(values))
     fig = figure(agg, jobs, "fig11_obstacles")
-    rms, peak, dist = (ax for ax in fig.axes if ax.get_visible())
+    rms, peak, dist = (ax for ax in fig.axes if ax.axison)
+    (spare,) = (ax for ax in fig.axes if not ax.axison)  # says why there is no EKF panel
+    assert [t.get_text() for t in spare.texts] == [
+        "no EKF target errors: they come from the recordings (swarm sweep --logger)"]  # fmt: skip
     assert [c.get_label() for c in rms.containers] == ["R2", "R3"]  # one line per follower
     assert [c.get_label() for c in peak.containers] == ["R2", "R3"]
     assert [c.get_label() for c in dist.containers] == ["all robots"]  # pooled
@@ -136,6 +139,21 @@ def test_sweep_figure_draws_each_metric_with_its_interval() -> None:
     (seg0,) = bars.get_segments()[:1]
     assert seg0[:, 1] == pytest.approx([0.1 - half, 0.1 + half])
     assert fig.get_suptitle().startswith("fig11_obstacles: mean and 95% confidence interval over 3 seeds")
+
+
+def test_a_sweep_figure_of_many_followers_draws_their_median_and_the_worst_and_one_seed_says_so() -> None:
+    from formation_swarm.sweep_figure import figure
+
+    values = [0.0, 0.3]
+    jobs = [Job(f"links.obs_drop={v}", {"links.obs_drop": v}, 0) for v in values]
+    rows = [{"combination": f"links.obs_drop={v}", "seed": 0, "run": f"{v}",
+             **{f"r{r}_rms_m": v + r / 100 for r in range(2, 21)}} for v in values]  # fmt: skip
+    fig = figure(aggregate(rows), jobs)
+    (ax,) = (a for a in fig.axes if a.axison)
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["median over the 19 followers", "largest: R20"]
+    median = next(line for line in ax.get_lines() if line.get_label() == "median over the 19 followers")
+    assert np.allclose(median.get_ydata(), [0.11, 0.41])  # R2..R20: 0.02..0.20 above the value, median 0.11
+    assert fig.get_suptitle() == "1 seed per value, no confidence interval"
 
 
 def test_sweep_figure_puts_non_numeric_values_on_ticks() -> None:
