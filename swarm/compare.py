@@ -33,8 +33,35 @@ def law(run: RunData) -> str:
     return f"fuzzy, V_N {ctl.get('vn', CONTROLLER_KEYS['vn'].default)}"
 
 
-def label(run: RunData) -> str:
-    return f"{run.run_dir.name}: {run.scenario}, seed {run.seed}, {law(run)}"
+def label(run: RunData, differ: Sequence[str] = ()) -> str:
+    """The run's folder, scenario, seed and law, and its values of ``differ``
+    (the scenario keys whose values differ between the runs compared)."""
+    flat = _flat(run.config)
+    keys = [f"{k}={flat.get(k, '-')}" for k in differ[:DIFFER_SHOWN]]
+    more = f", {len(differ) - DIFFER_SHOWN} more keys differ" if len(differ) > DIFFER_SHOWN else ""
+    return f"{run.run_dir.name}: {run.scenario}, seed {run.seed}, {law(run)}" + "".join(f", {k}" for k in keys) + more
+
+
+DIFFER_SHOWN = 3  # a run's legend entry names at most this many of the keys that differ between the runs
+
+
+def _flat(table: object, prefix: str = "") -> dict[str, object]:
+    """A scenario as run, as dotted keys (leader.speed_mps) -> values."""
+    out: dict[str, object] = {}
+    if isinstance(table, dict):
+        for k, v in table.items():
+            out.update(_flat(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
+    return out
+
+
+def differing(runs: Sequence[RunData]) -> list[str]:
+    """The scenario keys (run.seed and the scenario's name aside: the label has them)
+    whose values differ between runs of one scenario, sorted (none between scenarios)."""
+    if len({run.scenario for run in runs}) > 1:
+        return []  # different scenarios: their names tell them apart
+    flats = [_flat(run.config) for run in runs]
+    keys = sorted({k for f in flats for k in f} - {"run.seed", "run.name", "run.description"})
+    return [k for k in keys if len({repr(f.get(k)) for f in flats}) > 1]
 
 
 def figure(runs: Sequence[RunData]) -> Figure:
@@ -56,9 +83,10 @@ def figure(runs: Sequence[RunData]) -> Figure:
         for r in run.followers:
             i = run.index(r)
             err.plot(run.time_s, run.formation_error_m[i], color=color, ls=style[r], lw=1.0)
+    _obstacles(traj, runs)
     traj.set_aspect("equal", adjustable="datalim")
     traj.set(xlabel="x, m", ylabel="y, m", title="Trajectories")
-    err.set(xlabel="time, s", ylabel="distance to target, m", title="Formation error (Fig. 6b/d, 7b)")
+    err.set(xlabel="time, s", ylabel="distance to its true target, m", title="Each follower's formation error")
     err.set_ylim(bottom=0)
     for ax in (traj, err):
         ax.grid(alpha=0.3)
@@ -66,10 +94,26 @@ def figure(runs: Sequence[RunData]) -> Figure:
     robot_keys = [Line2D([], [], color="0.2", ls=style[r], label=f"R{r}" + (" (leader)" if r in leaders else ""))
                   for r in robots]  # fmt: skip
     err.legend(handles=robot_keys, loc="upper right", fontsize=8, title="robot", title_fontsize=8)
-    run_keys = [Line2D([], [], color=f"C{k}", lw=2.5, label=label(run)) for k, run in enumerate(runs)]
+    differ = differing(runs)
+    run_keys = [Line2D([], [], color=f"C{k}", lw=2.5, label=label(run, differ)) for k, run in enumerate(runs)]
     fig.legend(handles=run_keys, loc="outside lower center", ncol=1 if len(runs) > 3 else len(runs), fontsize=9)
     fig.suptitle(f"{len(runs)} runs compared")
     return fig
+
+
+def _obstacles(ax: object, runs: Sequence[RunData]) -> None:
+    """Every obstacle of the runs' scenarios, once each (as in the report's figures)."""
+    import matplotlib.patches
+
+    from formation_swarm.palette import OBSTACLE
+
+    seen = set()
+    for run in runs:
+        for o in run.config.get("obstacles") or []:
+            key = (o.get("x_m"), o.get("y_m"), o.get("radius_m"))
+            if None not in key and key not in seen:
+                seen.add(key)
+                ax.add_patch(matplotlib.patches.Circle(key[:2], key[2], color=OBSTACLE, alpha=0.35, lw=0))  # type: ignore[attr-defined]
 
 
 def compare(run_dirs: Sequence[str | Path], out: str | Path) -> Path:
@@ -107,5 +151,5 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"swarm compare: cannot write {args.out}: {exc}", file=sys.stderr)
         return USAGE_ERROR
-    print(f"[compare] {path}")
+    print(f"[compare] {path.resolve()}")
     return 0

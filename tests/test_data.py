@@ -126,6 +126,23 @@ def test_compare_draws_a_line_per_robot_per_run(runs: tuple[Path, Path], tmp_pat
     assert (tmp_path / "c.png").stat().st_size > 10_000
 
 
+def test_compare_names_what_differs_between_runs_of_one_scenario() -> None:
+    from types import SimpleNamespace
+
+    from formation_swarm.compare import differing, label
+
+    def run(name: str, speed: float, seed: int, **more: object) -> SimpleNamespace:
+        config = {"run": {"name": "fig11-obstacles", "seed": seed}, "leader": {"speed_mps": speed, **more}}
+        return SimpleNamespace(config=config, scenario="fig11-obstacles", seed=seed, run_dir=Path(name))
+
+    a, b = run("a", 1.5, 1), run("b", 2.0, 2, formation="line")
+    assert differing([a, b]) == ["leader.formation", "leader.speed_mps"]  # the seed is in the label already
+    assert label(b, differing([a, b])).endswith(", leader.formation=line, leader.speed_mps=2.0")  # type: ignore[arg-type]
+    assert label(a, differing([a, b])).endswith(", leader.formation=-, leader.speed_mps=1.5")  # type: ignore[arg-type]
+    other = SimpleNamespace(**{**vars(b), "scenario": "turn-vn-dynamic"})
+    assert differing([a, other]) == []  # different scenarios: their names tell them apart
+
+
 def test_the_documented_example_runs(runs: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     import matplotlib
 
