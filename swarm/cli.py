@@ -43,10 +43,17 @@ SIM_MAX_S = 3600.0  # the paper's path takes 40 s; the recorded arrays grow with
 def _cmd_sim(args: argparse.Namespace) -> int:
     from formation_swarm.agents.follower import FollowerParams
     from formation_swarm.agents.fuzzy import SpeedMode
+    from formation_swarm.scenario_keys import ROBOT_KEYS
     from formation_swarm.sim import paper_turning_setup, run
 
     mode = SpeedMode() if args.vn == "dynamic" else SpeedMode(float(args.vn))
     setup = paper_turning_setup(seed=args.seed, duration_s=args.duration, follower=FollowerParams(speed=mode))
+    limit = ROBOT_KEYS["max_wheel_mps"].default  # the robots of swarm run's scenarios, checked the same way
+    if mode.static_vn is not None and mode.static_vn + setup.follower.fuzzy.a_mps > limit:
+        print(f"swarm sim: argument --vn: the fuzzy controller would command up to V_N + a = "
+              f"{mode.static_vn + setup.follower.fuzzy.a_mps:g} m/s, above the robots' {limit:g} m/s "
+              f"(robot.max_wheel_mps): at most {limit - setup.follower.fuzzy.a_mps:g}", file=sys.stderr)  # fmt: skip
+        return USAGE_ERROR
     if args.duration < setup.follower.dt_s:
         print(f"swarm sim: argument --duration: must be at least one control step ({setup.follower.dt_s:g} s), "
               f"got {args.duration:g}", file=sys.stderr)  # fmt: skip
@@ -270,11 +277,12 @@ def _add_sim(sub: argparse._SubParsersAction[Parser]) -> None:
     sim.add_argument("--vn", type=_vn, default="dynamic",
                      help="the follower's normal speed V_N: 'dynamic' (FIS-2, the paper's two-stage controller) "
                      "or a static value in m/s, e.g. 1.5 (default: dynamic)")  # fmt: skip
-    sim.add_argument("--seed", type=seed, default=0, metavar="N",
-                     help="seed of the camera noise, an integer in [0, 2**63 - 1] (default: 0)")  # fmt: skip
+    sim.add_argument("--seed", type=seed, default=1, metavar="N",
+                     help="seed of the camera noise, an integer in [0, 2**63 - 1] (default: 1, the shipped "
+                     "scenarios' seed)")  # fmt: skip
     sim.add_argument("--duration", type=seconds(SIM_MAX_S), default=60.0, metavar="SECONDS",
                      help=f"simulated time in s, at most {SIM_MAX_S:g}; the run ends earlier with the leader's path, "
-                     "after about 40 s (default: 60)")  # fmt: skip
+                     "at about 45 s (default: 60)")  # fmt: skip
     sim.set_defaults(func=_cmd_sim, parser=sim)
 
 

@@ -180,6 +180,11 @@ REJECTED = {
     ),
     "sim: infinite duration": (["sim", "--duration", "inf"], "argument --duration: must be a number of seconds"),
     "sim: zero V_N": (["sim", "--vn", "0"], "argument --vn: must be 'dynamic' or a speed > 0 in m/s, got '0'"),
+    "sim: V_N beyond the wheels": (
+        ["sim", "--vn", "7"],
+        "argument --vn: the fuzzy controller would command up to V_N + a = 7.5 m/s, above the robots' 3 m/s "
+        "(robot.max_wheel_mps): at most 2.5",
+    ),
 }
 
 
