@@ -195,6 +195,7 @@ class Launch:
         self.token: zenoh.LivelinessToken | None = None  # held: a dropped token is undeclared
         self.status_q: queue.SimpleQueue[bytes] = queue.SimpleQueue()
         self.last_status: Status | None = None
+        self.first_status: Status | None = None  # the world's first status: the run's start
         self.calls_q: queue.SimpleQueue[bytes] = queue.SimpleQueue()  # the world's fault calls
         self.call_rejections = Rejections()
         self.last_call_seq = 0
@@ -431,6 +432,8 @@ class Launch:
             except queue.Empty:
                 return
             st = rej.decode(Status, payload)
+            if st is not None and (self.first_status is None or st.seq < self.first_status.seq):
+                self.first_status = st
             if st is not None and (self.last_status is None or st.seq > self.last_status.seq):
                 self.last_status = st
 
@@ -603,7 +606,12 @@ class Launch:
                     start_failed = True
                     self.progress(f"[swarm] the run cannot start without {', '.join(failed)}: stopping every process")
                     break
-                if now - last_line >= 2.0 and self.last_status is not None:
+                if shown is None and self.first_status is not None:
+                    # The run's start first, even when its end is already queued behind it
+                    # (a short lockstep run may be over before this loop's first look).
+                    shown = self._show_progress(self.first_status)
+                    last_line = now
+                elif now - last_line >= 2.0 and self.last_status is not None:
                     shown = self._show_progress()
                     last_line = now
                 if deadline is not None and now > deadline:
@@ -637,9 +645,9 @@ class Launch:
         summary = self._summary(code, interrupted, timed_out, timeout_s if timed_out else None)
         return RunResult(self.run_dir, summary, code, self.pids())
 
-    def _show_progress(self) -> int:
-        """Print the last status's tick, share of the run and sim time; its tick."""
-        st = self.last_status
+    def _show_progress(self, st: Status | None = None) -> int:
+        """Print a status's tick (the last one's by default), share of the run and sim time; its tick."""
+        st = st or self.last_status
         assert st is not None
         pct = 100.0 * st.tick / max(1, st.total_ticks)
         self.progress(f"[swarm] tick {st.tick}/{st.total_ticks} ({pct:.0f}%), sim {st.time_s:.1f} s")
