@@ -54,6 +54,7 @@ STOP_GRACE_S = 3.0  # SIGTERM -> SIGKILL
 # that router gone (or another in its place) twice in a row for the
 # launcher's end. A local look: no query that a loaded machine could delay.
 CHECK_PERIOD_S = 0.5
+ROUTER_CHECK_S = 1.0  # how often a host looks whether it still has a router (said when it goes and comes back)
 LAUNCHER_WAIT_S = 60.0
 ACTIONS = {"kill": signal.SIGKILL, "freeze": signal.SIGSTOP, "thaw": signal.SIGCONT, "term": signal.SIGTERM}
 AGENT = "formation_swarm.agents.process"
@@ -126,6 +127,8 @@ class Host:
         self.launcher_wait_s = launcher_wait_s
         self.runs: dict[str, HostRun] = {}
         self.rejections = Rejections()
+        self.router_up = True  # connected when the host starts serving
+        self.router_checked_at = time.monotonic()
 
     def say(self, line: str) -> None:
         print(f"host {self.name}: {line}", flush=True)
@@ -269,8 +272,16 @@ class Host:
         self.say(f"run {run.run} ended ({why}){stopped}; logs in {run.folder / 'logs'}")
 
     def watch(self) -> None:
-        """End the runs whose launcher left, or never came."""
+        """Say when the router goes and comes back; end the runs whose launcher left, or never came."""
         now = time.monotonic()
+        if now - self.router_checked_at > ROUTER_CHECK_S:
+            self.router_checked_at = now
+            up = bool(list(self.session.info.routers_zid()))
+            if up != self.router_up:
+                self.router_up = up
+                where = ", ".join(self.connect) or "its router"
+                self.say(f"connected again to a router at {where}" if up else
+                         f"lost its router at {where}; retrying (runs cannot reach this host meanwhile)")  # fmt: skip
         for run in list(self.runs.values()):
             if run.launcher == "gone":
                 self.end(run, "its launcher's token went: the launcher died or its machine left")

@@ -6,13 +6,16 @@ names it). tests/test_hosts_netns.py does the same across network namespaces."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import queue
 import re
 import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 import uuid
 from collections.abc import Iterator
@@ -507,6 +510,37 @@ def test_a_host_waiting_for_its_router_says_so_and_stops_at_once_on_sigterm(tmp_
     assert code in (0, 143)
     assert took < 5.0, took
     assert "stopped before a router answered" in host.stdout.read()
+
+
+def test_a_host_says_when_its_router_goes_and_comes_back(tmp_path: Path) -> None:
+    """Its log (a service's journal) said "connected" to the end: an operator read it as connected."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    lines: queue.SimpleQueue[str] = queue.SimpleQueue()
+    router = zenoh.open(make_config("router", listen=[endpoint]))
+    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "b", "--workdir", str(tmp_path / "work")],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
+    threading.Thread(target=lambda: [lines.put(line) for line in host.stdout], daemon=True).start()  # type: ignore[union-attr]
+
+    def said(fragment: str, timeout_s: float = 30.0) -> str:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            with contextlib.suppress(queue.Empty):
+                line = lines.get(timeout=0.1)
+                if fragment in line:
+                    return line
+        raise AssertionError(f"the host never said {fragment!r}")
+
+    try:
+        said("connected to a router at")
+        router.close()
+        assert said("lost its router at").strip() == (
+            f"host b: lost its router at {endpoint}; retrying (runs cannot reach this host meanwhile)")  # fmt: skip
+        router = zenoh.open(make_config("router", listen=[endpoint]))
+        assert said("connected again").strip() == f"host b: connected again to a router at {endpoint}"
+    finally:
+        host.terminate()
+        host.wait(timeout=20)
+        router.close()
 
 
 def test_a_lost_host_and_its_agents_are_told_in_sentences_and_name_the_failure() -> None:
