@@ -335,5 +335,8 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
             w(f"  event: {describe_event(ev)}\n")
     w(f"run folder: {res.run_dir}\n  summary: {res.run_dir / 'summary.json'}\n")
     if s.get("recording") and res.recording.is_file():
-        viewer = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
-        w(f"  recording: {res.recording}\n  open it:   {viewer} {res.recording}\n")
+        if not s.get("ticks"):  # stopped before its first tick: the file holds nothing to watch
+            w(f"  recording: {res.recording} (empty: the run ended before its first tick)\n")
+        else:
+            viewer = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+            w(f"  recording: {res.recording}\n  open it:   {viewer} {res.recording}\n")

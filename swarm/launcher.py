@@ -624,7 +624,7 @@ class Launch:
             interrupted = True
             self.progress("[swarm] interrupted: stopping every process")
         self._watch()
-        if self.last_status is not None and self.last_status.tick != shown:
+        if self.last_status is not None and self.last_status.tick != shown and not interrupted:
             self._show_progress()  # where it ended: a run shorter than a line's 2 s showed only its start
         self.stop(graceful_first=not (interrupted or timed_out or start_failed))
         for child in self.children.values():  # codes the fork server did not report, taken from the child's record

@@ -342,6 +342,10 @@ def _faults_markdown(summary: Mapping[str, Any]) -> list[str]:
         out += ["## Faults", "", "| fault | ticks (first-last) | what happened | counted |", "|---|---|---|---|"]
         for f in faults:
             start, end = f.get("start_tick"), f.get("end_tick")
+            ran = summary.get("ticks")
+            if isinstance(start, int) and isinstance(ran, int) and start >= ran:  # as the console says it
+                out.append(f"| `{f.get('fault')}` | {start}- | never started: the run ended at tick {ran} | - |")
+                continue
             ticks = f"{start}-{end - 1}" if isinstance(end, int) else f"from {start}"
             said = [_fault_event(e) for e in f.get("events") or []] + describe_recoveries(f)
             happened = "; ".join(said) or "-"

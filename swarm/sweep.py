@@ -79,7 +79,9 @@ def parse_set(text: str) -> tuple[str, list[Any]]:
     for i, v in enumerate(out):
         # Equal values (1.5 and 1.50, 2 and 2.0) would make one run twice, in one folder at once.
         if any(v == w and type(v) is type(w) or _numbers_equal(v, w) for w in out[:i]):
-            raise ValueError(f"--set {key}: the value {values.split(',')[i].strip()!r} is given twice")
+            first = next(w for w in values.split(",")[:i] if parse_value(w) == v)
+            raise ValueError(f"--set {key}: the value {values.split(',')[i].strip()!r} is given twice "
+                             f"(as {first.strip()!r} before it: the same value)")  # fmt: skip
     return key, out
 
 
@@ -236,11 +238,11 @@ class Sweep:
                     raise
         finally:
             self._write(rows)
-        ordered = [rows[j.name] for j in self.jobs if j.name in rows]
-        if ordered:
-            from formation_swarm import sweep_figure
+            ordered = [rows[j.name] for j in self.jobs if j.name in rows]
+            if ordered:  # interrupted too: the figure of what finished, as the tables
+                from formation_swarm import sweep_figure
 
-            sweep_figure.write(self.out / "aggregate.png", aggregate(ordered), self.jobs, self.scenario.stem)
+                sweep_figure.write(self.out / "aggregate.png", aggregate(ordered), self.jobs, self.scenario.stem)
         return ordered
 
     def _loop(self, pool: ThreadPoolExecutor, todo: list[Job], rows: dict[str, dict[str, Any]], total: int) -> None:
@@ -303,6 +305,8 @@ class Sweep:
 
     def _write(self, rows: Mapping[str, dict[str, Any]]) -> None:
         ordered = [rows[j.name] for j in self.jobs if j.name in rows]
+        if not ordered:  # nothing finished (an early Ctrl-C): no empty tables
+            return
         _write_csv(self.out / "runs.csv", ordered)
         _write_csv(self.out / "aggregate.csv", aggregate(ordered))
 

@@ -355,6 +355,12 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     assert "no metrics: the run ended before its first tick" in text
     assert "event: world exited with code 1 before the run started" in text
     assert "open it" not in text  # no recording.rrd in the folder
+    (tmp_path / "recording.rrd").write_bytes(b"")  # one, from a run stopped before its first tick
+    out = io.StringIO()
+    print_result(RunResult(tmp_path, summary, 1), out)
+    assert f"  recording: {tmp_path / 'recording.rrd'} (empty: the run ended before its first tick)" in out.getvalue()
+    assert "open it" not in out.getvalue()
+    (tmp_path / "recording.rrd").unlink()
     out = io.StringIO()
     ticked = {**summary, "ticks": 5, "followers": {"2": {"rms_m": None}}, "formation_events": [{"robot": 2}]}
     print_result(RunResult(tmp_path, ticked, 1), out)

@@ -502,3 +502,10 @@ def test_ctrl_c_on_swarm_run_leaves_no_process(tmp_path: Path, when: str) -> Non
     summary = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert summary["interrupted"] is True
     assert summary["end_reason"] == "interrupted"
+    rest = []
+    while not lines.empty():
+        rest.append(lines.get())
+    said = [line for line in rest if line.startswith("[swarm] interrupted")]
+    assert said, rest
+    # No progress line after it: the last status seen is older than where the run stopped, and the result says that.
+    assert not any(line.startswith("[swarm] tick") for line in rest[rest.index(said[0]) :]), rest

@@ -493,3 +493,12 @@ def test_a_killed_agents_counts_are_partial_only_if_it_lived_in_the_fault_and_wr
     assert not _counts_cut([], 600, 700)
     # Two agents of the robot: one partial is enough.
     assert _counts_cut([(300, 400), (650, 660)], 600, 700)
+
+
+def test_report_md_says_a_fault_the_run_never_reached_never_started() -> None:
+    """As the console does; its table row gave the ticks as if it had run."""
+    from formation_swarm.report import _faults_markdown
+
+    fault = {"fault": "freeze agent-2@54s for=1s", "start_tick": 1080, "end_tick": 1100, "events": [], "counts": {}}
+    rows = [line for line in _faults_markdown({"ticks": 1061, "faults": [fault]}) if line.startswith("| `")]
+    assert rows == ["| `freeze agent-2@54s for=1s` | 1080- | never started: the run ended at tick 1061 | - |"]

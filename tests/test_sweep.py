@@ -30,9 +30,18 @@ def test_a_value_given_twice_or_a_seed_is_refused_before_any_run(tmp_path: Path,
     overwrote the first with a failure); a --set run.seed was overridden by the
     sweep's own seeds, so both 'seeds' ran seed 0."""
     for text, said in (
-        ("controller.vn=1.5,1.5", "--set controller.vn: the value '1.5' is given twice"),
-        ("controller.vn=1.5,1.50", "--set controller.vn: the value '1.50' is given twice"),
-        ("controller.vn=2,2.0", "--set controller.vn: the value '2.0' is given twice"),
+        (
+            "controller.vn=1.5,1.5",
+            "--set controller.vn: the value '1.5' is given twice (as '1.5' before it: the same value)",
+        ),
+        (
+            "controller.vn=1.5,1.50",
+            "--set controller.vn: the value '1.50' is given twice (as '1.5' before it: the same value)",
+        ),
+        (
+            "controller.vn=2,2.0",
+            "--set controller.vn: the value '2.0' is given twice (as '2' before it: the same value)",
+        ),
         ("run.seed=5,6", "--set run.seed: a sweep gives every combination its seeds; use --seeds N and --seed-start S"),
     ):
         with pytest.raises(ValueError, match="^" + said.replace("(", r"\(").replace(")", r"\)") + "$"):
@@ -289,7 +298,8 @@ def test_ctrl_c_stops_the_run_in_flight_and_marks_it_interrupted(tmp_path: Path)
     assert summary["end_reason"] == "interrupted", summary["ended"]
     assert summary["exit_code"] == 130
     assert summary["ticks"] < 1061  # it did not fly to its end
-    assert not (out / "runs.csv").read_text().strip().splitlines()[1:]  # no row for it: it is run again on resume
+    assert not (out / "runs.csv").exists()  # nothing finished: no empty tables; the run is run again on resume
+    assert not (out / "aggregate.csv").exists()
     assert [c for _, c in our_processes() if str(out) in c] == []
 
 
