@@ -1,8 +1,9 @@
 """One figure overlaying several runs: their trajectories and each follower's
-formation error over time (the paper's Fig. 6-7, run against run).
+formation error over time, run against run.
 
 Each run has its colour, each robot its line style; the legend names each run
-by its folder, scenario, seed and control law. Reads each RUN_DIR's
+by its folder, scenario, seed and control law, and, for runs of one
+scenario, the keys whose values differ between them. Reads each RUN_DIR's
 recording.rrd and summary.json (formation_swarm.load_run).
 """
 
@@ -37,12 +38,24 @@ def label(run: RunData, differ: Sequence[str] = ()) -> str:
     """The run's folder, scenario, seed and law, and its values of ``differ``
     (the scenario keys whose values differ between the runs compared)."""
     flat = _flat(run.config)
-    keys = [f"{k}={flat.get(k, '-')}" for k in differ[:DIFFER_SHOWN]]
+    keys = [_said(k, flat.get(k)) for k in differ[:DIFFER_SHOWN]]
     more = f", {len(differ) - DIFFER_SHOWN} more keys differ" if len(differ) > DIFFER_SHOWN else ""
     return f"{run.run_dir.name}: {run.scenario}, seed {run.seed}, {law(run)}" + "".join(f", {k}" for k in keys) + more
 
 
 DIFFER_SHOWN = 3  # a run's legend entry names at most this many of the keys that differ between the runs
+IN_LABEL = ("run.seed", "run.name", "run.description", "controller.law", "controller.vn")  # said by label() already
+
+
+def _said(key: str, value: object) -> str:
+    """``key=value``; a list or a table by its size (a fault schedule would fill the legend)."""
+    if value is None:  # not in this run's scenario: its default
+        return f"{key}: none" if key == "faults" else f"{key}: default"
+    if isinstance(value, list):
+        return f"{key}: {len(value)} entr{'y' if len(value) == 1 else 'ies'}"
+    if isinstance(value, dict):
+        return f"{key}: {len(value)} keys"
+    return f"{key}={value}"
 
 
 def _flat(table: object, prefix: str = "") -> dict[str, object]:
@@ -60,7 +73,7 @@ def differing(runs: Sequence[RunData]) -> list[str]:
     if len({run.scenario for run in runs}) > 1:
         return []  # different scenarios: their names tell them apart
     flats = [_flat(run.config) for run in runs]
-    keys = sorted({k for f in flats for k in f} - {"run.seed", "run.name", "run.description"})
+    keys = sorted({k for f in flats for k in f} - set(IN_LABEL))
     return [k for k in keys if len({repr(f.get(k)) for f in flats}) > 1]
 
 
@@ -84,7 +97,17 @@ def figure(runs: Sequence[RunData]) -> Figure:
             i = run.index(r)
             err.plot(run.time_s, run.formation_error_m[i], color=color, ls=style[r], lw=1.0)
     _obstacles(traj, runs)
-    traj.set_aspect("equal", adjustable="datalim")
+    import numpy as np
+
+    from formation_swarm.figures import _view
+
+    pts = np.concatenate([run.pose[:, :, :2].reshape(-1, 2) for run in runs])
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    if len(pts):  # equal scales; a long thin path gets a wider view rather than a squashed one (as the report's)
+        centre, span = _view(pts.min(axis=0), pts.max(axis=0))
+        traj.set_xlim(centre[0] - span[0] / 2, centre[0] + span[0] / 2)
+        traj.set_ylim(centre[1] - span[1] / 2, centre[1] + span[1] / 2)
+    traj.set_aspect("equal", adjustable="box")
     traj.set(xlabel="x, m", ylabel="y, m", title="Trajectories")
     err.set(xlabel="time, s", ylabel="distance to its true target, m", title="Each follower's formation error")
     err.set_ylim(bottom=0)
@@ -96,7 +119,9 @@ def figure(runs: Sequence[RunData]) -> Figure:
     err.legend(handles=robot_keys, loc="upper right", fontsize=8, title="robot", title_fontsize=8)
     differ = differing(runs)
     run_keys = [Line2D([], [], color=f"C{k}", lw=2.5, label=label(run, differ)) for k, run in enumerate(runs)]
-    fig.legend(handles=run_keys, loc="outside lower center", ncol=1 if len(runs) > 3 else len(runs), fontsize=9)
+    wide = sum(len(h.get_label()) for h in run_keys) > 150  # side by side they would run off the figure
+    fig.legend(handles=run_keys, loc="outside lower center", ncol=1 if wide or len(runs) > 3 else len(runs),
+               fontsize=9)  # fmt: skip
     fig.suptitle(f"{len(runs)} runs compared")
     return fig
 

@@ -138,7 +138,11 @@ def test_compare_names_what_differs_between_runs_of_one_scenario() -> None:
     a, b = run("a", 1.5, 1), run("b", 2.0, 2, formation="line")
     assert differing([a, b]) == ["leader.formation", "leader.speed_mps"]  # the seed is in the label already
     assert label(b, differing([a, b])).endswith(", leader.formation=line, leader.speed_mps=2.0")  # type: ignore[arg-type]
-    assert label(a, differing([a, b])).endswith(", leader.formation=-, leader.speed_mps=1.5")  # type: ignore[arg-type]
+    assert label(a, differing([a, b])).endswith(", leader.formation: default, leader.speed_mps=1.5")  # type: ignore[arg-type]
+    faulted = SimpleNamespace(**{**vars(a), "config": {**a.config, "faults": [{"kind": "kill"}, {"kind": "drop"}]}})
+    assert differing([a, faulted]) == ["faults"]
+    assert label(faulted, ["faults"]).endswith(", faults: 2 entries")  # type: ignore[arg-type]  # not the schedule
+    assert label(a, ["faults"]).endswith(", faults: none")  # type: ignore[arg-type]
     other = SimpleNamespace(**{**vars(b), "scenario": "turn-vn-dynamic"})
     assert differing([a, other]) == []  # different scenarios: their names tell them apart
 
