@@ -183,7 +183,7 @@ def moving_average(t: np.ndarray, v: np.ndarray, window_s: float, dt_s: float) -
     return out
 
 
-def _time_marks(ax: Any, ctx: Context) -> None:
+def _time_marks(ax: Any, ctx: Context, beside: Sequence[Any] = ()) -> None:
     """Formation switches (dotted grey, labelled above the axes) and faults:
     shaded windows and dashed instants on the axes, and under them a lane
     with each fault's bar and label, in as many rows as keep the labels
@@ -218,17 +218,29 @@ def _time_marks(ax: Any, ctx: Context) -> None:
     widths = [(len(label) + 1) * LANE_FONT_PT * CHAR_WIDTH * per_s for _, _, label in marks]
     rows = lane_rows([(a, min(b, hi) if b is not None else None) for a, b, _ in marks], widths)
     n_rows = max(rows) + 1
-    height = LANE_ROW_IN * n_rows / max(fig.get_figheight() * ax.get_position().height, 1e-6)
-    lane = ax.inset_axes((0.0, -height, 1.0, height), sharex=ax)
-    for color, row, (start, end, label) in zip(colors, rows, marks, strict=True):
+    # The lane takes the bottom of the axes' own cell of the figure's grid, so the
+    # layout makes room for it and its labels (an inset's were cut off).
+    axes_in = max(fig.get_figheight() * ax.get_position().height, 1.0)
+    lane_in = LANE_ROW_IN * n_rows
+    cells = ax.get_subplotspec().subgridspec(2, 1, height_ratios=[axes_in, lane_in], hspace=0.0)
+    ax.set_subplotspec(cells[0])
+    for other in beside:  # a panel sharing the y axis keeps the same height
+        other.set_subplotspec(other.get_subplotspec().subgridspec(2, 1, height_ratios=[axes_in, lane_in],
+                                                                  hspace=0.0)[0])  # fmt: skip
+    lane = fig.add_subplot(cells[1], sharex=ax)
+    for color, row, width, (start, end, label) in zip(colors, rows, widths, marks, strict=True):
         if end is None:
             lane.plot([start, start], [row - 0.4, row + 0.4], color=color, lw=1.5, ls="--")
         else:
             lane.barh(row, min(end, hi) - start, left=start, height=0.8, color=color, alpha=0.3, lw=0)
-        lane.text(start, row, f" {label}", va="center", ha="left", fontsize=LANE_FONT_PT, color=color, clip_on=True)
+        if start + width <= hi:
+            lane.text(start, row, f" {label}", va="center", ha="left", fontsize=LANE_FONT_PT, color=color, clip_on=True)
+        else:  # it would run off the axis's end: it ends there instead
+            lane.text(hi, row, f"{label} ", va="center", ha="right", fontsize=LANE_FONT_PT, color=color, clip_on=True)
     lane.set_ylim(n_rows - 0.5, -0.5)
     lane.set_yticks([])
-    lane.set_ylabel("faults", rotation=0, ha="right", va="center", fontsize=8)
+    lane.yaxis.set_label_position("right")  # on the left it met the axes' lowest tick label
+    lane.set_ylabel("faults", rotation=0, ha="left", va="center", fontsize=8)
     lane.grid(axis="x", alpha=0.3)
     lane.set_xlabel(ax.get_xlabel())
     ax.set_xlabel("")
@@ -531,7 +543,8 @@ def formation_error(path: Any, data: Mapping[str, Series], ctx: Context, rms: Ma
     ax.set_ylim(0.0, top)
     _time_axis(ax, ctx)
     ax.set_ylabel("distance to its true target, m")
-    ax.set_title(ctx.title("formation_error", "each follower's formation error"), fontsize=11, pad=16)
+    # Over the whole figure: over the axes alone a long one (a cut recording's) ran past the left edge.
+    fig.suptitle(ctx.title("formation_error", "each follower's formation error"), fontsize=11)
     if arrays:
         ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     _time_marks(ax, ctx)
@@ -617,7 +630,7 @@ def vn(path: Any, data: Mapping[str, Series], ctx: Context, dpi: int) -> None:
         f"centred moving average, for the eye only (the controller is not filtered){note}",
         fontsize=10,
     )
-    _time_marks(ax, ctx)
+    _time_marks(ax, ctx, beside=[hist])
     _save(fig, path, dpi)
 
 

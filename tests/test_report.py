@@ -312,8 +312,7 @@ def test_faults_get_a_lane_under_the_time_axis_with_their_labels(monkeypatch: py
     ctx = figures.Context(scenario="s", seed=1, robots=[1, 2, 3], followers=[2, 3], t_end=20.0)
     ctx.fault_marks = [(5.0, 7.0, "partition 2"), (5.0, None, "kill agent-3"), (12.0, math.inf, "blackout 3")]
     figures.formation_error("unused", data, ctx, {2: 0.2, 3: 0.3}, 50)
-    (ax,) = saved[-1].axes[:1]
-    (lane,) = ax.child_axes
+    ax, lane = saved[-1].axes  # the lane: the bottom of the axes' own cell, laid out with them
     assert [x.get_text() for x in lane.texts] == [" partition 2", " kill agent-3", " blackout 3"]
     rows = [round(x.get_position()[1]) for x in lane.texts]
     assert rows == [0, 1, 0]  # the kill at the partition's start: a row of its own
@@ -323,3 +322,9 @@ def test_faults_get_a_lane_under_the_time_axis_with_their_labels(monkeypatch: py
     # The window to the end is shaded to the axis's end on the lane.
     (bar,) = [p for p in lane.patches if p.get_x() == 12.0]
     assert bar.get_width() == pytest.approx(8.0)
+    assert lane.get_subplotspec().get_gridspec() is ax.get_subplotspec().get_gridspec()
+    # A label that would run off the axis's end ends there instead.
+    ctx.fault_marks = [(19.5, None, "kill agent-3")]
+    figures.formation_error("unused", data, ctx, {2: 0.2, 3: 0.3}, 50)
+    (text,) = saved[-1].axes[1].texts
+    assert (text.get_position()[0], text.get_horizontalalignment()) == (20.0, "right")
