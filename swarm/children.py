@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from formation_swarm import proc as proc_mod
 from formation_swarm import spawner
 
 # One worker thread per Zenoh runtime in each child: five processes share this
@@ -81,18 +82,22 @@ class Child:
         env = dict(os.environ)
         env.setdefault("ZENOH_RUNTIME", CHILD_ZENOH_RUNTIME)
         module = spawner.forkable(self.argv) if self.fork else None
-        if module is not None:
-            self.proc = spawner.Forked(module, self.argv, self.log_path, env)
-            return
-        self.proc = subprocess.Popen(
-            self.argv,
-            env=env,
-            stdout=self.log,
-            stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
-            start_new_session=True,
-            preexec_fn=_die_with_parent,
-        )
+        # A Ctrl-C in the middle of a start would leave a process running that this
+        # object does not know of (the fork server's request half done, or Popen's
+        # result lost), which nothing could then stop: it comes once self.proc is set.
+        with proc_mod.sigint_deferred():
+            if module is not None:
+                self.proc = spawner.Forked(module, self.argv, self.log_path, env)
+                return
+            self.proc = subprocess.Popen(
+                self.argv,
+                env=env,
+                stdout=self.log,
+                stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
+                start_new_session=True,
+                preexec_fn=_die_with_parent,
+            )
 
     def poll(self) -> int | None:
         if self.proc is None:

@@ -312,3 +312,25 @@ def sigint_ignored() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
+def sigint_deferred() -> Iterator[None]:
+    """SIGINT and SIGTERM noted inside (on the main thread) and raised as
+    KeyboardInterrupt when it ends: a Ctrl-C then interrupts what comes after,
+    not an exchange half done. (Masking the signal would not do: the kernel
+    hands it to any thread that does not mask it, Zenoh's among them, and
+    Python runs the handler in the main thread wherever it stands.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    came: list[int] = []
+    stops = (signal.SIGINT, signal.SIGTERM)
+    previous = {sig: signal.signal(sig, lambda sig, _frame: came.append(sig)) for sig in stops}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if came and any(callable(previous[sig]) or previous[sig] == signal.SIG_DFL for sig in came):
+        raise KeyboardInterrupt

@@ -145,7 +145,7 @@ class Forked:
             target=_child, args=(module, list(argv), str(log_path), dict(env), self.exit_path), name=module,
             daemon=True,
         )  # fmt: skip
-        self._p.start()
+        self._p.start()  # not to be interrupted: Child.start holds a Ctrl-C back until it returns
         self.pid: int = self._p.pid
         self.returncode: int | None = None
         self.unreported = False  # the fork server did not report the exit code: taken from the child's record
