@@ -16,7 +16,7 @@ What each figure shows and why: formation_swarm.figures. A title says
 
 from __future__ import annotations
 
-import json
+import contextlib
 import math
 import sys
 import tomllib
@@ -32,6 +32,7 @@ from formation_swarm.data import Series, read_folder, robots_in
 from formation_swarm.scenario_keys import ScenarioWarning
 
 FIGURES = ("trajectories", "formation_error", "vn", "targets")
+NO_FIGURES = "no-figures.txt"  # in RUN_DIR/report/ when it could draw none: why
 FORMATS = ("png", "svg", "pdf")
 DEFAULT_DPI = 150
 MAX_SNAPSHOTS = 100
@@ -57,16 +58,22 @@ def make_report(run_dir: str | Path, snapshots: int = 6, fmt: str = "png", dpi: 
         raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
     run_dir, summary, data = read_folder(run_dir, need_recording=False)
     rrd = run_dir / "recording.rrd"
-    if not rrd.is_file():  # the summary's tables alone
+    robots = robots_in(data)
+    if not robots:  # no recording, or one with nothing in it: the summary's tables alone
         out = run_dir / "report"
         out.mkdir(exist_ok=True)
         followers = sorted(int(r) for r in summary.get("followers") or {} if str(r).isdigit())
         ctx = _context(run_dir, summary, {}, [], followers)  # what the scenario reproduces of the paper
-        (out / "report.md").write_text(_markdown(summary, followers, ctx=ctx, without=no_recording(summary)))
+        why = no_recording(summary)  # no logger, or its file gone
+        if summary.get("recording") is not None and not summary.get("ticks"):
+            why = f"nothing was recorded: {_ended_early(summary)}"
+        elif rrd.is_file():
+            why = f"its recording holds no robot poses: {_ended_early(summary)}"
+        (out / "report.md").write_text(_markdown(summary, followers, ctx=ctx, without=why))
+        (out / NO_FIGURES).write_text(why + "\n")
         return out
-    robots = robots_in(data)
-    if not robots:
-        raise ValueError(f"{rrd} holds no robot poses: " + _ended_early(summary))
+    with contextlib.suppress(FileNotFoundError):
+        (run_dir / "report" / NO_FIGURES).unlink()
     followers = [r for r in robots if f"/robots/r{r}/error/formation" in data]
     import matplotlib
 
@@ -225,6 +232,11 @@ def _unexpected_exits(events: list[Mapping[str, Any]]) -> list[Mapping[str, Any]
     return [ev for ev in events if ev.get("event") == "exited" and ev.get("process") not in caused]
 
 
+def _v(x: Any) -> str:
+    """A count as written, or "-" where the run has none (it ended before its first tick)."""
+    return "-" if x is None else str(x)
+
+
 def _num(x: Any, fmt: str = ".3f") -> str:
     return "-" if not isinstance(x, (int, float)) or isinstance(x, bool) else format(x, fmt)
 
@@ -253,16 +265,22 @@ def _markdown(
     lines = [
         f"# Run {summary.get('run_id')}: {summary.get('scenario')}",
         "",
-        f"Mode {summary.get('mode')}, seed {summary.get('seed')}, {summary.get('ticks')} ticks "
+        f"Mode {summary.get('mode')}, seed {summary.get('seed')}, {summary.get('ticks') or 'no'} ticks "
         f"({f(summary.get('sim_time_s'), '.1f')} s simulated), exit code {summary.get('exit_code')}. "
         f"Ended: {summary.get('ended') or describe_end(summary.get('end_reason'), summary.get('ended_at_s'))}.",
         "",
         f"Reproduces: {paper}." if paper else f"Reproduces no figure of the paper as it is ({why_not}).",
         "",
-        "| follower | RMS error, m | max, m | RMS in turns, m | RMS on straights, m | mean lag in turns, m "
-        "| max ahead of target, m | measured target RMS, m | EKF target RMS, m |",
-        "|---|---|---|---|---|---|---|---|---|",
     ]
+    if not followers:
+        lines += ["No follower metrics: " + ("the run ended before its first tick." if not summary.get("ticks")
+                                             else "the run has no follower.")]  # fmt: skip
+    else:
+        lines += [
+            "| follower | RMS error, m | max, m | RMS in turns, m | RMS on straights, m | mean lag in turns, m "
+            "| max ahead of target, m | measured target RMS, m | EKF target RMS, m |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
     errs = ((summary.get("parts") or {}).get("logger") or {}).get("target_errors") or {}
     for r in followers:
         m = (summary.get("followers") or {}).get(str(r)) or {}
@@ -278,11 +296,11 @@ def _markdown(
     lines += [
         "",
         f"Minimum distance between robots {f(summary.get('min_distance_m'))} m "
-        f"(diameter {f(summary.get('robot_diameter_m'))} m); collisions {summary.get('collisions')}, "
-        f"with obstacles {summary.get('obstacle_collisions')}.",
+        f"(diameter {f(summary.get('robot_diameter_m'))} m); collisions {_v(summary.get('collisions'))}, "
+        f"with obstacles {_v(summary.get('obstacle_collisions'))}.",
         *_contacts_markdown(summary),
-        f"Link layer: {losses(summary)}; lockstep misses {summary.get('lockstep_misses')}; rejected payloads "
-        f"{summary.get('rejected_total')}{rejected_why(summary)}.",
+        f"Link layer: {losses(summary)}; lockstep misses {_v(summary.get('lockstep_misses'))}; rejected payloads "
+        f"{_v(summary.get('rejected_total'))}{rejected_why(summary)}.",
         *_stopped_markdown(summary, followers),
         *(
             [
@@ -403,9 +421,8 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"swarm report: cannot write the report into {args.run_dir}: {exc}", file=sys.stderr)
         return USAGE_ERROR
-    if (out.parent / "recording.rrd").is_file():
+    if not (out / NO_FIGURES).is_file():
         print(f"[report] {out}: {', '.join(f'{stem}.{args.format}' for stem in FIGURES)}, report.md")
     else:
-        summary = json.loads((out.parent / "summary.json").read_text())
-        print(f"[report] {out}: report.md only, no figures: {no_recording(summary)}")
+        print(f"[report] {out}: report.md only, no figures: {(out / NO_FIGURES).read_text().strip()}")
     return 0

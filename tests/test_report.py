@@ -59,8 +59,21 @@ def test_a_run_without_a_recording_gets_report_md_and_says_why_no_figures(
     assert f"No figures and no measured or EKF target errors (the last two columns): {why}." in md
     assert "![" not in md
     assert not list((tmp_path / "report").glob("*.png"))
+    # A run stopped before its first tick: why nothing was drawn, and no raw None in report.md.
+    stopped = {**summary, "ticks": None, "followers": {}, "exit_code": 130, "recording": "recording.rrd"}
+    (tmp_path / "summary.json").write_text(json.dumps(stopped))
+    assert main([str(tmp_path)]) == 0
+    assert capsys.readouterr().out.endswith(
+        "report.md only, no figures: nothing was recorded: the run ended before its first tick (exit code 130); "
+        "see its logs/\n")  # fmt: skip
+    md = (tmp_path / "report" / "report.md").read_text()
+    assert "No follower metrics: the run ended before its first tick." in md
+    assert "no ticks (- s simulated)" in md
+    assert "collisions -, with obstacles -." in md
+    assert "None ticks" not in md
+    assert "collisions None" not in md
     # A run that had a logger, whose recording is gone:
-    (tmp_path / "summary.json").write_text(json.dumps({**summary, "recording": "recording.rrd"}))
+    (tmp_path / "summary.json").write_text(json.dumps({**summary, "recording": "recording.rrd", "ticks": 100}))
     assert main([str(tmp_path)]) == 0
     assert "no figures: its recording.rrd is missing from the folder" in capsys.readouterr().out
 
