@@ -97,10 +97,14 @@ def main(argv: list[str] | None = None) -> int:
     scheme = "tls" if tls else "tcp"
     print(f"swarm secure: run {args.run} ({sc.name}, robots {', '.join(map(str, sc.robots))}): wrote {out}/")
     print(f"  router:   swarm router --listen {scheme}/0.0.0.0:7447 --auth {files['router']}")
-    print(f"  world:    --zenoh-mode client --connect {scheme}/ROUTER:7447 --auth {files['world']}")
-    print(f"  logger:   --connect {scheme}/ROUTER:7447 --auth {files['logger']}")
+    common = f"--scenario {args.scenario} --run {args.run}"
+    print(f"  world:    swarm world {common} --zenoh-mode client --connect {scheme}/ROUTER:7447 "
+          f"--auth {files['world']}")  # fmt: skip
+    print(f"  logger:   swarm logger {common} --out recording.rrd --connect {scheme}/ROUTER:7447 "
+          f"--auth {files['logger']}")  # fmt: skip
     for rid in sc.robots:
-        print(f"  agent {rid}:  --connect {scheme}/ROUTER:7447 --auth {files[trust.agent_user(rid)]}")
+        print(f"  agent {rid}:  swarm agent --id {rid} {common} --connect {scheme}/ROUTER:7447 "
+              f"--auth {files[trust.agent_user(rid)]}")  # fmt: skip
     if not tls:
         print("  links are plain TCP: the run's data crosses the network unencrypted; see deploy/README.md for TLS")
     return 0

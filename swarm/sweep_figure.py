@@ -145,7 +145,7 @@ def _median_and_worst(ax: Any, lines: list[tuple[str, str]], labels: list[str], 
     )
     pts = [(xs[lab], by[lab, worst_metric]["mean"]) for lab in labels if (lab, worst_metric) in by]
     ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", ms=4, lw=1.5, ls=ls,
-            color=robot_colour(int(worst_label[1:])), label=f"largest: {worst_label}")  # fmt: skip
+            color=robot_colour(int(worst_label[1:])), label=f"largest mean at any value: {worst_label}")  # fmt: skip
 
 
 def write(path: Path, agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "") -> Path:

@@ -159,7 +159,10 @@ def test_a_sweep_figure_of_many_followers_draws_their_median_and_the_worst_and_o
              **{f"r{r}_rms_m": v + r / 100 for r in range(2, 21)}} for v in values]  # fmt: skip
     fig = figure(aggregate(rows), jobs)
     (ax,) = (a for a in fig.axes if a.axison)
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["median over the 19 followers", "largest: R20"]
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == [
+        "median over the 19 followers",
+        "largest mean at any value: R20",
+    ]
     median = next(line for line in ax.get_lines() if line.get_label() == "median over the 19 followers")
     assert np.allclose(median.get_ydata(), [0.11, 0.41])  # R2..R20: 0.02..0.20 above the value, median 0.11
     assert fig.get_suptitle() == "1 seed per value, no confidence interval"
