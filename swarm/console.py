@@ -211,7 +211,8 @@ def _many_followers(
                if rid not in shown and (_lost_sight(m) or f"agent-{rid}" in kills)]  # fmt: skip
     also = f", then {len(flagged)} more that lost sight of their reference or were killed" if flagged else ""
     if by_rms or flagged:
-        w(f'  the {len(by_rms)} worst by RMS{also} (all {len(followers)}: summary.json, "followers"):\n')
+        every = f'(all {len(followers)}: summary.json, "followers")'
+        w(f"  the {len(by_rms)} worst by RMS over the whole run{also} {every}:\n")
     return by_rms + flagged
 
 

@@ -321,7 +321,7 @@ def test_print_result_sums_up_many_followers_and_lists_the_worst(tmp_path: Path)
     assert "  12 followers: formation error RMS median 0.090 m, best 0.020 m, worst 0.900 m (R5), " \
            "largest error 1.000 m (R5)" in lines  # fmt: skip
     assert (
-        "  the 5 worst by RMS, then 3 more that lost sight of their reference or were killed"
+        "  the 5 worst by RMS over the whole run, then 3 more that lost sight of their reference or were killed"
         ' (all 12: summary.json, "followers"):'
     ) in lines
     listed = [line.split(":")[0].strip() for line in lines if line.startswith("  follower R")]
