@@ -182,10 +182,14 @@ def _stopped_markdown(summary: Mapping[str, Any], followers: list[int]) -> list[
     """A follower whose agent was killed or lost: its figures above include
     the robot standing after that; its error until then."""
     out = []
+    events = [e for e in summary.get("events") or [] if isinstance(e, Mapping)]
     for r in followers:
         until = ((summary.get("followers") or {}).get(str(r)) or {}).get("until_stopped")
         if isinstance(until, Mapping):
-            out.append(f"R{r} stopped at t={_num(until.get('time_s'), '.2f')} s (its agent killed or lost): its "
+            fresh = [e.get("sim_time_s") for e in events if e.get("event") == "started"
+                     and str(e.get("process", "")).split(".")[0] == f"agent-{r}"]  # fmt: skip
+            back = f", a fresh agent started at t={_num(fresh[0], '.2f')} s" if fresh else ""
+            out.append(f"R{r} stopped at t={_num(until.get('time_s'), '.2f')} s (its agent killed or lost{back}): its "
                        f"figures above include the robot after that; until then RMS {_num(until.get('rms_m'))} m, "
                        f"max {_num(until.get('max_m'))} m.")  # fmt: skip
     return out

@@ -255,6 +255,11 @@ def test_report_md_says_partition_losses_rejection_reasons_and_a_killed_follower
         "R3 stopped at t=20.00 s (its agent killed or lost): its figures above include the robot after that; "
         "until then RMS 0.800 m, max 1.500 m."
     ) in text
+    # Restarted: when its fresh agent started (the console says it; report.md did not).
+    summary["events"] = [{"event": "killed", "process": "agent-3", "sim_time_s": 20.0},
+                         {"event": "started", "process": "agent-3.2", "sim_time_s": 21.0}]  # fmt: skip
+    assert "R3 stopped at t=20.00 s (its agent killed or lost, a fresh agent started at t=21.00 s): " in _markdown(
+        summary, [3])  # fmt: skip
 
 
 def test_the_results_line_says_why_messages_were_rejected() -> None:
