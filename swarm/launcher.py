@@ -205,6 +205,7 @@ class Launch:
         self.events: list[dict[str, Any]] = []
         self.started_at = 0.0
         self._interrupt = threading.Event()  # interrupt(): another thread's Ctrl-C (a sweep's runs)
+        self.said_windows: set[tuple[str, int]] = set()  # the link/sensor/actuator faults' starts and ends said
         for f in self.sc.faults:
             if f.process is not None and f.process not in self._names():
                 why = " (the run has no logger: --no-logger, or logger=False)" if f.process == "logger" else ""
@@ -460,6 +461,7 @@ class Launch:
         # freeze's tick and end between two looks (20 ticks take 20 ms here), and
         # a freeze carried out after the thaw would hold its process to the end.
         self._execute_calls()
+        self._say_windows()
         self._thaw_at_end()
         t = self.sim_time()
         if self.serve_web and self.logger and not self.said_web and self.last_status is not None:
@@ -503,6 +505,26 @@ class Launch:
                 continue
             self.last_call_seq = call.seq
             self._execute(call, faults[call.index])
+
+    def _say_windows(self) -> None:
+        """The schedule's faults the world applies itself (link, sensor, actuator):
+        a line when the run passes each one's start and end, as the process
+        faults get when they are carried out (as soon as a status says the
+        tick is passed: up to a status period late)."""
+        st = self.last_status
+        if st is None:
+            return
+        dt = self.sc.dt_s
+        for i, f in enumerate(self.sc.faults):
+            if f.process is not None:
+                continue
+            start, end = f.start_tick(dt), f.end_tick(dt)
+            if st.tick >= start and ("on", i) not in self.said_windows:
+                self.said_windows.add(("on", i))
+                self.progress(f"[swarm] fault on from tick {start}, sim t={start * dt:.2f} s ('{f}')")
+            if end is not None and st.tick >= end and ("off", i) not in self.said_windows:
+                self.said_windows.add(("off", i))
+                self.progress(f"[swarm] fault off from tick {end}, sim t={end * dt:.2f} s ('{f}')")
 
     def _thaw_at_end(self) -> None:
         """Once the world has said "done", a process still frozen by a fault that

@@ -191,3 +191,18 @@ def test_a_follower_cut_off_from_its_leader_misses_the_switch_and_catches_up(
     assert s["collisions"] == 0
     assert s["followers"]["3"]["max_m"] > 4.0
     assert s["followers"]["2"]["max_m"] < 2.0
+
+
+def test_the_console_says_a_link_fault_as_the_run_passes_its_start_and_end(
+    swarm_run: Callable[..., RunResult],
+) -> None:
+    """Process faults had their live lines; a partition only its line after the run."""
+    said: list[str] = []
+    faults = ["partition 2@30s for=5s from=leader", "drop obs:2@50s p=0.2", "drop obs:3@54s p=0.2"]
+    swarm_run(FIG11, mode="lockstep", logger=False, progress=said.append, faults=faults)
+    windows = [line for line in said if line.startswith("[swarm] fault ")]
+    assert windows == [
+        "[swarm] fault on from tick 600, sim t=30.00 s ('partition 2@30s for=5s from=leader')",
+        "[swarm] fault off from tick 700, sim t=35.00 s ('partition 2@30s for=5s from=leader')",
+        "[swarm] fault on from tick 1000, sim t=50.00 s ('drop obs:2@50s p=0.2')",
+    ]  # the one after the run's end (tick 1080 of 1061, the leader's path done) never comes
