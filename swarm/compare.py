@@ -99,12 +99,12 @@ def figure(runs: Sequence[RunData]) -> Figure:
     _obstacles(traj, runs)
     import numpy as np
 
-    from formation_swarm.figures import _view
+    from formation_swarm.figures import equal_view
 
     pts = np.concatenate([run.pose[:, :, :2].reshape(-1, 2) for run in runs])
     pts = pts[np.isfinite(pts).all(axis=1)]
     if len(pts):  # equal scales; a long thin path gets a wider view rather than a squashed one (as the report's)
-        centre, span = _view(pts.min(axis=0), pts.max(axis=0))
+        centre, span = equal_view(pts.min(axis=0), pts.max(axis=0))
         traj.set_xlim(centre[0] - span[0] / 2, centre[0] + span[0] / 2)
         traj.set_ylim(centre[1] - span[1] / 2, centre[1] + span[1] / 2)
     traj.set_aspect("equal", adjustable="box")

@@ -323,7 +323,7 @@ def trajectories(path: Any, data: Mapping[str, Series], ctx: Context, snapshots:
     else:
         # As wide as the view's equal scales need (a column is narrow), no wider; a
         # swarm's legend, or one a narrow view could not hold, goes beside it.
-        _, span = _view(lo, hi)
+        _, span = equal_view(lo, hi)
         height = float(np.clip(6.0 * span[1] / span[0], 4.5, 7.5))
         axes_width = (height - 1.4) * span[0] / span[1]
         beside = ctx.many or axes_width < NARROW_VIEW_IN
@@ -415,7 +415,7 @@ def _overview(
             va="center",
             bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none", "pad": 0.5},
         )
-    centre, span = _view(lo, hi)
+    centre, span = equal_view(lo, hi)
     ax.set_xlim(centre[0] - span[0] / 2, centre[0] + span[0] / 2)
     ax.set_ylim(centre[1] - span[1] / 2, centre[1] + span[1] / 2)
     ax.set_aspect("equal", adjustable="box")
@@ -424,7 +424,7 @@ def _overview(
     ax.grid(alpha=0.3)
 
 
-def _view(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def equal_view(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The overview's centre and (x, y) span, m, for data from ``lo`` to ``hi``:
     equal scales, and a long thin path gets a wider view rather than a squashed one."""
     span = np.maximum(hi - lo, 1.0) + 3.0

@@ -214,11 +214,7 @@ def partial_links(processes: Mapping[str, Any], sc: Scenario) -> list[str]:
     agents.process.STATS_PERIOD_S, longer beyond 25 robots),
     or none when it died before its first; how many messages it had by then
     depends on the machine's speed, not on the run."""
-    killed = set()
-    for name, proc in processes.items():
-        code = (proc or {}).get("exit_code")
-        if (rid := _robot_of(name)) is not None and isinstance(code, int) and code < 0:
-            killed.add(rid)
+    killed = {rid for _, rid in _signalled_agents(processes)}
     leader = sc.leader.robot_id
     out = [link_name("obs", 0, r) for r in killed]
     out += [link_name("formation", leader, r) for r in killed if r != leader]
@@ -236,10 +232,18 @@ def _killed_agents(
         if e.get("event") in ("killed", "exited") and _int(e.get("tick")) is not None:
             at.setdefault(str(e.get("process")), e["tick"])
     out: dict[int, list[tuple[int | None, int | None]]] = {}
+    for name, rid in _signalled_agents(processes):
+        out.setdefault(rid, []).append((_int((parts.get(name) or {}).get("last_tick")), at.get(name)))
+    return out
+
+
+def _signalled_agents(processes: Mapping[str, Any]) -> list[tuple[str, int]]:
+    """The agents' processes (agent-3, agent-3.2) a signal killed, with their robot."""
+    out = []
     for name, proc in processes.items():
         code = (proc or {}).get("exit_code")
         if (rid := _robot_of(name)) is not None and isinstance(code, int) and code < 0:
-            out.setdefault(rid, []).append((_int((parts.get(name) or {}).get("last_tick")), at.get(name)))
+            out.append((name, rid))
     return out
 
 
