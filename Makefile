@@ -20,12 +20,13 @@ run: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/python tools/lint_imports.py
 	$(BIN)/ruff format --check .
 
 test: lint browser
 	$(BIN)/python -m pytest
 
-# The web viewer's test (tests/test_web_view.py) loads it in a headless Chromium:
+# The web viewer's test (tests/system/test_web_view.py) loads it in a headless Chromium:
 # installed here when missing and this is root on apt; otherwise the test skips, saying why.
 browser:
 	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
@@ -43,7 +44,7 @@ bench: $(STAMP)
 
 # The generated tables and figures of docs/results.md: the baseline (180 lockstep
 # runs), the same under wheel noise (180), the paper's claims over 30 seeds as
-# shipped (with the rows tests/test_claims.py checks), under wheel noise, with
+# shipped (with the rows tests/unit/studies/test_claims.py checks), under wheel noise, with
 # the EKF told it (3 x 150), and the claims at every value of one setting at a
 # time (10 seeds per value: 840 runs beyond the claims' own, which it shares);
 # resumable: an interrupted `make results` goes on where it stopped.
@@ -59,8 +60,8 @@ results: $(STAMP)
 
 # Reference documents generated from the code (a test fails when one is stale).
 docs: $(STAMP)
-	$(BIN)/python -m formation_swarm.scenario_keys > docs/scenario.md
-	$(BIN)/python -m formation_swarm.faults docs/faults.md
+	$(BIN)/python -m formation_swarm.spec.keys > docs/scenario.md
+	$(BIN)/python -m formation_swarm.common.faults docs/faults.md
 
 # Mutation testing of the pure modules against their fast tests (tools/mutate.py):
 # a fixed sample of 120 mutants per module (about an hour and a half here), resumable

@@ -24,7 +24,7 @@ from enum import IntEnum
 from typing import NamedTuple
 
 from formation_swarm.agents.geometry import Point, follower_in_leader_frame, target_point
-from formation_swarm.checks import finite, positive
+from formation_swarm.common.checks import finite, positive
 
 
 class Zone(IntEnum):

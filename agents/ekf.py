@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from formation_swarm.agents.geometry import Point, leader_point, rotate
-from formation_swarm.checks import finite, non_negative, positive
+from formation_swarm.common.checks import finite, non_negative, positive
 from formation_swarm.world.kinematics import body_twist, wrap_angle
 
 
@@ -65,7 +65,7 @@ def filter_class() -> type:
     """filterpy's EKF with the nonlinear prediction of this model, made on
     first use: filterpy imports scipy.stats (about 0.6 s), which the
     commands that only read a scenario never need. The agents' spawner
-    makes it before it forks (formation_swarm.spawn_preload)."""
+    makes it before it forks (formation_swarm.nodes.preload)."""
     from filterpy.kalman import ExtendedKalmanFilter
 
     class _Filter(ExtendedKalmanFilter):

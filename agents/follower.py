@@ -49,7 +49,7 @@ from formation_swarm.agents.geometry import (
 )
 from formation_swarm.agents.lpsi import LpsiParams
 from formation_swarm.agents.lpsi import control as lpsi_control
-from formation_swarm.checks import finite, non_negative, positive
+from formation_swarm.common.checks import finite, non_negative, positive
 
 LAWS = ("fuzzy", "lpsi")
 # Eq. 6 where the signed rho of eq. 5 changes sign (docs/paper.md, eq. 5): "signed", as printed, takes the

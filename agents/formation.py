@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from formation_swarm.agents.geometry import Point
-from formation_swarm.checks import finite, non_negative, positive
+from formation_swarm.common.checks import finite, non_negative, positive
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from formation_swarm.checks import finite, positive
+from formation_swarm.common.checks import finite, positive
 from formation_swarm.world.kinematics import wrap_angle
 
 # Table 1, rows Close / Enough / Far, columns alpha = Left / Center / Right.

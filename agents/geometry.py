@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from formation_swarm.checks import finite, non_negative
+from formation_swarm.common.checks import finite, non_negative
 
 
 class Point(NamedTuple):

@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from formation_swarm.checks import non_negative, positive
+from formation_swarm.common.checks import non_negative, positive
 
 
 @dataclass

@@ -32,7 +32,7 @@ import math
 from dataclasses import dataclass
 
 from formation_swarm.agents.geometry import Point
-from formation_swarm.checks import finite, positive
+from formation_swarm.common.checks import finite, positive
 from formation_swarm.world.kinematics import wrap_angle
 
 

@@ -15,7 +15,7 @@ a circle on one segment, the pilot steers for the rest of the path at the
 point 2 R + ``lookahead_m`` ahead, which no turning circle (diameter 2 R)
 can contain, and ends the path when it passes the last waypoint. Where the
 pursuit finishes without that, it turns less on one segment (measured on the
-paper's path: at most 154 deg in the 27 of 48 cases of tests/test_pilot.py
+paper's path: at most 154 deg in the 27 of 48 cases of tests/unit/agents/test_pilot.py
 that do, 150 deg in the shipped scenarios), so those runs are unchanged
 (docs/paper.md, "The leader's path").
 
@@ -36,7 +36,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from formation_swarm.checks import positive, vector
+from formation_swarm.common.checks import positive, vector
 from formation_swarm.world.kinematics import Pose, to_body_frame, wrap_angle
 
 CORNERS = ("pursuit", "arcs")

@@ -22,7 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from formation_swarm.launcher import Launch
+from formation_swarm.launch.launcher import Launch
 
 DEFAULT_FAULTS = (
     "kill agent-3@20s",

@@ -60,10 +60,10 @@ sys.path.insert(0, str(ROOT))
 
 import zenoh  # noqa: E402
 
-from formation_swarm.cliargs import integer  # noqa: E402
-from formation_swarm.launcher import Launch, free_port  # noqa: E402
+from formation_swarm.launch.launcher import Launch, free_port  # noqa: E402
 from formation_swarm.protocol.keys import Keys  # noqa: E402
 from formation_swarm.protocol.session import make_config  # noqa: E402
+from formation_swarm.runtime.cliargs import integer  # noqa: E402
 
 OBS = b"o" * 110
 CMD = b"c" * 40

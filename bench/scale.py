@@ -46,9 +46,9 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from formation_swarm.cliargs import integer, non_negative, seconds  # noqa: E402
-from formation_swarm.launcher import Launch  # noqa: E402
-from formation_swarm.scenario_keys import MAX_ROBOTS  # noqa: E402
+from formation_swarm.launch.launcher import Launch  # noqa: E402
+from formation_swarm.runtime.cliargs import integer, non_negative, seconds  # noqa: E402
+from formation_swarm.spec.keys import MAX_ROBOTS  # noqa: E402
 
 SCENARIO = ROOT / "scenarios" / "fig11_obstacles.toml"
 STRAIGHT = [[0.0, 0.0], [0.0, 1000.0]]  # --straight: a path that never ends within the duration

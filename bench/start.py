@@ -23,7 +23,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from formation_swarm.launcher import Launch  # noqa: E402
+from formation_swarm.launch.launcher import Launch  # noqa: E402
 
 
 def _memory_kb(pid: int) -> tuple[int, int]:

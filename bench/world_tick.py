@@ -17,9 +17,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from formation_swarm import scenario as scenario_mod  # noqa: E402
-from formation_swarm import scenario_files  # noqa: E402
 from formation_swarm.protocol.messages import Observation, Truth  # noqa: E402
+from formation_swarm.spec import files as scenario_files  # noqa: E402
+from formation_swarm.spec import scenario as scenario_mod  # noqa: E402
 from formation_swarm.world.engine import WorldEngine  # noqa: E402
 
 

@@ -21,7 +21,7 @@ A machine's ``swarm host`` serves every run, so its keys are outside any run's::
 An agent reads its inbox ``swarm/<run>/robot/<id>/*`` with one subscriber so
 that the order in which observations and formation codes arrive is kept.
 docs/protocol.md says who publishes and who subscribes to each key
-(tests/test_protocol_doc.py checks its key table against this module).
+(tests/packaging/test_protocol_doc.py checks its key table against this module).
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 Every directed link (world -> agent observations, agent -> world commands,
 leader -> follower formation codes) has a steady drop probability (the
 scenario's ``[links]``) and takes the link faults of the run's schedule that
-name it (formation_swarm.faults: ``drop``, ``burst``, ``delay``,
+name it (formation_swarm.common.faults: ``drop``, ``burst``, ``delay``,
 ``duplicate``, ``reorder``, and ``partition`` for the links it cuts). Every
 random decision is a pure function of (seed, link, seq) and, for a fault, of
 its text (``fault_key``), so the same run loses, holds and repeats the same
@@ -46,8 +46,8 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
-from formation_swarm.checks import positive, probability
-from formation_swarm.faults import Fault, link_faults
+from formation_swarm.common.checks import positive, probability
+from formation_swarm.common.faults import Fault, link_faults
 
 _SCALE = float(2**64)
 T = TypeVar("T")

@@ -8,7 +8,7 @@ The header, the field checkers, the decoder and the rejection counter are in
 protocol.codec; batches of logger-bound messages in protocol.batch. Their
 public names are importable from here too, so that a user of the protocol
 needs one import. docs/protocol.md describes every field for writers of
-agents in other languages (tests/test_protocol_doc.py keeps it true).
+agents in other languages (tests/packaging/test_protocol_doc.py keeps it true).
 """
 
 from __future__ import annotations
@@ -184,7 +184,7 @@ class Status(Message):
 class FaultCall(Message):
     """World -> the executor of process faults (swarm run's launcher): do
     ``action`` to ``process`` now, at tick k, for fault number ``index`` of the
-    scenario's schedule (``[[faults]]`` in start order, formation_swarm.faults).
+    scenario's schedule (``[[faults]]`` in start order, formation_swarm.common.faults).
 
     action: "kill" (SIGKILL), "start" (a fresh process for the same robot),
     "freeze" (SIGSTOP), "thaw" (SIGCONT). The world publishes it before the

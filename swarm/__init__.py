@@ -1,25 +1,40 @@
 """Distributed leader-follower formation emulator (vision, fuzzy control, EKF).
 
-``from formation_swarm import load_run``: a run folder as numpy arrays
-(``formation_swarm.data``).
+The public API, imported on first use (every process imports this package;
+few need any of it):
+
+- ``load_run(folder) -> RunData``: a run folder as numpy arrays.
+- ``Launch(scenario, ...)``: start a run's processes, watch them, ``wait()``
+  for its ``RunResult``.
+- the pytest fixtures ``swarm_run`` and ``swarm_launch`` (the ``pytest11``
+  entry point ``formation_swarm.pytest_plugin``).
+
+Everything else (``formation_swarm.spec``, ``.runtime``, ``.nodes``, ...) is
+internal: docs/architecture.md draws the layers.
 """
 
 from __future__ import annotations
 
+import importlib
 from typing import TYPE_CHECKING, Any
 
-__version__ = "0.1.0"
+from formation_swarm.common.version import __version__
 
 if TYPE_CHECKING:
-    from formation_swarm.data import RunData, load_run
+    from formation_swarm.launch.launcher import Launch, RunResult
+    from formation_swarm.report.data import RunData, load_run
 
-__all__ = ["RunData", "__version__", "load_run"]
+_PUBLIC = {
+    "load_run": "formation_swarm.report.data",
+    "RunData": "formation_swarm.report.data",
+    "Launch": "formation_swarm.launch.launcher",
+    "RunResult": "formation_swarm.launch.launcher",
+}
+
+__all__ = ["Launch", "RunData", "RunResult", "__version__", "load_run"]
 
 
 def __getattr__(name: str) -> Any:
-    # Imported on first use: every process imports this package, few read recordings.
-    if name in ("load_run", "RunData"):
-        from formation_swarm import data
-
-        return getattr(data, name)
+    if name in _PUBLIC:
+        return getattr(importlib.import_module(_PUBLIC[name]), name)
     raise AttributeError(f"module 'formation_swarm' has no attribute {name!r}")

@@ -22,8 +22,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from formation_swarm import __version__
-from formation_swarm.cliargs import (
+from formation_swarm.common.version import __version__
+from formation_swarm.runtime.cliargs import (
     USAGE_ERROR,
     Parser,
     add_tls_arguments,
@@ -43,8 +43,8 @@ SIM_MAX_S = 3600.0  # the paper's path takes 40 s; the recorded arrays grow with
 def _cmd_sim(args: argparse.Namespace) -> int:
     from formation_swarm.agents.follower import FollowerParams
     from formation_swarm.agents.fuzzy import SpeedMode
-    from formation_swarm.scenario_keys import ROBOT_KEYS
-    from formation_swarm.sim import paper_turning_setup, run
+    from formation_swarm.spec.keys import ROBOT_KEYS
+    from formation_swarm.studies.sim import paper_turning_setup, run
 
     mode = SpeedMode() if args.vn == "dynamic" else SpeedMode(float(args.vn))
     setup = paper_turning_setup(seed=args.seed, duration_s=args.duration, follower=FollowerParams(speed=mode))
@@ -104,11 +104,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return USAGE_ERROR
     import zenoh
 
-    from formation_swarm.launcher import KillAt, Launch, print_result
-    from formation_swarm.proc import interrupt_on_stop_signals
-    from formation_swarm.remote import HostError, parse_placement
-    from formation_swarm.scenario import ScenarioError
-    from formation_swarm.scenario_files import parse_overrides
+    from formation_swarm.launch.launcher import KillAt, Launch, print_result
+    from formation_swarm.launch.remote import HostError, parse_placement
+    from formation_swarm.runtime.proc import interrupt_on_stop_signals
+    from formation_swarm.spec.files import parse_overrides
+    from formation_swarm.spec.scenario import ScenarioError
 
     try:
         kills = [KillAt.parse(spec) for spec in args.kill]
@@ -153,7 +153,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_scenarios(_args: argparse.Namespace) -> int:
-    from formation_swarm import scenario_files as scenario
+    from formation_swarm.spec import files as scenario
 
     known = scenario.shipped()
     width = max(map(len, known))
@@ -164,18 +164,27 @@ def _cmd_scenarios(_args: argparse.Namespace) -> int:
 
 # Commands with their own parser in their own module: name -> (module, one-line summary).
 DELEGATED = {
-    "report": ("formation_swarm.report", "figures (PNG, SVG or PDF) and a markdown summary of a run's folder"),
-    "export": ("formation_swarm.export", "a run's folder as a table, one row per robot per tick (CSV or Parquet)"),
-    "compare": ("formation_swarm.compare", "one figure overlaying several runs: formation error and trajectories"),
-    "sweep": ("formation_swarm.sweep", "many lockstep runs of a scenario (seeds x parameter values), in parallel"),
-    "results": ("formation_swarm.results", "recompute the baseline comparison table of docs/results.md"),
-    "world": ("formation_swarm.world.process", "role: the world alone (physics, cameras, clock; a Zenoh router)"),
-    "agent": ("formation_swarm.agents.process", "role: one robot's agent alone, a client of a router"),
-    "logger": ("formation_swarm.logger", "role: the Rerun logger alone (to a file or a viewer)"),
-    "router": ("formation_swarm.router", "role: a Zenoh router for agents on other machines"),
-    "secure": ("formation_swarm.secure", "credentials and access rules for a run spread over machines"),
-    "host": ("formation_swarm.host", "serve this machine to runs started elsewhere (swarm run --hosts)"),
-    "doctor": ("formation_swarm.doctor", "check that the hosts of a run spread over machines are there and fit"),
+    "report": ("formation_swarm.report.build", "figures (PNG, SVG or PDF) and a markdown summary of a run's folder"),
+    "export": (
+        "formation_swarm.report.export",
+        "a run's folder as a table, one row per robot per tick (CSV or Parquet)",
+    ),
+    "compare": (
+        "formation_swarm.report.compare",
+        "one figure overlaying several runs: formation error and trajectories",
+    ),
+    "sweep": (
+        "formation_swarm.studies.sweep",
+        "many lockstep runs of a scenario (seeds x parameter values), in parallel",
+    ),
+    "results": ("formation_swarm.studies.results", "recompute the baseline comparison table of docs/results.md"),
+    "world": ("formation_swarm.nodes.world", "role: the world alone (physics, cameras, clock; a Zenoh router)"),
+    "agent": ("formation_swarm.nodes.agent", "role: one robot's agent alone, a client of a router"),
+    "logger": ("formation_swarm.nodes.logger", "role: the Rerun logger alone (to a file or a viewer)"),
+    "router": ("formation_swarm.nodes.router", "role: a Zenoh router for agents on other machines"),
+    "secure": ("formation_swarm.launch.secure", "credentials and access rules for a run spread over machines"),
+    "host": ("formation_swarm.nodes.host", "serve this machine to runs started elsewhere (swarm run --hosts)"),
+    "doctor": ("formation_swarm.launch.doctor", "check that the hosts of a run spread over machines are there and fit"),
 }
 
 RUN_EPILOG = """\
@@ -317,7 +326,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args, unknown = parser.parse_known_args(argv)
     if unknown:  # said by the command's parser, which knows its flags, rather than by swarm's
         args.parser.error(f"unrecognized arguments: {' '.join(unknown)}")
-    from formation_swarm.proc import OutlivesItsReader
+    from formation_swarm.runtime.proc import OutlivesItsReader
 
     # A reader that leaves early (swarm run ... | head) must not cut a run short.
     stdout, sys.stdout = sys.stdout, OutlivesItsReader(sys.stdout)

@@ -34,7 +34,7 @@ from typing import Any
 
 import pytest
 
-from formation_swarm.launcher import Launch, RunResult
+from formation_swarm.launch.launcher import Launch, RunResult
 
 INTERRUPTED = 130  # Launch.wait's exit codes
 TIMED_OUT = 124

@@ -27,7 +27,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from formation_swarm.launcher import Launch  # noqa: E402
+from formation_swarm.launch.launcher import Launch  # noqa: E402
 
 SCENARIOS = ("fig11_obstacles", "fig6_turn_vn_1_5", "fig6_turn_vn_2", "fig7_turn_vn_dynamic", "fig9_ekf_noise")
 # Both control laws on two scenarios, and faults of every group on fig11.

@@ -79,7 +79,7 @@ def _unit_tests(path: str, fixtures: tuple[str, ...] = ("swarm_run", "swarm_laun
     )
 
 
-# The tests of tests/test_process_faults.py that start no process.
+# The tests of tests/system/test_process_faults.py that start no process.
 PROCESS_FAULT_UNITS = _unit_tests(T + "test_process_faults.py")
 MODULES = (
     Module(
@@ -143,16 +143,16 @@ MODULES = (
     Module("protocol/batch.py", (T + "test_protocol.py", T + "test_messages.py")),
     Module("protocol/trust.py", (T + "test_trust_rules.py",)),
     Module("agents/inbox.py", (T + "test_inbox.py", T + "test_role_inputs.py")),
-    Module("swarm/faults.py", (T + "test_fault_grammar.py",)),
+    Module("swarm/common/faults.py", (T + "test_fault_grammar.py",)),
     Module("world/process_faults.py", PROCESS_FAULT_UNITS),
     Module("world/recovery.py", PROCESS_FAULT_UNITS),
     Module(
-        "swarm/sweep.py",
+        "swarm/studies/sweep.py",
         (T + "test_results.py", T + "test_sweep.py::test_aggregate_mean_std_and_t_interval"),
         scope=("_T975", "aggregate", "_is_number"),
     ),
     Module(
-        "swarm/results.py",
+        "swarm/studies/results.py",
         (T + "test_results.py",),
         scope=("CONTROLLERS", "DROPS", "NOISE", "jobs", "table", "write_into", "unfit_runs"),
     ),

@@ -17,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from formation_swarm.checks import non_negative, positive
+from formation_swarm.common.checks import non_negative, positive
 from formation_swarm.world.kinematics import Pose, to_body_frame, wrap_angle
 
 

@@ -26,7 +26,7 @@ from formation_swarm.world.kinematics import Pose, _step_unchecked, from_body_fr
 from formation_swarm.world.recovery import Recovery
 
 if TYPE_CHECKING:  # an annotation only: the world's physics does not import the application layer
-    from formation_swarm.scenario import Scenario
+    from formation_swarm.spec.scenario import Scenario
 
 # A reference turning at least this fast (from its wheel commands) is "in a turn"
 # for the metrics; the paper's path turns at 0.25 rad/s, pure pursuit on a

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from formation_swarm.faults import ACTUATOR, SENSOR, Fault
+from formation_swarm.common.faults import ACTUATOR, SENSOR, Fault
 from formation_swarm.world.camera import CameraParams, MarkerReading, true_reading
 from formation_swarm.world.kinematics import Pose, wrap_angle
 

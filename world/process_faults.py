@@ -27,7 +27,7 @@ the "start" call, or the loss, to the agent's first command) and
 formation-error :class:`~formation_swarm.world.recovery.Recovery` records:
 the returning follower's, or each follower's when the leader returns.
 
-No Zenoh here: world.process publishes the calls, feeds the liveliness
+No Zenoh here: nodes.world publishes the calls, feeds the liveliness
 changes and the commands, and does the waiting.
 """
 
@@ -37,11 +37,11 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from formation_swarm.faults import PROCESS
+from formation_swarm.common.faults import PROCESS
 from formation_swarm.world.recovery import Recovery
 
 if TYPE_CHECKING:
-    from formation_swarm.faults import Fault
+    from formation_swarm.common.faults import Fault
     from formation_swarm.world.engine import WorldEngine
 
 KILL, START, FREEZE, THAW = "kill", "start", "freeze", "thaw"

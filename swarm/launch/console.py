@@ -1,0 +1,343 @@
+"""What ``swarm run`` prints at the end of a run: its metrics and its events.
+
+A run that ended early (no ticks, no metrics) prints what it has; a value
+the run did not produce prints as "-", never an error.
+"""
+
+from __future__ import annotations
+
+import shutil
+import statistics
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, TextIO
+
+from formation_swarm.runtime import summary as summary_mod
+from formation_swarm.runtime.children import describe_exit
+from formation_swarm.spec import scenario as scenario_mod
+from formation_swarm.world.recovery import HOLD_S
+
+if TYPE_CHECKING:
+    from formation_swarm.launch.launcher import RunResult
+
+
+def _num(value: Any, fmt: str = ".3f") -> str:
+    """A number for the console, or "-" for a metric the run did not produce."""
+    return format(value, fmt) if isinstance(value, (int, float)) and not isinstance(value, bool) else "-"
+
+
+def describe_event(ev: Mapping[str, Any]) -> str:
+    """One event of the run (a kill, a process that exited, ...) as a sentence."""
+    t = ev.get("sim_time_s")
+    when = f"at sim t={t:.2f} s" if isinstance(t, (int, float)) and t >= 0 else "before the run started"
+    if ev.get("event") in ("killed", "started", "frozen", "thawed"):
+        tick = f" (tick {ev['tick']})" if isinstance(ev.get("tick"), int) else ""
+        why = f"'{ev['fault']}'" if ev.get("fault") else "fault injection"
+        return f"{ev['event']} {ev.get('process')} {when}{tick} ({why})"
+    if ev.get("event") == "host lost":
+        return summary_mod.describe_host_lost(ev)
+    if ev.get("event") == "exited" and ev.get("host_lost"):  # its exit code stayed on that host
+        return f"{ev.get('process')} lost with host {ev['host_lost']} {when}"
+    if ev.get("event") == "not fetched":  # a remote agent's log and stats, at the run's end
+        return f"{ev.get('process')}'s log and stats were not fetched: {ev.get('why')}"
+    if ev.get("event") == "exit code not reported by the fork server":
+        return f"{ev.get('process')}'s exit code {ev.get('code')} is its own record: the fork server did not report it"
+    if ev.get("event") == "exited" and isinstance(ev.get("code"), int):
+        return f"{ev.get('process')} {describe_exit(ev['code'])} {when}"
+    return ", ".join(f"{k} {v}" for k, v in ev.items() if k != "log_tail")
+
+
+def describe_recoveries(f: Mapping[str, Any]) -> list[str]:
+    """How the formation came back after a process fault, in words: when the
+    watched follower's error first went below the bound after the robot's
+    return, whether it then stayed below it for the hold time (settled), and
+    its largest error in the window after the return. Below the bound at once
+    but never settled is a follower whose error only passed through it."""
+    out = []
+    for rec in f.get("recoveries") or []:
+        who = ", ".join(f"R{r}" for r in rec.get("watched") or [])
+        since = rec.get("since_s")
+        at = f" the return at t={since:.2f} s" if isinstance(since, (int, float)) else " the return"
+        after = rec.get("first_below_after_s")
+        bound = rec.get("bound_m", 0.5)
+        if not isinstance(after, (int, float)):
+            out.append(f"{who} not back below {bound:g} m by the end")
+            continue
+        said = f"{who} below {bound:g} m {after:.2f} s after{at}"
+        settled = rec.get("settled_after_s")
+        said += (f", settled (below it for {HOLD_S:g} s) {settled:.2f} s after" if isinstance(settled, (int, float))
+                 else f", never settled (below it for {HOLD_S:g} s in a row) by the end")  # fmt: skip
+        if isinstance(peak := rec.get("max_in_window_m"), (int, float)):
+            said += f"; largest error in the {rec.get('window_s', 5):g} s after: {peak:.2f} m"
+        out.append(said)
+    return out
+
+
+# A fault's counts in words: what a link did to its messages, and what a
+# camera or wheel fault did on each robot (summary.json keeps the raw keys).
+LINK_EFFECT_WORDS = {"dropped": "dropped", "partitioned": "lost to the partition", "delayed": "delayed",
+                     "duplicated": "duplicated", "reordered": "reordered"}  # fmt: skip
+ROBOT_EFFECT_WORDS = {"blacked_out": "readings blacked out", "cut": "readings cut by the range",
+                      "replaced": "readings replaced by outliers", "biased": "readings biased",
+                      "moving_ticks": "of them with the robot told to move"}  # fmt: skip
+
+
+def describe_counts(counts: Mapping[str, Any]) -> str:
+    """``{"dropped": 12}`` -> "12 messages dropped"; ``{"R2 ticks": 40,
+    "R2 blacked_out": 38}`` -> "R2: on for 40 ticks, 38 readings blacked out";
+    a key it does not know is kept as it is."""
+    out, robots = [], {}
+    for key, n in counts.items():
+        robot, _, what = key.partition(" ")
+        if what and robot.startswith("R") and robot[1:].isdigit():
+            robots.setdefault(int(robot[1:]), {})[what] = n
+        elif key in LINK_EFFECT_WORDS:
+            out.append(f"{n} message{'s' if n != 1 else ''} {LINK_EFFECT_WORDS[key]}")
+        else:
+            out.append(f"{key} {n}")
+    for rid in sorted(robots):
+        said = robots[rid]
+        words = [f"on for {said.pop('ticks')} ticks"] if "ticks" in said else []
+        words += [f"{n} {ROBOT_EFFECT_WORDS.get(k, k)}" for k, n in said.items()]
+        out.append(f"R{rid}: {', '.join(words)}")
+    return "; ".join(out)
+
+
+def describe_fault(f: Mapping[str, Any], ticks: Any = None) -> str:
+    """One scheduled fault of the summary, with what it did, as a line; one
+    whose start the run never reached (it ended early: the leader's path was
+    done) says so."""
+    start = f.get("start_tick")
+    if isinstance(ticks, int) and isinstance(start, int) and start >= ticks:
+        return f"{f.get('fault')}: never started: the run ended at tick {ticks}, before its tick {start}"
+    parts = []
+    said: list[tuple[Any, Any, list[str]]] = []  # events of one robot at one tick: one phrase
+    for e in f.get("events") or []:
+        if said and said[-1][:2] == (e.get("robot"), e.get("tick")):
+            said[-1][2].append(str(e.get("event")))
+        else:
+            said.append((e.get("robot"), e.get("tick"), [str(e.get("event"))]))
+    for robot, tick, events in said:
+        what = events[0] if len(events) == 1 else f"{', '.join(events[:-1])} and {events[-1]}"
+        parts.append(f"{what}{f' R{robot}' if robot is not None else ''} at tick {tick}")
+    counts = describe_counts(f.get("counts") or {})
+    if cut := f.get("counts_partial_for"):
+        who = ", ".join(f"R{r}" for r in cut)
+        if counts:
+            counts += f" (at least: {who}'s agent was killed, and its counts end at its last stats write)"
+        else:
+            counts = f"not counted: {who}'s agent was killed before it wrote its counts of this fault"
+    parts += describe_recoveries(f)
+    said = "; ".join(x for x in ("; ".join(parts), counts) if x)
+    return f"{f.get('fault')}" + (f": {said}" if said else "")
+
+
+# Up to this many followers each gets its own line; beyond, a line of their
+# spread, the worst WORST_LISTED, and every one that lost its reference or was killed.
+LIST_FOLLOWERS_UP_TO = 10
+WORST_LISTED = 5
+LOST_SIGHT_SHARE = 0.95  # beyond 10 followers, one whose reference was in fewer of its frames is listed
+
+
+def rejected_why(s: Mapping[str, Any]) -> str:
+    """The receivers' reasons for what they rejected, summed over them, as
+    " (replayed or reordered 2)"; "" when none."""
+    why: dict[str, int] = {}
+    for reasons in (s.get("rejected") or {}).values():
+        for reason, n in (reasons or {}).items() if isinstance(reasons, Mapping) else ():
+            if isinstance(n, int):
+                why[reason] = why.get(reason, 0) + n
+    return f" ({', '.join(f'{r} {n}' for r, n in sorted(why.items(), key=lambda kv: -kv[1]))})" if why else ""
+
+
+def losses(s: Mapping[str, Any]) -> str:
+    """The messages the links lost: dropped (the links' drop probability, drop
+    and burst faults) and, if any, lost to partitions."""
+    cut = sum(t.get("partitioned", 0) for t in (s.get("link_totals") or {}).values() if isinstance(t, Mapping))
+    dropped = s.get("drops_total")
+    return f"messages dropped {dropped if isinstance(dropped, int) else '-'}" + (
+        f", lost to partitions {cut}" if cut else "")  # fmt: skip
+
+
+def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, tuple[Any, ...]]) -> str:
+    if m.get("acquired") is False:
+        return f"  follower R{rid}: NEVER ACQUIRED its reference (never in its camera's view): no metrics\n"
+    seen, frames = m.get("seen_ticks"), m.get("frames")
+    sight = ""
+    if isinstance(seen, int) and isinstance(frames, int) and seen < frames:
+        sight = f" (its reference in view in {seen} of {frames} camera frames)"
+    whole = f"RMS {_num(m.get('rms_m'))} m, max {_num(m.get('max_m'))} m"
+    if f"agent-{rid}" not in kills:
+        return f"  follower R{rid}: formation error {whole}{sight}\n"
+    killed_at, restarted_at, *how = kills[f"agent-{rid}"]
+    back = f", a fresh one started at t={_num(restarted_at, '.2f')} s" if restarted_at is not None else ""
+    killed = f"its agent was {(how or ['killed'])[0]} at t={_num(killed_at, '.2f')} s{back}"
+    before = m.get("until_stopped")
+    if not isinstance(before, Mapping):  # a summary from before until_stopped
+        return f"  follower R{rid}: formation error {whole} ({killed}; these include the robot after that){sight}\n"
+    return (f"  follower R{rid}: formation error RMS {_num(before.get('rms_m'))} m, max "
+            f"{_num(before.get('max_m'))} m until {killed}; over the whole run, the robot after that "
+            f"included: {whole}{sight}\n")  # fmt: skip
+
+
+def _lost_sight(m: Mapping[str, Any]) -> bool:
+    """Never saw its reference, or not in LOST_SIGHT_SHARE of its camera frames."""
+    seen, frames = m.get("seen_ticks"), m.get("frames")
+    lost = isinstance(seen, int) and isinstance(frames, int) and seen < LOST_SIGHT_SHARE * frames
+    return m.get("acquired") is False or lost
+
+
+def _many_followers(
+    w: Any, followers: list[tuple[str, Mapping[str, Any]]], kills: Mapping[str, tuple[Any, ...]]
+) -> list[tuple[str, Mapping[str, Any]]]:
+    """Write the spread of the followers' errors; return the followers to list
+    one by one: the worst by RMS, then any other that lost sight of its
+    reference (never saw it, or not in LOST_SIGHT_SHARE of its frames) or
+    was killed."""
+    measured = [(rid, m) for rid, m in followers if isinstance(m.get("rms_m"), (int, float))]
+    rms = sorted(float(m["rms_m"]) for _, m in measured)
+    if rms:
+        worst = max(measured, key=lambda kv: float(kv[1]["rms_m"]))[0]
+        maxes = [(float(m["max_m"]), rid) for rid, m in measured if isinstance(m.get("max_m"), (int, float))]
+        largest = f", largest error {_num(max(maxes)[0])} m (R{max(maxes)[1]})" if maxes else ""
+        w(f"  {len(followers)} followers: formation error RMS median {_num(statistics.median(rms))} m, "
+          f"best {_num(rms[0])} m, worst {_num(rms[-1])} m (R{worst}){largest}\n")  # fmt: skip
+    else:
+        w(f"  {len(followers)} followers: no formation error measured\n")
+    by_rms = sorted(measured, key=lambda kv: -float(kv[1]["rms_m"]))[:WORST_LISTED]
+    shown = {rid for rid, _ in by_rms}
+    flagged = [(rid, m) for rid, m in followers
+               if rid not in shown and (_lost_sight(m) or f"agent-{rid}" in kills)]  # fmt: skip
+    also = f", then {len(flagged)} more that lost sight of their reference or were killed" if flagged else ""
+    if by_rms or flagged:
+        every = f'(all {len(followers)}: summary.json, "followers")'
+        w(f"  the {len(by_rms)} worst by RMS over the whole run{also} {every}:\n")
+    return by_rms + flagged
+
+
+def _skipped(parts: Any) -> str:
+    """Real time: the share of the followers' observations they never answered
+    (a newer one had come by the time they got to it)."""
+    followers = [p for p in (parts or {}).values() if isinstance(p, Mapping) and p.get("role") == "follower"]
+    counts = [(p.get("answered"), p.get("superseded")) for p in followers]
+    answered = sum(a for a, _ in counts if isinstance(a, int))
+    skipped = sum(k for _, k in counts if isinstance(k, int))
+    if answered + skipped == 0:
+        return ""
+    return f", followers skipped {100.0 * skipped / (answered + skipped):.1f}% of their observations"
+
+
+CONTACTS_SHOWN = 3
+
+
+def contacts_line(contacts: list[Any], collisions: Any, obstacle_collisions: Any) -> str:
+    """The first contacts, who and when: "first contacts: R4 and R5 at 12.35 s,
+    R7 and obstacle 0 at 20.10 s (all 9 in summary.json, "contacts")"."""
+    said = []
+    for c in contacts[:CONTACTS_SHOWN]:
+        if not isinstance(c, Mapping):
+            continue
+        robots = c.get("robots")
+        if isinstance(robots, list) and len(robots) == 2:
+            who = f"R{robots[0]} and R{robots[1]}"
+        else:
+            who = f"R{c.get('robot')} and obstacle {c.get('obstacle')}"
+        said.append(f"{who} at {_num(c.get('time_s'), '.2f')} s")
+    if not said:
+        return ""
+    counted = sum(n for n in (collisions, obstacle_collisions) if isinstance(n, int))
+    rest = ""
+    if counted > len(said):  # the world lists the first ones only (world.engine.CONTACTS_LISTED)
+        which = f"all {counted}" if len(contacts) >= counted else f"the first {len(contacts)} of {counted}"
+        rest = f' ({which} in summary.json, "contacts")'
+
+    return f"first contact{'s' if len(said) > 1 else ''}: {', '.join(said)}{rest}"
+
+
+def _changes(events: list[Any], grouped: bool) -> str:
+    """The formation events, one by one; ``grouped``: those of one formation
+    at one time together ("line at 5.00 s: robots 2-30")."""
+    events = [e for e in events if isinstance(e, Mapping)]
+    if not grouped:
+        return ", ".join(f"R{e.get('robot')} {e.get('formation')} at {_num(e.get('time_s'), '.2f')} s" for e in events)
+    groups: dict[tuple[Any, Any], list[Any]] = {}
+    for e in events:
+        groups.setdefault((e.get("formation"), e.get("time_s")), []).append(e.get("robot"))
+    out = []
+    for (formation, time_s), rids in groups.items():
+        ints = all(isinstance(r, int) and not isinstance(r, bool) for r in rids)
+        if len(rids) == 1 or not ints:
+            who = ", ".join(f"R{r}" for r in rids)
+        else:
+            who = f"robots {scenario_mod.id_ranges(rids)}"
+        out.append(f"{formation} at {_num(time_s, '.2f')} s: {who}")
+    return "; ".join(out)
+
+
+def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
+    """The run's metrics on the console; a run that ended early has fewer (never an error)."""
+    s = res.summary
+    w = out.write
+    ticks = s.get("ticks")
+    w(f"run {s.get('run_id')}: exit {res.exit_code}, {ticks if ticks is not None else 'no'} ticks, "
+      f"sim {_num(s.get('sim_time_s'), '.2f')} s\n")  # fmt: skip
+    w(f"  ended: {s.get('ended') or summary_mod.describe_end(s.get('end_reason'), s.get('ended_at_s'))}\n")
+    if s.get("failure"):
+        w(f"  failed: {s['failure']}\n")
+    if not ticks:
+        w("  no metrics: the run ended before its first tick\n")
+    else:
+        followers = sorted((s.get("followers") or {}).items(), key=lambda kv: (len(str(kv[0])), str(kv[0])))
+        kills: dict[str, tuple[Any, ...]] = {}  # agent-N -> the sim times of its first kill and of its restart
+        for ev in s.get("events") or []:
+            if isinstance(ev, Mapping) and ev.get("event") == "killed":
+                kills.setdefault(str(ev.get("process")).split(".")[0], (ev.get("sim_time_s"), None))
+            elif isinstance(ev, Mapping) and ev.get("event") == "started":  # a fresh agent: agent-N.2
+                name = str(ev.get("process")).split(".")[0]
+                if name in kills and kills[name][1] is None:
+                    kills[name] = (kills[name][0], ev.get("sim_time_s"))
+        for d in s.get("deaths") or []:  # lost otherwise (a crash, its host gone): its error until then too
+            if isinstance(d, Mapping) and f"agent-{d.get('robot')}" not in kills:
+                kills[f"agent-{d.get('robot')}"] = (d.get("time_s"), None, "lost")
+        listed = followers  # JSON keys: robot ids as text, listed by number
+        if len(followers) > LIST_FOLLOWERS_UP_TO:
+            listed = _many_followers(w, followers, kills)
+        for rid, m in listed:
+            w(_follower_line(rid, m, kills))
+        w(f"  min distance {_num(s.get('min_distance_m'))} m (diameter {_num(s.get('robot_diameter_m'), 'g')} m), "
+          f"collisions {s.get('collisions')}, obstacle collisions {s.get('obstacle_collisions')}\n")  # fmt: skip
+        if contacts := contacts_line(s.get("contacts") or [], s.get("collisions"), s.get("obstacle_collisions")):
+            w(f"  {contacts}\n")
+        changes = _changes(s.get("formation_events") or [], grouped=len(followers) > LIST_FOLLOWERS_UP_TO)
+        w(f"  formation changes: {changes or 'none'}\n")
+        if s.get("mode") == "realtime":
+            late_ms = _num(1e3 * s["max_tick_lateness_s"] if s.get("max_tick_lateness_s") is not None else None, ".1f")
+            sched = s.get("world_scheduling") or ""
+            # A world the machine kept out of the real-time class: its ticks may start late under load.
+            note = f" (world scheduling {sched})" if sched.startswith("normal (") else ""
+            w(f"  late ticks {s.get('late_ticks')} (worst {late_ms} ms){note}{_skipped(s.get('parts'))}, "
+              f"{losses(s)}, ")  # fmt: skip
+        else:
+            w(f"  lockstep misses {s.get('lockstep_misses')}, {losses(s)}, ")
+        w(f"rejected {s.get('rejected_total')}{rejected_why(s)}\n")
+        if s.get("recording_gap"):
+            w(f"  RECORDING INCOMPLETE: {s['recording_gap']}\n")
+        if s.get("recording_cut"):
+            w(f"  RECORDING CUT SHORT: {s['recording_cut']}\n")
+    for f in s.get("faults") or []:
+        w(f"  fault: {describe_fault(f, s.get('ticks'))}\n")
+    events = s.get("events") or []
+    killed = {ev.get("process") for ev in events if ev.get("event") == "killed"}
+    for ev in events:
+        if ev.get("fault"):
+            continue  # carried out for a fault: its line above says it
+        if not (ev.get("event") == "exited" and ev.get("process") in killed):  # the kill said it
+            w(f"  event: {describe_event(ev)}\n")
+    w(f"run folder: {res.run_dir}\n  summary: {res.run_dir / 'summary.json'}\n")
+    if s.get("recording") and res.recording.is_file():
+        if not s.get("ticks"):  # stopped before its first tick: the file holds nothing to watch
+            w(f"  recording: {res.recording} (empty: the run ended before its first tick)\n")
+        else:
+            viewer = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+            w(f"  recording: {res.recording}\n  open it:   {viewer} {res.recording}\n")

@@ -1,0 +1,146 @@
+"""``swarm secure``: credentials and access rules for a run spread over machines.
+
+Writes, for one scenario and run id, a folder with one login per role (the
+world, the logger, the launcher, each robot's agent), the router's password
+list and access rules, and optionally the TLS files; every file 0600, the
+folder 0700. Copy to each machine the files its processes need.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from formation_swarm.protocol import trust
+from formation_swarm.protocol.keys import check_host_name, check_run_id
+from formation_swarm.runtime import cliargs
+
+DESCRIPTION = """\
+Make the credentials and access rules of one run spread over machines: a
+folder with a login per role (world.json, logger.json, launcher.json,
+agent-N.json), the router's password list and access rules (router.json),
+and with --tls-* the CA, certificate and key for TLS links. Every file is
+readable by its owner only.
+
+The router enforces the rules: without a login nothing connects, and each
+login may only publish and subscribe what its role does (only agent N drives
+robot N, only the leader sends formation codes, only the world ends the run).
+Start each process with --auth FILE, its own file; copy to each machine only
+the files its processes need. The passwords are fresh each time: make a new
+folder for each run."""
+
+EPILOG = """\
+examples:
+  swarm secure fig11_obstacles --run field-1 --out secure-field-1
+  swarm secure fig11_obstacles --run field-1 --out secure-field-1 \\
+      --tls-ca ca.pem --tls-cert router.pem --tls-key router.key
+
+then, on the router's machine and on each robot's (see deploy/README.md):
+  swarm router --listen tls/0.0.0.0:7447 --auth secure-field-1/router.json
+  swarm world --scenario fig11_obstacles --run field-1 --zenoh-mode client \\
+      --connect tls/ROUTER:7447 --auth secure-field-1/world.json --expect-logger
+  swarm agent --id 2 --scenario fig11_obstacles --run field-1 \\
+      --connect tls/ROUTER:7447 --auth secure-field-1/agent-2.json
+
+exit codes: 0 written; 2 a bad command line, scenario or TLS file, or a
+folder that already holds files (nothing written)."""
+
+
+def build_parser() -> cliargs.Parser:
+    ap = cliargs.Parser(prog="swarm secure", description=DESCRIPTION, epilog=EPILOG)
+    ap.add_argument("scenario", metavar="SCENARIO", nargs="?",
+                    help="a shipped scenario's name or a scenario file (TOML)")  # fmt: skip
+    ap.add_argument("--run", metavar="ID", help="the run id every process of the run will use")
+    ap.add_argument("--hosts", metavar="NAME[,NAME...]",
+                    help="instead of a run's logins: a lasting login per machine's swarm host (host-NAME.json, "
+                    "its --auth) and hosts.txt, swarm run --hosts's --host-logins")  # fmt: skip
+    ap.add_argument("--out", required=True, metavar="DIR", help="the folder to write (created; must be empty)")
+    ap.add_argument("--tls-ca", metavar="FILE", help="TLS: the CA certificate clients check the router against (PEM)")
+    ap.add_argument("--tls-cert", metavar="FILE", help="TLS: the router's certificate, naming its host (PEM)")
+    ap.add_argument("--tls-key", metavar="FILE", help="TLS: the router's private key (PEM)")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = build_parser()
+    args = ap.parse_args(argv)
+    from formation_swarm.spec import scenario as scenario_mod
+
+    if args.hosts is not None:
+        return _hosts(ap, args)
+    if args.scenario is None or args.run is None:
+        ap.error("give a SCENARIO and --run ID (or --hosts NAMES for the hosts' logins)")
+    try:
+        check_run_id(args.run)
+    except ValueError as exc:
+        ap.error(f"argument --run: {exc}")
+    tls_files = (args.tls_ca, args.tls_cert, args.tls_key)
+    if any(tls_files) and not all(tls_files):
+        ap.error("arguments --tls-ca, --tls-cert and --tls-key: give all three or none")
+    for name, path in zip(("--tls-ca", "--tls-cert", "--tls-key"), tls_files, strict=True):
+        if path and not Path(path).is_file():
+            ap.error(f"argument {name}: no such file: {path}")
+    out = Path(args.out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        ap.error(f"argument --out: {out} already holds files; secrets are never overwritten: give a new folder")
+    try:
+        sc = scenario_mod.load(args.scenario)
+    except ValueError as exc:
+        ap.error(str(exc))
+    tls = trust.Tls(Path(args.tls_ca), Path(args.tls_cert), Path(args.tls_key)) if all(tls_files) else None
+    try:
+        files = trust.write_run_secrets(out, args.run, sc.robots, sc.leader.robot_id, world_is_router=False, tls=tls)
+    except OSError as exc:
+        print(f"swarm secure: cannot write {out}: {exc}", file=sys.stderr)
+        return cliargs.USAGE_ERROR
+    scheme = "tls" if tls else "tcp"
+    print(f"swarm secure: run {args.run} ({sc.name}, robots {', '.join(map(str, sc.robots))}): wrote {out}/")
+    print(f"  router:   swarm router --listen {scheme}/0.0.0.0:7447 --auth {files['router']}")
+    common = f"--scenario {args.scenario} --run {args.run}"
+    print(f"  world:    swarm world {common} --zenoh-mode client --connect {scheme}/ROUTER:7447 "
+          f"--auth {files['world']}")  # fmt: skip
+    print(f"  logger:   swarm logger {common} --out recording.rrd --connect {scheme}/ROUTER:7447 "
+          f"--auth {files['logger']}")  # fmt: skip
+    for rid in sc.robots:
+        print(f"  agent {rid}:  swarm agent --id {rid} {common} --connect {scheme}/ROUTER:7447 "
+              f"--auth {files[trust.agent_user(rid)]}")  # fmt: skip
+    if not tls:
+        print("  links are plain TCP: the run's data crosses the network unencrypted; see deploy/README.md for TLS")
+    return 0
+
+
+def _hosts(ap: cliargs.Parser, args: argparse.Namespace) -> int:
+    names = [n.strip() for n in args.hosts.split(",") if n.strip()]
+    try:
+        for n in names:
+            check_host_name(n)
+    except ValueError as exc:
+        ap.error(f"argument --hosts: {exc}")
+    if not names or len(set(names)) != len(names):
+        ap.error(f"argument --hosts: distinct host names separated by commas, got {args.hosts!r}")
+    if args.scenario or args.run or args.tls_cert or args.tls_key:
+        ap.error("argument --hosts: takes no SCENARIO, --run, --tls-cert or --tls-key (only --tls-ca)")
+    out = Path(args.out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        ap.error(f"argument --out: {out} already holds files; secrets are never overwritten: give a new folder")
+    if args.tls_ca and not Path(args.tls_ca).is_file():
+        ap.error(f"argument --tls-ca: no such file: {args.tls_ca}")
+    files = trust.write_host_logins(out, names, Path(args.tls_ca) if args.tls_ca else None)
+    scheme = "tls" if args.tls_ca else "tcp"
+    print(f"swarm secure: logins for hosts {', '.join(names)}: wrote {out}/")
+    for n in names:
+        print(f"  host {n}:  swarm host --name {n} --connect {scheme}/ROUTER:7447 --auth {files[trust.host_user(n)]}")
+    tls = " --tls-ca CA --tls-cert CERT --tls-key KEY" if args.tls_ca else ""
+    print(f"  swarm run S --hosts {','.join(names)} --listen {scheme}/0.0.0.0:7447 --host-logins "
+          f"{files[trust.HOST_LOGINS]}{tls}")  # fmt: skip
+    if args.tls_ca:
+        print(f"  copy {out / trust.CA} beside each host-NAME.json: the login names it relative to itself")
+    else:
+        print("  links are plain TCP: each run sends the hosts its agents' passwords, and its data, unencrypted; "
+              "see deploy/README.md for TLS (--tls-ca)")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

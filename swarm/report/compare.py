@@ -1,0 +1,180 @@
+"""One figure overlaying several runs: their trajectories and each follower's
+formation error over time, run against run.
+
+Each run has its colour, each robot its line style; the legend names each run
+by its folder, scenario, seed and control law, and, for runs of one
+scenario, the keys whose values differ between them. Reads each RUN_DIR's
+recording.rrd and summary.json (formation_swarm.load_run).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from formation_swarm.report.data import RunData, load_run
+from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+MAX_RUNS = 10  # one colour each
+STYLES = ("-", "--", ":", "-.")  # per robot, in the order of their ids (cycled)
+
+
+def law(run: RunData) -> str:
+    """The run's control law in words, from its scenario as run."""
+    from formation_swarm.spec.keys import CONTROLLER_KEYS
+
+    ctl = run.config.get("controller") or {}
+    if ctl.get("law", CONTROLLER_KEYS["law"].default) == "lpsi":
+        return "l-psi"
+    return f"fuzzy, V_N {ctl.get('vn', CONTROLLER_KEYS['vn'].default)}"
+
+
+def label(run: RunData, differ: Sequence[str] = ()) -> str:
+    """The run's folder, scenario, seed and law, and its values of ``differ``
+    (the scenario keys whose values differ between the runs compared)."""
+    flat = _flat(run.config)
+    keys = [_said(k, flat.get(k)) for k in differ[:DIFFER_SHOWN]]
+    more = f", {len(differ) - DIFFER_SHOWN} more keys differ" if len(differ) > DIFFER_SHOWN else ""
+    return f"{run.run_dir.name}: {run.scenario}, seed {run.seed}, {law(run)}" + "".join(f", {k}" for k in keys) + more
+
+
+DIFFER_SHOWN = 3  # a run's legend entry names at most this many of the keys that differ between the runs
+IN_LABEL = ("run.seed", "run.name", "run.description", "controller.law", "controller.vn")  # said by label() already
+
+
+def _said(key: str, value: object) -> str:
+    """``key=value``; a list or a table by its size (a fault schedule would fill the legend)."""
+    if value is None:  # not in this run's scenario: its default
+        return f"{key}: none" if key == "faults" else f"{key}: default"
+    if isinstance(value, list):
+        return f"{key}: {len(value)} entr{'y' if len(value) == 1 else 'ies'}"
+    if isinstance(value, dict):
+        return f"{key}: {len(value)} keys"
+    return f"{key}={value}"
+
+
+def _flat(table: object, prefix: str = "") -> dict[str, object]:
+    """A scenario as run, as dotted keys (leader.speed_mps) -> values."""
+    out: dict[str, object] = {}
+    if isinstance(table, dict):
+        for k, v in table.items():
+            out.update(_flat(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
+    return out
+
+
+def differing(runs: Sequence[RunData]) -> list[str]:
+    """The scenario keys (run.seed and the scenario's name aside: the label has them)
+    whose values differ between runs of one scenario, sorted (none between scenarios)."""
+    if len({run.scenario for run in runs}) > 1:
+        return []  # different scenarios: their names tell them apart
+    flats = [_flat(run.config) for run in runs]
+    keys = sorted({k for f in flats for k in f} - set(IN_LABEL))
+    return [k for k in keys if len({repr(f.get(k)) for f in flats}) > 1]
+
+
+def figure(runs: Sequence[RunData]) -> Figure:
+    """Trajectories (left) and formation error over time (right) of every run:
+    one line per robot per run on the left, per follower per run on the right."""
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+
+    if not 1 <= len(runs) <= MAX_RUNS:
+        raise ValueError(f"compare takes 1 to {MAX_RUNS} runs, got {len(runs)}")
+    fig = Figure(figsize=(13, 6.5), layout="constrained")
+    traj, err = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1, 1.4]})
+    robots = sorted({r for run in runs for r in run.robots})
+    style = {r: STYLES[k % len(STYLES)] for k, r in enumerate(robots)}
+    for k, run in enumerate(runs):
+        color = f"C{k}"
+        for i, r in enumerate(run.robots):
+            traj.plot(run.pose[i, :, 0], run.pose[i, :, 1], color=color, ls=style[r], lw=1.2)
+        for r in run.followers:
+            i = run.index(r)
+            err.plot(run.time_s, run.formation_error_m[i], color=color, ls=style[r], lw=1.0)
+    _obstacles(traj, runs)
+    import numpy as np
+
+    from formation_swarm.report.figures import equal_view
+
+    pts = np.concatenate([run.pose[:, :, :2].reshape(-1, 2) for run in runs])
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    if len(pts):  # equal scales; a long thin path gets a wider view rather than a squashed one (as the report's)
+        centre, span = equal_view(pts.min(axis=0), pts.max(axis=0))
+        traj.set_xlim(centre[0] - span[0] / 2, centre[0] + span[0] / 2)
+        traj.set_ylim(centre[1] - span[1] / 2, centre[1] + span[1] / 2)
+    traj.set_aspect("equal", adjustable="box")
+    traj.set(xlabel="x, m", ylabel="y, m", title="Trajectories")
+    err.set(xlabel="time, s", ylabel="distance to its true target, m", title="Each follower's formation error")
+    err.set_ylim(bottom=0)
+    for ax in (traj, err):
+        ax.grid(alpha=0.3)
+    leaders = {r for run in runs for r in run.robots if r not in run.followers}
+    robot_keys = [Line2D([], [], color="0.2", ls=style[r], label=f"R{r}" + (" (leader)" if r in leaders else ""))
+                  for r in robots]  # fmt: skip
+    err.legend(handles=robot_keys, loc="upper right", fontsize=8, title="robot", title_fontsize=8)
+    differ = differing(runs)
+    run_keys = [Line2D([], [], color=f"C{k}", lw=2.5, label=label(run, differ)) for k, run in enumerate(runs)]
+    wide = sum(len(h.get_label()) for h in run_keys) > 150  # side by side they would run off the figure
+    fig.legend(handles=run_keys, loc="outside lower center", ncol=1 if wide or len(runs) > 3 else len(runs),
+               fontsize=9)  # fmt: skip
+    fig.suptitle(f"{len(runs)} runs compared")
+    return fig
+
+
+def _obstacles(ax: object, runs: Sequence[RunData]) -> None:
+    """Every obstacle of the runs' scenarios, once each (as in the report's figures)."""
+    import matplotlib.patches
+
+    from formation_swarm.common.palette import OBSTACLE
+
+    seen = set()
+    for run in runs:
+        for o in run.config.get("obstacles") or []:
+            key = (o.get("x_m"), o.get("y_m"), o.get("radius_m"))
+            if None not in key and key not in seen:
+                seen.add(key)
+                ax.add_patch(matplotlib.patches.Circle(key[:2], key[2], color=OBSTACLE, alpha=0.35, lw=0))  # type: ignore[attr-defined]
+
+
+def compare(run_dirs: Sequence[str | Path], out: str | Path) -> Path:
+    """Reads the runs, draws them into ``out`` (PNG, PDF or SVG by its suffix) and returns its path.
+    ValueError for a folder it cannot use, OSError when it cannot write."""
+    runs = [load_run(d) for d in run_dirs]
+    fig = figure(runs)
+    path = Path(out)
+    fig.savefig(path, dpi=110)
+    return path
+
+
+def build_parser() -> Parser:
+    ap = Parser(prog="swarm compare", description=__doc__,
+                epilog="example:\n  swarm run fig6_turn_vn_1_5 --out runs/static\n"
+                "  swarm run fig7_turn_vn_dynamic --out runs/dynamic\n"
+                "  swarm compare runs/static runs/dynamic --out static-vs-dynamic.png")  # fmt: skip
+    ap.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
+                    help=f"the run folders to overlay, 1 to {MAX_RUNS}, each as swarm run printed it")  # fmt: skip
+    ap.add_argument("--out", default="compare.png", metavar="FILE",
+                    help="the figure to write, PNG, PDF or SVG by its suffix (default: compare.png)")  # fmt: skip
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if len(args.run_dirs) > MAX_RUNS:
+        print(f"swarm compare: at most {MAX_RUNS} runs, got {len(args.run_dirs)}", file=sys.stderr)
+        return USAGE_ERROR
+    try:
+        path = compare(args.run_dirs, args.out)
+    except ValueError as exc:
+        print(f"swarm compare: {exc}", file=sys.stderr)
+        return USAGE_ERROR
+    except OSError as exc:
+        print(f"swarm compare: cannot write {args.out}: {exc}", file=sys.stderr)
+        return USAGE_ERROR
+    print(f"[compare] {path.resolve()}")
+    return 0

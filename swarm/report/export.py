@@ -1,0 +1,132 @@
+"""One row per robot per tick of a run folder, as CSV or Parquet.
+
+Reads RUN_DIR/recording.rrd and summary.json (formation_swarm.load_run)
+and writes a table (default: RUN_DIR/run.csv or RUN_DIR/run.parquet), the
+rows robot by robot, tick by tick. Columns and units:
+
+    robot                         robot id
+    tick, time_s                  the world's tick and its sim time, s
+    x_m, y_m, heading_rad         true pose
+    target_x_m, target_y_m        true virtual target (followers)
+    ekf_x_m, ekf_y_m              the EKF's estimate of it
+    measured_x_m, measured_y_m    the target from the raw camera reading
+    formation_error_m             |position - true target|
+    ekf_error_m, measured_error_m |estimate or reading - true target|
+    v_n_mps                       FIS-2's normal speed V_N
+    left_mps, right_mps           commanded wheel speeds (followers)
+    formation                     formation code flown (followers)
+
+A value the run did not record is empty in CSV and null in Parquet.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from formation_swarm.report.data import RunData, load_run
+from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser
+
+FORMATS = ("csv", "parquet")
+INT_COLUMNS = ("robot", "tick", "formation")
+
+
+def table(run: RunData) -> dict[str, np.ndarray]:
+    """The run's columns (name -> one value per robot per tick), robot-major."""
+    n_r, n_t = len(run.robots), len(run.tick)
+
+    def flat(a: np.ndarray) -> np.ndarray:
+        return a.reshape(n_r * n_t)
+
+    return {
+        "robot": np.repeat(np.array(run.robots, dtype=int), n_t),
+        "tick": np.tile(run.tick, n_r),
+        "time_s": np.tile(run.time_s, n_r),
+        "x_m": flat(run.pose[..., 0]),
+        "y_m": flat(run.pose[..., 1]),
+        "heading_rad": flat(run.pose[..., 2]),
+        "target_x_m": flat(run.target_true[..., 0]),
+        "target_y_m": flat(run.target_true[..., 1]),
+        "ekf_x_m": flat(run.target_ekf[..., 0]),
+        "ekf_y_m": flat(run.target_ekf[..., 1]),
+        "measured_x_m": flat(run.target_measured[..., 0]),
+        "measured_y_m": flat(run.target_measured[..., 1]),
+        "formation_error_m": flat(run.formation_error_m),
+        "ekf_error_m": flat(run.ekf_error_m),
+        "measured_error_m": flat(run.measured_error_m),
+        "v_n_mps": flat(run.v_n_mps),
+        "left_mps": flat(run.wheels_mps[..., 0]),
+        "right_mps": flat(run.wheels_mps[..., 1]),
+        "formation": flat(run.formation),
+    }
+
+
+def write_csv(columns: dict[str, np.ndarray], path: Path) -> None:
+    """The table as CSV: floats at full precision (they read back equal), missing values empty."""
+    names = list(columns)
+    cells = [[_cell(name, v) for v in col.tolist()] for name, col in columns.items()]
+    with path.open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(names)
+        w.writerows(zip(*cells, strict=True))
+
+
+def _cell(name: str, v: float | int) -> str:
+    if name == "formation" and v < 0:
+        return ""
+    if isinstance(v, float) and math.isnan(v):
+        return ""
+    return repr(v)
+
+
+def write_parquet(columns: dict[str, np.ndarray], path: Path) -> None:
+    """The table as Parquet: float64 columns with nulls where the run recorded nothing."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    arrays = {}
+    for name, col in columns.items():
+        missing = col < 0 if name == "formation" else np.isnan(col) if col.dtype.kind == "f" else None
+        arrays[name] = pa.array(col, mask=missing)
+    pq.write_table(pa.table(arrays), str(path))
+
+
+def export(run_dir: str | Path, fmt: str = "csv", out: str | Path | None = None) -> Path:
+    """Writes the run's table and returns its path. ValueError for a folder it
+    cannot use or an unknown format, OSError when it cannot write."""
+    if fmt not in FORMATS:
+        raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
+    run = load_run(run_dir)
+    path = Path(out) if out is not None else run.run_dir / f"run.{fmt}"
+    columns = table(run)
+    (write_csv if fmt == "csv" else write_parquet)(columns, path)
+    return path
+
+
+def build_parser() -> Parser:
+    ap = Parser(prog="swarm export", description=__doc__,
+                epilog="example:\n  swarm run fig11_obstacles --out runs/fig11\n"
+                "  swarm export runs/fig11 --format parquet --out fig11.parquet")  # fmt: skip
+    ap.add_argument("run_dir", metavar="RUN_DIR", help="a run's folder, as swarm run printed it (runs/<run id>)")
+    ap.add_argument("--format", choices=FORMATS, default="csv", help="the table's format (default: csv)")
+    ap.add_argument("--out", default=None, metavar="FILE",
+                    help="the file to write (default: RUN_DIR/run.csv or RUN_DIR/run.parquet)")  # fmt: skip
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        path = export(args.run_dir, args.format, args.out)
+    except ValueError as exc:
+        print(f"swarm export: {exc}", file=sys.stderr)
+        return USAGE_ERROR
+    except OSError as exc:
+        print(f"swarm export: cannot write {args.out or 'the table'}: {exc}", file=sys.stderr)
+        return USAGE_ERROR
+    print(f"[export] {path}")
+    return 0

@@ -1,0 +1,289 @@
+"""The baseline comparison: fuzzy static / fuzzy dynamic / l-psi, under
+observation drops and two camera-noise levels, on the paper's turning path;
+or, with --claims, the paper's claims a-d measured seed by seed; or, with
+--sensitivity, those claims at every value of one setting at a time.
+
+Runs the grid through swarm sweep (resumable: rerunning reuses finished runs),
+then prints a markdown table of the follower's RMS and max formation error
+(mean over seeds, with the 95% confidence half-width) and, with --write,
+replaces the table between the markers in that file. --set changes a
+scenario key in every run (e.g. robot.wheel_noise_mps=0.1); the table then
+goes between markers that name the setting, so tables of several settings
+live side by side. A run that failed or missed a lockstep tick keeps the
+table from being written.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser, integer, make_folder
+from formation_swarm.runtime.proc import interrupt_on_stop_signals
+from formation_swarm.spec.files import parse_overrides
+from formation_swarm.studies import claims, sensitivity
+from formation_swarm.studies.sweep import MAX_JOBS, MAX_SEEDS, Job, Sweep, aggregate
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENARIO = ROOT / "scenarios" / "fig7_turn_vn_dynamic.toml"
+CONTROLLERS: dict[str, dict[str, Any]] = {
+    "fuzzy, static V_N = 1.5": {"controller.vn": 1.5},
+    "fuzzy, dynamic V_N": {"controller.vn": "dynamic"},
+    "l-psi (Desai et al.)": {"controller.law": "lpsi"},
+}
+DROPS = (0.0, 0.1, 0.3)
+# Camera noise, with the EKF told the same sigmas: the scenarios' default and Fig. 9's.
+NOISE: dict[str, dict[str, Any]] = {
+    "low": {},
+    "high": {
+        "camera.sigma_rho_m": 0.1, "camera.sigma_phi_deg": 5.0, "camera.sigma_beta_deg": 2.5,
+        "controller.ekf.sigma_rho_m": 0.1, "controller.ekf.sigma_phi_rad": 0.0873,
+        "controller.ekf.sigma_beta_rad": 0.0436,
+    },
+}  # fmt: skip
+
+
+def markers(what: str = "results table", settings: str = "") -> tuple[str, str]:
+    """The markers a generated table sits between, naming its settings if any."""
+    name = f"{what} ({settings})" if settings else what
+    return f"<!-- {name}: begin -->", f"<!-- {name}: end -->"
+
+
+BEGIN, END = markers()
+
+
+def settings_text(settings: Mapping[str, Any]) -> str:
+    return ", ".join(f"{k}={v}" for k, v in settings.items())
+
+
+def _label(ctrl: str, noise: str, drop: float, settings: Mapping[str, Any]) -> str:
+    label = f"{ctrl} | noise {noise} | obs drop {drop:.0%}"
+    return f"{label} | {settings_text(settings)}" if settings else label
+
+
+def jobs(seeds: Sequence[int], settings: Mapping[str, Any] | None = None) -> list[Job]:
+    settings = dict(settings or {})
+    varied = {"links.obs_drop"} | {k for ov in (*CONTROLLERS.values(), *NOISE.values()) for k in ov}
+    if clash := sorted(varied & set(settings)):
+        raise ValueError(f"--set {clash[0]}: the table varies that key itself")
+    out = []
+    for ctrl, c_ov in CONTROLLERS.items():
+        for noise, n_ov in NOISE.items():
+            for drop in DROPS:
+                ov = {**c_ov, **n_ov, "links.obs_drop": drop, **settings}
+                out += [Job(_label(ctrl, noise, drop, settings), ov, s) for s in seeds]
+    return out
+
+
+def table(rows: Sequence[Mapping[str, Any]], seeds: int, settings: Mapping[str, Any] | None = None) -> str:
+    settings = dict(settings or {})
+    agg = {(a["combination"], a["metric"]): a for a in aggregate(rows)}
+
+    def cell(label: str, metric: str) -> str:
+        a = agg.get((label, metric))
+        if a is None:
+            return "-"
+        half = (a["ci95_high"] - a["ci95_low"]) / 2
+        return f"{a['mean']:.2f} ± {half:.2f}"
+
+    head = ["controller", "noise"] + [f"obs drop {d:.0%}" for d in DROPS]
+    lines = [
+        f"Follower RMS formation error, m: mean over {seeds} seeds ± 95% CI half-width "
+        f"(max error in brackets, mean over seeds). Scenario `{SCENARIO.relative_to(ROOT)}`, lockstep"
+        + (f", with {settings_text(settings)}." if settings else "."),
+        "",
+        "| " + " | ".join(head) + " |",
+        "|" + "---|" * len(head),
+    ]
+    for ctrl in CONTROLLERS:
+        for noise in NOISE:
+            cells = []
+            for d in DROPS:
+                label = _label(ctrl, noise, d, settings)
+                mx = agg.get((label, "r2_max_m"))
+                cells.append(cell(label, "r2_rms_m") + (f" [{mx['mean']:.2f}]" if mx else ""))
+            lines.append(f"| {ctrl} | {noise} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def unfit_runs(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The runs that may not enter the table, each with the reason: a run that
+    failed, and a lockstep run that missed a tick (the world stopped a robot for
+    want of its answer: neither the controller's figure nor reproducible)."""
+    out = []
+    for r in rows:
+        if r.get("exit_code") != 0:
+            out.append(f"{r.get('run')}: exit code {r.get('exit_code')}")
+        elif r.get("lockstep_misses") != 0:
+            out.append(f"{r.get('run')}: {r.get('lockstep_misses')} lockstep misses")
+    return out
+
+
+def check_markers(path: Path, begin: str = BEGIN, end: str = END) -> None:
+    """Raise ValueError unless ``path`` is a file with the table's markers."""
+    try:
+        doc = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"--write {path}: cannot read it ({getattr(exc, 'strerror', None) or exc})") from None
+    if begin not in doc or end not in doc:
+        raise ValueError(f"--write {path}: has no {begin} ... {end} markers")
+
+
+def write_into(path: Path, text: str, begin: str = BEGIN, end: str = END) -> None:
+    check_markers(path, begin, end)
+    doc = path.read_text()
+    new = re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _m: f"{begin}\n{text}\n{end}", doc, flags=re.S)
+    path.write_text(new)
+
+
+def build_parser() -> Parser:
+    ap = Parser(prog="swarm results", description=__doc__,
+                epilog="examples:\n  swarm results --seeds 10 --jobs 2 --write docs/results.md\n"
+                "  swarm results --claims --seeds 10 --jobs 1 --set robot.wheel_noise_mps=0.1 "
+                "--write docs/results.md")  # fmt: skip
+    ap.add_argument("--seeds", type=integer(2, MAX_SEEDS), default=10, metavar="N",
+                    help=f"runs per cell of the table, seeds 0 to N-1, 2 to {MAX_SEEDS} (a confidence interval "
+                    f"needs two); {len(jobs([0]))} runs per seed (default: 10)")  # fmt: skip
+    ap.add_argument(
+        "--jobs",
+        type=integer(1, MAX_JOBS),
+        default=None,
+        metavar="J",
+        help=f"runs at once, 1 to {MAX_JOBS} (default: the number of cores, {os.cpu_count() or 1})",
+    )
+    ap.add_argument("--out", default=None, metavar="DIR",
+                    help="the sweep folder, created if needed; finished runs there are reused "
+                    "(default: sweeps/results, or sweeps/claims with --claims)")  # fmt: skip
+    ap.add_argument("--write", metavar="MARKDOWN", action="append", default=[],
+                    help="replace the table between the markers in this file (repeatable): "
+                    f"{BEGIN} ... {END}, or with --claims and --set, e.g. "
+                    f"{markers('claims', 'robot.wheel_noise_mps=0.1')[0]} ...")  # fmt: skip
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a scenario key for every run, e.g. robot.wheel_noise_mps=0.1 (repeatable; "
+                    "not a key the table varies)")  # fmt: skip
+    ap.add_argument("--claims", action="store_true",
+                    help=f"measure the paper's claims a-d instead ({len(claims.SWEEPS)} runs per seed, of the "
+                    "scenarios of tests/unit/studies/test_claims.py)")  # fmt: skip
+    ap.add_argument("--rows", metavar="CSV", default=None,
+                    help="with --claims: also write every run's row (sweep, seed and its metrics) to this CSV, "
+                    "the data tests/unit/studies/test_claims.py checks the claims over")  # fmt: skip
+    ap.add_argument("--sensitivity", action="store_true",
+                    help="measure the claims at every value of one setting at a time (the leader's speed, the "
+                    "camera's noise, the wheels' noise and bias), with l-psi and static V_N 1.7 and 1.8 beside; "
+                    "writes a figure per setting into --figures and, with --write, its section between "
+                    f"{markers('sensitivity', 'leader_speed')[0]} ... markers")  # fmt: skip
+    ap.add_argument("--axis", action="append", default=[], choices=list(sensitivity.AXIS_NAMES),
+                    help="with --sensitivity: only this setting (repeatable; default: all)")  # fmt: skip
+    ap.add_argument("--figures", default="docs/figures", metavar="DIR",
+                    help="with --sensitivity: where the figures go, sensitivity-<setting>.png "
+                    "(default: docs/figures)")  # fmt: skip
+    return ap
+
+
+def claim_sweeps(seeds: Sequence[int], settings: Mapping[str, Any], out: Path, workers: int | None) -> dict[str, Sweep]:
+    """One sweep per scenario the claims are measured on, each in its own folder under ``out``."""
+    return sensitivity.plan(seeds, settings, [], out, workers)
+
+
+def run_sweeps(sweeps: Mapping[str, Sweep], out: Path) -> dict[str, list[dict[str, Any]]] | None:
+    """Every sweep's rows; None, having said why, when a run cannot enter a table."""
+    rows = {name: sweep.run() for name, sweep in sweeps.items()}
+    unfit = [why for r in rows.values() for why in unfit_runs(r)]
+    if unfit:
+        # A failed run is run again by the next sweep; one with misses is kept, so it must be deleted.
+        print(f"swarm results: {len(unfit)} runs cannot enter the table; delete their folders under "
+              f"{out} and run again:\n  " + "\n  ".join(unfit[:10]), file=sys.stderr)  # fmt: skip
+        return None
+    return rows
+
+
+def run_sensitivity(axes: Sequence[sensitivity.Axis], seeds: int, out: Path, workers: int | None,
+                    figures: Path, writes: Sequence[Path]) -> int:  # fmt: skip
+    """Each axis's points, then its figure and its section (printed, and written into ``writes``)."""
+    for n, axis in enumerate(axes, 1):
+        points = []
+        for k, value in enumerate(axis.values, 1):
+            print(f"[sensitivity] {axis.title} = {axis.label(value)}: value {k} of {len(axis.values)}, "
+                  f"axis {n} of {len(axes)}", flush=True)  # fmt: skip
+            settings, faults = axis.point(value)
+            sweeps = sensitivity.plan(range(seeds), settings, faults, out, workers, axis.extras)
+            rows = run_sweeps(sweeps, out)
+            if rows is None:
+                return 1
+            points.append(sensitivity.measure(value, rows))
+        png = figures / f"sensitivity-{axis.name}.png"
+        sensitivity.write_figure(png, axis, points)
+        rel = png.relative_to(figures.parent) if figures.name == "figures" else png
+        text = sensitivity.markdown(axis, points, str(rel))
+        print(text)
+        if not write_all(writes, text, *markers("sensitivity", axis.name)):
+            return 1
+    return 0
+
+
+def write_all(writes: Sequence[Path], text: str, begin: str, end: str) -> bool:
+    """``text`` between the markers of every file; False, having said why, if one cannot take it."""
+    for target in writes:
+        try:
+            write_into(target, text, begin, end)
+        except (OSError, ValueError) as exc:
+            print(f"swarm results: {exc}", file=sys.stderr)
+            return False
+    return True
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    out = Path(args.out or ("sweeps/claims" if args.claims or args.sensitivity else "sweeps/results"))
+    writes = [Path(t) for t in args.write]
+    try:
+        if args.sensitivity and (args.claims or args.set):
+            raise ValueError("--sensitivity varies its own settings: it takes neither --claims nor --set")
+        if args.axis and not args.sensitivity:
+            raise ValueError("--axis needs --sensitivity")
+        if args.rows and not args.claims:
+            raise ValueError("--rows needs --claims")
+        settings = parse_overrides(args.set)
+        if args.sensitivity:
+            axes = [sensitivity.AXIS_NAMES[a] for a in args.axis] or list(sensitivity.AXES)
+            for target in writes:  # before the runs, not after
+                for axis in axes:
+                    check_markers(target, *markers("sensitivity", axis.name))
+        else:
+            begin, end = markers("claims" if args.claims else "results table", settings_text(settings))
+            for target in writes:
+                check_markers(target, begin, end)  # before the runs, not after
+            if args.claims:
+                sweeps = claim_sweeps(range(args.seeds), settings, out, args.jobs)
+            else:
+                sweeps = {"": Sweep(SCENARIO, jobs(range(args.seeds), settings), out, workers=args.jobs)}
+        if args.sensitivity and Path(args.figures).exists() and not Path(args.figures).is_dir():
+            raise ValueError(f"--figures {args.figures}: is an existing file, not a folder")
+        make_folder("--out", out)  # last: nothing made for a bad input
+        if args.sensitivity:
+            make_folder("--figures", Path(args.figures))
+    except ValueError as exc:
+        print(f"swarm results: {exc}", file=sys.stderr)
+        return USAGE_ERROR
+    interrupt_on_stop_signals()
+    try:
+        if args.sensitivity:
+            return run_sensitivity(axes, args.seeds, out, args.jobs, Path(args.figures), writes)
+        rows = run_sweeps(sweeps, out)
+    except KeyboardInterrupt:
+        return 130
+    if rows is None:
+        return 1
+    text = claims.table(rows, settings_text(settings)) if args.claims else table(rows[""], args.seeds, settings)
+    print(text)
+    if args.rows:
+        try:
+            claims.write_rows(Path(args.rows), rows)
+        except OSError as exc:
+            print(f"swarm results: --rows {args.rows}: cannot write it ({exc.strerror or exc})", file=sys.stderr)
+            return 1
+    return 0 if write_all(writes, text, begin, end) else 1

@@ -1,0 +1,333 @@
+"""How far the paper's claims hold: claims a-d measured seed by seed at every
+value of one setting at a time (``swarm results --sensitivity``).
+
+The settings are the leader's speed, the camera's noise, and the wheels'
+noise and speed bias; at each value the claims' own runs are repeated
+(the scenarios and criteria of tests/unit/studies/test_claims.py, formation_swarm.studies.claims),
+with, beside the paper's controllers, the l-psi baseline on every axis and
+the static V_N values 1.7 and 1.8 on the leader-speed axis. The shipped value
+of an axis is the claims' own runs (no setting changed), so those runs are
+shared with ``swarm results --claims``.
+
+``plan`` names the sweeps of a point, ``measure`` reads their rows into one
+``Point`` per value, ``markdown`` and ``figure`` say them.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from formation_swarm.studies import claims
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from formation_swarm.studies.sweep import Sweep
+
+ROOT = Path(__file__).resolve().parents[2]
+# Controllers flown beside the claims' own runs, on the path of claims a-b (the dynamic run's scenario).
+EXTRAS: dict[str, dict[str, Any]] = {
+    "static 1.7": {"controller.vn": 1.7},
+    "static 1.8": {"controller.vn": 1.8},
+    "l-psi": {"controller.law": "lpsi"},
+}
+EXTRA_SCENARIO = "fig7_turn_vn_dynamic.toml"
+# The controllers of the figures' lines, in legend order: claims' sweep or extra name -> legend.
+LINES = {"dynamic": "fuzzy, dynamic V_N", "static 1.5": "fuzzy, V_N = 1.5", "static 1.7": "fuzzy, V_N = 1.7",
+         "static 1.8": "fuzzy, V_N = 1.8", "static 2": "fuzzy, V_N = 2", "l-psi": "l-psi"}  # fmt: skip
+SHORT = {c.__name__: name for c, name in zip(claims.CLAIMS, ("a", "b, behind", "b, overshoot", "c", "d"), strict=True)}
+
+
+def _camera(sigma_rho_m: float) -> dict[str, Any]:
+    """The camera's three sigmas at one level (phi and beta from the table below), the EKF told them."""
+    phi_deg, beta_deg = CAMERA_LEVELS[sigma_rho_m]
+    return {"camera.sigma_rho_m": sigma_rho_m, "camera.sigma_phi_deg": phi_deg, "camera.sigma_beta_deg": beta_deg,
+            "controller.ekf.sigma_rho_m": sigma_rho_m, "controller.ekf.sigma_phi_rad": math.radians(phi_deg),
+            "controller.ekf.sigma_beta_rad": math.radians(beta_deg)}  # fmt: skip
+
+
+# sigma_rho (m) -> (sigma_phi, sigma_beta) in degrees: half the scenarios' default, the default
+# (claims a, b, d), Fig. 9's (claim c), and twice Fig. 9's.
+CAMERA_LEVELS = {0.025: (1.5, 0.75), 0.05: (3.0, 1.5), 0.1: (5.0, 2.5), 0.2: (10.0, 5.0)}
+
+
+@dataclass(frozen=True)
+class Axis:
+    name: str  # file and marker name
+    title: str  # what varies, for a person
+    unit: str
+    values: tuple[float, ...]
+    shipped: float | None  # the value of the shipped scenarios: its point is the claims' own runs
+    settings: Callable[[float], dict[str, Any]]
+    faults: Callable[[float], list[str]] = lambda _v: []
+    extras: tuple[str, ...] = ("l-psi",)
+    note: str = ""
+    marks: tuple[tuple[float, str], ...] = ()  # values drawn dotted, with what they are; default: the shipped one
+
+    @property
+    def dotted(self) -> tuple[tuple[float, str], ...]:
+        return self.marks or (((self.shipped, "the shipped value"),) if self.shipped is not None else ())
+
+    def point(self, value: float) -> tuple[dict[str, Any], list[str]]:
+        """The scenario keys and the faults of one value; none at the shipped value."""
+        return ({}, []) if value == self.shipped else (self.settings(value), self.faults(value))
+
+    def label(self, value: float) -> str:
+        return f"{value:g} {self.unit}".strip()
+
+
+AXES: tuple[Axis, ...] = (
+    Axis("leader_speed", "leader speed", "m/s", (1.0, 1.25, 1.5, 1.75, 2.0), 1.5,
+         lambda v: {"leader.speed_mps": v}, extras=tuple(EXTRAS),
+         note="every scenario's leader at this speed (shipped: 1.5 m/s); the turn rate stays 0.25 rad/s"),
+    Axis("camera_noise", "camera noise, sigma of rho", "m", tuple(CAMERA_LEVELS), None, _camera,
+         note="sigma of phi and beta " + ", ".join(f"{p:g} and {b:g} deg at {r:g} m"
+                                                   for r, (p, b) in CAMERA_LEVELS.items())
+         + ", the EKF told them, in every scenario (shipped: 0.05 m, claim c's 0.1 m)",
+         marks=((0.05, "the shipped 0.05 m (claims a, b, d)"), (0.1, "claim c's 0.1 m (fig9_ekf_noise)"))),
+    Axis("wheel_noise", "wheel noise", "m/s", (0.0, 0.05, 0.1), 0.0, lambda v: {"robot.wheel_noise_mps": v},
+         note="robot.wheel_noise_mps: Gaussian noise on every wheel of every robot, drawn per tick; "
+         "the EKF is not told of it"),
+    Axis("wheel_bias", "left wheel speed bias", "%", (0.0, 1.0, 2.0, 3.0), 0.0, lambda _v: {},
+         faults=lambda v: [f"wheel_bias *@0s left={v / 100:g}"],
+         note="every robot's left wheel turns this much faster than commanded (fault wheel_bias), as with "
+         "unequal wheel diameters: a drift of heading that a follower's EKF, predicting its own motion "
+         "from its commands, does not know"),
+)  # fmt: skip
+AXIS_NAMES = {a.name: a for a in AXES}
+
+
+def plan(seeds: Sequence[int], settings: Mapping[str, Any], faults: Sequence[str], out: Path,
+         workers: int | None, extras: Sequence[str] = ()) -> dict[str, Sweep]:  # fmt: skip
+    """The sweeps of one point: the claims' (one per scenario, in ``out/<scenario>``) and the extra
+    controllers' (in ``out/<scenario>-<extra>``). Every run's label names the settings and the faults,
+    so the points of an axis share those folders and a point without either is the claims' own runs."""
+    from formation_swarm.studies.results import settings_text
+    from formation_swarm.studies.sweep import Job, Sweep
+
+    label = "; ".join(t for t in (settings_text(settings), ", ".join(faults)) if t)
+    out_sweeps = {
+        name: Sweep(ROOT / "scenarios" / file, [Job(label, dict(settings), s) for s in seeds],
+                    out / Path(file).stem, workers=workers, logger=logger, faults=list(faults))
+        for name, (file, logger) in claims.SWEEPS.items()
+    }  # fmt: skip
+    for name in extras:
+        ov = {**EXTRAS[name], **settings}
+        out_sweeps[name] = Sweep(ROOT / "scenarios" / EXTRA_SCENARIO, [Job(label, ov, s) for s in seeds],
+                                 out / f"{Path(EXTRA_SCENARIO).stem}-{name.replace(' ', '-')}", workers=workers,
+                                 faults=list(faults))  # fmt: skip
+    return out_sweeps
+
+
+@dataclass(frozen=True)
+class Stat:
+    mean: float
+    half: float  # 95% confidence half-width of the mean (Student t); nan for one seed
+    n: int
+
+
+def stat(values: Sequence[float]) -> Stat:
+    from formation_swarm.studies.sweep import half_width
+
+    vals = [float(v) for v in values if v is not None and math.isfinite(float(v))]
+    if not vals:
+        return Stat(math.nan, math.nan, 0)
+    return Stat(statistics.fmean(vals), half_width(vals), len(vals))
+
+
+# The figures' metrics: (panel title, row key, sweeps it is read from, the claim's threshold if any).
+METRICS: tuple[tuple[str, str, tuple[str, ...], float | None], ...] = (
+    ("formation error RMS, m (claim a)", "r2_rms_m", tuple(LINES), None),
+    ("largest formation error, m (claim a)", "r2_max_m", tuple(LINES), None),
+    ("mean lag in the turns, m (claim b: > 0.5 at V_N 1.5)", "r2_turn_mean_lag_m", tuple(LINES), 0.5),
+    ("largest lead on the target, m (claim b: > 0.25 at V_N 2)", "r2_max_ahead_m", tuple(LINES), 0.25),
+    ("EKF / raw target error RMS (claim c: <= 0.5)", "r2_ekf_ratio", ("ekf",), 0.5),
+)
+
+
+LOG_SCALE = ("r2_rms_m", "r2_max_m")
+SYMLOG_SCALE = ("r2_turn_mean_lag_m", "r2_max_ahead_m")
+
+
+@dataclass
+class Point:
+    value: float
+    claims: list[claims.Claim]
+    stats: dict[tuple[str, str], Stat] = field(default_factory=dict)  # (sweep, metric) -> over the seeds
+    counts: dict[str, int] = field(default_factory=dict)  # claim d's runs with a contact, of counts["runs"]
+
+
+def measure(value: float, rows: claims.Rows) -> Point:
+    """The claims and the figures' statistics of one point, from its sweeps' rows."""
+    pt = Point(value, claims.measure(rows))
+    for _title, key, sweeps, _thr in METRICS:
+        for name in sweeps:
+            if name in rows:
+                pt.stats[name, key] = stat([r.get(key) for r in rows[name]])
+    if "obstacles" in rows:
+        obs = rows["obstacles"]
+        pt.stats["obstacles", "min_distance_m"] = stat([r["min_distance_m"] for r in obs])
+        pt.counts["obstacle contact"] = sum(1 for r in obs if r["obstacle_collisions"])
+        pt.counts["robot contact"] = sum(1 for r in obs if r["collisions"])
+        pt.counts["runs"] = len(obs)
+    return pt
+
+
+def _ranges(axis: Axis, values: Sequence[float]) -> str:
+    """``1.5-2 m/s`` for consecutive values of the axis, ``1, 1.5 m/s`` otherwise."""
+    idx = sorted(axis.values.index(v) for v in values)
+    runs: list[list[int]] = []
+    for i in idx:
+        if runs and i == runs[-1][-1] + 1:
+            runs[-1].append(i)
+        else:
+            runs.append([i])
+    parts = [f"{axis.values[r[0]]:g}" if len(r) == 1 else f"{axis.values[r[0]]:g}-{axis.values[r[-1]]:g}"
+             for r in runs]  # fmt: skip
+    return f"{', '.join(parts)} {axis.unit}".strip()
+
+
+def holds_for(axis: Axis, points: Sequence[Point], k: int) -> str:
+    """Claim ``k`` along the axis: the values where it holds in every seed, in some, in none."""
+    every = [p.value for p in points if p.claims[k].holds == p.claims[k].seeds]
+    none = [p.value for p in points if p.claims[k].holds == 0]
+    some = [p for p in points if 0 < p.claims[k].holds < p.claims[k].seeds]
+    parts = []
+    if every:
+        parts.append(f"holds for {_ranges(axis, every)}")
+    if some:
+        parts.append("holds in some seeds at " + ", ".join(
+            f"{axis.label(p.value)} ({p.claims[k].holds} of {p.claims[k].seeds})" for p in some))  # fmt: skip
+    parts.append(f"fails for {_ranges(axis, none)}" if none else "fails for none of these values")
+    return "; ".join(parts)
+
+
+def _cell(s: Stat | None, fmt: str = ".2f") -> str:
+    if s is None or s.n == 0:
+        return "-"
+    return f"{s.mean:{fmt}}" if math.isnan(s.half) else f"{s.mean:{fmt}} ± {s.half:{fmt}}"
+
+
+def markdown(axis: Axis, points: Sequence[Point], figure_path: str) -> str:
+    """The axis's section: where each claim holds, the table of seeds and the metrics, the figure."""
+    seeds = points[0].claims[0].seeds
+    lines = [f"**{axis.title}** ({axis.note}); lockstep runs, seeds 0-{seeds - 1} per value, the criteria "
+             "of tests/unit/studies/test_claims.py "
+             "evaluated seed by seed; mean ± 95% confidence half-width over the seeds.",
+             ""]  # fmt: skip
+    for k, c in enumerate(points[0].claims):
+        lines.append(f"- {c.name}: {holds_for(axis, points, k)}.")
+    head = " | ".join(axis.label(p.value) + (" (shipped)" if p.value == axis.shipped else "") for p in points)
+    lines += ["", f"| | {head} |", "|---" * (len(points) + 1) + "|"]
+    for k in range(len(points[0].claims)):
+        short = SHORT[claims.CLAIMS[k].__name__]
+        lines.append(f"| claim {short}: seeds where it holds | "
+                     + " | ".join(f"{p.claims[k].holds}/{p.claims[k].seeds}" for p in points) + " |")  # fmt: skip
+    for title, key, sweeps, _thr in METRICS:
+        for name in sweeps:
+            if all((name, key) not in p.stats for p in points):
+                continue
+            who = LINES.get(name, "fuzzy, dynamic V_N, claim c's run (fig9_ekf_noise)")
+            lines.append(f"| {title.split(' (')[0]}: {who} | "
+                         + " | ".join(_cell(p.stats.get((name, key))) for p in points) + " |")  # fmt: skip
+    lines.append("| least distance between two robots' centres, m (claim d; touching below 0.4) | "
+                 + " | ".join(_cell(p.stats.get(("obstacles", "min_distance_m"))) for p in points) + " |")  # fmt: skip
+    for what, said in (("obstacle contact", "a robot touches an obstacle"), ("robot contact", "two robots touch")):
+        cells = " | ".join(f"{p.counts.get(what, 0)}/{p.counts.get('runs', 0)}" for p in points)
+        lines.append(f"| claim d: runs in which {said} | {cells} |")
+    lines += ["", f"![{axis.title}]({figure_path})"]
+    return "\n".join(lines)
+
+
+def figure(axis: Axis, points: Sequence[Point]) -> Figure:
+    """Six panels against the axis: the five metrics (mean and 95% interval per controller, the
+    claim's threshold dashed) and the share of seeds in which each claim holds."""
+    from matplotlib.figure import Figure
+
+    from formation_swarm.common import palette
+
+    fig = Figure(figsize=(15, 8.2), layout="constrained")
+    axes = fig.subplots(2, 3).ravel()
+    xs = [p.value for p in points]
+    colours = {name: palette.series_colour(i) for i, name in enumerate((*LINES, "ekf"))}
+    for ax, (title, key, sweeps, thr) in zip(axes, METRICS, strict=False):
+        for name in sweeps:
+            st = [p.stats.get((name, key)) for p in points]
+            if all(s is None or s.n == 0 for s in st):
+                continue
+            mean = [s.mean if s else math.nan for s in st]
+            half = [0.0 if s is None or math.isnan(s.half) else s.half for s in st]
+            ax.errorbar(xs, mean, yerr=half, marker="o", ms=4, capsize=3, lw=1.4, color=colours[name],
+                        label=LINES.get(name, "fuzzy, dynamic V_N (claim c's run)"))  # fmt: skip
+        if thr is not None:
+            ax.axhline(thr, color="0.3", ls="--", lw=1.0)
+        if key in LOG_SCALE:
+            _log_axis(ax)  # l-psi's 0.1 m and a static V_N's 10 m on one panel
+            title += ", log scale"
+        elif key in SYMLOG_SCALE and max((abs(m) for m in _means(points, key)), default=0.0) > 3.0:
+            _symlog_axis(ax)  # the 0.25 and 0.5 m thresholds readable beside 10 m
+            title += ", log > 1 m"
+        ax.set_title(title, fontsize=10)
+    share = axes[5]
+    n = len(points[0].claims)
+    step = (max(xs) - min(xs)) / max(1, len(xs) - 1) if len(xs) > 1 else 1.0
+    for k in range(n):
+        dodge = (k - (n - 1) / 2) * 0.05 * step  # side by side where several claims hold alike
+        share.plot([x + dodge for x in xs], [100.0 * p.claims[k].holds / p.claims[k].seeds for p in points],
+                   marker="os^vD"[k % 5], ms=5, lw=1.2, label=f"claim {SHORT[claims.CLAIMS[k].__name__]}",
+                   color=palette.series_colour(k))  # fmt: skip
+    share.set_ylim(-5, 105)
+    share.set_title("seeds in which the claim holds, %", fontsize=10)
+    for ax in axes:
+        ax.set_xlabel(f"{axis.title}, {axis.unit}")
+        ax.set_xticks(xs)
+        ax.grid(alpha=0.3)
+        for x, _what in axis.dotted:
+            ax.axvline(x, color="0.6", ls=":", lw=1.0)
+    for ax in (axes[0], axes[4], share):
+        ax.legend(fontsize=8, loc="best")
+    seeds = points[0].claims[0].seeds
+    marks = [what if what != "the shipped value" else f"the shipped {axis.label(x)}" for x, what in axis.dotted]
+    shipped = "; dotted: " + " and ".join(marks) if marks else ""
+    fig.suptitle(f"The paper's claims against the {axis.title}\nmean and 95% interval over {seeds} seeds per "
+                 f"value{shipped}; dashed: the claim's threshold")  # fmt: skip
+    return fig
+
+
+def _means(points: Sequence[Point], key: str) -> list[float]:
+    return [st.mean for p in points for (_name, k), st in p.stats.items() if k == key and st.n]
+
+
+def _symlog_axis(ax: Any) -> None:
+    """Linear within 1 m of 0, log beyond, labelled in plain numbers."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter
+
+    ax.set_yscale("symlog", linthresh=1.0)
+    ax.yaxis.set_major_locator(FixedLocator([-5, -2, -1, -0.5, 0, 0.25, 0.5, 1, 2, 5, 10, 20]))
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+
+
+def _log_axis(ax: Any) -> None:
+    """A log y axis labelled in plain numbers: 0.1, 0.2, 0.5, 1, 2, 5, ..."""
+    from matplotlib.ticker import FuncFormatter
+
+    ax.set_yscale("log")
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
+
+    def minor(v: float, _pos: int) -> str:
+        return f"{v:g}" if v > 0 and round(v / 10 ** math.floor(math.log10(v))) in (2, 5) else ""
+
+    ax.yaxis.set_minor_formatter(FuncFormatter(minor))
+
+
+def write_figure(path: Path, axis: Axis, points: Sequence[Point], dpi: int = 110) -> Path:
+    fig = figure(axis, points)
+    tmp = path.with_name(path.stem + ".tmp" + path.suffix)
+    fig.savefig(tmp, dpi=dpi)
+    tmp.replace(path)  # never a half-written figure
+    return path

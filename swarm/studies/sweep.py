@@ -1,0 +1,419 @@
+"""Many lockstep runs of one scenario: seeds x parameter values, in parallel.
+
+Every combination of the --set values is run with each seed, as many runs at
+once as --jobs (default: the number of cores). Each run keeps its own folder
+under DIR/runs/; a run whose summary is already there is not run again, so an
+interrupted sweep resumes where it stopped. DIR/runs.csv holds one row of
+metrics per run and DIR/aggregate.csv, per combination, the mean, standard
+deviation and 95% confidence interval (Student t) of every metric, and
+DIR/aggregate.png the main ones (formation error RMS and maximum, EKF target
+error, least distance between robots) with their intervals against the swept
+value, one line per follower.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import itertools
+import json
+import math
+import os
+import shutil
+import statistics
+import sys
+import threading
+import time
+import warnings
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from formation_swarm.common.checks import SEED_MAX
+from formation_swarm.runtime import summary as summary_mod
+from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser, integer, make_folder, seed
+from formation_swarm.runtime.proc import interrupt_on_stop_signals
+
+# The launcher and the scenario loader bring Zenoh, scipy and filterpy (1-2 s
+# of imports): they are imported where a sweep needs them, so that --help and
+# a bad flag answer at once.
+if TYPE_CHECKING:
+    from formation_swarm.launch.launcher import Launch, RunResult
+
+# 97.5% quantile of Student's t for n - 1 degrees of freedom (n <= 31), then normal.
+_T975 = (
+    12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145, 2.131,
+    2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042,
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Job:
+    label: str  # the combination, e.g. "controller.vn=1.5"
+    overrides: Mapping[str, Any]
+    seed: int
+    # What else makes the run (the scenario as run, faults included, without its
+    # seed): a finished run is reused only for the very same scenario.
+    context: str = ""
+
+    @property
+    def name(self) -> str:
+        digest = hashlib.blake2b((self.label + "\n" + self.context).encode(), digest_size=4).hexdigest()
+        return f"{_slug(self.label) or 'base'}-{digest}-s{self.seed}"
+
+
+def parse_set(text: str) -> tuple[str, list[Any]]:
+    """``key=v1,v2`` -> (key, [v1, v2]); values are TOML (numbers, booleans,
+    quoted strings) or else bare strings."""
+    key, sep, values = text.partition("=")
+    if not sep or not key.strip() or not values.strip():
+        raise ValueError(f"--set takes key=v1,v2,..., got {text!r}")
+    from formation_swarm.spec.files import parse_value
+
+    key = key.strip()
+    if key == "run.seed":
+        raise ValueError("--set run.seed: a sweep gives every combination its seeds; use --seeds N and --seed-start S")
+    out = [parse_value(raw) for raw in values.split(",")]
+    for i, v in enumerate(out):
+        # Equal values (1.5 and 1.50, 2 and 2.0) would make one run twice, in one folder at once.
+        if any(v == w and type(v) is type(w) or _numbers_equal(v, w) for w in out[:i]):
+            first = next(w for w in values.split(",")[:i] if parse_value(w) == v)
+            raise ValueError(f"--set {key}: the value {values.split(',')[i].strip()!r} is given twice "
+                             f"(as {first.strip()!r} before it: the same value)")  # fmt: skip
+    return key, out
+
+
+def _numbers_equal(a: Any, b: Any) -> bool:
+    numbers = (int, float)
+    return (isinstance(a, numbers) and isinstance(b, numbers) and not isinstance(a, bool)
+            and not isinstance(b, bool) and a == b)  # fmt: skip
+
+
+def grid(sets: Sequence[tuple[str, list[Any]]]) -> list[tuple[str, dict[str, Any]]]:
+    """Every combination of the values, as (label, overrides)."""
+    if not sets:
+        return [("", {})]
+    keys = [k for k, _ in sets]
+    combos = itertools.product(*(v for _, v in sets))
+    return [(" ".join(f"{k}={v}" for k, v in zip(keys, c, strict=True)), dict(zip(keys, c, strict=True)))
+            for c in combos]  # fmt: skip
+
+
+def metrics(summary: Mapping[str, Any]) -> dict[str, Any]:
+    """The flat row of one run's summary: what the sweep tables hold."""
+    row: dict[str, Any] = {
+        "exit_code": summary.get("exit_code"),
+        "ticks": summary.get("ticks"),
+        "min_distance_m": summary.get("min_distance_m"),
+        "collisions": summary.get("collisions"),
+        "obstacle_collisions": summary.get("obstacle_collisions"),
+        "lockstep_misses": summary.get("lockstep_misses"),
+        "drops": summary.get("drops_total"),
+        "rejected": summary.get("rejected_total"),
+        "ticks_per_s": summary.get("ticks_per_s"),
+    }
+    for rid, m in sorted(summary.get("followers", {}).items(), key=_by_robot):
+        for k in ("rms_m", "max_m", "turn_rms_m", "straight_rms_m", "turn_mean_lag_m", "max_lag_m", "max_ahead_m"):
+            row[f"r{rid}_{k}"] = m.get(k)
+    errs = summary.get("parts", {}).get("logger", {}).get("target_errors", {})
+    for rid, e in sorted(errs.items(), key=_by_robot):
+        row[f"r{rid}_measured_rms_m"] = e.get("measured_rms_m")
+        row[f"r{rid}_ekf_rms_m"] = e.get("ekf_rms_m")
+        if e.get("measured_rms_m") and e.get("ekf_rms_m") is not None:
+            row[f"r{rid}_ekf_ratio"] = e["ekf_rms_m"] / e["measured_rms_m"]
+    seq: dict[int, list[str]] = {}
+    for ev in summary.get("formation_events", []):
+        seq.setdefault(ev["robot"], []).append(ev["formation"])
+    for rid, names in sorted(seq.items()):
+        row[f"r{rid}_formations"] = ">".join(names)
+    return row
+
+
+def _by_robot(kv: tuple[Any, Any]) -> tuple[int, str]:
+    """A summary's per-robot entry in robot order (its JSON keys are text: R10 would come before R2)."""
+    key = str(kv[0])
+    return (int(key), key) if key.isdigit() else (1 << 62, key)
+
+
+def t975(n: int) -> float:
+    """The 97.5% quantile of Student's t for the mean of ``n`` >= 2 values (the normal's beyond 31)."""
+    return _T975[n - 2] if n - 2 < len(_T975) else 1.96
+
+
+def half_width(vals: Sequence[float]) -> float:
+    """The 95% confidence half-width of the mean of ``vals`` (Student t); nan for fewer than two."""
+    n = len(vals)
+    return t975(n) * statistics.stdev(vals) / math.sqrt(n) if n > 1 else math.nan
+
+
+def aggregate(rows: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """Per combination and numeric metric: n, mean, std and the 95% CI of the mean."""
+    by_label: dict[str, list[Mapping[str, Any]]] = {}
+    for r in rows:
+        by_label.setdefault(r["combination"], []).append(r)
+    out = []
+    for label, group in by_label.items():
+        keys = [k for k in group[0] if k not in ("combination", "seed", "run")]
+        for k in keys:
+            vals = [float(r[k]) for r in group if _is_number(r.get(k))]
+            vals = [v for v in vals if math.isfinite(v)]
+            if not vals:
+                continue
+            n = len(vals)
+            mean = statistics.fmean(vals)
+            std = statistics.stdev(vals) if n > 1 else 0.0
+            half = half_width(vals)
+            out.append({"combination": label, "metric": k, "n": n, "mean": mean, "std": std, "ci95_low": mean - half,
+                        "ci95_high": mean + half, "min": min(vals), "max": max(vals)})  # fmt: skip
+    return out
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+class Sweep:
+    def __init__(self, scenario: str | Path, jobs: Sequence[Job], out: str | Path, *, workers: int | None = None,
+                 logger: bool = False, progress: Callable[[str], None] = print,
+                 run_timeout_s: float = 600.0, faults: Sequence[Any] = ()) -> None:  # fmt: skip
+        self.scenario = Path(scenario)
+        from formation_swarm.spec import files as scenario_files
+        from formation_swarm.spec import scenario as scenario_mod
+
+        self.faults = list(faults)  # added to every run (formation_swarm.common.faults)
+        scenario_mod.load(self.scenario, None, self.faults)  # a bad scenario or fault fails here, not in every run
+        contexts = {}
+        said: list[str] = []
+        for label, ov in {j.label: j.overrides for j in jobs}.items():
+            with warnings.catch_warnings():  # the loader's warnings: said once below, not as Python warnings
+                warnings.simplefilter("ignore", scenario_mod.ScenarioWarning)
+                sc = scenario_mod.load(self.scenario, dict(ov), self.faults)  # and so does a bad --set value
+            said += [f"[sweep] {self.scenario.stem} {label or 'as shipped'}: {w}" for w in sc.warnings]
+            contexts[label] = scenario_files.dumps(sc.with_seed(0).raw)
+        self.jobs = [replace(j, context=contexts[j.label]) for j in jobs]
+        self.out = Path(out)
+        self.workers = max(1, workers or os.cpu_count() or 1)
+        self.logger = logger
+        self.progress = progress
+        for line in said:
+            progress(line)
+        self.run_timeout_s = run_timeout_s
+        self._stop = threading.Event()
+        self._live: set[Launch] = set()
+        self._lock = threading.Lock()
+
+    def run(self) -> list[dict[str, Any]]:
+        """Runs what is missing, then writes runs.csv and aggregate.csv; the rows."""
+        runs_dir = self.out / "runs"
+        runs_dir.mkdir(parents=True, exist_ok=True)
+        rows: dict[str, dict[str, Any]] = {}
+        todo = []
+        for job in self.jobs:
+            done = _load_done(runs_dir / job.name)
+            if done is not None:
+                rows[job.name] = self._row(job, done)
+            else:
+                todo.append(job)
+        total = len(self.jobs)
+        if rows:
+            self.progress(f"[sweep] {len(rows)}/{total} runs already done in {runs_dir}; {len(todo)} to go")
+        if todo:  # the spawner's server, from this thread: it starts it with Ctrl-C ignored (a pool's cannot)
+            from formation_swarm.runtime import spawner
+
+            spawner.warm()
+        try:
+            with ThreadPoolExecutor(max_workers=self.workers) as pool:
+                try:
+                    self._loop(pool, todo, rows, total)
+                except KeyboardInterrupt:
+                    # Inside the pool's block: leaving it waits for every run in flight,
+                    # which must be told to stop first.
+                    self.progress("[sweep] interrupted: stopping the runs in flight (finished runs are kept)")
+                    self._stop.set()
+                    with self._lock:
+                        for launch in list(self._live):
+                            launch.interrupt()
+                    raise
+        finally:
+            self._write(rows)
+            ordered = [rows[j.name] for j in self.jobs if j.name in rows]
+            if ordered:  # interrupted too: the figure of what finished, as the tables
+                from formation_swarm.studies import sweep_figure
+
+                sweep_figure.write(self.out / "aggregate.png", aggregate(ordered), self.jobs, self.scenario.stem)
+        return ordered
+
+    def _loop(self, pool: ThreadPoolExecutor, todo: list[Job], rows: dict[str, dict[str, Any]], total: int) -> None:
+        """Keeps ``workers`` runs of ``todo`` going until all are done; each one's
+        row goes into ``rows`` and the tables as it ends."""
+        runs_dir = self.out / "runs"
+        started = time.monotonic()
+        finished = 0
+        pending: dict[Future[RunResult | None], Job] = {}
+        queue = list(reversed(todo))
+        while queue or pending:
+            while queue and len(pending) < self.workers and not self._stop.is_set():
+                job = queue.pop()
+                pending[pool.submit(self._one, job, runs_dir / job.name)] = job
+            if not pending:
+                break
+            done_set, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done_set:
+                job = pending.pop(fut)
+                res = fut.result()
+                if res is None:
+                    continue
+                finished += 1
+                rows[job.name] = self._row(job, res.summary)
+                self._write(rows)
+                el = time.monotonic() - started
+                eta = el / finished * (len(todo) - finished)
+                self.progress(f"[sweep] {len(rows)}/{total} {job.name}: exit {res.exit_code}, "
+                              f"{_brief(rows[job.name])} ({el:.0f} s, about {eta:.0f} s left)")  # fmt: skip
+
+    def _one(self, job: Job, run_dir: Path) -> RunResult | None:
+        from formation_swarm.launch.launcher import Launch
+
+        for attempt in (1, 2):
+            if self._stop.is_set():
+                return None
+            with Launch(self.scenario, seed=job.seed, out=run_dir, overrides=dict(job.overrides), logger=self.logger,
+                        faults=self.faults, progress=lambda _line: None) as launch:  # fmt: skip
+                with self._lock:
+                    self._live.add(launch)
+                    if self._stop.is_set():  # a Ctrl-C came while it started
+                        launch.interrupt()
+                try:
+                    res = launch.wait(timeout_s=self.run_timeout_s)
+                finally:
+                    with self._lock:
+                        self._live.discard(launch)
+            gap = summary_mod.recording_gap(res.summary)
+            if gap is None or attempt == 2:
+                return res
+            kept = run_dir.with_name(run_dir.name + ".incomplete")
+            shutil.rmtree(kept, ignore_errors=True)
+            run_dir.rename(kept)  # its logs and recording, to look into the loss
+            self.progress(f"[sweep] {job.name}: {gap}; running it again (its metrics would miss those ticks; "
+                          f"this attempt is kept in {kept})")  # fmt: skip
+        return res
+
+    def _row(self, job: Job, summary: Mapping[str, Any]) -> dict[str, Any]:
+        return {"combination": job.label, "seed": job.seed, "run": job.name, **metrics(summary)}
+
+    def _write(self, rows: Mapping[str, dict[str, Any]]) -> None:
+        ordered = [rows[j.name] for j in self.jobs if j.name in rows]
+        if not ordered:  # nothing finished (an early Ctrl-C): no empty tables
+            return
+        _write_csv(self.out / "runs.csv", ordered)
+        _write_csv(self.out / "aggregate.csv", aggregate(ordered))
+
+
+def _load_done(run_dir: Path) -> dict[str, Any] | None:
+    """The summary of a run that completed (exit 0) with its whole recording,
+    else None (to be run again)."""
+    try:
+        s = json.loads((run_dir / "summary.json").read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+    return s if isinstance(s, dict) and s.get("exit_code") == 0 and summary_mod.recording_gap(s) is None else None
+
+
+def _write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:
+    cols: list[str] = []
+    for r in rows:
+        cols += [k for k in r if k not in cols]
+    tmp = path.with_suffix(".csv.tmp")
+    with tmp.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=cols)
+        w.writeheader()
+        w.writerows(rows)
+    tmp.replace(path)  # never a half-written table
+
+
+BRIEF_FOLLOWERS = 4  # beyond, a progress line gives the followers' median and worst RMS, not each
+
+
+def _brief(row: Mapping[str, Any]) -> str:
+    rms = [(k[1:-6], float(row[k])) for k in row if k.endswith("_rms_m") and k.count("_") == 2 and _is_number(row[k])]
+    if len(rms) > BRIEF_FOLLOWERS:
+        values = sorted(v for _, v in rms)
+        worst = max(rms, key=lambda kv: kv[1])
+        return (f"{len(rms)} followers' RMS: median {statistics.median(values):.2f} m, "
+                f"worst {worst[1]:.2f} m (R{worst[0]})")  # fmt: skip
+    return ", ".join(f"r{rid}_rms {v:.2f} m" for rid, v in rms) or "no follower metrics"
+
+
+def _slug(text: str) -> str:
+    out = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in text)
+    return out.strip("_")[:60]
+
+
+MAX_SEEDS = 10_000  # runs per combination: each takes seconds to minutes
+MAX_JOBS = 256  # runs at once, each of several processes
+EPILOG = """\
+examples:
+  swarm sweep fig7_turn_vn_dynamic --seeds 20 --set controller.vn=1.5,2,dynamic
+  swarm sweep fig11_obstacles --seeds 10 --set links.obs_drop=0,0.1,0.3 --jobs 2 --out sweeps/drops
+"""
+
+
+def build_parser() -> Parser:
+    ap = Parser(prog="swarm sweep", description=__doc__, epilog=EPILOG)
+    ap.add_argument("scenario", help="a shipped scenario's name (see: swarm scenarios) or a scenario file (TOML)")
+    ap.add_argument("--seeds", type=integer(1, MAX_SEEDS), required=True, metavar="N",
+                    help=f"runs per combination, one per seed, 1 to {MAX_SEEDS} (required)")  # fmt: skip
+    ap.add_argument("--seed-start", type=seed, default=0, metavar="S",
+                    help="the first seed: the runs use seeds S to S+N-1 (default: 0)")  # fmt: skip
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2",
+                    help="a scenario key and the values to sweep, e.g. controller.vn=1.5,dynamic (repeatable: "
+                    "the grid is every combination)")  # fmt: skip
+    ap.add_argument("--fault", action="append", default=[], metavar="'KIND TARGET@TIME ...'",
+                    help="a fault in every run, e.g. 'wheel_noise *@0s sigma_mps=0.1' (repeatable; "
+                    "docs/faults.md)")  # fmt: skip
+    ap.add_argument("--jobs", type=integer(1, MAX_JOBS), default=None, metavar="J",
+                    help=f"runs at once, 1 to {MAX_JOBS} (default: the number of cores, "
+                    f"{os.cpu_count() or 1})")  # fmt: skip
+    ap.add_argument("--out", default=None, metavar="DIR",
+                    help="the sweep folder, created if needed (default: sweeps/<scenario name>)")  # fmt: skip
+    ap.add_argument("--logger", action="store_true",
+                    help="record each run (recording.rrd): needed for the EKF target errors, slower")  # fmt: skip
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if args.seed_start + args.seeds - 1 > SEED_MAX:
+        print(f"swarm sweep: argument --seed-start: seeds S to S+N-1 must stay within 2**63 - 1, got S "
+              f"{args.seed_start} and N {args.seeds}", file=sys.stderr)  # fmt: skip
+        return USAGE_ERROR
+    try:
+        sets = [parse_set(s) for s in args.set]
+        if len({k for k, _ in sets}) < len(sets):
+            twice = next(k for i, (k, _) in enumerate(sets) if k in [j for j, _ in sets[:i]])
+            raise ValueError(f"--set {twice} is given twice: put its values in one, e.g. {twice}=1.5,2")
+        from formation_swarm.spec import scenario as scenario_mod
+
+        sc = scenario_mod.load(args.scenario)
+        jobs = [Job(label, ov, run_seed) for label, ov in grid(sets)
+                for run_seed in range(args.seed_start, args.seed_start + args.seeds)]  # fmt: skip
+        out = Path(args.out) if args.out else Path("sweeps") / _slug(sc.name)
+        sweep = Sweep(args.scenario, jobs, out, workers=args.jobs, logger=args.logger, faults=args.fault)
+        make_folder("--out" if args.out else "sweep folder", out)  # last: nothing made for a bad input
+    except (ValueError, OSError) as exc:
+        print(f"swarm sweep: {exc}", file=sys.stderr)
+        return USAGE_ERROR
+    interrupt_on_stop_signals()  # both stop the runs in flight cleanly
+    try:
+        rows = sweep.run()
+    except KeyboardInterrupt:
+        return 130
+    failed = [r["run"] for r in rows if r.get("exit_code") != 0]
+    print(f"[sweep] {len(rows)} runs; tables: {out / 'runs.csv'}, {out / 'aggregate.csv'}; "
+          f"figure: {out / 'aggregate.png'}")  # fmt: skip
+    if failed:
+        print(f"[sweep] {len(failed)} runs failed: {', '.join(failed[:10])}", file=sys.stderr)
+        return 1
+    return 0

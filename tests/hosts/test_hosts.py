@@ -1,0 +1,694 @@
+"""``swarm host`` and ``swarm run --hosts`` on one machine (loopback): the
+request decoder, the host logins' access rules, a run placed on two hosts
+(same trajectory digest as a local run, a full run folder) and a host that
+dies mid-run (its robots counted dead, its agents gone, a non-zero exit that
+names it). tests/hosts/test_hosts_netns.py does the same across network namespaces."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import queue
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import msgpack
+import pytest
+import zenoh
+
+from formation_swarm import __version__
+from formation_swarm.launch.launcher import free_port
+from formation_swarm.launch.remote import place
+from formation_swarm.protocol import trust
+from formation_swarm.protocol.codec import DecodeError
+from formation_swarm.protocol.hostmsg import MAX_HOST_MESSAGE_BYTES, HostReply, HostRequest
+from formation_swarm.protocol.keys import HostKeys
+from formation_swarm.protocol.session import make_config
+from tests.helpers import Console, processes
+
+PY = [sys.executable, "-m", "formation_swarm.cli"]
+
+
+# -- the wire -----------------------------------------------------------------------
+def test_a_request_round_trips_and_bad_ones_are_refused_with_a_reason() -> None:
+    req = HostRequest("start", __version__, run="r1", process="agent-3.2", scenario="x = 1", user="agent-3",
+                      password="p" * 32, world_grace_s=1.0, lockstep=True)  # fmt: skip
+    assert HostRequest.from_bytes(req.to_bytes()) == req
+    good = msgpack.unpackb(req.to_bytes())
+    cases = {
+        b"\xc1": "not msgpack",
+        msgpack.packb([1, 2]): "wrong type",
+        msgpack.packb({**good, "extra": 1}): "unknown field",
+        msgpack.packb({k: v for k, v in good.items() if k != "run"}): "missing field",
+        msgpack.packb({**good, "op": "format-disk"}): "unknown op",
+        msgpack.packb({**good, "run": "../etc"}): "bad run id",
+        msgpack.packb({**good, "process": "world"}): "bad process",
+        msgpack.packb({**good, "world_grace_s": float("nan")}): "out of range",
+        msgpack.packb({**good, "user": 7}): "wrong type",
+        msgpack.packb({**good, "lockstep": 1}): "wrong type",
+        msgpack.packb({**good, "op": "signal", "action": "reboot"}): "bad action",
+        b"\x00" * (MAX_HOST_MESSAGE_BYTES + 1): "oversized",
+    }
+    for payload, reason in cases.items():
+        with pytest.raises(DecodeError) as info:
+            HostRequest.from_bytes(payload)
+        assert info.value.reason == reason, (payload[:40], info.value)
+    reply = HostReply(ok=True, version="1", host="a", processes=(("agent-2", 10, None), ("agent-3", 11, -9)))
+    assert HostReply.from_bytes(reply.to_bytes()) == reply
+    bad = msgpack.packb({**msgpack.unpackb(reply.to_bytes()), "processes": [["rm -rf", 1, 0]]})
+    with pytest.raises(DecodeError, match="not agent-N"):
+        HostReply.from_bytes(bad)
+
+
+def test_robots_are_placed_explicitly_then_round_robin_within_what_each_host_may_run() -> None:
+    assert place([1, 2, 3], ["a", "b"], {"a": None, "b": None}, {}) == {1: "a", 2: "b", 3: "a"}
+    assert place([1, 2, 3], ["a", "b"], {"a": None, "b": None}, {1: "b"}) == {1: "b", 2: "a", 3: "b"}
+    assert place([1, 2, 3], ["a", "b"], {"a": (1,), "b": None}, {}) == {1: "a", 2: "b", 3: "b"}
+    with pytest.raises(ValueError, match="no host of a, b may run robot 3"):
+        place([1, 2, 3], ["a", "b"], {"a": (1,), "b": (2,)}, {})
+    with pytest.raises(ValueError, match="may only run robots 1"):
+        place([1, 2], ["a", "b"], {"a": (1,), "b": None}, {2: "a"})
+
+
+# -- the walls ----------------------------------------------------------------------
+def test_a_host_login_answers_on_its_own_key_only_and_hears_nothing_of_the_run(tmp_path: Path) -> None:
+    run = f"hosts-{uuid.uuid4().hex[:8]}"
+    hosts = trust.write_host_logins(tmp_path / "hosts", ["a", "b"])
+    logins = trust.read_host_logins(hosts[trust.HOST_LOGINS], ["a", "b"])
+    files = trust.write_run_secrets(tmp_path / "run", run, (1, 2, 3), 1, world_is_router=False, host_logins=logins)
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    sessions: list[zenoh.Session] = []
+
+    def open_as(settings_file: Path, mode: str = "client") -> zenoh.Session:
+        settings = trust.read_settings(settings_file)
+        conf = make_config(mode, [] if mode == "router" else [endpoint], [endpoint] if mode == "router" else [],
+                           connect_timeout_s=3.0, settings=settings)  # fmt: skip
+        sessions.append(zenoh.open(conf))
+        return sessions[-1]
+
+    try:
+        open_as(files["router"], "router")
+        launcher = open_as(files["launcher"])
+        host_a = open_as(hosts["host-a"])
+        answered: list[str] = []
+        for key in (HostKeys("a").ctl, HostKeys("b").ctl):  # a's login serves its key, and tries b's
+            host_a.declare_queryable(key, lambda q: (answered.append(str(q.key_expr)), q.reply(q.key_expr, b"x")))
+        heard: list[str] = []
+        host_a.declare_subscriber(f"swarm/{run}/**", lambda s: heard.append(str(s.key_expr)))
+        world = open_as(files["world"])
+
+        def ask(key: str) -> list[bytes]:
+            return [r.ok.payload.to_bytes() for r in launcher.get(key, timeout=1.0) if r.ok is not None]
+
+        deadline = time.monotonic() + 5
+        while not ask(HostKeys("a").ctl) and time.monotonic() < deadline:
+            pass
+        assert ask(HostKeys("a").ctl) == [b"x"]
+        assert ask(HostKeys("b").ctl) == []  # the router never forwards b's queries to a's login
+        assert answered
+        assert all(k == HostKeys("a").ctl for k in answered)
+        world.put(f"swarm/{run}/world/truth", b"t")
+        # The agents log in with their own logins: a host's hears nothing of the run.
+        time.sleep(0.3)  # nothing to wait for: asserting an absence
+        assert heard == []
+    finally:
+        for s in reversed(sessions):
+            s.close()
+
+
+# -- runs on hosts ------------------------------------------------------------------
+class Hosts:
+    """``swarm host`` processes on this machine, each with its login and folder."""
+
+    def __init__(self, tmp_path: Path, names: list[str]) -> None:
+        self.tmp = tmp_path
+        self.endpoint = f"tcp/127.0.0.1:{free_port()}"
+        made = subprocess.run([*PY, "secure", "--hosts", ",".join(names), "--out", str(tmp_path / "sec")],
+                              capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+        assert made.returncode == 0, made.stderr
+        self.procs: dict[str, subprocess.Popen[bytes]] = {}
+        for n in names:
+            log = open(tmp_path / f"host-{n}.log", "wb")  # noqa: SIM115 - closed with the process
+            self.procs[n] = subprocess.Popen(
+                [*PY, "host", "--connect", self.endpoint, "--name", n, "--auth",
+                 str(tmp_path / "sec" / f"host-{n}.json"), "--workdir", str(tmp_path / f"work-{n}")],
+                stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+            )  # fmt: skip
+            log.close()
+
+    def run_argv(self, out: Path, names: str) -> list[str]:
+        return [*PY, "run", "fig11_obstacles", "--seed", "5", "--out", str(out), "--hosts", names,
+                "--listen", self.endpoint, "--host-logins", str(self.tmp / "sec" / "hosts.txt")]  # fmt: skip
+
+    def log(self, name: str) -> str:
+        return (self.tmp / f"host-{name}.log").read_text()
+
+    def close(self) -> None:
+        for p in self.procs.values():
+            if p.poll() is None:
+                p.terminate()
+        for p in self.procs.values():
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+
+@pytest.fixture
+def two_hosts(tmp_path: Path) -> Iterator[Hosts]:
+    hosts = Hosts(tmp_path, ["a", "b"])
+    try:
+        yield hosts
+    finally:
+        hosts.close()
+
+
+def summary_placement(out: Path) -> dict[str, str]:
+    return json.loads((out / "summary.json").read_text())["placement"]
+
+
+def _parents() -> dict[int, int]:
+    out = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                out[int(entry.name)] = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+    return out
+
+
+def _agents(host_pid: int) -> list[int]:
+    """The processes a host forked (through its spawner's fork server): its agents."""
+    parents = _parents()
+    servers = {p for p, pp in parents.items() if pp == host_pid}
+    return sorted(p for p, pp in parents.items() if pp in servers)
+
+
+@pytest.mark.slow
+def test_a_run_on_two_hosts_is_the_local_run_and_leaves_a_full_folder(two_hosts: Hosts, tmp_path: Path) -> None:
+    local = subprocess.run([*PY, "run", "fig11_obstacles", "--seed", "5", "--no-logger", "--out", str(tmp_path / "l")],
+                           capture_output=True, text=True, timeout=300, check=False)  # fmt: skip
+    assert local.returncode == 0, local.stdout + local.stderr
+    out = tmp_path / "placed"
+    run = subprocess.run(two_hosts.run_argv(out, "a,b"), capture_output=True, text=True, timeout=300, check=False)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "agent-2 on host b" in run.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    local_summary = json.loads((tmp_path / "l" / "summary.json").read_text())
+    assert summary["trajectory_digest"] == local_summary["trajectory_digest"]
+    assert summary["placement"] == {"agent-1": "a", "agent-2": "b", "agent-3": "a"}
+    assert summary["hosts"]["b"]["version"] == __version__
+    assert not summary["hosts"]["b"]["lost"]
+    assert summary["processes"]["agent-2"]["host"] == "b"
+    assert summary["processes"]["world"]["host"] == "local"
+    for name in ("world", "logger", "agent-1", "agent-2", "agent-3"):
+        assert "exit code 0" in (out / "logs" / f"{name}.log").read_text().splitlines()[-1], name
+        assert (out / "stats" / f"{name}.json").is_file(), name
+    agent2 = json.loads((out / "stats" / "agent-2.json").read_text())
+    assert agent2["answered"] == summary["ticks"]
+    # A lockstep run's telemetry waits for the logger on a host too: none of it is dropped.
+    assert all(json.loads((out / "stats" / f"agent-{r}.json").read_text())["lockstep"] for r in (1, 2, 3))
+    assert (out / "recording.rrd").stat().st_size > 10_000
+    assert not (out / "secrets").exists()
+    # Each host ended the run: its agents reaped, their logins deleted, the hosts still serving.
+    for n in ("a", "b"):
+        assert "ended (the launcher ended it)" in two_hosts.log(n)
+        assert two_hosts.procs[n].poll() is None
+        assert not list((tmp_path / f"work-{n}").glob("*/secrets"))
+
+
+@pytest.mark.slow
+def test_a_host_that_dies_mid_run_has_its_robots_counted_dead_and_fails_the_run(
+    two_hosts: Hosts, tmp_path: Path
+) -> None:
+    out = tmp_path / "lost"
+    run = Console(two_hosts.run_argv(out, "a,b"), "[swarm] tick ")
+    try:
+        assert run.seen.wait(120), run.text
+        b_agents = _agents(two_hosts.procs["b"].pid)
+        assert b_agents, "no agent of host b found"
+        os.kill(two_hosts.procs["b"].pid, signal.SIGKILL)  # the host, not its agents
+        code = run.wait(180)
+    finally:
+        run.close()
+    text = run.text
+    assert code == 1, text
+    assert "host b was lost" in text, text
+    assert "robots (2) were counted dead" in text, text
+    assert "(its token went): robot 2 counted dead" in text, text
+    # Its follower's error until then, as for a killed agent (the figures after are of a robot nobody drives).
+    assert "follower R2: formation error RMS" in text
+    assert "until its agent was lost at t=" in text, text
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["hosts"]["b"]["lost"] is True
+    assert any(e["event"] == "host lost" and e["host"] == "b" and e["robots"] == [2] for e in summary["events"])
+    assert [d["robot"] for d in summary["deaths"]] == [2]  # the world saw robot 2's agent go
+    assert summary["failure"].startswith("host b lost at sim t=")
+    assert summary["failure"].endswith(": robot 2 counted dead")
+    assert summary["processes"]["agent-2"]["exit_code"] is None  # it stayed on host b
+    assert summary["processes"]["agent-2"]["lost_with_host"] == "b"
+    assert "agent-2 exited with code 255" not in text
+    # Its agents died with it (they are forked by its spawner, which dies with it).
+    deadline = time.monotonic() + 10
+    while any(Path(f"/proc/{p}").exists() and _alive(p) for p in b_agents) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not [p for p in b_agents if _alive(p)]
+    assert (out / "logs" / "agent-1.log").is_file()  # host a's agents were fetched
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.slow
+def test_process_faults_on_a_remote_agent_are_executed_by_its_host(two_hosts: Hosts, tmp_path: Path) -> None:
+    out = tmp_path / "faults"
+    # Every robot on b: a runs none, which the launcher warns of.
+    argv = [*two_hosts.run_argv(out, "a,b"), "--place", "1=b,2=b,3=b", "--fault", "restart agent-2@5s after=1s",
+            "--fault", "freeze agent-3@10s for=1s"]  # fmt: skip
+    run = subprocess.run(argv, capture_output=True, text=True, timeout=300, check=False)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "[swarm] warning: host a runs no robot (the placement gave them none)" in run.stdout
+    assert summary_placement(out) == {"agent-1": "b", "agent-2": "b", "agent-3": "b"}
+    summary = json.loads((out / "summary.json").read_text())
+    done = [(e["event"], e["process"]) for e in summary["events"] if e["event"] in ("killed", "started", "frozen",
+                                                                                     "thawed")]  # fmt: skip
+    assert done == [("killed", "agent-2"), ("started", "agent-2.2"), ("frozen", "agent-3"), ("thawed", "agent-3")]
+    assert summary["processes"]["agent-2.2"]["host"] == "b"  # restarted where it ran
+    assert "exit code 0" in (out / "logs" / "agent-2.2.log").read_text().splitlines()[-1]
+    assert json.loads((out / "stats" / "agent-2.2.json").read_text())["answered"] > 0
+    assert "run " in two_hosts.log("b")
+    assert "started agent-2.2" in two_hosts.log("b")
+
+
+@pytest.mark.slow
+def test_the_hosts_stop_a_run_s_agents_when_its_launcher_dies(two_hosts: Hosts, tmp_path: Path) -> None:
+    out = tmp_path / "orphan"
+    argv = [*two_hosts.run_argv(out, "a,b"), "--mode", "realtime"]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert proc.stdout is not None
+        deadline = time.monotonic() + 120
+        for line in proc.stdout:  # the run is going once the launcher says a tick
+            if "[swarm] tick " in line or time.monotonic() > deadline:
+                break
+        agents = _agents(two_hosts.procs["a"].pid) + _agents(two_hosts.procs["b"].pid)
+        assert len(agents) == 3, agents
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    deadline = time.monotonic() + 20
+    while [p for p in agents if _alive(p)] and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not [p for p in agents if _alive(p)]
+    for n in ("a", "b"):
+        while "its launcher's token went" not in two_hosts.log(n) and time.monotonic() < deadline + 10:
+            time.sleep(0.05)
+        assert "its launcher's token went" in two_hosts.log(n), two_hosts.log(n)
+        assert two_hosts.procs[n].poll() is None  # still serving
+    # The killed launcher could not remove the run's secrets; what outlasts the run
+    # (the hosts' logins in the router's password list) was gone once the router read it.
+    left = sorted(p.name for p in (out / "secrets").iterdir())
+    assert "passwords.txt" not in left, left
+    lasting = [line.split(":", 1)[1] for line in (two_hosts.tmp / "sec" / "hosts.txt").read_text().splitlines()]
+    assert len(lasting) == 2
+    assert not any(pw in p.read_text() for p in (out / "secrets").iterdir() for pw in lasting), left
+
+
+def test_doctor_hears_the_hosts_then_names_the_one_that_went(two_hosts: Hosts, tmp_path: Path) -> None:
+    argv = [*PY, "doctor", "--listen", two_hosts.endpoint, "--hosts", "a,b", "--scenario", "fig11_obstacles",
+            "--host-logins", str(tmp_path / "sec" / "hosts.txt"), "--timeout", "30"]  # fmt: skip
+    ok = subprocess.run(argv, capture_output=True, text=True, timeout=120, check=False)
+    assert ok.returncode == 0, ok.stdout + ok.stderr
+    lines = ok.stdout.splitlines()
+    for h in ("a", "b"):
+        line = next(x for x in lines if x.startswith(f"  host {h}: heard; round trip "))
+        assert f"version {__version__}" in line
+        assert abs(float(line.split("clock ")[1].split(" ms")[0])) < 1000  # one machine, one clock
+    assert "  placement: robot 1 -> a, robot 2 -> b, robot 3 -> a" in lines
+    assert lines[-1] == "verdict: OK: a run on hosts a, b would start"
+    two_hosts.procs["b"].terminate()
+    two_hosts.procs["b"].wait(timeout=10)
+    argv[argv.index("--timeout") + 1] = "3"
+    bad = subprocess.run(argv, capture_output=True, text=True, timeout=120, check=False)
+    assert bad.returncode == 1, bad.stdout + bad.stderr
+    assert bad.stdout.splitlines()[-1] == "verdict: FAIL: host b not heard"
+
+
+def test_a_run_whose_host_never_comes_stops_at_the_deadline_naming_it(two_hosts: Hosts, tmp_path: Path) -> None:
+    two_hosts.procs["b"].terminate()
+    two_hosts.procs["b"].wait(timeout=10)
+    out = tmp_path / "missing"
+    started = time.monotonic()
+    run = subprocess.run([*two_hosts.run_argv(out, "a,b"), "--hosts-timeout", "3"], capture_output=True, text=True,
+                         timeout=120, check=False)  # fmt: skip
+    assert run.returncode == 1, run.stdout + run.stderr
+    # b at least (a too if it had not reconnected yet: hosts retry their router with a back-off)
+    assert re.search(rf"\[swarm\] waiting up to 3 s for hosts? (a, )?b to connect to {re.escape(two_hosts.endpoint)}",
+                     run.stdout), run.stdout  # fmt: skip
+    assert "swarm run: host b did not connect to " in run.stderr
+    assert "within 3 s" in run.stderr
+    assert time.monotonic() - started < 60
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["exit_code"] == 1
+    assert any(e["event"] == "start failed" and "host b did not connect" in e["why"] for e in summary["events"])
+    # Said as what happened: no process failed, the run never started.
+    assert summary["end_reason"] == "start_failed"
+    assert summary["ended"].startswith("the run could not start: host b did not connect to "), summary["ended"]
+    assert summary["failure"] == summary["ended"]
+    assert "started agent" not in two_hosts.log("a")  # every host is waited for before any agent starts
+
+
+def test_a_host_refuses_another_version_bad_requests_and_robots_it_may_not_run(tmp_path: Path) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    log = open(tmp_path / "host.log", "wb")  # noqa: SIM115 - closed with the process
+    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "a", "--robots", "2,3",
+                             "--workdir", str(tmp_path / "work")], stdout=log, stderr=subprocess.STDOUT)  # fmt: skip
+    log.close()
+    router = zenoh.open(make_config("router", listen=[endpoint]))
+    try:
+
+        def ask(payload: bytes) -> HostReply:
+            deadline = time.monotonic() + 60
+            while time.monotonic() < deadline:
+                got = [r.ok for r in router.get(HostKeys("a").ctl, payload=payload, timeout=2.0) if r.ok is not None]
+                if got:
+                    return HostReply.from_bytes(got[0].payload.to_bytes())
+            raise AssertionError("host a never answered")
+
+        info = ask(HostRequest("info", __version__).to_bytes())
+        assert info.ok
+        said = (tmp_path / "host.log").read_text()
+        assert f"host a: connected to a router at {endpoint}; serving robots 2, 3" in said
+        assert info.robots == (2, 3)
+        assert info.cores == os.cpu_count()
+        other = ask(HostRequest("info", "0.0.1").to_bytes())
+        assert not other.ok
+        assert other.error == (f"host a runs formation_swarm {__version__}, the launcher 0.0.1: install the same "
+                               "version on every machine of a run")  # fmt: skip
+        bad = ask(msgpack.packb({"op": "start"}))
+        assert not bad.ok
+        assert bad.error.startswith("bad request: missing field")
+        start = HostRequest("start", __version__, run="r1", process="agent-1", scenario="x = 1", user="agent-1",
+                            password="p" * 24)  # fmt: skip
+        assert ask(start.to_bytes()).error == "host a may run robots 2, 3, not 1"
+        wrong_login = HostRequest("start", __version__, run="r1", process="agent-2", scenario="x = 1",
+                                  user="agent-3", password="p" * 24)  # fmt: skip
+        assert "must be agent-2" in ask(wrong_login.to_bytes()).error
+        assert "started" not in (tmp_path / "host.log").read_text()
+    finally:
+        router.close()
+        host.terminate()
+        assert host.wait(timeout=20) == 0
+
+
+def test_a_scenario_s_placement_is_checked_and_place_wins_over_it(tmp_path: Path) -> None:
+    from formation_swarm.launch.launcher import Launch
+    from formation_swarm.spec.scenario import ScenarioError, load
+
+    sc = load("fig11_obstacles", {"placement": {"1": "b", "3": "c"}})
+    assert sc.placement == ((1, "b"), (3, "c"))
+    with pytest.raises(ScenarioError, match="'9' is not a robot of this run"):
+        load("fig11_obstacles", {"placement": {"9": "b"}})
+    with pytest.raises(ScenarioError, match="placement.1: host name must be"):
+        load("fig11_obstacles", {"placement": {"1": "B C"}})
+    logins = trust.write_host_logins(tmp_path / "sec", ["b", "c"])[trust.HOST_LOGINS]
+    common = {"listen": "tcp/127.0.0.1:7447", "host_logins": logins, "out": tmp_path / "run"}
+    launch = Launch("fig11_obstacles", overrides={"placement": {"1": "b", "3": "c"}}, hosts=["b", "c"],
+                    placement={3: "b"}, **common)  # fmt: skip
+    assert launch.explicit == {1: "b", 3: "b"}
+    alone = Launch("fig11_obstacles", overrides={"placement": {"1": "b"}}, out=tmp_path / "alone")
+    assert alone.explicit == {}  # a run on this machine alone ignores it
+    with pytest.raises(ValueError, match="c is not one of --hosts b"):
+        Launch("fig11_obstacles", overrides={"placement": {"1": "c"}}, hosts=["b"], **common)
+
+
+def test_a_relative_auth_path_gives_the_agents_absolute_existing_files(tmp_path: Path) -> None:
+    """``swarm host --auth host-a.json`` run from the folder of that file: the CA
+    it names (relative to it) reaches the agents' logins as an absolute path."""
+    ca = tmp_path / "made-ca.pem"
+    ca.write_text("-----BEGIN CERTIFICATE-----\n-----END CERTIFICATE-----\n")  # only read on a tls/ link
+    sec = tmp_path / "sec"
+    trust.write_host_logins(sec, ["a"], tls_ca=ca)
+    settings = json.loads((sec / "host-a.json").read_text())
+    assert settings["transport/link/tls/root_ca_certificate"] == trust.CA  # relative to the file, as written
+    run = f"rel-{uuid.uuid4().hex[:8]}"
+    files = trust.write_run_secrets(tmp_path / "run", run, (1, 2), 1, world_is_router=False,
+                                    host_logins=trust.read_host_logins(sec / trust.HOST_LOGINS, ["a"]))  # fmt: skip
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    router = zenoh.open(make_config("router", listen=[endpoint], settings=trust.read_settings(files["router"])))
+    log = open(tmp_path / "host.log", "wb")  # noqa: SIM115 - closed with the process
+    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "a", "--auth", "host-a.json",
+                             "--workdir", str(tmp_path / "work")], cwd=sec, stdout=log,
+                            stderr=subprocess.STDOUT)  # fmt: skip
+    log.close()
+    launcher = zenoh.open(make_config("client", [endpoint], settings=trust.read_settings(files["launcher"])))
+    try:
+        agent = trust.read_settings(files["agent-2"])["transport/auth/usrpwd"]
+        start = HostRequest("start", __version__, run=run, process="agent-2", scenario="x = 1", user="agent-2",
+                            password=agent["password"])  # fmt: skip
+        reply = None
+        deadline = time.monotonic() + 60
+        while reply is None and time.monotonic() < deadline:
+            got = [r.ok for r in launcher.get(HostKeys("a").ctl, payload=start.to_bytes(), timeout=2.0) if r.ok]
+            reply = HostReply.from_bytes(got[0].payload.to_bytes()) if got else None
+        assert reply is not None, (tmp_path / "host.log").read_text()
+        assert reply.ok, reply.error
+        written = json.loads((tmp_path / "work" / run / "secrets" / "agent-2.json").read_text())
+        named = Path(written["transport/link/tls/root_ca_certificate"])
+        assert named.is_absolute()
+        assert named == sec / trust.CA
+        assert named.read_text() == ca.read_text()
+        assert written["transport/auth/usrpwd"]["user"] == "agent-2"
+    finally:
+        launcher.close()
+        host.terminate()
+        assert host.wait(timeout=20) == 0
+        router.close()
+    # Its fork server (whose path names the folder it ran in) leaves once the host has gone.
+    deadline = time.monotonic() + 10
+    while processes(lambda cmd: str(sec) in cmd) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not processes(lambda cmd: str(sec) in cmd)
+
+
+def test_a_host_waiting_for_its_router_says_so_and_stops_at_once_on_sigterm(tmp_path: Path) -> None:
+    endpoint = f"tcp/127.0.0.1:{free_port()}"  # nothing listens there
+    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "b", "--workdir", str(tmp_path / "work")],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
+    try:
+        assert host.stdout is not None
+        first = host.stdout.readline()  # said before it waits
+        assert first.startswith(f"host b: waiting for a router at {endpoint} (retrying)"), first
+        time.sleep(1.0)  # well into its retries: the case that hung
+        host.send_signal(signal.SIGTERM)
+        sent = time.monotonic()
+        code = host.wait(timeout=20)
+        took = time.monotonic() - sent
+    finally:
+        if host.poll() is None:
+            host.kill()
+            host.wait()
+    assert code in (0, 143)
+    assert took < 5.0, took
+    assert "stopped before a router answered" in host.stdout.read()
+
+
+def test_a_host_says_when_its_router_goes_and_comes_back(tmp_path: Path) -> None:
+    """Its log (a service's journal) said "connected" to the end: an operator read it as connected."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    lines: queue.SimpleQueue[str] = queue.SimpleQueue()
+    router = zenoh.open(make_config("router", listen=[endpoint]))
+    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "b", "--workdir", str(tmp_path / "work")],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
+    threading.Thread(target=lambda: [lines.put(line) for line in host.stdout], daemon=True).start()  # type: ignore[union-attr]
+
+    def said(fragment: str, timeout_s: float = 30.0) -> str:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            with contextlib.suppress(queue.Empty):
+                line = lines.get(timeout=0.1)
+                if fragment in line:
+                    return line
+        raise AssertionError(f"the host never said {fragment!r}")
+
+    try:
+        said("connected to a router at")
+        router.close()
+        assert said("lost its router at").strip() == (
+            f"host b: lost its router at {endpoint}; retrying (runs cannot reach this host meanwhile)")  # fmt: skip
+        router = zenoh.open(make_config("router", listen=[endpoint]))
+        assert said("connected again").strip() == f"host b: connected again to a router at {endpoint}"
+    finally:
+        host.terminate()
+        host.wait(timeout=20)
+        router.close()
+
+
+def test_a_lost_host_and_its_agents_are_told_in_sentences_and_name_the_failure() -> None:
+    from formation_swarm.launch.console import describe_event
+    from formation_swarm.runtime import summary as summary_mod
+    from formation_swarm.spec.scenario import load
+
+    lost = {"event": "host lost", "host": "c", "robots": [2], "sim_time_s": 5.300000000000001, "wall_s": 8.33}
+    assert describe_event(lost) == "host c lost at sim t=5.30 s: robot 2 counted dead"
+    assert describe_event({**lost, "robots": [2, 3]}) == "host c lost at sim t=5.30 s: robots 2, 3 counted dead"
+    agent = {"event": "exited", "process": "agent-2", "sim_time_s": 5.3, "host_lost": "c"}
+    assert describe_event(agent) == "agent-2 lost with host c at sim t=5.30 s"
+    events = [lost, agent]
+    summary = summary_mod.build(run_id="r1", sc=load("fig11_obstacles"), mode="lockstep", parts={}, exit_code=1,
+                                end_reason=summary_mod.ROLE_FAILED, ended_at_s=5.3, interrupted=False,
+                                timed_out=False, processes={}, events=events, recording=None)  # fmt: skip
+    assert summary["failure"] == "host c lost at sim t=5.30 s: robot 2 counted dead"
+    assert "255" not in summary["ended"]
+
+
+def test_secure_hosts_with_a_ca_suggests_tls_endpoints_and_says_to_copy_the_ca(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from formation_swarm.launch import secure
+
+    ca = tmp_path / "my-ca.pem"
+    ca.write_text("-----BEGIN CERTIFICATE-----\n-----END CERTIFICATE-----\n")
+    assert secure.main(["--hosts", "b,c", "--out", str(tmp_path / "tls"), "--tls-ca", str(ca)]) == 0
+    said = capsys.readouterr().out
+    assert f"swarm host --name b --connect tls/ROUTER:7447 --auth {tmp_path / 'tls' / 'host-b.json'}" in said
+    assert "--listen tls/0.0.0.0:7447" in said
+    assert "tcp/" not in said
+    assert f"copy {tmp_path / 'tls' / trust.CA} beside each host-NAME.json" in said
+    assert "unencrypted" not in said
+    assert secure.main(["--hosts", "b", "--out", str(tmp_path / "plain")]) == 0
+    plain = capsys.readouterr().out
+    assert "--connect tcp/ROUTER:7447" in plain
+    assert "tls/" not in plain
+    assert "links are plain TCP: each run sends the hosts its agents' passwords, and its data, unencrypted" in plain
+    # A host whose login names the CA refuses a plain endpoint off this machine before it connects.
+    argv = [*PY, "host", "--connect", "tcp/192.0.2.1:7447", "--name", "b", "--auth",
+            str(tmp_path / "tls" / "host-b.json"), "--workdir", str(tmp_path / "work")]  # fmt: skip
+    res = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert "names a CA, for TLS: connect with tls/ROUTER:PORT" in res.stderr
+    assert "waiting for a router" not in res.stdout
+
+
+def test_a_tls_listen_needs_the_tls_files_and_a_loopback_one_is_told_apart() -> None:
+    from formation_swarm.launch.launcher import Launch
+    from formation_swarm.protocol.session import loopback
+
+    with pytest.raises(ValueError, match=r"a TLS router needs --tls-ca, --tls-cert and --tls-key"):
+        Launch("fig11_obstacles", hosts=["a"], listen=f"tls/127.0.0.1:{free_port()}", progress=lambda _l: None)
+    assert loopback("tcp/127.0.0.1:7447")
+    assert loopback("tcp/[::1]:7447")
+    assert loopback("tcp/localhost:7447")
+    assert not loopback("tcp/192.168.1.10:7447")
+    assert not loopback("tcp/0.0.0.0:7447")
+
+
+def test_a_host_whose_login_is_another_host_s_says_so_at_start(tmp_path: Path) -> None:
+    trust.write_host_logins(tmp_path / "sec", ["c"])
+    argv = [*PY, "host", "--connect", f"tcp/127.0.0.1:{free_port()}", "--name", "cc", "--auth",
+            str(tmp_path / "sec" / "host-c.json"), "--workdir", str(tmp_path / "work")]  # fmt: skip
+    res = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert "this login is for host c, not for host cc (--name)" in res.stderr
+    assert "waiting for a router" not in res.stdout  # refused before it connects
+    empty = tmp_path / "empty.json"  # no login at all: it would connect as no one
+    empty.write_text("{}")
+    empty.chmod(0o600)
+    argv[argv.index("--auth") + 1] = str(empty)
+    res = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert f"--auth {empty}: holds no login (transport/auth/usrpwd): give host-cc.json" in res.stderr
+
+
+@pytest.mark.slow
+def test_a_run_over_tls_on_a_host_started_with_a_relative_auth_path(tmp_path: Path) -> None:
+    """The case a relative --auth broke: the host's agents found no CA and never reached the TLS router."""
+    if shutil.which("openssl") is None:
+        pytest.skip("needs openssl to make the test's TLS certificates")
+    tls = tmp_path / "tls"
+    tls.mkdir()
+    (tls / "ext.cnf").write_text("subjectAltName=IP:127.0.0.1\n")
+    ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"]
+    for argv in (  # the guide's commands (deploy/README.md, "Steps")
+        ["req", "-x509", *ec, "-keyout", "ca.key", "-out", "ca.pem", "-days", "1", "-subj", "/CN=swarm test CA"],
+        ["req", *ec, "-keyout", "router.key", "-out", "router.csr", "-subj", "/CN=router"],
+        ["x509", "-req", "-in", "router.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial",
+         "-out", "router.pem", "-days", "1", "-extfile", "ext.cnf"],
+    ):  # fmt: skip
+        subprocess.run(["openssl", *argv], cwd=tls, check=True, capture_output=True, timeout=30)
+    sec = tmp_path / "sec"
+    made = subprocess.run([*PY, "secure", "--hosts", "a", "--out", str(sec), "--tls-ca", str(tls / "ca.pem")],
+                          capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+    assert made.returncode == 0, made.stderr
+    endpoint = f"tls/127.0.0.1:{free_port()}"
+    log = open(tmp_path / "host-a.log", "wb")  # noqa: SIM115 - closed with the process
+    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "a", "--auth", "host-a.json",
+                             "--workdir", str(tmp_path / "work")], cwd=sec, stdout=log,
+                            stderr=subprocess.STDOUT)  # fmt: skip
+    log.close()
+    try:
+        out = tmp_path / "run"
+        argv = [*PY, "run", "fig11_obstacles", "--seed", "5", "--no-logger", "--out", str(out), "--hosts", "a",
+                "--listen", endpoint, "--host-logins", str(sec / "hosts.txt"), "--tls-ca", str(tls / "ca.pem"),
+                "--tls-cert", str(tls / "router.pem"), "--tls-key", str(tls / "router.key")]  # fmt: skip
+        run = subprocess.run(argv, capture_output=True, text=True, timeout=300, check=False)
+        assert run.returncode == 0, run.stdout + run.stderr + (tmp_path / "host-a.log").read_text()
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["placement"] == {"agent-1": "a", "agent-2": "a", "agent-3": "a"}
+        assert summary["failure"] is None
+        for name in ("agent-1", "agent-2", "agent-3"):
+            assert "exit code 0" in (out / "logs" / f"{name}.log").read_text().splitlines()[-1], name
+    finally:
+        host.terminate()
+        assert host.wait(timeout=20) == 0
+    deadline = time.monotonic() + 10  # its fork server (whose path names sec/) leaves after it
+    while processes(lambda cmd: str(sec) in cmd) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not processes(lambda cmd: str(sec) in cmd)
+
+
+def test_a_host_clears_the_logins_a_killed_one_left_and_keeps_its_workdir_to_itself(tmp_path: Path) -> None:
+    """A host killed mid-run leaves its run's logins in its workdir (a run
+    removes its own only when it ends): the next host there removes them.
+    Two hosts never share a workdir."""
+    sec = trust.write_host_logins(tmp_path / "sec", ["b", "c"])
+    work = tmp_path / "work"
+    (work / "old-run" / "secrets").mkdir(parents=True)
+    (work / "old-run" / "secrets" / "agent-2.json").write_text("{}")
+    port = free_port()
+    argv = [*PY, "host", "--connect", f"tcp/127.0.0.1:{port}", "--name", "b", "--auth", str(sec["host-b"]),
+            "--workdir", str(work)]  # fmt: skip
+    first = subprocess.Popen(argv, stdout=subprocess.PIPE, text=True)
+    try:
+        assert first.stdout is not None
+        said = first.stdout.readline()
+        assert said.startswith(f"host b: removed the logins of 1 run(s) a previous host process left in {work}")
+        assert not (work / "old-run" / "secrets").exists()
+        assert (work / "old-run").is_dir()  # its logs stay
+        second = subprocess.run([*PY, "host", "--connect", f"tcp/127.0.0.1:{port}", "--name", "c", "--auth",
+                                 str(sec["host-c"]), "--workdir", str(work)],
+                                capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+        assert second.returncode == 2, second.stderr
+        assert f"--workdir {work} is in use by another swarm host: give each its own" in second.stderr
+    finally:
+        first.terminate()
+        first.wait(timeout=30)

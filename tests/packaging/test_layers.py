@@ -1,0 +1,87 @@
+"""Imports point one way: the contracts of pyproject.toml hold on every module
+of formation_swarm (tools/lint_imports.py), a planted upward import breaks
+them, and the maths and the wire load no Zenoh when they run."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+from tests.helpers import ROOT
+
+sys.path.insert(0, str(ROOT / "tools"))
+import lint_imports  # noqa: E402
+
+CONTRACTS = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]["contracts"]
+LAYERS = [name.strip() for layer in CONTRACTS[0]["layers"] for name in layer.split("|")]
+
+
+def _lint(tree: Path) -> subprocess.CompletedProcess[str]:
+    lint = Path(sys.executable).with_name("lint-imports")
+    env = {**os.environ, "PYTHONPATH": str(tree), "PYTHONDONTWRITEBYTECODE": "1"}
+    argv = [str(lint), str(ROOT / "pyproject.toml"), "--no-cache"]
+    return subprocess.run(argv, cwd=tree, env=env, capture_output=True, text=True, timeout=120)
+
+
+def test_the_contracts_hold() -> None:
+    res = subprocess.run([sys.executable, str(ROOT / "tools" / "lint_imports.py")], capture_output=True, text=True)
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "Contracts: 2 kept, 0 broken." in res.stdout
+
+
+def test_every_module_is_in_a_layer(tmp_path: Path) -> None:
+    lint_imports.lay_out(tmp_path)
+    modules = [
+        ".".join(p.relative_to(tmp_path).with_suffix("").parts).removesuffix(".__init__")
+        for p in (tmp_path / "formation_swarm").rglob("*.py")
+    ]
+    assert len(modules) > 70
+
+    def layered(m: str) -> bool:
+        return any(m == layer or m.startswith(layer + ".") for layer in LAYERS)
+
+    assert [m for m in modules if m != "formation_swarm" and not layered(m)] == []
+
+
+def test_a_planted_upward_import_breaks_them(tmp_path: Path) -> None:
+    lint_imports.lay_out(tmp_path)
+    fuzzy = tmp_path / "formation_swarm" / "agents" / "fuzzy.py"
+    fuzzy.write_text(fuzzy.read_text() + "\nfrom formation_swarm.launch import launcher  # noqa: E402, F401\n")
+    res = _lint(tmp_path)
+    assert res.returncode == 1
+    assert "Layers: every arrow downward BROKEN" in res.stdout
+    assert "formation_swarm.agents.fuzzy -> formation_swarm.launch.launcher" in res.stdout
+
+
+def test_a_planted_zenoh_import_in_the_maths_breaks_them(tmp_path: Path) -> None:
+    lint_imports.lay_out(tmp_path)
+    ekf = tmp_path / "formation_swarm" / "agents" / "ekf.py"
+    ekf.write_text(ekf.read_text() + "\nimport zenoh  # noqa: E402, F401\n")
+    res = _lint(tmp_path)
+    assert res.returncode == 1
+    assert "formation_swarm.agents.ekf -> zenoh" in res.stdout
+
+
+def test_the_maths_and_the_wire_load_no_zenoh_when_they_run() -> None:
+    pure = [
+        "formation_swarm.agents.follower",
+        "formation_swarm.agents.pilot",
+        "formation_swarm.world.engine",
+        "formation_swarm.world.process_faults",
+        "formation_swarm.protocol.messages",
+        "formation_swarm.protocol.links",
+        "formation_swarm.spec.scenario",
+    ]
+    code = "import importlib, json, sys\n"
+    code += "".join(f"importlib.import_module({m!r})\n" for m in pure)
+    code += "print(json.dumps(sorted(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=60)
+    loaded = set(json.loads(out.stdout))
+    assert not {m for m in loaded if m.split(".")[0] in ("zenoh", "rerun")}
+    assert not {m for m in loaded if m.startswith(("formation_swarm.launch", "formation_swarm.nodes"))}
+    # and the package's own folders are not importable under their folder names
+    assert not loaded & {"agents", "world", "protocol", "swarm"}

@@ -1,0 +1,325 @@
+"""docs/protocol.md stays true: its tables are checked against the code.
+
+A change to the wire (a key, a field, its order, type or range, a limit, a
+rejection reason, a start-up or end-of-run constant, a scenario default an
+agent reads) without the same change to the document fails here. The type
+column of each message table is not only compared as text: each type is
+turned into values it accepts and values it rejects, with the reason the
+document gives, and the decoder must agree.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import math
+import re
+from dataclasses import dataclass, field
+from typing import Any
+
+import msgpack
+import pytest
+
+from formation_swarm.protocol import codec, keys, messages
+from formation_swarm.protocol.codec import DecodeError, Message
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.spec import keys as scenario_keys
+from tests.helpers import ROOT
+
+DOC = ROOT / "docs" / "protocol.md"
+TEXT = DOC.read_text()
+RUN, ID = "R.1", 7
+MESSAGE_TYPES = {cls.__name__: cls for cls in Message.__subclasses__()}
+
+
+def section(title: str) -> str:
+    """The text under the heading ``title`` (any level), up to the next heading
+    of the same or a higher level."""
+    m = re.search(rf"^(#+) {re.escape(title)}\s*$", TEXT, re.MULTILINE)
+    if m is None:
+        raise AssertionError(f"docs/protocol.md has no heading {title!r}")
+    level = len(m.group(1))
+    end = re.compile(rf"^#{{1,{level}}} ", re.MULTILINE).search(TEXT, m.end())
+    return TEXT[m.end() : end.start() if end else len(TEXT)]
+
+
+def table(text: str) -> list[list[str]]:
+    """The rows of the first Markdown table in ``text``, header and rule left out;
+    cells stripped of spaces and of one pair of backticks."""
+    lines = [ln.strip() for ln in text.splitlines()]
+    start = next(i for i, ln in enumerate(lines) if ln.startswith("|"))
+    rows = []
+    for ln in lines[start + 2 :]:
+        if not ln.startswith("|"):
+            break
+        cells = [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", ln)[1:-1]]
+        rows.append([c[1:-1] if c.startswith("`") and c.endswith("`") and c.count("`") == 2 else c for c in cells])
+    return rows
+
+
+def number(text: str) -> int | float:
+    text = text.strip()
+    if m := re.fullmatch(r"(\d+)\^(\d+)", text):
+        return int(m.group(1)) ** int(m.group(2))
+    return int(text) if re.fullmatch(r"-?\d+", text) else float(text)
+
+
+def placed(key: str) -> str:
+    return key.replace("<run>", RUN).replace("<id>", str(ID)).replace("<role>", "agent")
+
+
+# -- keys ------------------------------------------------------------------------------
+
+
+def test_every_key_in_the_table_is_built_by_the_keys_module_and_back() -> None:
+    k = Keys(RUN)
+    built = {
+        "obs": k.obs(ID),
+        "cmd": k.cmd(ID),
+        "codes": k.codes,
+        "telemetry": k.telemetry(ID),
+        "truth": k.truth,
+        "status": k.status,
+        "faults": k.faults,
+        "alive": (k.alive("world", 0), k.alive("agent", ID), k.alive("logger", 0), k.alive("launcher", 0)),
+        "world_wake": k.world_wake,
+    }
+    patterns = {
+        "inbox": k.inbox(ID),
+        "all_cmd": k.all_cmd,
+        "all_telemetry": k.all_telemetry,
+        "world_all": k.world_all,
+        "alive_any": k.alive_any,
+        "alive_all": k.alive_all("agent"),
+        "everything": k.everything,
+    }
+    # A new member of Keys must be added here, and so to the document.
+    helpers = {"robot", "parse_robot", "parse_alive", "run_id", "prefix"}
+    members = {n for n in dir(Keys) if not n.startswith("_")} | {"run_id", "prefix"}
+    assert members == set(built) | set(patterns) | helpers
+    flat = {v for x in built.values() for v in (x if isinstance(x, tuple) else (x,))}
+    assert {placed(row[0]) for row in table(section("Key expressions"))} == flat
+    assert {placed(row[0]) for row in table(section("Key expressions").split("Our processes subscribe")[1])} == set(
+        patterns.values()
+    )
+
+
+def test_run_and_robot_id_rules() -> None:
+    assert "1 to 64" in TEXT
+    assert "letters, digits, `_`, `.` and `-`" in TEXT
+    keys.check_run_id("a" * 64)
+    for bad in ("a" * 65, "_a", "a/b", ""):
+        with pytest.raises(ValueError, match="run id"):
+            keys.check_run_id(bad)
+    assert "1..10000" in section("Key expressions")
+    assert keys.MAX_ROBOT_ID == 10000
+
+
+# -- envelope, limits ------------------------------------------------------------------
+
+
+def test_envelope_and_limits() -> None:
+    rows = table(section("Envelope"))
+    assert [r[1] for r in rows] == ["tag", "version", *Message._names()]
+    assert [int(r[0]) for r in rows] == list(range(5))
+    limits = {r[0]: number(r[1]) for r in table(section("Limits"))}
+    ours = {
+        name: getattr(codec, name)
+        for name in (
+            "VERSION",
+            "MAX_PAYLOAD_BYTES",
+            "MAX_ITEMS",
+            "WORLD_ID",
+            "MAX_TICK",
+            "BATCH_TAG",
+            "MAX_BATCH_ITEMS",
+        )
+    }
+    ours["MAX_ROBOT_ID"] = keys.MAX_ROBOT_ID
+    assert limits == ours
+    assert f"{8 * codec.MAX_ITEMS}" in section("Limits")
+    assert f"[{codec.BATCH_TAG}, {codec.VERSION}, []]" in section("Batches")
+
+
+# -- message tables ------------------------------------------------------------------
+
+
+@dataclass
+class Spec:
+    """Values a documented type accepts, and values it rejects with the reason."""
+
+    good: list[Any]
+    bad: list[tuple[Any, str]] = field(default_factory=list)
+
+
+def split_top(text: str) -> list[str]:
+    """``a, [b, c], d`` -> ["a", "[b, c]", "d"]."""
+    out, depth, cur = [], 0, ""
+    for ch in text:
+        if ch == "," and depth == 0:
+            out.append(cur.strip())
+            cur = ""
+            continue
+        depth += {"[": 1, "]": -1}.get(ch, 0)
+        cur += ch
+    return [*out, cur.strip()] if cur.strip() else out
+
+
+def spec(t: str) -> Spec:
+    t = t.strip()
+    if t.endswith(" or nil"):
+        inner = spec(t[: -len(" or nil")])
+        return Spec([*inner.good, None], [(v, r) for v, r in inner.bad if v is not None])
+    if t == "float":
+        return Spec(
+            [1.5, -2, 0.0],
+            [
+                (math.nan, "not finite"),
+                (math.inf, "not finite"),
+                ("1", "wrong type"),
+                (True, "wrong type"),
+                (None, "wrong type"),
+            ],
+        )
+    if m := re.fullmatch(r"int (\S+)\.\.(\S+)", t):
+        lo, hi = number(m.group(1)), number(m.group(2))
+        return Spec(
+            [lo, hi],
+            [
+                (lo - 1, "out of range"),
+                (hi + 1, "out of range"),
+                (float(lo), "wrong type"),
+                (True, "wrong type"),
+                (None, "wrong type"),
+            ],
+        )
+    if t == "process":
+        return Spec(
+            ["logger", "agent-1", "agent-10000"],
+            [
+                ("agent-0", "out of range"),
+                ("agent-10001", "out of range"),
+                ("agent-01", "out of range"),
+                ("world", "out of range"),
+                (3, "wrong type"),
+                (None, "wrong type"),
+            ],
+        )
+    if t == "bool":
+        return Spec([True, False], [(1, "wrong type"), (0, "wrong type"), (None, "wrong type")])
+    if m := re.fullmatch(r"str (.*)", t):
+        values = re.findall(r'"([^"]*)"', m.group(1))
+        assert m.group(1) == " | ".join(f'"{v}"' for v in values), t
+        return Spec(values, [("other", "out of range"), (1, "out of range"), (None, "out of range")])
+    if m := re.fullmatch(r"array of \[(.*)\] \(max (\d+)\)", t):
+        items = [spec(x) for x in split_top(m.group(1))]
+        rec = [s.good[0] for s in items]
+        too_many = [rec] * (int(m.group(2)) + 1)
+        bad: list[tuple[Any, str]] = [(None, "wrong type"), (too_many, "too many items")]
+        bad += [([rec[:-1]], "wrong shape"), ([[*rec, rec[-1]]], "wrong shape")]
+        for i, s in enumerate(items):
+            bad += [([[*rec[:i], v, *rec[i + 1 :]]], reason) for v, reason in s.bad]
+        return Spec([[], [rec], [rec, [s.good[-1] for s in items]]], bad)
+    if m := re.fullmatch(r"\[(.*)\]", t):
+        items = [spec(x) for x in split_top(m.group(1))]
+        arr = [s.good[0] for s in items]
+        bad = [(arr[:-1], "wrong shape"), ([*arr, arr[-1]], "wrong shape"), (None, "wrong shape")]
+        for i, s in enumerate(items):
+            bad += [([*arr[:i], v, *arr[i + 1 :]], reason) for v, reason in s.bad if v is not None]
+        return Spec([arr, [s.good[-1] for s in items]], bad)
+    raise AssertionError(f"docs/protocol.md: unknown type {t!r}")
+
+
+def message_rows(name: str) -> tuple[int, list[list[str]]]:
+    m = re.search(rf"^### {name} \(tag (\d+)\)$", TEXT, re.MULTILINE)
+    assert m is not None, f"docs/protocol.md has no section '### {name} (tag N)'"
+    return int(m.group(1)), table(section(f"{name} (tag {m.group(1)})"))
+
+
+def test_every_message_type_has_a_section_and_no_other() -> None:
+    documented = set(re.findall(r"^### (\w+) \(tag \d+\)$", TEXT, re.MULTILINE))
+    assert (
+        documented
+        == set(MESSAGE_TYPES)
+        == {"Observation", "Command", "FormationCode", "Telemetry", "Truth", "Status", "FaultCall"}
+    )
+    assert all(getattr(messages, n) is cls for n, cls in MESSAGE_TYPES.items())
+
+
+@pytest.mark.parametrize("name", sorted(MESSAGE_TYPES))
+def test_field_names_order_tag_and_version(name: str) -> None:
+    cls = MESSAGE_TYPES[name]
+    tag, rows = message_rows(name)
+    assert tag == cls.TAG
+    assert [int(r[0]) for r in rows] == list(range(len(rows)))
+    assert [r[1] for r in rows] == ["tag", "version", *cls._names()]
+    assert number(rows[0][2]) == cls.TAG
+    assert number(rows[1][2]) == codec.VERSION
+
+
+@pytest.mark.parametrize("name", sorted(MESSAGE_TYPES))
+def test_the_decoder_accepts_and_rejects_what_the_types_say(name: str) -> None:
+    cls = MESSAGE_TYPES[name]
+    _, rows = message_rows(name)
+    specs = [spec(r[2]) for r in rows[2:]]
+    base = [cls.TAG, codec.VERSION, *[s.good[0] for s in specs]]
+
+    def decode(i: int, value: Any) -> Message:
+        raw = list(base)
+        raw[2 + i] = value
+        return cls.from_bytes(msgpack.packb(raw, use_bin_type=True))
+
+    cls.from_bytes(msgpack.packb(base, use_bin_type=True))
+    for i, (row, s) in enumerate(zip(rows[2:], specs, strict=True)):
+        for value in s.good:
+            decode(i, value)
+        for value, reason in s.bad:
+            with pytest.raises(DecodeError) as info:
+                decode(i, value)
+            assert info.value.reason == reason, (row[1], value)
+
+
+def test_enumerated_strings_are_the_code_s() -> None:
+    """A value added to an enumeration is not caught by trying values: compare them."""
+    types = [row[2] for name in MESSAGE_TYPES for row in message_rows(name)[1]]
+    documented = sorted(tuple(re.findall(r'"([^"]*)"', t)) for t in types if t.startswith("str "))
+    checked = re.findall(r"one_of\(([^)]*)\)", inspect.getsource(messages))
+    ours = sorted(tuple(re.findall(r'"([^"]*)"', args)) for args in checked)
+    assert documented == ours != []
+
+
+# -- rejection reasons -------------------------------------------------------------
+
+
+def test_the_rejection_reasons_are_the_code_s() -> None:
+    documented = {r[0] for r in table(section("What a receiver rejects"))}
+    src = inspect.getsource(codec)
+    ours = set(re.findall(r'DecodeError\("([^"]+)"', src)) | set(re.findall(r'by_reason\["([^"]+)"\]', src))
+    for mod in ("formation_swarm.nodes.agent", "formation_swarm.nodes.world", "formation_swarm.nodes.logger"):
+        ours |= set(re.findall(r'\.reject\("([^"]+)"\)', inspect.getsource(importlib.import_module(mod))))
+    ours |= set(
+        re.findall(r'return "([^"]+)"', inspect.getsource(importlib.import_module("formation_swarm.agents.inbox")))
+    )
+    assert documented == ours
+
+
+# -- timing constants and scenario values ------------------------------------------
+
+
+def test_timing_constants() -> None:
+    for name, value, _ in table(section("Timing constants")):
+        module, attr = name.rsplit(".", 1)
+        assert getattr(importlib.import_module(f"formation_swarm.{module}"), attr) == number(value.split()[0]), name
+
+
+def test_scenario_defaults() -> None:
+    for key, default, _ in table(section("Scenario values an agent reads")):
+        table_name, name = key.split(".")
+        spec = scenario_keys.SECTIONS[table_name][0][name]
+        ours = spec.default
+        if default == "required":
+            assert spec.required, key
+        elif default.startswith('"'):
+            assert ours == default.strip('"'), key
+        else:
+            assert ours == number(default), key

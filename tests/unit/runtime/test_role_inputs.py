@@ -1,0 +1,237 @@
+"""What the roles accept from the wire, one message at a time and without a
+network: the agent's inbox (formation codes: sender, formation, tick) and the
+lockstep world's answers (the tick they answer). Every rejection is counted
+by its reason; nothing rejected changes what the robot does."""
+
+from __future__ import annotations
+
+import itertools
+
+import pytest
+
+from formation_swarm.nodes.agent import Agent
+from formation_swarm.nodes.world import World
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.protocol.messages import Command, FormationCode, Observation
+from formation_swarm.runtime.proc import StopEvent
+from formation_swarm.spec import scenario as scenario_mod
+from tests.helpers import SCENARIOS
+
+FIG11 = scenario_mod.load(SCENARIOS / "fig11_obstacles.toml")  # 1 leads; triangle (code 0), line (code 1)
+RUN = "inputs-test"
+KEYS = Keys(RUN)
+
+
+class FakeRole:
+    """What the roles use of role.Role here: a stop event (and no signal handlers in the test process)."""
+
+    def __init__(self) -> None:
+        self.stop = StopEvent()
+
+
+class FakePub:
+    def __init__(self) -> None:
+        self.payloads: list[bytes] = []
+
+    def put(self, payload: bytes) -> None:
+        self.payloads.append(payload)
+
+
+def _follower(rid: int = 2) -> tuple[Agent, FakePub]:
+    agent = Agent(None, FIG11, rid, RUN, FIG11.seed, FakeRole())  # type: ignore[arg-type]  # no session needed
+    cmd = FakePub()
+    agent.cmd_pub, agent.tel_pub = cmd, FakePub()
+    return agent, cmd
+
+
+def _observe(agent: Agent, tick: int) -> Command:
+    obs = Observation(0, tick + 1, tick, tick * FIG11.dt_s, (0.0, 0.0, 1.57), ((1, 2.0, 0.0, 0.6),), ())
+    taken = agent._on_message(KEYS.obs(agent.rid), obs.to_bytes())
+    assert taken is not None
+    agent._on_observation(*taken)
+    return Command.from_bytes(agent.cmd_pub.payloads[-1])
+
+
+_SEQ = itertools.count(100)  # a leader's seq only grows (the agent refuses a replayed one)
+
+
+def _code(agent: Agent, sender: int, code: int, tick: int = 0) -> None:
+    agent._on_message(KEYS.codes, FormationCode(sender, next(_SEQ), tick, code).to_bytes())
+
+
+LINE = FIG11.code_of("line")
+
+
+def test_a_formation_code_from_the_leader_is_flown_from_the_next_tick() -> None:
+    agent, _ = _follower()
+    _code(agent, sender=1, code=LINE, tick=0)
+    assert _observe(agent, 0).formation == FIG11.code_of("triangle")  # the code answers tick 0: from tick 1 on
+    assert _observe(agent, 1).formation == LINE
+    assert agent.rejections.by_reason == {}
+
+
+@pytest.mark.parametrize("sender", [3, 2])  # the other follower; itself
+def test_a_formation_code_from_anyone_but_the_leader_is_rejected(sender: int) -> None:
+    agent, _ = _follower()
+    _code(agent, sender=sender, code=LINE)
+    assert [_observe(agent, k).formation for k in (0, 1, 2)] == [FIG11.code_of("triangle")] * 3
+    assert agent.rejections.by_reason == {"sender mismatch": 1}
+
+
+def test_an_unknown_formation_is_rejected_and_counted() -> None:
+    agent, _ = _follower()
+    _code(agent, sender=1, code=len(FIG11.formation_names))  # one past the last
+    _code(agent, sender=1, code=255)
+    assert [_observe(agent, k).formation for k in (0, 1)] == [FIG11.code_of("triangle")] * 2
+    assert agent.rejections.by_reason == {"unknown formation": 2}
+    assert agent.stats()["rejected"] == {"unknown formation": 2}
+
+
+def test_what_is_not_for_this_robot_is_rejected_by_reason() -> None:
+    agent, cmd = _follower()
+    agent._on_message(KEYS.obs(3), b"")  # another robot's key
+    agent._on_message("elsewhere/robot/2/obs", b"")
+    agent._on_message(KEYS.cmd(2), Command(2, 1, 0, 0.0, 0.0, 0, False).to_bytes())  # its own output
+    agent._on_message(KEYS.obs(2), Observation(0, 1, 0, 0.0, (0.0, 0.0, 0.0), (), ()).to_bytes()[:-1])  # cut short
+    agent._on_message(KEYS.codes, b"\xc1")
+    code = FormationCode(1, next(_SEQ), 0, 0).to_bytes()
+    agent._on_message(f"{KEYS.prefix}/robot/2/formation", code)  # codes come on the one shared key only
+    assert agent.rejections.by_reason == {"unknown key": 3, "unexpected key": 1, "not msgpack": 2}
+    assert cmd.payloads == []  # nothing answered
+
+
+def _world(mode: str = "lockstep") -> World:
+    return World(None, FIG11, RUN, FIG11.seed, mode, False, FakeRole())  # type: ignore[arg-type]
+
+
+def test_lockstep_world_takes_an_answer_only_for_the_tick_it_published() -> None:
+    world = _world()
+    eng = world.engine
+    for _ in range(5):
+        eng.step(eng.time_s)
+    assert eng.tick == 5
+    world._on_command(Command(2, 1, 4, 1.0, 1.0, 0, False))  # the answer to tick 4, late
+    world._on_command(Command(2, 2, 6, 1.0, 1.0, 0, False))  # to a tick not published yet: refused
+    assert not eng.robots[2].answered
+    assert eng.robots[2].command == (0.0, 0.0)
+    assert world.late_answers == 1
+    assert world.rejections.by_reason == {"tick ahead of the world": 1}
+    world._on_command(Command(2, 3, 5, 1.0, 1.2, 0, False))
+    assert eng.robots[2].answered
+    assert eng.robots[2].command == (1.0, 1.2)
+    assert world.late_answers == 1
+    assert world.stats(1.0)["late_answers"] == 1
+
+
+def test_a_command_with_a_huge_seq_costs_the_real_agent_that_tick_only() -> None:
+    """Commands are ordered by (tick, seq) and the tick cannot pass the world's:
+    a plausible forgery with seq 2**53 - 10**6 (a stolen login's) is taken for its
+    tick, then the real agent's next answer is newer. Ordered by seq alone, every
+    real command after it looked replayed, for the rest of the run."""
+    world = _world("realtime")
+    eng = world.engine
+    for _ in range(5):
+        eng.step(eng.time_s)
+    world._on_command(Command(2, 9, 5, 1.0, 1.0, 0, False))  # the real agent, tick 5
+    world._on_command(Command(2, 2**53 - 10**6, 5, 2.0, 2.0, 0, False))  # the forgery, same tick
+    assert eng.robots[2].command == (2.0, 2.0)
+    world._on_command(Command(2, 10, 5, 1.0, 1.0, 0, False))  # the real one's retry of tick 5: older
+    assert world.rejections.by_reason == {"replayed or reordered": 1}
+    eng.step(eng.time_s)
+    world._on_command(Command(2, 11, 6, 1.1, 1.1, 0, False))  # tick 6: taken
+    assert eng.robots[2].command == (1.1, 1.1)
+    world._on_command(Command(2, 11, 6, 1.1, 1.1, 0, False))  # its replay: refused
+    world._on_command(Command(2, 2**53 - 10**6, 9, 2.0, 2.0, 0, False))  # a tick to come: refused
+    assert world.rejections.by_reason == {"replayed or reordered": 2, "tick ahead of the world": 1}
+    assert eng.robots[2].command == (1.1, 1.1)
+
+
+def test_the_world_rejects_and_counts_a_command_for_an_unknown_formation() -> None:
+    world = _world()
+    eng = world.engine
+    n = len(FIG11.formation_names)
+    world._on_command(Command(2, 1, 0, 1.0, 1.0, n, False))  # one past the last code
+    world._on_command(Command(3, 1, 0, 1.0, 1.0, 255, False))
+    assert world.rejections.by_reason == {"unknown formation": 2}
+    assert [eng.robots[r].answered for r in (2, 3)] == [False, False]
+    assert eng.robots[2].command == eng.robots[3].command == (0.0, 0.0)
+    world._on_command(Command(2, 2, 0, 1.0, 1.0, n - 1, False))  # the last code: taken
+    assert eng.robots[2].command == (1.0, 1.0)
+    assert world.rejections.by_reason == {"unknown formation": 2}
+
+
+def test_realtime_world_takes_the_latest_command_whatever_its_tick() -> None:
+    world = _world("realtime")
+    for _ in range(5):
+        world.engine.step(world.engine.time_s)
+    world._on_command(Command(3, 1, 4, 0.5, 0.7, 0, False))
+    assert world.engine.robots[3].command == (0.5, 0.7)
+    assert world.late_answers == 0
+
+
+def test_only_the_leader_ends_the_run() -> None:
+    world = _world()
+    world._on_command(Command(2, 1, 0, 0.0, 0.0, 0, True))
+    assert not world.leader_done
+    world._on_command(Command(1, 2, 0, 0.0, 0.0, 0, True))
+    assert world.leader_done
+
+
+def test_the_logger_takes_telemetry_far_ahead_of_its_truth_but_nothing_past_the_runs_end() -> None:
+    from types import SimpleNamespace
+
+    from formation_swarm.nodes.logger import Logger
+    from formation_swarm.protocol.codec import WORLD_ID
+
+    log = Logger(None, FIG11, RUN, None, FakeRole())  # type: ignore[arg-type]  # _fresh needs neither
+    assert log._fresh(SimpleNamespace(sender=WORLD_ID, tick=10))
+    # A loaded machine: a follower's telemetry batch 500 ticks ahead of the world's truth batch.
+    assert log._fresh(SimpleNamespace(sender=2, tick=510))
+    last = FIG11.ticks  # 1120: 56 s at 20 Hz
+    assert log._fresh(SimpleNamespace(sender=3, tick=last + 2))  # a follower's last telemetry, after "done"
+    assert not log._fresh(SimpleNamespace(sender=2, tick=last + 3))
+    assert not log._fresh(SimpleNamespace(sender=2, tick=2**53))
+    assert not log._fresh(SimpleNamespace(sender=2, tick=510))
+    assert log._fresh(SimpleNamespace(sender=2, tick=511))  # a huge tick refused did not mute the robot
+    assert log.rejections.by_reason == {"tick past the run's end": 2, "replayed or reordered": 1}
+    # A tick far ahead but within the run (a stolen login's) mutes no tick but its own:
+    # the real telemetry before it still comes in, and fills the gap it opened.
+    assert log._fresh(SimpleNamespace(sender=2, tick=1119))
+    assert log._fresh(SimpleNamespace(sender=2, tick=512))
+    assert log._fresh(SimpleNamespace(sender=2, tick=513))
+    assert not log._fresh(SimpleNamespace(sender=2, tick=512))  # each tick once
+    assert log.tick_stats()["2"] == {"first": 510, "last": 1119, "missing": 1119 - 514, "gaps": [[514, 1118]]}
+    for tick in range(514, 1119):
+        assert log._fresh(SimpleNamespace(sender=2, tick=tick))
+    assert log.tick_stats()["2"] == {"first": 510, "last": 1119, "missing": 0, "gaps": []}
+    assert not log._fresh(SimpleNamespace(sender=2, tick=1119))  # the real one of that tick: the forgery's
+    assert log.rejections.by_reason == {"tick past the run's end": 2, "replayed or reordered": 3}
+    # Where ticks were missing, per sender: truth from tick 10, R2 from 510, R3 only its last.
+    for tick in (11, 12, 20, 21, 40):
+        assert log._fresh(SimpleNamespace(sender=WORLD_ID, tick=tick))
+    # A late one fills its gap; one before the first opens one.
+    assert log._fresh(SimpleNamespace(sender=WORLD_ID, tick=30))
+    assert log._fresh(SimpleNamespace(sender=WORLD_ID, tick=5))
+    assert log.tick_stats() == {
+        "0": {"first": 5, "last": 40, "missing": 4 + 7 + 17, "gaps": [[6, 9], [13, 19], [22, 29], [31, 39]]},
+        "2": {"first": 510, "last": 1119, "missing": 0, "gaps": []},
+        "3": {"first": last + 2, "last": last + 2, "missing": 0, "gaps": []},
+    }
+
+
+def test_a_role_says_each_scenario_warning_on_one_line_of_its_own(tmp_path, capsys) -> None:
+    import argparse
+
+    from formation_swarm.runtime import role as role_mod
+    from formation_swarm.spec import files as scenario_files
+
+    with pytest.warns(scenario_mod.ScenarioWarning):
+        slow = scenario_mod.load(SCENARIOS / "fig6_turn_vn_1_5.toml", {"leader.speed_mps": 0.9})
+    path = tmp_path / "slow.toml"
+    path.write_text(scenario_files.dumps(slow.raw))
+    role = role_mod.Role("agent 2", 5.0)
+    sc = role.load(argparse.Namespace(run=RUN, scenario=str(path)))
+    assert isinstance(sc, scenario_mod.Scenario)
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == len(slow.warnings) == 1
+    assert err[0] == f"agent 2: scenario warning: {slow.warnings[0]}"  # not Python's format, with its source line

@@ -1,0 +1,145 @@
+"""`swarm results --sensitivity`: the points of each axis, the runs they share
+with the claims' own, where a claim is said to hold, and the figure."""
+
+from __future__ import annotations
+
+import math
+import statistics
+from pathlib import Path
+
+import pytest
+from scipy import stats
+
+from formation_swarm.studies import claims, results, sensitivity
+from formation_swarm.studies.sensitivity import AXIS_NAMES, Point
+
+
+def _claims(holds: list[int], seeds: int = 10) -> list[claims.Claim]:
+    return [claims.Claim(f"claim {k}", "", h, seeds) for k, h in enumerate(holds)]
+
+
+def _points(axis: sensitivity.Axis, holds_a: list[int]) -> list[Point]:
+    return [Point(v, _claims([h, 10, 0, 5, 10])) for v, h in zip(axis.values, holds_a, strict=True)]
+
+
+def test_holds_for_names_the_values_where_a_claim_holds_in_every_seed_some_and_none() -> None:
+    speed = AXIS_NAMES["leader_speed"]  # 1.0, 1.25, 1.5, 1.75, 2.0 m/s
+    pts = _points(speed, [0, 3, 10, 10, 10])
+    assert sensitivity.holds_for(speed, pts, 0) == (
+        "holds for 1.5-2 m/s; holds in some seeds at 1.25 m/s (3 of 10); fails for 1 m/s"
+    )
+    assert sensitivity.holds_for(speed, pts, 1) == "holds for 1-2 m/s; fails for none of these values"
+    assert sensitivity.holds_for(speed, pts, 2) == "fails for 1-2 m/s"
+    gaps = _points(speed, [10, 0, 10, 0, 10])
+    assert sensitivity.holds_for(speed, gaps, 0) == "holds for 1, 1.5, 2 m/s; fails for 1.25, 1.75 m/s"
+
+
+def test_the_shipped_value_is_the_claims_own_runs() -> None:
+    speed = AXIS_NAMES["leader_speed"]
+    assert speed.point(1.5) == ({}, [])
+    assert speed.point(1.0) == ({"leader.speed_mps": 1.0}, [])
+    out = Path("/nonexistent")
+    shipped = sensitivity.plan(range(3), {}, [], out, 1, speed.extras)
+    own = results.claim_sweeps(range(3), {}, out, 1)
+    for name, sweep in own.items():  # the same run folders: the claims' runs are not run twice
+        assert [j.name for j in shipped[name].jobs] == [j.name for j in sweep.jobs]
+        assert shipped[name].out == sweep.out
+    slow = sensitivity.plan(range(3), {"leader.speed_mps": 1.0}, [], out, 1, speed.extras)
+    assert set(slow) == set(claims.SWEEPS) | {"static 1.7", "static 1.8", "l-psi"}
+    assert not {j.name for j in slow["dynamic"].jobs} & {j.name for j in own["dynamic"].jobs}
+    assert slow["l-psi"].jobs[0].overrides == {"controller.law": "lpsi", "leader.speed_mps": 1.0}
+
+
+def test_a_bias_is_a_fault_on_every_left_wheel_and_the_camera_noise_is_told_to_the_ekf() -> None:
+    bias = AXIS_NAMES["wheel_bias"]
+    assert bias.point(0.0) == ({}, [])
+    assert bias.point(3.0) == ({}, ["wheel_bias *@0s left=0.03"])
+    sweep = sensitivity.plan(range(1), *bias.point(3.0), Path("/nonexistent"), 1)["dynamic"]
+    assert sweep.faults == ["wheel_bias *@0s left=0.03"]
+    cam, faults = AXIS_NAMES["camera_noise"].point(0.1)  # Fig. 9's camera
+    assert faults == []
+    assert cam["camera.sigma_rho_m"] == cam["controller.ekf.sigma_rho_m"] == 0.1
+    assert cam["camera.sigma_phi_deg"] == 5.0
+    assert cam["controller.ekf.sigma_phi_rad"] == pytest.approx(0.0873, abs=1e-4)  # fig9_ekf_noise.toml's
+    assert cam["controller.ekf.sigma_beta_rad"] == pytest.approx(0.0436, abs=1e-4)
+
+
+@pytest.mark.parametrize("n", [2, 5, 30])
+def test_a_statistic_is_the_mean_with_students_t_half_width(n: int) -> None:
+    values = [math.cos(1.3 * i) + 0.2 * i for i in range(n)]
+    st = sensitivity.stat([*values, None, math.nan])  # what is not a number is left out
+    assert st.n == n
+    assert st.mean == pytest.approx(statistics.fmean(values), rel=1e-12)
+    want = stats.t.ppf(0.975, n - 1) * statistics.stdev(values) / math.sqrt(n)
+    assert st.half == pytest.approx(want, rel=1e-3)
+    assert math.isnan(sensitivity.stat([1.0]).half)
+
+
+def _row(seed: int, rms: float, ahead: float = 0.0, lag: float = 0.8) -> dict:
+    return {"seed": seed, "exit_code": 0, "lockstep_misses": 0, "r2_rms_m": rms, "r2_max_m": 2 * rms,
+            "r2_turn_rms_m": 1.2, "r2_straight_rms_m": 0.8, "r2_turn_mean_lag_m": lag, "r2_max_ahead_m": ahead,
+            "r2_ekf_rms_m": 0.1, "r2_measured_rms_m": 0.25, "r2_ekf_ratio": 0.4, "collisions": 0,
+            "obstacle_collisions": 0, "min_distance_m": 1.3, "r3_max_m": 4.0,
+            **{f"r{i}_formations": "line>triangle" for i in (1, 2, 3)}}  # fmt: skip
+
+
+def _rows(dynamic_rms: float) -> dict[str, list[dict]]:
+    return {
+        "dynamic": [_row(s, dynamic_rms + 0.02 * s) for s in range(3)],
+        "static 1.5": [_row(s, 1.1 + 0.01 * s) for s in range(3)],
+        "static 2": [_row(s, 1.2, ahead=0.5, lag=0.1) for s in range(3)],
+        "ekf": [_row(s, 0.7) for s in range(3)],
+        "obstacles": [_row(s, 0.5) for s in range(3)],
+        "l-psi": [_row(s, 0.09) for s in range(3)],
+    }
+
+
+def test_a_point_measures_the_claims_and_the_figures_metrics() -> None:
+    pt = sensitivity.measure(1.0, _rows(0.7))
+    assert [c.holds for c in pt.claims] == [3, 3, 3, 3, 3]
+    assert pt.stats["dynamic", "r2_rms_m"].mean == pytest.approx(0.72)
+    assert pt.stats["l-psi", "r2_rms_m"].mean == pytest.approx(0.09)
+    assert ("static 1.7", "r2_rms_m") not in pt.stats  # not flown at this point
+    assert sensitivity.measure(1.0, _rows(1.09)).claims[0].holds == 1  # dynamic 1.09, 1.11, 1.13 vs 1.10-1.12
+
+
+def test_the_section_and_the_figure_of_an_axis(tmp_path: Path) -> None:
+    axis = AXIS_NAMES["wheel_noise"]
+    pts = [sensitivity.measure(v, _rows(rms)) for v, rms in zip(axis.values, (0.7, 0.9, 1.09), strict=True)]
+    text = sensitivity.markdown(axis, pts, "figures/sensitivity-wheel_noise.png")
+    assert "- a. dynamic V_N has lower RMS and max error than static 1.5 and 2: holds for 0-0.05 m/s; " in text
+    assert "holds in some seeds at 0.1 m/s (1 of 3); fails for none of these values." in text
+    assert "| | 0 m/s (shipped) | 0.05 m/s | 0.1 m/s |" in text
+    assert "| claim a: seeds where it holds | 3/3 | 3/3 | 1/3 |" in text
+    assert "| formation error RMS, m: fuzzy, dynamic V_N | 0.72 ± 0.05 | 0.92 ± 0.05 | 1.11 ± 0.05 |" in text
+    assert "| claim d: runs in which a robot touches an obstacle | 0/3 | 0/3 | 0/3 |" in text
+    least = "| least distance between two robots' centres, m (claim d; touching below 0.4) |"
+    assert least + " 1.30 ± 0.00 | 1.30 ± 0.00 | 1.30 ± 0.00 |" in text
+    assert "![wheel noise](figures/sensitivity-wheel_noise.png)" in text
+    fig = sensitivity.figure(axis, pts)
+    panels = fig.axes
+    assert len(panels) == 6
+    assert [len(ax.lines) > 0 for ax in panels] == [True] * 6
+    assert [t.get_text() for t in panels[0].get_legend().get_texts()] == [
+        "fuzzy, dynamic V_N", "fuzzy, V_N = 1.5", "fuzzy, V_N = 2", "l-psi"]  # fmt: skip
+    path = sensitivity.write_figure(tmp_path / "s.png", axis, pts)
+    assert path.stat().st_size > 20_000
+
+
+def test_sensitivity_refuses_claims_set_and_a_missing_marker_before_running(tmp_path: Path, capsys) -> None:
+    doc = tmp_path / "r.md"
+    doc.write_text("<!-- sensitivity (wheel_noise): begin -->\n<!-- sensitivity (wheel_noise): end -->\n")
+    out = tmp_path / "sweeps"
+    assert results.main(["--sensitivity", "--claims", "--out", str(out)]) == 2
+    assert results.main(["--sensitivity", "--set", "robot.wheel_noise_mps=0.1", "--out", str(out)]) == 2
+    assert results.main(["--axis", "wheel_noise", "--out", str(out)]) == 2
+    assert results.main(["--sensitivity", "--axis", "wheel_bias", "--write", str(doc), "--out", str(out)]) == 2
+    figures = tmp_path / "figs"
+    (tmp_path / "taken").write_text("")
+    assert results.main(["--sensitivity", "--out", str(tmp_path / "taken"), "--figures", str(figures)]) == 2
+    assert not figures.exists()
+    err = capsys.readouterr().err
+    assert "takes neither --claims nor --set" in err
+    assert "--axis needs --sensitivity" in err
+    assert "has no <!-- sensitivity (wheel_bias): begin -->" in err
+    assert not out.exists()  # nothing made for a bad input
