@@ -258,12 +258,36 @@ class Follower:
         self._prev_choice = choice
         if self._hold(err.rho_m, err.drho_m):
             self._last_cmd = (0.0, 0.0)
-            return Decision(0.0, 0.0, 0.0, err.alpha_rad, err.rho_m, err.drho_m, measured, estimate, cov, choice,
-                            self.changing, holding=True)  # fmt: skip
+            return Decision(
+                0.0,
+                0.0,
+                0.0,
+                err.alpha_rad,
+                err.rho_m,
+                err.drho_m,
+                measured,
+                estimate,
+                cov,
+                choice,
+                self.changing,
+                holding=True,
+            )
         if p.wait_ahead and not self.changing and self._wait(err.rho_m):
             self._last_cmd = (0.0, 0.0)
-            return Decision(0.0, 0.0, 0.0, err.alpha_rad, err.rho_m, err.drho_m, measured, estimate, cov, choice,
-                            self.changing, waiting=True)  # fmt: skip
+            return Decision(
+                0.0,
+                0.0,
+                0.0,
+                err.alpha_rad,
+                err.rho_m,
+                err.drho_m,
+                measured,
+                estimate,
+                cov,
+                choice,
+                self.changing,
+                waiting=True,
+            )
         vn, wheels = fz.control(err.alpha_rad, err.rho_m, err.drho_m, p.dt_s * ticks, p.fuzzy, p.speed)
         self._last_cmd = (wheels.left_mps, wheels.right_mps)
         return Decision(
@@ -321,8 +345,9 @@ class Follower:
         self.waiting = rho_m < -fzp.d0_m if self.waiting else rho_m < -fzp.dn_m
         return self.waiting
 
-    def _lpsi(self, leader: Point, phi: float, measured: Point | None, estimate: Point,
-              cov: np.ndarray | None) -> Decision:  # fmt: skip
+    def _lpsi(
+        self, leader: Point, phi: float, measured: Point | None, estimate: Point, cov: np.ndarray | None
+    ) -> Decision:
         p = self.p
         v_ref, w_ref = (float(v) for v in self.ekf.state[3:5]) if p.use_ekf else (0.0, 0.0)
         err = errors(estimate, self._prev_rho, phi)
@@ -330,12 +355,25 @@ class Follower:
         self._prev_rho = err.rho_m
         if self._hold(err.rho_m, err.drho_m):
             self._last_cmd = (0.0, 0.0)
-            return Decision(0.0, 0.0, 0.0, err.alpha_rad, err.rho_m, err.drho_m, measured, estimate, cov,
-                            Choice.T0, False, holding=True)  # fmt: skip
+            return Decision(
+                0.0,
+                0.0,
+                0.0,
+                err.alpha_rad,
+                err.rho_m,
+                err.drho_m,
+                measured,
+                estimate,
+                cov,
+                Choice.T0,
+                False,
+                holding=True,
+            )
         left, right = lpsi_control(leader, phi, v_ref, w_ref, self.offset, p.width_m, p.lpsi)
         self._last_cmd = (left, right)
-        return Decision(left, right, math.nan, err.alpha_rad, err.rho_m, err.drho_m, measured, estimate, cov,
-                        Choice.T0, False)  # fmt: skip
+        return Decision(
+            left, right, math.nan, err.alpha_rad, err.rho_m, err.drho_m, measured, estimate, cov, Choice.T0, False
+        )
 
     def _stop(self, measured: Point | None) -> Decision:
         self._last_cmd = (0.0, 0.0)

@@ -316,8 +316,11 @@ def check_sight(form: Formation, cam: Camera) -> None:
     see it. The field of view is not checked when it is a full circle. The
     error names every follower that does not (SIGHT_LISTED per limit).
     """
-    bad = [(rid, why) for rid, sight in sights(form, cam.marker_offset_m).items()
-           if (why := _sight_error(cam, sight.rho_m, sight.beta_rad)) is not None]  # fmt: skip
+    bad = [
+        (rid, why)
+        for rid, sight in sights(form, cam.marker_offset_m).items()
+        if (why := _sight_error(cam, sight.rho_m, sight.beta_rad)) is not None
+    ]
     if len(bad) == 1:
         rid, (where, limit) = bad[0]
         raise ValueError(
@@ -329,10 +332,10 @@ def check_sight(form: Formation, cam: Camera) -> None:
         for rid, (where, limit) in bad:
             by_limit.setdefault(limit, []).append(f"robot {rid}'s reference robot {form.slots[rid].reference} {where}")
         parts = [
-            f"{limit}: {', '.join(refs[:SIGHT_LISTED])}" + (f" and {len(refs) - SIGHT_LISTED} more"
-                                                              if len(refs) > SIGHT_LISTED else "")
+            f"{limit}: {', '.join(refs[:SIGHT_LISTED])}"
+            + (f" and {len(refs) - SIGHT_LISTED} more" if len(refs) > SIGHT_LISTED else "")
             for limit, refs in by_limit.items()
-        ]  # fmt: skip
+        ]
         raise ValueError(
             f"formation {form.name!r}: {len(bad)} followers do not see their reference from their slot; "
             + "; ".join(parts)

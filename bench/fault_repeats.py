@@ -46,25 +46,38 @@ def main(argv: list[str] | None = None) -> int:
             summary = {}
             for n in range(args.runs):
                 t0 = time.monotonic()
-                with Launch(args.scenario, seed=args.seed, out=Path(tmp) / f"{k}-{n}", logger=False,
-                            faults=[fault], progress=lambda _line: None) as launch:  # fmt: skip
+                with Launch(
+                    args.scenario,
+                    seed=args.seed,
+                    out=Path(tmp) / f"{k}-{n}",
+                    logger=False,
+                    faults=[fault],
+                    progress=lambda _line: None,
+                ) as launch:
                     res = launch.wait(timeout_s=600)
                 walls.append(time.monotonic() - t0)
                 summary = res.summary
                 digests.append(summary.get("trajectory_digest"))
-                print(f"{fault}: run {n + 1}: exit {res.exit_code}, {summary.get('ticks')} ticks, "
-                      f"digest {str(digests[-1])[:16]}, {walls[-1]:.1f} s", flush=True)  # fmt: skip
+                print(
+                    f"{fault}: run {n + 1}: exit {res.exit_code}, {summary.get('ticks')} ticks, "
+                    f"digest {str(digests[-1])[:16]}, {walls[-1]:.1f} s",
+                    flush=True,
+                )
             same = len(set(digests)) == 1
             failed += not same
             (f,) = [x for x in summary.get("faults", []) if x.get("fault") == fault] or [{}]
-            print(f"  {'the same digest' if same else 'DIFFERENT digests'} in {args.runs} runs; "
-                  f"median wall {statistics.median(walls):.1f} s")  # fmt: skip
+            print(
+                f"  {'the same digest' if same else 'DIFFERENT digests'} in {args.runs} runs; "
+                f"median wall {statistics.median(walls):.1f} s"
+            )
             events = ", ".join(f"{e['event']} R{e.get('robot')} at tick {e['tick']}" for e in f.get("events", []))
             print(f"  world: {events or '-'}; counted: {f.get('counts') or '-'}")
             for rec in f.get("recoveries", []):
                 at, later = _m(rec.get("error_at_start_m")), _m(rec.get("error_after_window_m"))
-                print(f"  recovery of R{rec.get('robot')} from tick {rec.get('since_tick')}: error {at} at return, "
-                      f"below 0.5 m after {rec.get('first_below_after_s')} s, {later} 5 s later")  # fmt: skip
+                print(
+                    f"  recovery of R{rec.get('robot')} from tick {rec.get('since_tick')}: error {at} at return, "
+                    f"below 0.5 m after {rec.get('first_below_after_s')} s, {later} 5 s later"
+                )
             windows = summary.get("error_windows") or {}
             if f.get("end_tick") is not None and windows:
                 base = baseline(args, Path(tmp) / f"{k}-base")
@@ -74,10 +87,12 @@ def main(argv: list[str] | None = None) -> int:
                     plain = base[rid][end_s : end_s + 10]
                     below = next((i for i, m in enumerate(after) if m < 0.5), None)
                     back = next((i for i, (m, b) in enumerate(zip(after, plain, strict=False)) if m <= b + 0.1), None)
-                    print(f"  R{rid}: mean error in each second after the fault's end: "
-                          f"{', '.join(f'{m:.2f}' for m in after)} m (without the fault: "
-                          f"{', '.join(f'{m:.2f}' for m in plain)} m); first second below 0.5 m: {below}, "
-                          f"within 0.1 m of the run without the fault: {back}")  # fmt: skip
+                    print(
+                        f"  R{rid}: mean error in each second after the fault's end: "
+                        f"{', '.join(f'{m:.2f}' for m in after)} m (without the fault: "
+                        f"{', '.join(f'{m:.2f}' for m in plain)} m); first second below 0.5 m: {below}, "
+                        f"within 0.1 m of the run without the fault: {back}"
+                    )
     return 1 if failed else 0
 
 

@@ -89,8 +89,9 @@ def bare_world(endpoint: str, run: str, ticks: int, lowlatency: bool) -> None:
         tokens: set[str] = set()
         s.liveliness().declare_subscriber(k.alive_any, lambda smp: tokens.add(str(smp.key_expr)), history=True)
         deadline = time.monotonic() + 60
-        while not (all(p.matching_status.matching for p in pubs) and truth.matching_status.matching
-                   and len(tokens) >= 4):  # fmt: skip
+        while not (
+            all(p.matching_status.matching for p in pubs) and truth.matching_status.matching and len(tokens) >= 4
+        ):
             if time.monotonic() > deadline:
                 raise SystemExit("bare world: peers never matched")
             time.sleep(0.01)
@@ -135,8 +136,9 @@ def bare_agent(endpoint: str, run: str, rid: int, lowlatency: bool, control: boo
     with zenoh.open(make_config("client", [endpoint], lowlatency=lowlatency)) as s:
         # Received on this thread through a Zenoh FIFO channel, as an agent does;
         # "done" closes it, which ends the loop's recv.
-        inbox = s.declare_subscriber(k.inbox(rid), zenoh.handlers.FifoChannel(1024),
-                                     allowed_origin=zenoh.Locality.REMOTE)  # fmt: skip
+        inbox = s.declare_subscriber(
+            k.inbox(rid), zenoh.handlers.FifoChannel(1024), allowed_origin=zenoh.Locality.REMOTE
+        )
         channel = inbox.handler
         s.declare_subscriber(k.status, lambda _smp: inbox.undeclare())
         cmd = s.declare_publisher(k.cmd(rid))
@@ -260,10 +262,20 @@ def full_cpu_per_tick(summary: dict) -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--repeat", type=integer(1), default=3, metavar="N",
-                    help="rounds, each measuring every variant once; the medians are printed (default 3)")  # fmt: skip
-    ap.add_argument("--ticks", type=integer(MIN_TICKS), default=3000, metavar="N",
-                    help=f"ticks per measurement, at least {MIN_TICKS} (full: as sim time; default 3000)")  # fmt: skip
+    ap.add_argument(
+        "--repeat",
+        type=integer(1),
+        default=3,
+        metavar="N",
+        help="rounds, each measuring every variant once; the medians are printed (default 3)",
+    )
+    ap.add_argument(
+        "--ticks",
+        type=integer(MIN_TICKS),
+        default=3000,
+        metavar="N",
+        help=f"ticks per measurement, at least {MIN_TICKS} (full: as sim time; default 3000)",
+    )
     ap.add_argument("--role", nargs="+", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.role:
@@ -304,19 +316,25 @@ def main() -> None:
         )
     b, bl, fl = statistics.median(bare), statistics.median(bare_ll), statistics.median(floor)
     f, q, o = statistics.median(full), statistics.median(quiet), statistics.median(open_)
-    print(f"median: bare {b:.0f} ticks/s, bare low-latency {bl:.0f} ticks/s, full {f:.0f} ticks/s "
-          f"(full/bare {f / b:.2f}, full/bare low-latency {f / bl:.2f}), "
-          f"without the logger {q:.0f} ticks/s ({q / b:.2f} of bare), "
-          f"without authentication {o:.0f} ticks/s ({o / b:.2f} of bare)")  # fmt: skip
-    print(f"bare + controller (no design of this shape passes it here): {fl:.0f} ticks/s, "
-          f"{fl / b:.2f} of bare; full/(bare + controller) {f / fl:.2f}")  # fmt: skip
+    print(
+        f"median: bare {b:.0f} ticks/s, bare low-latency {bl:.0f} ticks/s, full {f:.0f} ticks/s "
+        f"(full/bare {f / b:.2f}, full/bare low-latency {f / bl:.2f}), "
+        f"without the logger {q:.0f} ticks/s ({q / b:.2f} of bare), "
+        f"without authentication {o:.0f} ticks/s ({o / b:.2f} of bare)"
+    )
+    print(
+        f"bare + controller (no design of this shape passes it here): {fl:.0f} ticks/s, "
+        f"{fl / b:.2f} of bare; full/(bare + controller) {f / fl:.2f}"
+    )
     bc, flc, fc = statistics.median(bare_cpu), statistics.median(floor_cpu), statistics.median(full_cpu)
     # Two cores give 2 s of CPU per wall second: a run needing fc per tick cannot
     # pass 2 / fc ticks/s, however its work overlaps.
-    print(f"CPU per tick, all processes: bare {1e6 * bc:.0f} us, bare + controller {1e6 * flc:.0f} us, "
-          f"full {1e6 * fc:.0f} us; the full run's ceiling "
-          f"on {os.cpu_count()} cores, all busy: {os.cpu_count() / fc:.0f} ticks/s "
-          f"({os.cpu_count() / fc / b:.2f} of bare)")  # fmt: skip
+    print(
+        f"CPU per tick, all processes: bare {1e6 * bc:.0f} us, bare + controller {1e6 * flc:.0f} us, "
+        f"full {1e6 * fc:.0f} us; the full run's ceiling "
+        f"on {os.cpu_count()} cores, all busy: {os.cpu_count() / fc:.0f} ticks/s "
+        f"({os.cpu_count() / fc / b:.2f} of bare)"
+    )
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

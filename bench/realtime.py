@@ -24,16 +24,24 @@ def main() -> None:
     args = ap.parse_args()
     overrides = {} if args.duration is None else {"run.duration_s": args.duration}
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
-    with tempfile.TemporaryDirectory() as tmp, Launch(
-        ROOT / "scenarios" / "fig11_obstacles.toml", mode="realtime", out=Path(tmp) / "run", overrides=overrides,
-        progress=lambda _l: None,
-    ) as launch:  # fmt: skip
+    with (
+        tempfile.TemporaryDirectory() as tmp,
+        Launch(
+            ROOT / "scenarios" / "fig11_obstacles.toml",
+            mode="realtime",
+            out=Path(tmp) / "run",
+            overrides=overrides,
+            progress=lambda _l: None,
+        ) as launch,
+    ):
         res = launch.wait(timeout_s=600)
     s = res.summary
     rate = 1.0 / launch.sc.dt_s
     late_ms = 1e3 * s["max_tick_lateness_s"]
-    print(f"real time at {rate:.0f} Hz: {s['ticks']} ticks, late ticks {s['late_ticks']}, "
-          f"max lateness {late_ms:.2f} ms, stale stops {s['stale_stops']}, exit {res.exit_code}")  # fmt: skip
+    print(
+        f"real time at {rate:.0f} Hz: {s['ticks']} ticks, late ticks {s['late_ticks']}, "
+        f"max lateness {late_ms:.2f} ms, stale stops {s['stale_stops']}, exit {res.exit_code}"
+    )
 
 
 if __name__ == "__main__":

@@ -88,8 +88,14 @@ def one(
     if straight:
         overrides["leader.waypoints"] = STRAIGHT
     t0 = time.monotonic()
-    with Launch(SCENARIO, mode=mode, out=tmp / f"{mode}-{n}-{time.time_ns()}", overrides=overrides,
-                logger=logger, progress=_warnings_once) as launch:  # fmt: skip
+    with Launch(
+        SCENARIO,
+        mode=mode,
+        out=tmp / f"{mode}-{n}-{time.time_ns()}",
+        overrides=overrides,
+        logger=logger,
+        progress=_warnings_once,
+    ) as launch:
         if not launch.wait_until(lambda: launch.sim_time() >= 0.0, timeout_s=900.0):
             raise SystemExit(f"{n} robots, {mode}: no first tick within 900 s ({launch.run_dir})")
         start_s = time.monotonic() - t0
@@ -135,15 +141,19 @@ def line(n: int, mode: str, r: dict[str, Any], cold: bool = False) -> str:
     head = f"{n:4d} robots {mode:8s} start {r['start_s']:6.2f} s{' (cold)' if cold else '       '}"
     if mode == "realtime":
         rt = "real-time" if r["scheduling"].startswith("real-time") else "NORMAL class"
-        timing = (f"late {r['late']:4d}/{r['ticks']:<5d} p99 {r['p99_ms']:7.1f} ms max {r['max_ms']:7.1f} ms "
-                  f"skipped {100 * r['skipped'] / max(1, r['observed']):4.1f}% "
-                  f"(leader {100 * r['leader_skipped'] / max(1, r['leader_observed']):.1f}%) "
-                  f"(world {rt})")  # fmt: skip
+        timing = (
+            f"late {r['late']:4d}/{r['ticks']:<5d} p99 {r['p99_ms']:7.1f} ms max {r['max_ms']:7.1f} ms "
+            f"skipped {100 * r['skipped'] / max(1, r['observed']):4.1f}% "
+            f"(leader {100 * r['leader_skipped'] / max(1, r['leader_observed']):.1f}%) "
+            f"(world {rt})"
+        )
     else:
         timing = f"{r['ticks_per_s']:7.1f} ticks/s ({r['ticks']} ticks, misses {r['misses']})"
-    cpu = (f"CPU/tick: agent {r['agent_us']:6.0f} us (max {r['agent_max_us']:6.0f}), world {r['world_us']:7.0f} us, "
-           f"logger {r['logger_us']:6.0f} us (send {r['logger_send_us']:.0f}, take {r['logger_drain_us']:.0f}; "
-           f"recorded {r['recorded']} ticks)")  # fmt: skip
+    cpu = (
+        f"CPU/tick: agent {r['agent_us']:6.0f} us (max {r['agent_max_us']:6.0f}), world {r['world_us']:7.0f} us, "
+        f"logger {r['logger_us']:6.0f} us (send {r['logger_send_us']:.0f}, take {r['logger_drain_us']:.0f}; "
+        f"recorded {r['recorded']} ticks)"
+    )
     bad = "" if r["exit"] == 0 else f"  EXIT {r['exit']}"
     closest = "" if r["closest_m"] is None else f" (closest {r['closest_m']:.2f} m)"
     return f"{head}  {timing}  collisions {r['collisions']}{closest}  {cpu}  PSS/agent {r['pss_mb']:5.1f} MB{bad}"
@@ -151,13 +161,25 @@ def line(n: int, mode: str, r: dict[str, Any], cold: bool = False) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--robots", type=integer(2, MAX_ROBOTS), nargs="+", default=[10, 50, 100], metavar="N",
-                    help="the swarm sizes, each run in every mode (default 10 50 100)")  # fmt: skip
-    ap.add_argument("--modes", nargs="+", choices=("realtime", "lockstep"), default=["realtime", "lockstep"],
-                    help="real time, lockstep or both (default both)")  # fmt: skip
+    ap.add_argument(
+        "--robots",
+        type=integer(2, MAX_ROBOTS),
+        nargs="+",
+        default=[10, 50, 100],
+        metavar="N",
+        help="the swarm sizes, each run in every mode (default 10 50 100)",
+    )
+    ap.add_argument(
+        "--modes",
+        nargs="+",
+        choices=("realtime", "lockstep"),
+        default=["realtime", "lockstep"],
+        help="real time, lockstep or both (default both)",
+    )
     ap.add_argument("--duration", type=seconds(), default=20.0, help="sim seconds of a real-time run (default 20)")
-    ap.add_argument("--lockstep-duration", type=seconds(), default=10.0,
-                    help="sim seconds of a lockstep run (default 10)")  # fmt: skip
+    ap.add_argument(
+        "--lockstep-duration", type=seconds(), default=10.0, help="sim seconds of a lockstep run (default 10)"
+    )
     ap.add_argument("--no-logger", action="store_true", help="without the logger")
     ap.add_argument("--straight", action="store_true", help="a straight path, for durations beyond fig11's 56 s")
     ap.add_argument(
@@ -168,15 +190,21 @@ def main() -> None:
         "1 keeps the heading swings from growing down the line: docs/paper.md)",
     )
     args = ap.parse_args()
-    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}; "
-          f"followers' look-ahead {args.lookahead_m:g} m", flush=True)  # fmt: skip
+    print(
+        f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}; "
+        f"followers' look-ahead {args.lookahead_m:g} m",
+        flush=True,
+    )
     with tempfile.TemporaryDirectory() as tmp:
         for n in args.robots:
             for mode in args.modes:
                 duration = args.duration if mode == "realtime" else args.lockstep_duration
                 r = one(n, mode, duration, not args.no_logger, args.straight, args.lookahead_m, Path(tmp))
-                print(line(n, mode, r, cold=(n, mode) == (args.robots[0], args.modes[0])),
-                      f"load {os.getloadavg()[0]:.2f}", flush=True)  # fmt: skip
+                print(
+                    line(n, mode, r, cold=(n, mode) == (args.robots[0], args.modes[0])),
+                    f"load {os.getloadavg()[0]:.2f}",
+                    flush=True,
+                )
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

@@ -44,9 +44,13 @@ def one(robots: int, fork: bool, tmp: Path) -> dict[str, float]:
     overrides = {"run.robots": robots, "run.duration_s": 1.0, "leader.formation": "line"}
     t0 = time.monotonic()
     with Launch(
-        ROOT / "scenarios" / "fig11_obstacles.toml", out=tmp / f"{'fork' if fork else 'exec'}-{robots}-{t0}",
-        overrides=overrides, logger=False, fork=fork, progress=lambda _l: None,
-    ) as launch:  # fmt: skip
+        ROOT / "scenarios" / "fig11_obstacles.toml",
+        out=tmp / f"{'fork' if fork else 'exec'}-{robots}-{t0}",
+        overrides=overrides,
+        logger=False,
+        fork=fork,
+        progress=lambda _l: None,
+    ) as launch:
         launch.start()
         if not launch.wait_until(lambda: launch.sim_time() >= 0.0, timeout_s=600.0):
             raise SystemExit("the run did not reach its first tick within 600 s")
@@ -79,10 +83,14 @@ def main() -> None:
             for fork in (False, True):
                 m = med[fork]
                 how = "forked" if fork else "exec  "
-                print(f"{n:4d} robots, {how}: first tick after {m['ready_s']:6.2f} s, run {m['run_s']:6.2f} s, "
-                      f"per agent PSS {m['pss_mb']:5.1f} MB, RSS {m['rss_mb']:5.1f} MB")  # fmt: skip
-            print(f"{n:4d} robots: forked/exec start-up time {med[True]['ready_s'] / med[False]['ready_s']:.2f}, "
-                  f"PSS {med[True]['pss_mb'] / med[False]['pss_mb']:.2f}")  # fmt: skip
+                print(
+                    f"{n:4d} robots, {how}: first tick after {m['ready_s']:6.2f} s, run {m['run_s']:6.2f} s, "
+                    f"per agent PSS {m['pss_mb']:5.1f} MB, RSS {m['rss_mb']:5.1f} MB"
+                )
+            print(
+                f"{n:4d} robots: forked/exec start-up time {med[True]['ready_s'] / med[False]['ready_s']:.2f}, "
+                f"PSS {med[True]['pss_mb'] / med[False]['pss_mb']:.2f}"
+            )
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

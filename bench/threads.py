@@ -57,9 +57,12 @@ def main() -> None:
     args = ap.parse_args()
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}", flush=True)
     overrides = {"run.robots": args.robots, "leader.formation": "line", "run.duration_s": args.window + 8.0}
-    with tempfile.TemporaryDirectory() as tmp, Launch(SCENARIO, mode="realtime", out=Path(tmp) / "run",
-                                                      overrides=overrides, logger=True,
-                                                      progress=lambda _l: None) as launch:  # fmt: skip
+    with (
+        tempfile.TemporaryDirectory() as tmp,
+        Launch(
+            SCENARIO, mode="realtime", out=Path(tmp) / "run", overrides=overrides, logger=True, progress=lambda _l: None
+        ) as launch,
+    ):
         if not launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=600.0):
             raise SystemExit(f"{args.robots} robots: the run did not reach 2 s of sim")
         pids = launch.pids()

@@ -33,8 +33,13 @@ class BatchPublisher:
     after the data, whereas a liveliness token's end may overtake it).
     """
 
-    def __init__(self, pub: Any, window_s: float = 0.02, max_bytes: int = MAX_PAYLOAD_BYTES // 2,
-                 clock: Callable[[], float] = time.monotonic) -> None:  # fmt: skip
+    def __init__(
+        self,
+        pub: Any,
+        window_s: float = 0.02,
+        max_bytes: int = MAX_PAYLOAD_BYTES // 2,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         if not window_s >= 0.0:
             raise ValueError(f"window_s must be >= 0, got {window_s!r}")
         if not 0 < max_bytes <= MAX_PAYLOAD_BYTES // 2:

@@ -167,10 +167,18 @@ class HostRequest(_Map):
     lockstep: bool = False
 
     CHECKS: ClassVar[dict[str, Any]] = {
-        "op": _text(16), "version": _text(64), "run": _text(64), "process": _text(40), "action": _text(16),
-        "scenario": _text(MAX_SCENARIO_BYTES), "user": _text(32), "password": _text(128),
-        "world_grace_s": _float(0.0, 3600.0), "sent_unix": _float(0.0, 1e11), "lockstep": _bool,
-    }  # fmt: skip
+        "op": _text(16),
+        "version": _text(64),
+        "run": _text(64),
+        "process": _text(40),
+        "action": _text(16),
+        "scenario": _text(MAX_SCENARIO_BYTES),
+        "user": _text(32),
+        "password": _text(128),
+        "world_grace_s": _float(0.0, 3600.0),
+        "sent_unix": _float(0.0, 1e11),
+        "lockstep": _bool,
+    }
 
     @classmethod
     def from_bytes(cls, payload: bytes) -> HostRequest:
@@ -210,12 +218,22 @@ class HostReply(_Map):
     stats: str = ""
 
     CHECKS: ClassVar[dict[str, Any]] = {
-        "ok": _bool, "version": _text(64), "host": _text(64), "error": _text(MAX_TEXT),
-        "time_unix": _float(0.0, 1e11), "hostname": _text(256), "cores": _int(0, 1 << 20),
-        "free_mem_mb": _int(0, 1 << 40), "robots": _robots, "running": _int(0, 1 << 20),
-        "pid": _int(0, 2**31, optional=True), "processes": _processes, "code": _int(-255, 255, optional=True),
-        "log": _text(MAX_LOG_BYTES), "stats": _text(MAX_STATS_BYTES),
-    }  # fmt: skip
+        "ok": _bool,
+        "version": _text(64),
+        "host": _text(64),
+        "error": _text(MAX_TEXT),
+        "time_unix": _float(0.0, 1e11),
+        "hostname": _text(256),
+        "cores": _int(0, 1 << 20),
+        "free_mem_mb": _int(0, 1 << 40),
+        "robots": _robots,
+        "running": _int(0, 1 << 20),
+        "pid": _int(0, 2**31, optional=True),
+        "processes": _processes,
+        "code": _int(-255, 255, optional=True),
+        "log": _text(MAX_LOG_BYTES),
+        "stats": _text(MAX_STATS_BYTES),
+    }
 
     @classmethod
     def from_bytes(cls, payload: bytes) -> HostReply:

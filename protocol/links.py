@@ -134,13 +134,26 @@ class _Rule:
         if kind in ("drop", "duplicate", "reorder"):
             return cls(index, kind, start, end, p=fault.param("p"))
         if kind == "burst":
-            return cls(index, kind, start, end, p_bad=fault.param("p_bad"), p_good=fault.param("p_good"),
-                       loss=fault.param("loss"))  # fmt: skip
+            return cls(
+                index,
+                kind,
+                start,
+                end,
+                p_bad=fault.param("p_bad"),
+                p_good=fault.param("p_good"),
+                loss=fault.param("loss"),
+            )
         if kind == "delay":
             unit = "ticks" if fault.has("ticks") else "ms"
             jitter_unit = "ms" if fault.has("jitter_ms") else "ticks"
-            return cls(index, kind, start, end, delay=whole_ticks(fault.param(unit), unit, dt_s),
-                       jitter=whole_ticks(fault.param(f"jitter_{jitter_unit}"), jitter_unit, dt_s))  # fmt: skip
+            return cls(
+                index,
+                kind,
+                start,
+                end,
+                delay=whole_ticks(fault.param(unit), unit, dt_s),
+                jitter=whole_ticks(fault.param(f"jitter_{jitter_unit}"), jitter_unit, dt_s),
+            )
         return cls(index, kind, start, end)  # partition
 
 
@@ -151,8 +164,14 @@ class Link(Generic[T]):
     ``dt_s`` turns their times into ticks and is required with faults.
     """
 
-    def __init__(self, name: str, drop_probability: float, seed: int,
-                 faults: Iterable[tuple[int, Fault]] = (), dt_s: float | None = None) -> None:  # fmt: skip
+    def __init__(
+        self,
+        name: str,
+        drop_probability: float,
+        seed: int,
+        faults: Iterable[tuple[int, Fault]] = (),
+        dt_s: float | None = None,
+    ) -> None:
         self.name = name
         self.seed = seed
         self.drop_probability = probability(f"drop probability of link {name}", drop_probability)

@@ -143,9 +143,23 @@ class Telemetry(Message):
     TAG: ClassVar[int] = 4
     SENDERS: ClassVar[tuple[int, int]] = (1, MAX_ROBOT_ID)
     CHECKS = (
-        number, robot_id, formation_code, numbers(2, True), numbers(2, True), numbers(3, True),
-        opt_number, opt_number, opt_number, number, number, int_in(0, 3), boolean, count, count, count,
-    )  # fmt: skip
+        number,
+        robot_id,
+        formation_code,
+        numbers(2, True),
+        numbers(2, True),
+        numbers(3, True),
+        opt_number,
+        opt_number,
+        opt_number,
+        number,
+        number,
+        int_in(0, 3),
+        boolean,
+        count,
+        count,
+        count,
+    )
 
 
 @dataclass(frozen=True, slots=True)

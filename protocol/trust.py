@@ -300,8 +300,10 @@ def read_host_logins(path: str | Path, names: Sequence[str]) -> dict[str, Creden
     if mode & 0o077:
         raise ValueError(f"{p} is readable by other users (mode {mode & 0o777:o}): chmod 600 {p}")
     if lines and lines[0].lstrip().startswith("{"):
-        raise ValueError(f"{p} is a JSON file (a process's login?), not the hosts' list of user:password lines: "
-                         f"give {HOST_LOGINS} of swarm secure --hosts")  # fmt: skip
+        raise ValueError(
+            f"{p} is a JSON file (a process's login?), not the hosts' list of user:password lines: "
+            f"give {HOST_LOGINS} of swarm secure --hosts"
+        )
     known: dict[str, Credential] = {}
     for n, line in enumerate(lines, 1):
         user, sep, password = line.strip().partition(":")

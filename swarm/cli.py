@@ -50,13 +50,19 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     setup = paper_turning_setup(seed=args.seed, duration_s=args.duration, follower=FollowerParams(speed=mode))
     limit = ROBOT_KEYS["max_wheel_mps"].default  # the robots of swarm run's scenarios, checked the same way
     if mode.static_vn is not None and mode.static_vn + setup.follower.fuzzy.a_mps > limit:
-        print(f"swarm sim: argument --vn: the fuzzy controller would command up to V_N + a = "
-              f"{mode.static_vn + setup.follower.fuzzy.a_mps:g} m/s, above the robots' {limit:g} m/s "
-              f"(robot.max_wheel_mps): at most {limit - setup.follower.fuzzy.a_mps:g}", file=sys.stderr)  # fmt: skip
+        print(
+            f"swarm sim: argument --vn: the fuzzy controller would command up to V_N + a = "
+            f"{mode.static_vn + setup.follower.fuzzy.a_mps:g} m/s, above the robots' {limit:g} m/s "
+            f"(robot.max_wheel_mps): at most {limit - setup.follower.fuzzy.a_mps:g}",
+            file=sys.stderr,
+        )
         return USAGE_ERROR
     if args.duration < setup.follower.dt_s:
-        print(f"swarm sim: argument --duration: must be at least one control step ({setup.follower.dt_s:g} s), "
-              f"got {args.duration:g}", file=sys.stderr)  # fmt: skip
+        print(
+            f"swarm sim: argument --duration: must be at least one control step ({setup.follower.dt_s:g} s), "
+            f"got {args.duration:g}",
+            file=sys.stderr,
+        )
         return USAGE_ERROR
     print(
         f"paper two-robot turning run, one process: V_N {args.vn}, seed {args.seed}, "
@@ -115,12 +121,25 @@ def _cmd_run(args: argparse.Namespace) -> int:
         overrides = parse_overrides(args.set)
         hosts = [h.strip() for h in (args.hosts or "").split(",") if h.strip()]
         launch = Launch(
-            args.scenario, mode=args.mode, seed=args.seed, out=args.out, overrides=overrides, logger=not args.no_logger,
-            live=args.live, serve_web=args.serve_web, kills=kills, faults=args.fault,
-            web_ports=(args.grpc_port or GRPC_PORT, args.web_port or WEB_PORT), hosts=hosts,
-            placement=parse_placement(args.place or ""), listen=args.listen, host_logins=args.host_logins,
-            hosts_timeout_s=args.hosts_timeout, tls=tls(args), rt_priority=args.rt_priority,
-        )  # fmt: skip
+            args.scenario,
+            mode=args.mode,
+            seed=args.seed,
+            out=args.out,
+            overrides=overrides,
+            logger=not args.no_logger,
+            live=args.live,
+            serve_web=args.serve_web,
+            kills=kills,
+            faults=args.fault,
+            web_ports=(args.grpc_port or GRPC_PORT, args.web_port or WEB_PORT),
+            hosts=hosts,
+            placement=parse_placement(args.place or ""),
+            listen=args.listen,
+            host_logins=args.host_logins,
+            hosts_timeout_s=args.hosts_timeout,
+            tls=tls(args),
+            rt_priority=args.rt_priority,
+        )
         if args.out is not None and not args.out.strip():
             raise ValueError("--out '': an empty name")
         if args.out is not None and (Path(args.out) / "summary.json").exists():
@@ -129,8 +148,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except (ScenarioError, ValueError) as exc:
         print(f"swarm run: {exc}", file=sys.stderr)
         return USAGE_ERROR
-    print(f"[swarm] run {launch.run_id}: {launch.sc.name}, {len(launch.sc.robots)} robots, {args.mode}, "
-          f"seed {launch.sc.seed}, folder {launch.run_dir}", flush=True)  # fmt: skip
+    print(
+        f"[swarm] run {launch.run_id}: {launch.sc.name}, {len(launch.sc.robots)} robots, {args.mode}, "
+        f"seed {launch.sc.seed}, folder {launch.run_dir}",
+        flush=True,
+    )
     interrupt_on_stop_signals()  # Ctrl-C and SIGTERM stop the run cleanly
     try:
         launch.start()
@@ -140,8 +162,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except zenoh.ZError as exc:  # the world never listened (start() has reaped every process): its log says why
         from formation_swarm.protocol.session import zenoh_reason
 
-        print(f"swarm run: cannot reach the world at {launch.endpoint}: {zenoh_reason(exc)}; see "
-              f"{launch.run_dir / 'logs'}", file=sys.stderr)  # fmt: skip
+        print(
+            f"swarm run: cannot reach the world at {launch.endpoint}: {zenoh_reason(exc)}; see "
+            f"{launch.run_dir / 'logs'}",
+            file=sys.stderr,
+        )
         return 1
     except (HostError, ValueError) as exc:  # a host missing, refusing or unable to run a robot: every process reaped
         print(f"swarm run: {exc}; nothing left running; folder {launch.run_dir}", file=sys.stderr)
@@ -213,64 +238,134 @@ def _add_run(sub: argparse._SubParsersAction[Parser]) -> None:
         epilog=RUN_EPILOG,
     )
     run.add_argument("scenario", help="a shipped scenario's name (see: swarm scenarios) or a scenario file (TOML)")
-    run.add_argument("--mode", choices=("lockstep", "realtime"), default="lockstep",
-                     help="lockstep: the world waits for every robot each tick, reproducible and as fast as the "
-                     "machine goes; realtime: the world steps on the wall clock, in Linux's real-time "
-                     "scheduling class where the machine allows it (root, CAP_SYS_NICE or an RLIMIT_RTPRIO of "
-                     "10: see swarm world --rt-priority; the result line says when it did not) "
-                     "(default: lockstep)")  # fmt: skip
-    run.add_argument("--rt-priority", type=integer(0, 99), default=None, metavar="0-99",
-                     help="realtime: the world's real-time priority, or 0 to keep it in the normal class "
-                     "(default: swarm world's, 10)")  # fmt: skip
-    run.add_argument("--seed", type=seed, default=None, metavar="N",
-                     help="seed of every random draw (camera noise, link drops, the faults' draws), "
-                     "an integer in [0, 2**63 - 1] (default: the scenario's run.seed)")  # fmt: skip
-    run.add_argument("--out", default=None, metavar="DIR",
-                     help="the run folder, created if needed (default: runs/<run id>)")  # fmt: skip
-    run.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                     help="override one scenario key, e.g. leader.speed_mps=1.6 or controller.vn=dynamic "
-                     "(repeatable)")  # fmt: skip
-    run.add_argument("--fault", action="append", default=[], metavar="'KIND TARGET@TIME ...'",
-                     help="schedule a fault, e.g. 'kill agent-3@20s', 'freeze agent-2@10s for=3s', "
-                     "'partition 2,3@12s for=15s', 'wheel_noise *@0s sigma_mps=0.1' (repeatable; added to the "
-                     "scenario's [[faults]]; every kind: docs/faults.md)")  # fmt: skip
-    run.add_argument("--kill", action="append", default=[], metavar="PROC@SECONDS",
-                     help="the same as --fault 'kill PROC@SECONDS': SIGKILL agent-N or the logger at that "
-                     "simulated time (repeatable)")  # fmt: skip
-    run.add_argument("--timeout", type=seconds(), default=None, metavar="SECONDS",
-                     help="stop the run after this much wall-clock time in s, with exit code 124 "
-                     "(default: no limit)")  # fmt: skip
-    run.add_argument("--no-logger", action="store_true",
-                     help="no logger process: no recording.rrd (so nothing for swarm report to draw), "
-                     "a little faster")  # fmt: skip
-    run.add_argument("--live", metavar="URL", type=rerun_url,
-                     help="also stream to a Rerun viewer already listening there, e.g. "
-                     "rerun+http://127.0.0.1:9876/proxy (start one with: rerun); if none answers, "
-                     "the run goes on without it")  # fmt: skip
-    run.add_argument("--serve-web", action="store_true",
-                     help="also serve the Rerun web viewer while the run lasts; prints the address that "
-                     "opens it on the run (best with --mode realtime)")  # fmt: skip
-    run.add_argument("--grpc-port", type=port, default=None, metavar="PORT",
-                     help=f"with --serve-web: the port the logger serves the data on "
-                     f"(default: {GRPC_PORT})")  # fmt: skip
-    run.add_argument("--web-port", type=port, default=None, metavar="PORT",
-                     help="with --serve-web: the port of the viewer's page, http://127.0.0.1:PORT "
-                     f"(default: {WEB_PORT})")  # fmt: skip
+    run.add_argument(
+        "--mode",
+        choices=("lockstep", "realtime"),
+        default="lockstep",
+        help="lockstep: the world waits for every robot each tick, reproducible and as fast as the "
+        "machine goes; realtime: the world steps on the wall clock, in Linux's real-time "
+        "scheduling class where the machine allows it (root, CAP_SYS_NICE or an RLIMIT_RTPRIO of "
+        "10: see swarm world --rt-priority; the result line says when it did not) "
+        "(default: lockstep)",
+    )
+    run.add_argument(
+        "--rt-priority",
+        type=integer(0, 99),
+        default=None,
+        metavar="0-99",
+        help="realtime: the world's real-time priority, or 0 to keep it in the normal class "
+        "(default: swarm world's, 10)",
+    )
+    run.add_argument(
+        "--seed",
+        type=seed,
+        default=None,
+        metavar="N",
+        help="seed of every random draw (camera noise, link drops, the faults' draws), "
+        "an integer in [0, 2**63 - 1] (default: the scenario's run.seed)",
+    )
+    run.add_argument(
+        "--out", default=None, metavar="DIR", help="the run folder, created if needed (default: runs/<run id>)"
+    )
+    run.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override one scenario key, e.g. leader.speed_mps=1.6 or controller.vn=dynamic (repeatable)",
+    )
+    run.add_argument(
+        "--fault",
+        action="append",
+        default=[],
+        metavar="'KIND TARGET@TIME ...'",
+        help="schedule a fault, e.g. 'kill agent-3@20s', 'freeze agent-2@10s for=3s', "
+        "'partition 2,3@12s for=15s', 'wheel_noise *@0s sigma_mps=0.1' (repeatable; added to the "
+        "scenario's [[faults]]; every kind: docs/faults.md)",
+    )
+    run.add_argument(
+        "--kill",
+        action="append",
+        default=[],
+        metavar="PROC@SECONDS",
+        help="the same as --fault 'kill PROC@SECONDS': SIGKILL agent-N or the logger at that "
+        "simulated time (repeatable)",
+    )
+    run.add_argument(
+        "--timeout",
+        type=seconds(),
+        default=None,
+        metavar="SECONDS",
+        help="stop the run after this much wall-clock time in s, with exit code 124 (default: no limit)",
+    )
+    run.add_argument(
+        "--no-logger",
+        action="store_true",
+        help="no logger process: no recording.rrd (so nothing for swarm report to draw), a little faster",
+    )
+    run.add_argument(
+        "--live",
+        metavar="URL",
+        type=rerun_url,
+        help="also stream to a Rerun viewer already listening there, e.g. "
+        "rerun+http://127.0.0.1:9876/proxy (start one with: rerun); if none answers, "
+        "the run goes on without it",
+    )
+    run.add_argument(
+        "--serve-web",
+        action="store_true",
+        help="also serve the Rerun web viewer while the run lasts; prints the address that "
+        "opens it on the run (best with --mode realtime)",
+    )
+    run.add_argument(
+        "--grpc-port",
+        type=port,
+        default=None,
+        metavar="PORT",
+        help=f"with --serve-web: the port the logger serves the data on (default: {GRPC_PORT})",
+    )
+    run.add_argument(
+        "--web-port",
+        type=port,
+        default=None,
+        metavar="PORT",
+        help=f"with --serve-web: the port of the viewer's page, http://127.0.0.1:PORT (default: {WEB_PORT})",
+    )
     group = run.add_argument_group("agents on other machines (deploy/README.md)")
-    group.add_argument("--hosts", default=None, metavar="NAME[,NAME...]",
-                       help="run the agents on these machines, each serving with swarm host --name NAME; the "
-                       "world and the logger stay here (default: everything here)")  # fmt: skip
-    group.add_argument("--place", default=None, metavar="ROBOT=HOST[,...]",
-                       help="with --hosts: put these robots on these hosts, e.g. 1=a,2=b; the others go "
-                       "round-robin over the hosts (default: all round-robin)")  # fmt: skip
-    group.add_argument("--listen", default=None, metavar="ENDPOINT",
-                       help="with --hosts: where the world listens for the hosts' agents, an address they reach, "
-                       "e.g. tcp/192.168.1.10:7447")  # fmt: skip
-    group.add_argument("--host-logins", default=None, metavar="FILE",
-                       help="with --hosts: the hosts' logins, hosts.txt of swarm secure --hosts; the run's router "
-                       "lets them in")  # fmt: skip
-    group.add_argument("--hosts-timeout", type=seconds(), default=30.0, metavar="SECONDS",
-                       help="with --hosts: how long to wait for every host to connect (default: 30)")  # fmt: skip
+    group.add_argument(
+        "--hosts",
+        default=None,
+        metavar="NAME[,NAME...]",
+        help="run the agents on these machines, each serving with swarm host --name NAME; the "
+        "world and the logger stay here (default: everything here)",
+    )
+    group.add_argument(
+        "--place",
+        default=None,
+        metavar="ROBOT=HOST[,...]",
+        help="with --hosts: put these robots on these hosts, e.g. 1=a,2=b; the others go "
+        "round-robin over the hosts (default: all round-robin)",
+    )
+    group.add_argument(
+        "--listen",
+        default=None,
+        metavar="ENDPOINT",
+        help="with --hosts: where the world listens for the hosts' agents, an address they reach, "
+        "e.g. tcp/192.168.1.10:7447",
+    )
+    group.add_argument(
+        "--host-logins",
+        default=None,
+        metavar="FILE",
+        help="with --hosts: the hosts' logins, hosts.txt of swarm secure --hosts; the run's router lets them in",
+    )
+    group.add_argument(
+        "--hosts-timeout",
+        type=seconds(),
+        default=30.0,
+        metavar="SECONDS",
+        help="with --hosts: how long to wait for every host to connect (default: 30)",
+    )
     add_tls_arguments(group)
     run.set_defaults(func=_cmd_run, parser=run)
 
@@ -283,26 +378,43 @@ def _add_sim(sub: argparse._SubParsersAction[Parser]) -> None:
         "its path (straight, right turn, left turn), the follower flies the controller on a simulated camera. "
         "Prints the follower's formation error.",
     )
-    sim.add_argument("--vn", type=_vn, default="dynamic",
-                     help="the follower's normal speed V_N: 'dynamic' (FIS-2, the paper's two-stage controller) "
-                     "or a static value in m/s, e.g. 1.5 (default: dynamic)")  # fmt: skip
-    sim.add_argument("--seed", type=seed, default=1, metavar="N",
-                     help="seed of the camera noise, an integer in [0, 2**63 - 1] (default: 1, the shipped "
-                     "scenarios' seed)")  # fmt: skip
-    sim.add_argument("--duration", type=seconds(SIM_MAX_S), default=60.0, metavar="SECONDS",
-                     help=f"simulated time in s, at most {SIM_MAX_S:g}; the run ends earlier with the leader's path, "
-                     "at about 45 s (default: 60)")  # fmt: skip
+    sim.add_argument(
+        "--vn",
+        type=_vn,
+        default="dynamic",
+        help="the follower's normal speed V_N: 'dynamic' (FIS-2, the paper's two-stage controller) "
+        "or a static value in m/s, e.g. 1.5 (default: dynamic)",
+    )
+    sim.add_argument(
+        "--seed",
+        type=seed,
+        default=1,
+        metavar="N",
+        help="seed of the camera noise, an integer in [0, 2**63 - 1] (default: 1, the shipped scenarios' seed)",
+    )
+    sim.add_argument(
+        "--duration",
+        type=seconds(SIM_MAX_S),
+        default=60.0,
+        metavar="SECONDS",
+        help=f"simulated time in s, at most {SIM_MAX_S:g}; the run ends earlier with the leader's path, "
+        "at about 45 s (default: 60)",
+    )
     sim.set_defaults(func=_cmd_sim, parser=sim)
 
 
 def build_parser() -> Parser:
     parser = Parser(prog="swarm", description=__doc__)
-    parser.add_argument("--version", action="version", version=f"formation-swarm {__version__}",
-                        help="print the version and exit")  # fmt: skip
+    parser.add_argument(
+        "--version", action="version", version=f"formation-swarm {__version__}", help="print the version and exit"
+    )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", title="commands")
-    scenarios = sub.add_parser("scenarios", help="list the shipped scenarios, each with its description",
-                               description="List the scenarios installed with the package, by the name that "
-                               "swarm run takes, each with the first comment line of its file.")  # fmt: skip
+    scenarios = sub.add_parser(
+        "scenarios",
+        help="list the shipped scenarios, each with its description",
+        description="List the scenarios installed with the package, by the name that "
+        "swarm run takes, each with the first comment line of its file.",
+    )
     scenarios.set_defaults(func=_cmd_scenarios, parser=scenarios)
     _add_run(sub)
     for name in ("report", "export", "compare", "sweep", "results"):

@@ -65,8 +65,15 @@ def cases(seeds: list[int]) -> list[tuple[str, str, int, dict[str, object], list
 
 
 def digest(scenario: str, seed: int, overrides: dict[str, object], faults: list[str], tmp: Path) -> str:
-    with Launch(scenario, seed=seed, overrides=overrides, faults=faults, logger=False, out=tmp / f"r{time.time_ns()}",
-                progress=lambda _line: None) as launch:  # fmt: skip
+    with Launch(
+        scenario,
+        seed=seed,
+        overrides=overrides,
+        faults=faults,
+        logger=False,
+        out=tmp / f"r{time.time_ns()}",
+        progress=lambda _line: None,
+    ) as launch:
         res = launch.wait(timeout_s=900.0)
     if res.exit_code != 0 or not res.summary.get("trajectory_digest"):
         return f"failed (exit {res.exit_code}, {res.run_dir})"

@@ -367,8 +367,11 @@ def mutate_module(
         if verdict != "passed":
             raise RuntimeError(f"{mod.path}: its tests fail without any mutant:\n{tail}")
         timeout_s = max(10.0, 5.0 * base_s)
-        print(f"[mutate] {mod.path}: {len(pending)} mutants, tests take {base_s:.2f} s, "
-              f"limit {timeout_s:.0f} s each", file=out, flush=True)  # fmt: skip
+        print(
+            f"[mutate] {mod.path}: {len(pending)} mutants, tests take {base_s:.2f} s, limit {timeout_s:.0f} s each",
+            file=out,
+            flush=True,
+        )
         t0 = time.monotonic()
         for i, item in enumerate(pending, 1):
             (spec,) = item.mutations
@@ -384,8 +387,10 @@ def mutate_module(
                     continue
                 verdict, _, tail = run_tests(mod.tests, timeout_s)
             outcome = TestOutcome.SURVIVED if verdict == "passed" else TestOutcome.KILLED
-            db.set_result(item.job_id, WorkResult(output=verdict + "\n" + tail, test_outcome=outcome,
-                                                  worker_outcome=WorkerOutcome.NORMAL))  # fmt: skip
+            db.set_result(
+                item.job_id,
+                WorkResult(output=verdict + "\n" + tail, test_outcome=outcome, worker_outcome=WorkerOutcome.NORMAL),
+            )
             if i % 50 == 0:
                 el = time.monotonic() - t0
                 print(f"[mutate] {mod.path}: {i}/{len(pending)} ({el:.0f} s)", file=out, flush=True)
@@ -452,11 +457,17 @@ def report(mods: tuple[Module, ...], list_survivors: bool, out: object = sys.std
         extra = f"  ({t.pending} not run)" if t.pending else ""
         print(f"{mod.path:24} {t.killed:7} {t.timeouts:9} {t.survived:8} {t.equivalent:6} {score:>7}{extra}", file=out)
     score = grand.killed / grand.total if grand.total else float("nan")
-    print(f"{'all':24} {grand.killed:7} {grand.timeouts:9} {grand.survived:8} {grand.equivalent:6} "
-          f"{100 * score:6.1f}%", file=out)  # fmt: skip
-    print(f"mutation score {grand.killed}/{grand.total} = {100 * score:.1f}% killed "
-          f"({grand.equivalent} equivalent mutants excluded, {grand.skipped} left out by rule"
-          + (f", {grand.pending} not run" if grand.pending else "") + ")", file=out)  # fmt: skip
+    print(
+        f"{'all':24} {grand.killed:7} {grand.timeouts:9} {grand.survived:8} {grand.equivalent:6} {100 * score:6.1f}%",
+        file=out,
+    )
+    print(
+        f"mutation score {grand.killed}/{grand.total} = {100 * score:.1f}% killed "
+        f"({grand.equivalent} equivalent mutants excluded, {grand.skipped} left out by rule"
+        + (f", {grand.pending} not run" if grand.pending else "")
+        + ")",
+        file=out,
+    )
     if list_survivors and all_survivors:
         print("\nsurvivors (add to tools/equivalent_mutants.txt with a reason only if no test can tell):", file=out)
         print("\n".join(all_survivors), file=out)

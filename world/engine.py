@@ -54,8 +54,17 @@ class RobotState:
 
 
 # FollowerMetrics.as_dict's metrics (None for a follower that never acquired its reference).
-METRICS = ("rms_m", "max_m", "turn_rms_m", "straight_rms_m", "turn_max_m", "turn_samples", "turn_mean_lag_m",
-           "max_lag_m", "max_ahead_m")  # fmt: skip
+METRICS = (
+    "rms_m",
+    "max_m",
+    "turn_rms_m",
+    "straight_rms_m",
+    "turn_max_m",
+    "turn_samples",
+    "turn_mean_lag_m",
+    "max_lag_m",
+    "max_ahead_m",
+)
 
 
 @dataclass
@@ -106,8 +115,12 @@ class FollowerMetrics:
         if self.frames and not self.seen_ticks:
             return {"acquired": False, **seen, "samples": self.samples, **dict.fromkeys(METRICS)}
         if not self.samples:  # no tick measured (a run that ended before its first): nothing to say, not 0 m
-            return {"acquired": bool(self.seen_ticks) if self.frames else None, **seen, "samples": 0,
-                    **dict.fromkeys(METRICS)}  # fmt: skip
+            return {
+                "acquired": bool(self.seen_ticks) if self.frames else None,
+                **seen,
+                "samples": 0,
+                **dict.fromkeys(METRICS),
+            }
         return {
             "acquired": bool(self.seen_ticks) if self.frames else None,
             **seen,
@@ -178,10 +191,17 @@ class WorldEngine:
         for rid in sc.robots:
             # The leader has no camera in this model: camera faults are the followers'.
             if rid != sc.leader.robot_id:
-                self.cameras[rid] = CameraFaults(sc.faults, seed=self.seed, robot_id=rid, dt_s=sc.dt_s,
-                                                 camera=sc.camera)  # fmt: skip
-            self.wheels[rid] = Wheels(sc.faults, seed=self.seed, robot_id=rid, dt_s=sc.dt_s,
-                                      noise_sigma_mps=sc.wheel_noise_mps, max_wheel_mps=sc.max_wheel_mps)  # fmt: skip
+                self.cameras[rid] = CameraFaults(
+                    sc.faults, seed=self.seed, robot_id=rid, dt_s=sc.dt_s, camera=sc.camera
+                )
+            self.wheels[rid] = Wheels(
+                sc.faults,
+                seed=self.seed,
+                robot_id=rid,
+                dt_s=sc.dt_s,
+                noise_sigma_mps=sc.wheel_noise_mps,
+                max_wheel_mps=sc.max_wheel_mps,
+            )
         self._digest = hashlib.sha256()
 
     @property

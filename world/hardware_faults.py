@@ -77,8 +77,7 @@ def _effects(faults: Sequence[Fault], draws: str, *, seed: int, robot_id: int, t
 class CameraFaults:
     """The sensor faults of one follower's camera."""
 
-    def __init__(self, faults: Sequence[Fault], *, seed: int, robot_id: int, dt_s: float,
-                 camera: CameraParams) -> None:  # fmt: skip
+    def __init__(self, faults: Sequence[Fault], *, seed: int, robot_id: int, dt_s: float, camera: CameraParams) -> None:
         self.robot_id = robot_id
         self.dt_s = dt_s
         self.camera = camera
@@ -104,8 +103,11 @@ class CameraFaults:
                 out = []
             elif f.kind == "range":
                 # On the true distance, as the camera decides what is in range.
-                kept = [m for m in out if true_reading(observer, poses[m.robot_id], self.camera.marker_offset_m)[0]
-                        <= f.param("m")]  # fmt: skip
+                kept = [
+                    m
+                    for m in out
+                    if true_reading(observer, poses[m.robot_id], self.camera.marker_offset_m)[0] <= f.param("m")
+                ]
                 e.effect += len(out) - len(kept)
                 out = kept
             elif f.kind == "outliers" and e.rng is not None:
@@ -123,10 +125,14 @@ class CameraFaults:
                 d_rho = f.param("rho_m")
                 d_phi, d_beta = math.radians(f.param("phi_deg")), math.radians(f.param("beta_deg"))
                 out = [
-                    MarkerReading(m.robot_id, max(0.0, m.rho_m + d_rho), wrap_angle(m.phi_rad + d_phi),
-                                  wrap_angle(m.beta_rad + d_beta))
+                    MarkerReading(
+                        m.robot_id,
+                        max(0.0, m.rho_m + d_rho),
+                        wrap_angle(m.phi_rad + d_phi),
+                        wrap_angle(m.beta_rad + d_beta),
+                    )
                     for m in out
-                ]  # fmt: skip
+                ]
                 e.effect += len(out)
         return out
 
@@ -135,8 +141,16 @@ class Wheels:
     """What one robot's wheels turn for what they are told: bias, slip, noise,
     stuck wheels, then the motors' limit."""
 
-    def __init__(self, faults: Sequence[Fault], *, seed: int, robot_id: int, dt_s: float, noise_sigma_mps: float,
-                 max_wheel_mps: float) -> None:  # fmt: skip
+    def __init__(
+        self,
+        faults: Sequence[Fault],
+        *,
+        seed: int,
+        robot_id: int,
+        dt_s: float,
+        noise_sigma_mps: float,
+        max_wheel_mps: float,
+    ) -> None:
         self.dt_s = dt_s
         self.max_wheel_mps = max_wheel_mps
         mine = [f for f in faults if f.group == ACTUATOR and f.applies_to(robot_id)]

@@ -69,8 +69,11 @@ def calls(faults: Iterable[Fault], dt_s: float) -> dict[int, list[Call]]:
         if f.group != PROCESS:
             continue
         start, end = f.start_tick(dt_s), f.end_tick(dt_s)
-        todo = {"kill": [(start, KILL)], "restart": [(start, KILL), (end, START)],
-                "freeze": [(start, FREEZE), (end, THAW)]}[f.kind]  # fmt: skip
+        todo = {
+            "kill": [(start, KILL)],
+            "restart": [(start, KILL), (end, START)],
+            "freeze": [(start, FREEZE), (end, THAW)],
+        }[f.kind]
         for tick, action in todo:
             if tick is not None:
                 out.setdefault(tick, []).append(Call(tick, index, f, action))
@@ -181,8 +184,9 @@ class ProcessFaults:
         self.frozen.discard(rid)
         self.thawing.discard(rid)
         self.rejoining.pop(rid, None)
-        self.deaths.append({"robot": rid, "tick": eng.tick, "time_s": eng.time_s, "pose": list(eng.robots[rid].pose),
-                            "cause": cause})  # fmt: skip
+        self.deaths.append(
+            {"robot": rid, "tick": eng.tick, "time_s": eng.time_s, "pose": list(eng.robots[rid].pose), "cause": cause}
+        )
         self._stopped[rid] = (eng.tick, wall_s, None if fault is None else str(fault), cause)
 
     def back(self, rid: int) -> bool:
@@ -202,8 +206,14 @@ class ProcessFaults:
         self.starting.pop(rid, None)
         since_tick, since_wall, fault, cause = self._stopped.pop(rid, (eng.tick, wall_s, None, "lost"))
         self.log("readmitted", rid, fault, wall_s)
-        self.rejoining[rid] = {"robot": rid, "fault": fault, "cause": cause, "since_tick": since_tick,
-                               "since_wall_s": since_wall, "readmitted_tick": eng.tick}  # fmt: skip
+        self.rejoining[rid] = {
+            "robot": rid,
+            "fault": fault,
+            "cause": cause,
+            "since_tick": since_tick,
+            "since_wall_s": since_wall,
+            "readmitted_tick": eng.tick,
+        }
         self._watch(rid, "readmitted", fault)
 
     def _watch(self, rid: int, event: str, fault: str | None) -> None:
@@ -235,8 +245,9 @@ class ProcessFaults:
         self.rejoins.append(back)
 
     def stats(self) -> dict[str, Any]:
-        pending = [dict(b, rejoined_tick=None, ticks_to_rejoin=None, wall_s_to_rejoin=None)
-                   for b in self.rejoining.values()]  # fmt: skip
+        pending = [
+            dict(b, rejoined_tick=None, ticks_to_rejoin=None, wall_s_to_rejoin=None) for b in self.rejoining.values()
+        ]
         for b in pending:
             b.pop("since_wall_s", None)
         return {

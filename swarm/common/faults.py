@@ -432,8 +432,9 @@ def _canonical_target(kind: str, target: str, where: str) -> str:
     return _robots_text(_robots(where, target))
 
 
-def check_against(faults: Sequence[Fault], robots: Sequence[int], leader_id: int, duration_s: float,
-                  dt_s: float) -> None:  # fmt: skip
+def check_against(
+    faults: Sequence[Fault], robots: Sequence[int], leader_id: int, duration_s: float, dt_s: float
+) -> None:
     """Faults that cannot apply to this run: unknown robots, a start past the end,
     a formation link to the leader, a camera fault on the leader (it has none),
     two process faults on one process at once."""
@@ -445,16 +446,23 @@ def check_against(faults: Sequence[Fault], robots: Sequence[int], leader_id: int
         where = f"fault '{f}'"
         if f.start_tick(dt_s) >= (ticks := int(round(duration_s / dt_s))):  # ticks 0 .. ticks - 1 are run
             last = (ticks - 1) * dt_s
-            raise ValueError(f"{where}: starts at {f.at_s:g} s, at or after the run's end ({duration_s:g} s; its "
-                             f"last tick is at {last:g} s)")  # fmt: skip
+            raise ValueError(
+                f"{where}: starts at {f.at_s:g} s, at or after the run's end ({duration_s:g} s; its "
+                f"last tick is at {last:g} s)"
+            )
         named = f.robots
         if named is not None and (unknown := sorted(set(named) - known)):
             raise ValueError(
                 f"{where}: no robot {', '.join(map(str, unknown))} in this run; robots are "
                 f"{', '.join(map(str, robots))}"
             )
-        if f.group == LINK and "formation" in f.link_classes and named is not None and leader_id in named \
-                and f.link_classes == ("formation",):  # fmt: skip
+        if (
+            f.group == LINK
+            and "formation" in f.link_classes
+            and named is not None
+            and leader_id in named
+            and f.link_classes == ("formation",)
+        ):
             raise ValueError(f"{where}: robot {leader_id} is the leader; formation links go to followers")
         if f.group == SENSOR and named is not None and leader_id in named:
             raise ValueError(
@@ -524,8 +532,13 @@ def of_robot(faults: Iterable[Fault], group: str, robot_id: int) -> tuple[Fault,
 def reference() -> str:
     """The table of every kind and parameter in docs/faults.md (``make docs``)."""
     out = ["| kind | group | target | duration | parameters | what it does |", "|---|---|---|---|---|---|"]
-    targets = {PROCESS: "`agent-N`, `logger`", LINK: "`CLASS[:ROBOTS]`", NETWORK: "ROBOTS",
-               SENSOR: "ROBOTS", ACTUATOR: "ROBOTS"}  # fmt: skip
+    targets = {
+        PROCESS: "`agent-N`, `logger`",
+        LINK: "`CLASS[:ROBOTS]`",
+        NETWORK: "ROBOTS",
+        SENSOR: "ROBOTS",
+        ACTUATOR: "ROBOTS",
+    }
     for name, k in KINDS.items():
         target = "`agent-N`" if name == "restart" else targets[k.group]
         duration = "required" if k.needs_for else ("none" if not k.allows_for else "optional (none: to the end)")

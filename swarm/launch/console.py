@@ -66,8 +66,11 @@ def describe_recoveries(f: Mapping[str, Any]) -> list[str]:
             continue
         said = f"{who} below {bound:g} m {after:.2f} s after{at}"
         settled = rec.get("settled_after_s")
-        said += (f", settled (below it for {HOLD_S:g} s) {settled:.2f} s after" if isinstance(settled, (int, float))
-                 else f", never settled (below it for {HOLD_S:g} s in a row) by the end")  # fmt: skip
+        said += (
+            f", settled (below it for {HOLD_S:g} s) {settled:.2f} s after"
+            if isinstance(settled, (int, float))
+            else f", never settled (below it for {HOLD_S:g} s in a row) by the end"
+        )
         if isinstance(peak := rec.get("max_in_window_m"), (int, float)):
             said += f"; largest error in the {rec.get('window_s', 5):g} s after: {peak:.2f} m"
         out.append(said)
@@ -76,11 +79,20 @@ def describe_recoveries(f: Mapping[str, Any]) -> list[str]:
 
 # A fault's counts in words: what a link did to its messages, and what a
 # camera or wheel fault did on each robot (summary.json keeps the raw keys).
-LINK_EFFECT_WORDS = {"dropped": "dropped", "partitioned": "lost to the partition", "delayed": "delayed",
-                     "duplicated": "duplicated", "reordered": "reordered"}  # fmt: skip
-ROBOT_EFFECT_WORDS = {"blacked_out": "readings blacked out", "cut": "readings cut by the range",
-                      "replaced": "readings replaced by outliers", "biased": "readings biased",
-                      "moving_ticks": "of them with the robot told to move"}  # fmt: skip
+LINK_EFFECT_WORDS = {
+    "dropped": "dropped",
+    "partitioned": "lost to the partition",
+    "delayed": "delayed",
+    "duplicated": "duplicated",
+    "reordered": "reordered",
+}
+ROBOT_EFFECT_WORDS = {
+    "blacked_out": "readings blacked out",
+    "cut": "readings cut by the range",
+    "replaced": "readings replaced by outliers",
+    "biased": "readings biased",
+    "moving_ticks": "of them with the robot told to move",
+}
 
 
 def describe_counts(counts: Mapping[str, Any]) -> str:
@@ -157,7 +169,8 @@ def losses(s: Mapping[str, Any]) -> str:
     cut = sum(t.get("partitioned", 0) for t in (s.get("link_totals") or {}).values() if isinstance(t, Mapping))
     dropped = s.get("drops_total")
     return f"messages dropped {dropped if isinstance(dropped, int) else '-'}" + (
-        f", lost to partitions {cut}" if cut else "")  # fmt: skip
+        f", lost to partitions {cut}" if cut else ""
+    )
 
 
 def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, tuple[Any, ...]]) -> str:
@@ -176,9 +189,11 @@ def _follower_line(rid: str, m: Mapping[str, Any], kills: Mapping[str, tuple[Any
     before = m.get("until_stopped")
     if not isinstance(before, Mapping):  # a summary from before until_stopped
         return f"  follower R{rid}: formation error {whole} ({killed}; these include the robot after that){sight}\n"
-    return (f"  follower R{rid}: formation error RMS {_num(before.get('rms_m'))} m, max "
-            f"{_num(before.get('max_m'))} m until {killed}; over the whole run, the robot after that "
-            f"included: {whole}{sight}\n")  # fmt: skip
+    return (
+        f"  follower R{rid}: formation error RMS {_num(before.get('rms_m'))} m, max "
+        f"{_num(before.get('max_m'))} m until {killed}; over the whole run, the robot after that "
+        f"included: {whole}{sight}\n"
+    )
 
 
 def _lost_sight(m: Mapping[str, Any]) -> bool:
@@ -201,14 +216,15 @@ def _many_followers(
         worst = max(measured, key=lambda kv: float(kv[1]["rms_m"]))[0]
         maxes = [(float(m["max_m"]), rid) for rid, m in measured if isinstance(m.get("max_m"), (int, float))]
         largest = f", largest error {_num(max(maxes)[0])} m (R{max(maxes)[1]})" if maxes else ""
-        w(f"  {len(followers)} followers: formation error RMS median {_num(statistics.median(rms))} m, "
-          f"best {_num(rms[0])} m, worst {_num(rms[-1])} m (R{worst}){largest}\n")  # fmt: skip
+        w(
+            f"  {len(followers)} followers: formation error RMS median {_num(statistics.median(rms))} m, "
+            f"best {_num(rms[0])} m, worst {_num(rms[-1])} m (R{worst}){largest}\n"
+        )
     else:
         w(f"  {len(followers)} followers: no formation error measured\n")
     by_rms = sorted(measured, key=lambda kv: -float(kv[1]["rms_m"]))[:WORST_LISTED]
     shown = {rid for rid, _ in by_rms}
-    flagged = [(rid, m) for rid, m in followers
-               if rid not in shown and (_lost_sight(m) or f"agent-{rid}" in kills)]  # fmt: skip
+    flagged = [(rid, m) for rid, m in followers if rid not in shown and (_lost_sight(m) or f"agent-{rid}" in kills)]
     also = f", then {len(flagged)} more that lost sight of their reference or were killed" if flagged else ""
     if by_rms or flagged:
         every = f'(all {len(followers)}: summary.json, "followers")'
@@ -280,8 +296,10 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
     s = res.summary
     w = out.write
     ticks = s.get("ticks")
-    w(f"run {s.get('run_id')}: exit {res.exit_code}, {ticks if ticks is not None else 'no'} ticks, "
-      f"sim {_num(s.get('sim_time_s'), '.2f')} s\n")  # fmt: skip
+    w(
+        f"run {s.get('run_id')}: exit {res.exit_code}, {ticks if ticks is not None else 'no'} ticks, "
+        f"sim {_num(s.get('sim_time_s'), '.2f')} s\n"
+    )
     w(f"  ended: {s.get('ended') or summary_mod.describe_end(s.get('end_reason'), s.get('ended_at_s'))}\n")
     if s.get("failure"):
         w(f"  failed: {s['failure']}\n")
@@ -305,8 +323,10 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
             listed = _many_followers(w, followers, kills)
         for rid, m in listed:
             w(_follower_line(rid, m, kills))
-        w(f"  min distance {_num(s.get('min_distance_m'))} m (diameter {_num(s.get('robot_diameter_m'), 'g')} m), "
-          f"collisions {s.get('collisions')}, obstacle collisions {s.get('obstacle_collisions')}\n")  # fmt: skip
+        w(
+            f"  min distance {_num(s.get('min_distance_m'))} m (diameter {_num(s.get('robot_diameter_m'), 'g')} m), "
+            f"collisions {s.get('collisions')}, obstacle collisions {s.get('obstacle_collisions')}\n"
+        )
         if contacts := contacts_line(s.get("contacts") or [], s.get("collisions"), s.get("obstacle_collisions")):
             w(f"  {contacts}\n")
         changes = _changes(s.get("formation_events") or [], grouped=len(followers) > LIST_FOLLOWERS_UP_TO)
@@ -316,8 +336,7 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
             sched = s.get("world_scheduling") or ""
             # A world the machine kept out of the real-time class: its ticks may start late under load.
             note = f" (world scheduling {sched})" if sched.startswith("normal (") else ""
-            w(f"  late ticks {s.get('late_ticks')} (worst {late_ms} ms){note}{_skipped(s.get('parts'))}, "
-              f"{losses(s)}, ")  # fmt: skip
+            w(f"  late ticks {s.get('late_ticks')} (worst {late_ms} ms){note}{_skipped(s.get('parts'))}, {losses(s)}, ")
         else:
             w(f"  lockstep misses {s.get('lockstep_misses')}, {losses(s)}, ")
         w(f"rejected {s.get('rejected_total')}{rejected_why(s)}\n")

@@ -54,15 +54,27 @@ exit codes: 0 a run would start; 1 it would not (the verdict says why); 2 bad fl
 
 def build_parser() -> cliargs.Parser:
     ap = cliargs.Parser(prog="swarm doctor", description=DESCRIPTION, epilog=EPILOG)
-    ap.add_argument("--hosts", required=True, metavar="NAME[,NAME...]",
-                    help="the hosts to check, by their swarm host --name")  # fmt: skip
-    ap.add_argument("--host-logins", metavar="FILE",
-                    help="with --listen: the hosts' logins (hosts.txt of swarm secure --hosts), let in as a run's "
-                    "router would (default: no logins, for hosts started without --auth)")  # fmt: skip
-    ap.add_argument("--scenario", metavar="SCENARIO",
-                    help="also check that the hosts may run every robot of this scenario (name or file)")  # fmt: skip
-    ap.add_argument("--timeout", type=cliargs.seconds(600), default=15.0, metavar="SECONDS",
-                    help="how long to wait for the hosts to appear, in s (default: 15)")  # fmt: skip
+    ap.add_argument(
+        "--hosts", required=True, metavar="NAME[,NAME...]", help="the hosts to check, by their swarm host --name"
+    )
+    ap.add_argument(
+        "--host-logins",
+        metavar="FILE",
+        help="with --listen: the hosts' logins (hosts.txt of swarm secure --hosts), let in as a run's "
+        "router would (default: no logins, for hosts started without --auth)",
+    )
+    ap.add_argument(
+        "--scenario",
+        metavar="SCENARIO",
+        help="also check that the hosts may run every robot of this scenario (name or file)",
+    )
+    ap.add_argument(
+        "--timeout",
+        type=cliargs.seconds(600),
+        default=15.0,
+        metavar="SECONDS",
+        help="how long to wait for the hosts to appear, in s (default: 15)",
+    )
     session.add_arguments(ap)
     cliargs.add_tls_arguments(ap.add_argument_group("TLS on --listen tls/... (the files swarm run --hosts takes)"))
     return ap
@@ -93,15 +105,23 @@ def main(argv: list[str] | None = None) -> int:
         if args.listen:
             settings = None
             if logins is not None:  # the rules of a run: the hosts' logins let in, each on its own key
-                files = trust.write_run_secrets(Path(tmp) / "s", f"doctor-{uuid.uuid4().hex[:8]}", robots, robots[0],
-                                                world_is_router=False, tls=tls, host_logins=logins)  # fmt: skip
+                files = trust.write_run_secrets(
+                    Path(tmp) / "s",
+                    f"doctor-{uuid.uuid4().hex[:8]}",
+                    robots,
+                    robots[0],
+                    world_is_router=False,
+                    tls=tls,
+                    host_logins=logins,
+                )
                 settings = trust.read_settings(files["router"])
             conf = session.make_config("router", listen=args.listen, config_file=args.config, settings=settings)
             where = f"listening on {', '.join(args.listen)}"
         else:
             settings = trust.read_settings(args.auth) if args.auth else None
-            conf = session.make_config("client", args.connect, config_file=args.config, connect_timeout_s=args.timeout,
-                                       settings=settings)  # fmt: skip
+            conf = session.make_config(
+                "client", args.connect, config_file=args.config, connect_timeout_s=args.timeout, settings=settings
+            )
             where = f"connected to {', '.join(args.connect)}"
         try:
             sess = zenoh.open(conf)
@@ -113,18 +133,23 @@ def main(argv: list[str] | None = None) -> int:
             return _check(sess, hosts, robots if args.scenario else None, args.timeout, where)
 
 
-def _check(sess: zenoh.Session, hosts: list[str], robots: tuple[int, ...] | None, timeout_s: float,
-           where: str) -> int:  # fmt: skip
-    print(f"swarm doctor: {where}; formation_swarm {__version__}; waiting up to {timeout_s:g} s for hosts "
-          f"{', '.join(hosts)}", flush=True)  # fmt: skip
+def _check(sess: zenoh.Session, hosts: list[str], robots: tuple[int, ...] | None, timeout_s: float, where: str) -> int:
+    print(
+        f"swarm doctor: {where}; formation_swarm {__version__}; waiting up to {timeout_s:g} s for hosts "
+        f"{', '.join(hosts)}",
+        flush=True,
+    )
     clients = {h: remote.HostClient(sess, h) for h in hosts}
     deadline = time.monotonic() + timeout_s
     problems: list[str] = []
     infos: dict[str, HostReply] = {}
     for h, c in clients.items():
         if not c.present.wait(max(0.0, deadline - time.monotonic())):
-            print(f"  host {h}: NOT HEARD: its token did not reach the router (check its --connect, the network "
-                  "and its login)", flush=True)  # fmt: skip
+            print(
+                f"  host {h}: NOT HEARD: its token did not reach the router (check its --connect, the network "
+                "and its login)",
+                flush=True,
+            )
             problems.append(f"host {h} not heard")
             continue
         best, reply, offset = float("inf"), None, 0.0
@@ -150,10 +175,13 @@ def _check(sess: zenoh.Session, hosts: list[str], robots: tuple[int, ...] | None
             problems.append(f"host {h} runs formation_swarm {reply.version}, here {__version__}")
         if abs(offset) > CLOCK_WARN_S:
             flags.append(f"clock off by {offset:+.2f} s (fine for lockstep; sync with NTP for readable logs)")
-        print(f"  host {h}: heard; round trip {best * 1000:.1f} ms; clock {offset * 1000:+.0f} ms; version "
-              f"{reply.version}; {reply.hostname}, {reply.cores} cores, {reply.free_mem_mb} MB free, "
-              f"{reply.running} agents running; may run {robots_text}"
-              f"{'; ' + '; '.join(flags) if flags else ''}", flush=True)  # fmt: skip
+        print(
+            f"  host {h}: heard; round trip {best * 1000:.1f} ms; clock {offset * 1000:+.0f} ms; version "
+            f"{reply.version}; {reply.hostname}, {reply.cores} cores, {reply.free_mem_mb} MB free, "
+            f"{reply.running} agents running; may run {robots_text}"
+            f"{'; ' + '; '.join(flags) if flags else ''}",
+            flush=True,
+        )
     for c in clients.values():
         c.close()
     if robots is not None and infos and len(infos) == len(hosts):

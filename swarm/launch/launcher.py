@@ -159,8 +159,10 @@ class Launch:
         self.rt_priority = rt_priority  # the real-time world's (None: swarm world's default)
         self.scenario_path = scenario_files.resolve(scenario_path)
         if overrides is not None and not isinstance(overrides, Mapping):
-            raise ValueError(f"overrides must map scenario keys to values, e.g. {{'leader.speed_mps': 1.6}}, "
-                             f"got {type(overrides).__name__} {overrides!r:.80}")  # fmt: skip
+            raise ValueError(
+                f"overrides must map scenario keys to values, e.g. {{'leader.speed_mps': 1.6}}, "
+                f"got {type(overrides).__name__} {overrides!r:.80}"
+            )
         ov = dict(overrides or {})
         if seed is not None:
             if "run.seed" in ov and ov["run.seed"] != seed:
@@ -217,8 +219,14 @@ class Launch:
         self.process_faults = any(f.process is not None for f in self.sc.faults)
         self._setup_hosts(hosts, placement, listen, host_logins, hosts_timeout_s)
 
-    def _setup_hosts(self, hosts: Sequence[str], placement: Mapping[int, str] | None, listen: str | None,
-                     host_logins: str | Path | None, timeout_s: float) -> None:  # fmt: skip
+    def _setup_hosts(
+        self,
+        hosts: Sequence[str],
+        placement: Mapping[int, str] | None,
+        listen: str | None,
+        host_logins: str | Path | None,
+        timeout_s: float,
+    ) -> None:
         self.hosts = [check_host_name(h) for h in hosts]
         if len(set(self.hosts)) != len(self.hosts):
             raise ValueError(f"--hosts names a host twice: {','.join(self.hosts)}")
@@ -234,29 +242,38 @@ class Launch:
                 raise ValueError(f"placement {rid}={h}: {h} is not one of --hosts {','.join(self.hosts)}")
         self.listen = listen
         if self.hosts and not listen:
-            raise ValueError("--hosts needs --listen ENDPOINT: where the world listens for the hosts' agents, "
-                             "e.g. tcp/192.168.1.10:7447 (an address every host reaches)")  # fmt: skip
+            raise ValueError(
+                "--hosts needs --listen ENDPOINT: where the world listens for the hosts' agents, "
+                "e.g. tcp/192.168.1.10:7447 (an address every host reaches)"
+            )
         if self.hosts and listen:  # checked before anything starts: a run that cannot listen fails a bad command
             try:
                 why = listen_problem(listen)
             except ValueError as exc:
                 raise ValueError(f"--listen {listen}: {exc}") from None
             if why is not None:
-                raise ValueError(f"--listen {listen}: cannot listen there ({why}); give a free port of an address "
-                                 "of this machine")  # fmt: skip
+                raise ValueError(
+                    f"--listen {listen}: cannot listen there ({why}); give a free port of an address of this machine"
+                )
         self.host_logins = None
         if self.tls is not None and not (self.hosts and self.auth and listen and listen.startswith("tls/")):
             raise ValueError("TLS files are for --hosts with --listen tls/ADDRESS:PORT and logins")
         if self.hosts and listen and listen.startswith("tls/") and self.tls is None:
-            raise ValueError(f"--listen {listen}: a TLS router needs --tls-ca, --tls-cert and --tls-key (the CA the "
-                             "hosts trust, this router's certificate and key)")  # fmt: skip
+            raise ValueError(
+                f"--listen {listen}: a TLS router needs --tls-ca, --tls-cert and --tls-key (the CA the "
+                "hosts trust, this router's certificate and key)"
+            )
         if self.hosts and listen and listen.startswith("tcp/") and not loopback(listen):
-            self.progress(f"[swarm] warning: --listen {listen} is plain TCP: the hosts get their agents' passwords, "
-                          "and the run's data crosses the network, unencrypted (deploy/README.md: TLS)")  # fmt: skip
+            self.progress(
+                f"[swarm] warning: --listen {listen} is plain TCP: the hosts get their agents' passwords, "
+                "and the run's data crosses the network, unencrypted (deploy/README.md: TLS)"
+            )
         if self.hosts and self.auth:
             if host_logins is None:
-                raise ValueError("--hosts needs --host-logins FILE: the hosts' logins the run's router lets in "
-                                 "(swarm secure --hosts NAMES writes it)")  # fmt: skip
+                raise ValueError(
+                    "--hosts needs --host-logins FILE: the hosts' logins the run's router lets in "
+                    "(swarm secure --hosts NAMES writes it)"
+                )
             self.host_logins = trust.read_host_logins(host_logins, self.hosts)
         self.hosts_timeout_s = timeout_s
         self.clients: dict[str, remote.HostClient] = {}
@@ -315,7 +332,7 @@ class Launch:
                 world_is_router=not self.hosts,
                 host_logins=self.host_logins,
                 tls=self.tls,
-            )  # fmt: skip
+            )
             if self.auth
             else {}
         )
@@ -329,8 +346,11 @@ class Launch:
         stats = self.run_dir / "stats"
         # With hosts, the launcher is the router (it outlives the world: the hosts are
         # reached through it until their agents' logs are fetched); else the world is.
-        zenoh_role = ["--zenoh-mode", "client", "--connect", self.endpoint, *auth("world")] if self.hosts else \
-            ["--zenoh-mode", "router", "--listen", self.endpoint, *auth("router")]  # fmt: skip
+        zenoh_role = (
+            ["--zenoh-mode", "client", "--connect", self.endpoint, *auth("world")]
+            if self.hosts
+            else ["--zenoh-mode", "router", "--listen", self.endpoint, *auth("router")]
+        )
         if self.hosts:
             assert self.listen is not None
             settings = trust.read_settings(secrets["router"]) if secrets else None
@@ -338,29 +358,58 @@ class Launch:
             self.session = zenoh.open(conf)
             trust.forget_router_secrets(self.run_dir / SECRETS)  # read: the hosts' lasting logins leave the disk
         specs = {
-            "world": [*py("nodes.world"), *common, "--mode", self.mode, "--stats", str(stats / "world.json"),
-                      *zenoh_role, *["--expect-logger"] * self.logger, *["--process-faults"] * self.process_faults,
-                      *(["--rt-priority", str(self.rt_priority)] if self.rt_priority is not None else [])],
-        }  # fmt: skip
+            "world": [
+                *py("nodes.world"),
+                *common,
+                "--mode",
+                self.mode,
+                "--stats",
+                str(stats / "world.json"),
+                *zenoh_role,
+                *["--expect-logger"] * self.logger,
+                *["--process-faults"] * self.process_faults,
+                *(["--rt-priority", str(self.rt_priority)] if self.rt_priority is not None else []),
+            ],
+        }
         if self.logger:
             extra = ["--live", self.live] if self.live else []
             if self.live and (why := viewer.unreachable(self.live)) is not None:
                 # Said here, once: the logger's own line would end in its log.
-                self.progress(f"[swarm] --live {self.live}: no Rerun viewer answers there ({why}); not streaming "
-                              "there, the run is recorded to recording.rrd only")  # fmt: skip
+                self.progress(
+                    f"[swarm] --live {self.live}: no Rerun viewer answers there ({why}); not streaming "
+                    "there, the run is recorded to recording.rrd only"
+                )
                 extra = []
             if self.serve_web:
                 extra += ["--serve-web", "--grpc-port", str(self.web_ports[0]), "--web-port", str(self.web_ports[1])]
-            specs["logger"] = [*py("nodes.logger"), *common, "--out", str(self.run_dir / "recording.rrd"),
-                               "--stats", str(stats / "logger.json"), "--connect", self.endpoint, *extra,
-                               *auth("logger")]  # fmt: skip
+            specs["logger"] = [
+                *py("nodes.logger"),
+                *common,
+                "--out",
+                str(self.run_dir / "recording.rrd"),
+                "--stats",
+                str(stats / "logger.json"),
+                "--connect",
+                self.endpoint,
+                *extra,
+                *auth("logger"),
+            ]
         for rid in [] if self.hosts else self.sc.robots:
             agent_stats = str(stats / f"agent-{rid}.json")
-            specs[f"agent-{rid}"] = [*py("nodes.agent"), "--id", str(rid), *common,
-                                     "--stats", agent_stats, "--connect", self.endpoint,
-                                     "--world-grace", f"{AGENT_WORLD_GRACE_S:g}",
-                                     *(["--lockstep"] if self.mode == "lockstep" else []),
-                                     *auth(trust.agent_user(rid))]  # fmt: skip
+            specs[f"agent-{rid}"] = [
+                *py("nodes.agent"),
+                "--id",
+                str(rid),
+                *common,
+                "--stats",
+                agent_stats,
+                "--connect",
+                self.endpoint,
+                "--world-grace",
+                f"{AGENT_WORLD_GRACE_S:g}",
+                *(["--lockstep"] if self.mode == "lockstep" else []),
+                *auth(trust.agent_user(rid)),
+            ]
         self.started_at = time.monotonic()
         for name, argv in specs.items():
             child = Child(name, argv, self.run_dir / "logs" / f"{name}.log", fork=self.fork)
@@ -386,8 +435,10 @@ class Launch:
         deadline = time.monotonic() + self.hosts_timeout_s
         if not all(c.present.wait(0.2) for c in self.clients.values()):  # said only if it takes a while
             missing = [h for h, c in self.clients.items() if not c.present.is_set()]
-            self.progress(f"[swarm] waiting up to {self.hosts_timeout_s:g} s for host{'s' if len(missing) > 1 else ''} "
-                          f"{', '.join(missing)} to connect to {self.listen}")  # fmt: skip
+            self.progress(
+                f"[swarm] waiting up to {self.hosts_timeout_s:g} s for host{'s' if len(missing) > 1 else ''} "
+                f"{', '.join(missing)} to connect to {self.listen}"
+            )
         for h, client in self.clients.items():
             if not client.present.wait(max(0.0, deadline - time.monotonic())):
                 raise remote.HostError(
@@ -399,8 +450,10 @@ class Launch:
         allowed = {h: info.robots for h, info in self.host_infos.items()}
         self.placement = remote.place(self.sc.robots, self.hosts, allowed, self.explicit)
         if idle := [h for h in self.hosts if h not in self.placement.values()]:
-            self.progress(f"[swarm] warning: host{'s' if len(idle) > 1 else ''} {', '.join(idle)} "
-                          f"run{'' if len(idle) > 1 else 's'} no robot (the placement gave them none)")  # fmt: skip
+            self.progress(
+                f"[swarm] warning: host{'s' if len(idle) > 1 else ''} {', '.join(idle)} "
+                f"run{'' if len(idle) > 1 else 's'} no robot (the placement gave them none)"
+            )
         scenario_text = (self.run_dir / "scenario.toml").read_text()
         for rid, h in self.placement.items():
             self.progress(f"[swarm] agent-{rid} on host {h}")
@@ -412,11 +465,20 @@ class Launch:
         user, password = trust.agent_user(rid), ""
         if secrets:
             password = trust.read_settings(secrets[user])["transport/auth/usrpwd"]["password"]
-        req = HostRequest("start", __version__, run=self.run_id, process=name, scenario=scenario_text, user=user,
-                          password=password, world_grace_s=AGENT_WORLD_GRACE_S,
-                          lockstep=self.mode == "lockstep")  # fmt: skip
-        child = remote.RemoteChild(name, [], self.run_dir / "logs" / f"{name}.log", client=self.clients[host],
-                                   run=self.run_id, request=req)  # fmt: skip
+        req = HostRequest(
+            "start",
+            __version__,
+            run=self.run_id,
+            process=name,
+            scenario=scenario_text,
+            user=user,
+            password=password,
+            world_grace_s=AGENT_WORLD_GRACE_S,
+            lockstep=self.mode == "lockstep",
+        )
+        child = remote.RemoteChild(
+            name, [], self.run_dir / "logs" / f"{name}.log", client=self.clients[host], run=self.run_id, request=req
+        )
         self.children[name] = child
         self.current[name.split(".")[0]] = name
         child.start()
@@ -477,12 +539,21 @@ class Launch:
                 client.reported = True
                 self.lost_hosts.append(h)
                 robots = [r for r, ph in self.placement.items() if ph == h]
-                self.events.append({"event": "host lost", "host": h, "robots": robots, "sim_time_s": t,
-                                    "wall_s": time.monotonic() - self.started_at})  # fmt: skip
+                self.events.append(
+                    {
+                        "event": "host lost",
+                        "host": h,
+                        "robots": robots,
+                        "sim_time_s": t,
+                        "wall_s": time.monotonic() - self.started_at,
+                    }
+                )
                 wall = time.monotonic() - self.started_at
                 dead = f"robot{'s' if len(robots) > 1 else ''} {', '.join(map(str, robots))}" if robots else "none"
-                self.progress(f"[swarm] host {h} was lost {wall:.1f} s of wall time into the run (its token went): "
-                              f"{dead} counted dead")  # fmt: skip
+                self.progress(
+                    f"[swarm] host {h} was lost {wall:.1f} s of wall time into the run (its token went): "
+                    f"{dead} counted dead"
+                )
         for child in self.children.values():
             code = child.poll()
             if code is not None and not child.reported:
@@ -539,9 +610,17 @@ class Launch:
         for name in sorted(self.frozen):
             self.children[name].signal(signal.SIGCONT)
             st = self.last_status
-            self.events.append({"event": "thawed", "process": name, "fault": self.frozen_by.get(name),
-                                "why": "the run's end", "sim_time_s": st.time_s, "tick": st.tick,
-                                "wall_s": time.monotonic() - self.started_at})  # fmt: skip
+            self.events.append(
+                {
+                    "event": "thawed",
+                    "process": name,
+                    "fault": self.frozen_by.get(name),
+                    "why": "the run's end",
+                    "sim_time_s": st.time_s,
+                    "tick": st.tick,
+                    "wall_s": time.monotonic() - self.started_at,
+                }
+            )
             self.progress(f"[swarm] thawed {name} at the run's end (its freeze outlasted the run)")
         self.frozen.clear()
 
@@ -555,9 +634,17 @@ class Launch:
             (self.frozen.add if call.action == "freeze" else self.frozen.discard)(name)
             self.frozen_by[name] = str(fault)
         done = {"kill": "killed", "start": "started", "freeze": "frozen", "thaw": "thawed"}[call.action]
-        self.events.append({"event": done, "process": name, "fault": str(fault), "tick": call.tick,
-                            "sim_time_s": call.time_s, "wall_s": time.monotonic() - self.started_at,
-                            "pid": self.children[name].pid})  # fmt: skip
+        self.events.append(
+            {
+                "event": done,
+                "process": name,
+                "fault": str(fault),
+                "tick": call.tick,
+                "sim_time_s": call.time_s,
+                "wall_s": time.monotonic() - self.started_at,
+                "pid": self.children[name].pid,
+            }
+        )
         self.progress(f"[swarm] {done} {name} at tick {call.tick}, sim t={call.time_s:.2f} s ('{fault}')")
 
     def _restart(self, process: str) -> str:
@@ -571,8 +658,9 @@ class Launch:
             n = 2
             while f"{process}.{n}" in self.children:
                 n += 1
-            return self._start_agent_on(f"{process}.{n}", old.host, (self.run_dir / "scenario.toml").read_text(),
-                                        self._secrets())  # fmt: skip
+            return self._start_agent_on(
+                f"{process}.{n}", old.host, (self.run_dir / "scenario.toml").read_text(), self._secrets()
+            )
         if old.proc is not None:  # SIGKILLed at the kill call: reaped first, so its token is gone
             old.signal(signal.SIGKILL)
             with contextlib.suppress(subprocess.TimeoutExpired):
@@ -600,8 +688,9 @@ class Launch:
         if kill is not None:
             # By fault injection, already said; it died at the kill (the status may lag behind).
             at = kill.get("sim_time_s", t)
-            self.events.append({"event": "exited", "process": child.name, "code": code, "sim_time_s": at,
-                                "tick": kill.get("tick")})  # fmt: skip
+            self.events.append(
+                {"event": "exited", "process": child.name, "code": code, "sim_time_s": at, "tick": kill.get("tick")}
+            )
             return
         tail = log_tail(child.log_path)
         self.events.append({"event": "exited", "process": child.name, "code": code, "sim_time_s": t, "log_tail": tail})
@@ -655,8 +744,13 @@ class Launch:
         self.stop(graceful_first=not (interrupted or timed_out or start_failed))
         for child in self.children.values():  # codes the fork server did not report, taken from the child's record
             if getattr(child.proc, "unreported", False):
-                self.events.append({"event": "exit code not reported by the fork server", "process": child.name,
-                                    "code": child.proc.returncode})  # fmt: skip
+                self.events.append(
+                    {
+                        "event": "exit code not reported by the fork server",
+                        "process": child.name,
+                        "code": child.proc.returncode,
+                    }
+                )
         world_code = world.proc.returncode if world.proc is not None else None
         code = 130 if interrupted else (124 if timed_out else (0 if world_code == 0 and not start_failed else 1))
         world_stats = summary_mod.read_parts(self.run_dir / "stats").get("world", {})
@@ -763,8 +857,11 @@ class Launch:
             exit_after_stop = None
             if c.stop_sent_at is not None and c.exited_at is not None:
                 exit_after_stop = max(0.0, c.exited_at - c.stop_sent_at)
-            procs[name] = {"pid": c.pid, "exit_code": None if c.proc is None else c.proc.returncode,
-                           "exit_after_stop_s": exit_after_stop}  # fmt: skip
+            procs[name] = {
+                "pid": c.pid,
+                "exit_code": None if c.proc is None else c.proc.returncode,
+                "exit_after_stop_s": exit_after_stop,
+            }
             if isinstance(c, remote.RemoteChild) and c.host in self.lost_hosts:
                 procs[name].update(exit_code=None, lost_with_host=c.host)
         summary = summary_mod.build(
@@ -785,10 +882,15 @@ class Launch:
         if self.hosts:
             summary["placement"] = {f"agent-{r}": h for r, h in self.placement.items()}
             summary["hosts"] = {
-                h: {"hostname": i.hostname, "cores": i.cores, "free_mem_mb": i.free_mem_mb, "version": i.version,
-                    "lost": h in self.lost_hosts}
+                h: {
+                    "hostname": i.hostname,
+                    "cores": i.cores,
+                    "free_mem_mb": i.free_mem_mb,
+                    "version": i.version,
+                    "lost": h in self.lost_hosts,
+                }
                 for h, i in self.host_infos.items()
-            }  # fmt: skip
+            }
             for name, proc in summary.get("processes", {}).items():
                 child = self.children.get(name)
                 proc["host"] = child.host if isinstance(child, remote.RemoteChild) else "local"

@@ -32,8 +32,13 @@ from formation_swarm.runtime.children import Child
 REQUEST_TIMEOUT_S = 10.0
 POLL_PERIOD_S = 0.25
 LOST_CODE = 255  # the exit code of an agent whose host went: unknown
-ACTIONS = {signal.SIGKILL: "kill", signal.SIGSTOP: "freeze", signal.SIGCONT: "thaw", signal.SIGTERM: "term",
-           signal.SIGINT: "term"}  # fmt: skip
+ACTIONS = {
+    signal.SIGKILL: "kill",
+    signal.SIGSTOP: "freeze",
+    signal.SIGCONT: "thaw",
+    signal.SIGTERM: "term",
+    signal.SIGINT: "term",
+}
 
 
 class HostError(RuntimeError):
@@ -183,8 +188,12 @@ class RemoteChild(Child):
         return reply.error or None
 
 
-def place(robots: Sequence[int], hosts: Sequence[str], allowed: Mapping[str, tuple[int, ...] | None],
-          explicit: Mapping[int, str]) -> dict[int, str]:  # fmt: skip
+def place(
+    robots: Sequence[int],
+    hosts: Sequence[str],
+    allowed: Mapping[str, tuple[int, ...] | None],
+    explicit: Mapping[int, str],
+) -> dict[int, str]:
     """robot -> host: the explicit ones, the others round-robin over the hosts
     that may run them. ValueError naming a robot no host may run."""
     out: dict[int, str] = {}
@@ -193,8 +202,10 @@ def place(robots: Sequence[int], hosts: Sequence[str], allowed: Mapping[str, tup
         if rid in explicit:
             host = explicit[rid]
             if allowed.get(host) is not None and rid not in (allowed[host] or ()):
-                raise ValueError(f"robot {rid} is placed on host {host}, which may only run robots "
-                                 f"{', '.join(map(str, allowed[host] or ()))} (its --robots)")  # fmt: skip
+                raise ValueError(
+                    f"robot {rid} is placed on host {host}, which may only run robots "
+                    f"{', '.join(map(str, allowed[host] or ()))} (its --robots)"
+                )
             out[rid] = host
             continue
         for i in range(len(hosts)):

@@ -49,12 +49,16 @@ folder that already holds files (nothing written)."""
 
 def build_parser() -> cliargs.Parser:
     ap = cliargs.Parser(prog="swarm secure", description=DESCRIPTION, epilog=EPILOG)
-    ap.add_argument("scenario", metavar="SCENARIO", nargs="?",
-                    help="a shipped scenario's name or a scenario file (TOML)")  # fmt: skip
+    ap.add_argument(
+        "scenario", metavar="SCENARIO", nargs="?", help="a shipped scenario's name or a scenario file (TOML)"
+    )
     ap.add_argument("--run", metavar="ID", help="the run id every process of the run will use")
-    ap.add_argument("--hosts", metavar="NAME[,NAME...]",
-                    help="instead of a run's logins: a lasting login per machine's swarm host (host-NAME.json, "
-                    "its --auth) and hosts.txt, swarm run --hosts's --host-logins")  # fmt: skip
+    ap.add_argument(
+        "--hosts",
+        metavar="NAME[,NAME...]",
+        help="instead of a run's logins: a lasting login per machine's swarm host (host-NAME.json, "
+        "its --auth) and hosts.txt, swarm run --hosts's --host-logins",
+    )
     ap.add_argument("--out", required=True, metavar="DIR", help="the folder to write (created; must be empty)")
     ap.add_argument("--tls-ca", metavar="FILE", help="TLS: the CA certificate clients check the router against (PEM)")
     ap.add_argument("--tls-cert", metavar="FILE", help="TLS: the router's certificate, naming its host (PEM)")
@@ -98,13 +102,17 @@ def main(argv: list[str] | None = None) -> int:
     print(f"swarm secure: run {args.run} ({sc.name}, robots {', '.join(map(str, sc.robots))}): wrote {out}/")
     print(f"  router:   swarm router --listen {scheme}/0.0.0.0:7447 --auth {files['router']}")
     common = f"--scenario {args.scenario} --run {args.run}"
-    print(f"  world:    swarm world {common} --zenoh-mode client --connect {scheme}/ROUTER:7447 "
-          f"--auth {files['world']}")  # fmt: skip
-    print(f"  logger:   swarm logger {common} --out recording.rrd --connect {scheme}/ROUTER:7447 "
-          f"--auth {files['logger']}")  # fmt: skip
+    print(
+        f"  world:    swarm world {common} --zenoh-mode client --connect {scheme}/ROUTER:7447 --auth {files['world']}"
+    )
+    print(
+        f"  logger:   swarm logger {common} --out recording.rrd --connect {scheme}/ROUTER:7447 --auth {files['logger']}"
+    )
     for rid in sc.robots:
-        print(f"  agent {rid}:  swarm agent --id {rid} {common} --connect {scheme}/ROUTER:7447 "
-              f"--auth {files[trust.agent_user(rid)]}")  # fmt: skip
+        print(
+            f"  agent {rid}:  swarm agent --id {rid} {common} --connect {scheme}/ROUTER:7447 "
+            f"--auth {files[trust.agent_user(rid)]}"
+        )
     if not tls:
         print("  links are plain TCP: the run's data crosses the network unencrypted; see deploy/README.md for TLS")
     return 0
@@ -132,13 +140,17 @@ def _hosts(ap: cliargs.Parser, args: argparse.Namespace) -> int:
     for n in names:
         print(f"  host {n}:  swarm host --name {n} --connect {scheme}/ROUTER:7447 --auth {files[trust.host_user(n)]}")
     tls = " --tls-ca CA --tls-cert CERT --tls-key KEY" if args.tls_ca else ""
-    print(f"  swarm run S --hosts {','.join(names)} --listen {scheme}/0.0.0.0:7447 --host-logins "
-          f"{files[trust.HOST_LOGINS]}{tls}")  # fmt: skip
+    print(
+        f"  swarm run S --hosts {','.join(names)} --listen {scheme}/0.0.0.0:7447 --host-logins "
+        f"{files[trust.HOST_LOGINS]}{tls}"
+    )
     if args.tls_ca:
         print(f"  copy {out / trust.CA} beside each host-NAME.json: the login names it relative to itself")
     else:
-        print("  links are plain TCP: each run sends the hosts its agents' passwords, and its data, unencrypted; "
-              "see deploy/README.md for TLS (--tls-ca)")  # fmt: skip
+        print(
+            "  links are plain TCP: each run sends the hosts its agents' passwords, and its data, unencrypted; "
+            "see deploy/README.md for TLS (--tls-ca)"
+        )
     return 0
 
 

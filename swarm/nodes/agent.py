@@ -85,9 +85,19 @@ MAX_HOLDS = 100  # holds listed in a follower's stats (all are counted in held_t
 
 
 class Agent:
-    def __init__(self, sess: zenoh.Session, sc: scenario_mod.Scenario, rid: int, run_id: str, seed: int,
-                 role: role_mod.Role, where: str = "", world_grace_s: float = math.inf,
-                 stats_path: str | None = None, lockstep: bool = False) -> None:  # fmt: skip
+    def __init__(
+        self,
+        sess: zenoh.Session,
+        sc: scenario_mod.Scenario,
+        rid: int,
+        run_id: str,
+        seed: int,
+        role: role_mod.Role,
+        where: str = "",
+        world_grace_s: float = math.inf,
+        stats_path: str | None = None,
+        lockstep: bool = False,
+    ) -> None:
         # The counters go to stats_path at exit and every STATS_PERIOD_S meanwhile, so
         # a SIGKILLed agent (a kill or restart fault) leaves what it counted until then.
         self.stats_path = stats_path
@@ -120,14 +130,19 @@ class Agent:
             link_name("obs", WORLD_ID, rid), sc.links.obs_drop, seed, faults_on(sc.faults, "obs", rid), sc.dt_s
         )
         self.formation_link: Link[FormationCode] = Link(
-            link_name("formation", sc.leader.robot_id, rid), sc.links.formation_drop, seed,
-            faults_on(sc.faults, "formation", rid), sc.dt_s,
-        )  # fmt: skip
+            link_name("formation", sc.leader.robot_id, rid),
+            sc.links.formation_drop,
+            seed,
+            faults_on(sc.faults, "formation", rid),
+            sc.dt_s,
+        )
         # A link fault's counts are final a little after its window ends: the stats
         # are written then, so an agent a later fault kills leaves them whole.
-        self.stats_at_ticks = collections.deque(sorted(
-            {end + COUNTS_FINAL_AFTER_TICKS for lk in (self.obs_link, self.formation_link) for end in lk.fault_ends}
-        ))  # fmt: skip
+        self.stats_at_ticks = collections.deque(
+            sorted(
+                {end + COUNTS_FINAL_AFTER_TICKS for lk in (self.obs_link, self.formation_link) for end in lk.fault_ends}
+            )
+        )
         self.world_seen = False
         self.world_gone = False
         self.world_grace_s = world_grace_s  # how long a world lost mid-run is waited for
@@ -148,8 +163,9 @@ class Agent:
         self.formation_changes: list[dict[str, Any]] = []
         # Codes taken, each with the tick it is stamped with or, if the link held it, released at.
         self.pending_codes: collections.deque[tuple[int, FormationCode]] = collections.deque(maxlen=PENDING_CODES)
-        self.checks = InboxChecks(sc.robots, sc.camera.range_m, sc.camera.sigma_rho_m, sc.leader.sensing_range_m,
-                                  sc.dt_s)  # fmt: skip
+        self.checks = InboxChecks(
+            sc.robots, sc.camera.range_m, sc.camera.sigma_rho_m, sc.leader.sensing_range_m, sc.dt_s
+        )
         self.superseded = 0  # observations skipped because a newer one was already there
         # The follower's holds at a standing reference: ticks held, and [first, last] tick of each hold.
         self.held_ticks = 0
@@ -494,8 +510,11 @@ class Agent:
         self._send_cmd(obs.tick, d.left_mps, d.right_mps)
         self._count_hold(obs.tick, d.holding)
         self.waited_ticks += d.waiting
-        cov = None if d.estimate_cov is None else (
-            float(d.estimate_cov[0, 0]), float(d.estimate_cov[0, 1]), float(d.estimate_cov[1, 1]))  # fmt: skip
+        cov = (
+            None
+            if d.estimate_cov is None
+            else (float(d.estimate_cov[0, 0]), float(d.estimate_cov[0, 1]), float(d.estimate_cov[1, 1]))
+        )
         self.seq += 1
         self.tel_pub.put(
             Telemetry(
@@ -518,7 +537,7 @@ class Agent:
                 self.obs_link.lost,
                 self.formation_link.lost,
                 self.rejections.total,
-            ).to_bytes()  # fmt: skip
+            ).to_bytes()
         )
         if self.tel_every > 1 and (obs.tick + self.rid) % self.tel_every == 0:
             self.tel_pub.flush()
@@ -601,8 +620,11 @@ def build_parser() -> cliargs.Parser:
         help="random seed of the link drops and link faults (default: the scenario's); the same as the world's",
     )
     ap.add_argument("--stats", metavar="FILE", help="write this agent's counters here at exit (JSON)")
-    ap.add_argument("--lockstep", action="store_true",
-                    help="the world runs in lockstep: telemetry waits for the logger, never dropped")  # fmt: skip
+    ap.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="the world runs in lockstep: telemetry waits for the logger, never dropped",
+    )
     role_mod.add_arguments(ap, waits_for="the world (and, for the leader, its followers)")
     ap.add_argument(
         "--world-grace",
@@ -633,8 +655,9 @@ def main(argv: list[str] | None = None) -> int:
     where = role_mod.describe_session(args)
     with sess_cm as sess:
         grace = args.peers_timeout if args.world_grace is None else args.world_grace
-        agent = Agent(sess, sc, args.id, args.run, seed, role, where, grace, stats_path=args.stats,
-                      lockstep=args.lockstep)  # fmt: skip
+        agent = Agent(
+            sess, sc, args.id, args.run, seed, role, where, grace, stats_path=args.stats, lockstep=args.lockstep
+        )
         part = "leader" if agent.is_leader else f"follower of robot {agent.reference}"
         waits = "the world and its followers" if agent.is_leader else "the world"
         role.say(f"{where}; run {args.run}, {part}: waiting up to {role.peers_timeout_s:g} s for {waits}")

@@ -144,8 +144,9 @@ class Host:
         query.reply(query.key_expr, reply.to_bytes())
 
     def refuse(self, why: str) -> HostReply:
-        return HostReply(ok=False, version=__version__, host=self.name, error=why[: hostmsg.MAX_TEXT],
-                         time_unix=time.time())  # fmt: skip
+        return HostReply(
+            ok=False, version=__version__, host=self.name, error=why[: hostmsg.MAX_TEXT], time_unix=time.time()
+        )
 
     def handle(self, payload: bytes) -> HostReply:
         try:
@@ -162,8 +163,14 @@ class Host:
         ok = {"ok": True, "version": __version__, "host": self.name, "time_unix": time.time()}
         if req.op == "info":
             running = sum(c.poll() is None for r in self.runs.values() for c in r.children.values())
-            return HostReply(**ok, hostname=socket.gethostname()[:256], cores=os.cpu_count() or 0,
-                             free_mem_mb=free_memory_mb(), robots=self.robots, running=running)  # fmt: skip
+            return HostReply(
+                **ok,
+                hostname=socket.gethostname()[:256],
+                cores=os.cpu_count() or 0,
+                free_mem_mb=free_memory_mb(),
+                robots=self.robots,
+                running=running,
+            )
         if req.op == "start":
             return self.start(req, ok)
         run = self.runs.get(req.run)
@@ -209,11 +216,25 @@ class Host:
         cred = trust.Credential(req.user, req.password)
         settings = {**self.agent_settings, **trust.client_settings(cred)}
         trust._write_private(auth, json.dumps(settings))
-        argv = [sys.executable, "-m", AGENT, "--id", str(robot), "--scenario", str(scenario), "--run", req.run,
-                "--stats", str(run.folder / "stats" / f"{req.process}.json"),
-                *(a for ep in self.connect for a in ("--connect", ep)),
-                "--world-grace", f"{req.world_grace_s:g}", "--auth", str(auth),
-                *(["--lockstep"] if req.lockstep else [])]  # fmt: skip
+        argv = [
+            sys.executable,
+            "-m",
+            AGENT,
+            "--id",
+            str(robot),
+            "--scenario",
+            str(scenario),
+            "--run",
+            req.run,
+            "--stats",
+            str(run.folder / "stats" / f"{req.process}.json"),
+            *(a for ep in self.connect for a in ("--connect", ep)),
+            "--world-grace",
+            f"{req.world_grace_s:g}",
+            "--auth",
+            str(auth),
+            *(["--lockstep"] if req.lockstep else []),
+        ]
         child = Child(req.process, argv, run.folder / "logs" / f"{req.process}.log")
         run.children[req.process] = child
         child.start()
@@ -281,8 +302,11 @@ class Host:
             if up != self.router_up:
                 self.router_up = up
                 where = ", ".join(self.connect) or "its router"
-                self.say(f"connected again to a router at {where}" if up else
-                         f"lost its router at {where}; retrying (runs cannot reach this host meanwhile)")  # fmt: skip
+                self.say(
+                    f"connected again to a router at {where}"
+                    if up
+                    else f"lost its router at {where}; retrying (runs cannot reach this host meanwhile)"
+                )
         for run in list(self.runs.values()):
             if run.launcher == "gone":
                 self.end(run, "its launcher's token went: the launcher died or its machine left")
@@ -349,8 +373,9 @@ def _check_login(settings: dict[str, Any], name: str, path: str | None) -> None:
     A credentials file without a login is no credentials file."""
     user = trust.login_user(settings)
     if path is not None and user is None:
-        raise ValueError(f"--auth {path}: holds no login (transport/auth/usrpwd): give host-{name}.json of "
-                         "swarm secure --hosts")  # fmt: skip
+        raise ValueError(
+            f"--auth {path}: holds no login (transport/auth/usrpwd): give host-{name}.json of swarm secure --hosts"
+        )
     if user is not None and user != trust.host_user(name):
         whose = f"host {user[5:]}" if str(user).startswith("host-") else f"user {user!r}, not a host's"
         raise ValueError(
@@ -390,17 +415,30 @@ def open_session(conf: zenoh.Config, stop: StopEvent) -> zenoh.Session | None:
 
 def build_parser() -> cliargs.Parser:
     ap = cliargs.Parser(prog="swarm host", description=DESCRIPTION, epilog=EPILOG)
-    ap.add_argument("--name", default=None, metavar="NAME",
-                    help="this host's name in swarm run --hosts: 1-27 lowercase letters, digits or '-' "
-                    "(default: the machine's host name)")  # fmt: skip
-    ap.add_argument("--robots", default=None, metavar="IDS",
-                    help="the only robot ids this host may run, e.g. 2,3 (default: any)")  # fmt: skip
-    ap.add_argument("--workdir", default=None, metavar="DIR",
-                    help="where the agents' scenario, logs and stats go, a folder per run "
-                    "(default: ~/.cache/swarm-host/NAME)")  # fmt: skip
-    ap.add_argument("--launcher-wait", type=cliargs.seconds(), default=LAUNCHER_WAIT_S, metavar="S",
-                    help=f"stop a run's agents when its launcher's token has not appeared within S s of its "
-                    f"first agent (default: {LAUNCHER_WAIT_S:g})")  # fmt: skip
+    ap.add_argument(
+        "--name",
+        default=None,
+        metavar="NAME",
+        help="this host's name in swarm run --hosts: 1-27 lowercase letters, digits or '-' "
+        "(default: the machine's host name)",
+    )
+    ap.add_argument(
+        "--robots", default=None, metavar="IDS", help="the only robot ids this host may run, e.g. 2,3 (default: any)"
+    )
+    ap.add_argument(
+        "--workdir",
+        default=None,
+        metavar="DIR",
+        help="where the agents' scenario, logs and stats go, a folder per run (default: ~/.cache/swarm-host/NAME)",
+    )
+    ap.add_argument(
+        "--launcher-wait",
+        type=cliargs.seconds(),
+        default=LAUNCHER_WAIT_S,
+        metavar="S",
+        help=f"stop a run's agents when its launcher's token has not appeared within S s of its "
+        f"first agent (default: {LAUNCHER_WAIT_S:g})",
+    )
     session.add_arguments(ap)
     return ap
 
@@ -417,8 +455,10 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("--connect ENDPOINT: the router to serve runs through (scouting is off)")
         plain = [e for e in args.connect if not e.startswith("tls/") and not session.loopback(e)]
         if settings.get(trust.TLS_ROOT_CA) and plain:  # on this machine, a router's local endpoint may be tcp/
-            raise ValueError(f"--connect {plain[0]}: this login ({args.auth}) names a CA, for TLS: connect with "
-                             "tls/ROUTER:PORT, or the agents' passwords would cross the network in clear")  # fmt: skip
+            raise ValueError(
+                f"--connect {plain[0]}: this login ({args.auth}) names a CA, for TLS: connect with "
+                "tls/ROUTER:PORT, or the agents' passwords would cross the network in clear"
+            )
         conf = session.make_config("client", args.connect, (), args.config, settings=settings)
         # The router may come and go (a run's world is one): keep trying, in the background.
         conf.insert_json5("connect/exit_on_failure", "false")
@@ -432,15 +472,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f"swarm host: {exc}", file=sys.stderr, flush=True)
         return 2
     if stale := _remove_stale_secrets(workdir):
-        print(f"host {name}: removed the logins of {stale} run(s) a previous host process left in {workdir}",
-              flush=True)  # fmt: skip
+        print(
+            f"host {name}: removed the logins of {stale} run(s) a previous host process left in {workdir}", flush=True
+        )
     stop = install_stop_handlers()
     spawner.warm()  # the agents' modules imported once, before any launcher waits for a start
     where = ", ".join(args.connect) or args.config
     # A router that refuses this host's login looks, from here, like no router: say so once.
     login = "" if not args.auth else "; a router that refuses this host's login (--auth) looks the same from here"
-    print(f"host {name}: waiting for a router at {where} (retrying{login}); stop it with Ctrl-C or SIGTERM",
-          flush=True)  # fmt: skip
+    print(f"host {name}: waiting for a router at {where} (retrying{login}); stop it with Ctrl-C or SIGTERM", flush=True)
     try:
         sess = open_session(conf, stop)
     except zenoh.ZError as exc:
@@ -453,8 +493,10 @@ def main(argv: list[str] | None = None) -> int:
         host = Host(sess, name, robots, list(args.connect), settings, workdir, args.launcher_wait)
         queryable = sess.declare_queryable(host.keys.ctl)
         token = sess.liveliness().declare_token(host.keys.alive)
-        host.say(f"connected to a router at {where}; serving robots {', '.join(map(str, robots)) if robots else 'any'} "
-                 f"(formation_swarm {__version__})")  # fmt: skip
+        host.say(
+            f"connected to a router at {where}; serving robots {', '.join(map(str, robots)) if robots else 'any'} "
+            f"(formation_swarm {__version__})"
+        )
         try:
             while not stop.is_set():
                 query = queryable.try_recv()

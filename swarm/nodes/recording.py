@@ -424,24 +424,46 @@ class Recorder:
                 self._columns(f"{base}/formation", "scalar", np.array([tel.time_s]), np.array([float(tel.formation)]))
                 names = self.sc.formation_names
                 self._event(tel.time_s, f"R{rid} flies {names[tel.formation] if tel.formation < len(names) else '?'}")
-        a = np.array([
-            (tel.time_s, *pose, *(target or (nan, nan)), *(tel.measured or (nan, nan)), *(tel.estimate or (nan, nan)),
-             *(tel.target_cov or (nan, nan, nan)), _nan(tel.rho_m), _nan(tel.alpha_rad), _nan(tel.vn),
-             tel.left_mps, tel.right_mps, tel.obs_dropped, tel.formation_dropped)
-            for tel, pose, target in rows
-        ])  # fmt: skip
+        a = np.array(
+            [
+                (
+                    tel.time_s,
+                    *pose,
+                    *(target or (nan, nan)),
+                    *(tel.measured or (nan, nan)),
+                    *(tel.estimate or (nan, nan)),
+                    *(tel.target_cov or (nan, nan, nan)),
+                    _nan(tel.rho_m),
+                    _nan(tel.alpha_rad),
+                    _nan(tel.vn),
+                    tel.left_mps,
+                    tel.right_mps,
+                    tel.obs_dropped,
+                    tel.formation_dropped,
+                )
+                for tel, pose, target in rows
+            ]
+        )
         t, pose, target = a[:, 0], a[:, 1:4], a[:, 4:6]
         measured, estimate = _to_world(pose, a[:, 6:8]), _to_world(pose, a[:, 8:10])
         cov = a[:, 10:13]
-        scalars = ("fis/rho", "fis/alpha", "fis/v_n", "wheels/left", "wheels/right", "links/obs_dropped",
-                   "links/formation_dropped")  # fmt: skip
+        scalars = (
+            "fis/rho",
+            "fis/alpha",
+            "fis/v_n",
+            "wheels/left",
+            "wheels/right",
+            "links/obs_dropped",
+            "links/formation_dropped",
+        )
         for col, name in enumerate(scalars, start=13):
             ok = ~np.isnan(a[:, col])
             self._columns(f"{base}/{name}", "scalar", t[ok], a[ok, col])
         for name, pts in (("measured", measured), ("ekf", estimate)):
             ok = ~np.isnan(pts[:, 0])
-            self._columns(f"{base}/target/measured" if name == "measured" else f"{base}/ekf/target", "point",
-                          t[ok], pts[ok])  # fmt: skip
+            self._columns(
+                f"{base}/target/measured" if name == "measured" else f"{base}/ekf/target", "point", t[ok], pts[ok]
+            )
             ok &= ~np.isnan(target[:, 0])
             err = np.hypot(*(pts[ok] - target[ok]).T)
             self._columns(f"{base}/error/{name}", "scalar", t[ok], err)

@@ -62,11 +62,15 @@ def main(argv: list[str] | None = None) -> int:
         where = ", ".join(args.listen) if args.listen else f"the endpoints of {args.config}"
         role.say(f"listening on {where}; stop it with Ctrl-C or SIGTERM")
         if args.auth is None and args.config is None:
-            role.say("no --auth: no logins and no access rules; anyone who reaches this port can join any run "
-                     "through it and drive its robots (swarm secure S --run ID writes a run's --auth)")  # fmt: skip
+            role.say(
+                "no --auth: no logins and no access rules; anyone who reaches this port can join any run "
+                "through it and drive its robots (swarm secure S --run ID writes a run's --auth)"
+            )
         elif args.auth is None:
-            role.say(f"no --auth: the access rules, logins and TLS are {args.config}'s, as it sets them "
-                     "(deploy/router.json5 denies everything until --auth gives a run's rules)")  # fmt: skip
+            role.say(
+                f"no --auth: the access rules, logins and TLS are {args.config}'s, as it sets them "
+                "(deploy/router.json5 denies everything until --auth gives a run's rules)"
+            )
         wait_for(role.stop)
     role.say(f"{role.stopped_by()} after {time.monotonic() - started:.0f} s")
     return role_mod.EXIT_OK

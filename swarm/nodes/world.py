@@ -498,9 +498,10 @@ class World:
                 while not self.stop.is_set():
                     robots = eng.robots
                     waiting = [
-                        rid for rid in waiting
+                        rid
+                        for rid in waiting
                         if not robots[rid].answered and robots[rid].alive and self.faults.observed(rid)
-                    ]  # fmt: skip
+                    ]
                     if not waiting:
                         break
                     if time.monotonic() >= (until := self._answer_deadline(waiting, deadline, thaw_deadline)):
@@ -509,8 +510,11 @@ class World:
                             eng.robots[rid].command = (0.0, 0.0)  # missed: stopped this tick
                             if rid in self.faults.thawing:
                                 self.faults.thawing.discard(rid)
-                                print(f"world: robot {rid} did not answer within {self.role.peers_timeout_s:g} s "
-                                      f"of its thaw at t={eng.time_s:.2f} s; a miss", flush=True)  # fmt: skip
+                                print(
+                                    f"world: robot {rid} did not answer within {self.role.peers_timeout_s:g} s "
+                                    f"of its thaw at t={eng.time_s:.2f} s; a miss",
+                                    flush=True,
+                                )
                         break
                     self._drain(until=until)
                 self.wait_s += time.perf_counter() - t_wait
@@ -554,8 +558,15 @@ class World:
 
     def _publish_call(self, call: Call) -> None:
         if self.fault_pub is not None:
-            msg = FaultCall(0, self._next_seq("faults"), self.engine.tick, self.engine.time_s, call.action,
-                            call.fault.target, call.index)  # fmt: skip
+            msg = FaultCall(
+                0,
+                self._next_seq("faults"),
+                self.engine.tick,
+                self.engine.time_s,
+                call.action,
+                call.fault.target,
+                call.index,
+            )
             self.fault_pub.put(msg.to_bytes())
 
     def _await_fresh_agent(self, call: Call) -> None:
@@ -571,8 +582,11 @@ class World:
                 return
             if time.monotonic() >= deadline:
                 self.faults.not_back(rid, self._wall_s())
-                print(f"world: no fresh agent for robot {rid} within {self.role.peers_timeout_s:g} s of its restart "
-                      f"at t={self.engine.time_s:.2f} s ('{call.fault}'); it stays stopped", flush=True)  # fmt: skip
+                print(
+                    f"world: no fresh agent for robot {rid} within {self.role.peers_timeout_s:g} s of its restart "
+                    f"at t={self.engine.time_s:.2f} s ('{call.fault}'); it stays stopped",
+                    flush=True,
+                )
                 return
             self._drain(until=deadline)
 

@@ -92,13 +92,15 @@ def make_report(run_dir: str | Path, snapshots: int = 6, fmt: str = "png", dpi: 
     return out
 
 
-def _context(run_dir: Path, summary: Mapping[str, Any], data: Mapping[str, Series], robots: list[int],
-             followers: list[int]) -> figures.Context:  # fmt: skip
+def _context(
+    run_dir: Path, summary: Mapping[str, Any], data: Mapping[str, Series], robots: list[int], followers: list[int]
+) -> figures.Context:
     """What the figures need from the summary and the scenario as run."""
     from formation_swarm.spec import scenario as scenario_mod
 
-    ctx = figures.Context(scenario=str(summary.get("scenario")), seed=summary.get("seed"), robots=robots,
-                          followers=followers)  # fmt: skip
+    ctx = figures.Context(
+        scenario=str(summary.get("scenario")), seed=summary.get("seed"), robots=robots, followers=followers
+    )
     ctx.t_end = max((float(s.t[-1]) for e, s in data.items() if e.endswith("/pose") and len(s)), default=0.0)
     ctx.fault_marks = fault_marks(summary)
     if summary_mod.recording_cut(summary):  # the lines end there; the legends' RMS are the whole run's
@@ -113,8 +115,9 @@ def _context(run_dir: Path, summary: Mapping[str, Any], data: Mapping[str, Serie
         return ctx
     ctx.dt_s, ctx.diameter_m = sc.dt_s, sc.diameter_m
     ctx.obstacles = [(o.x_m, o.y_m, o.radius_m) for o in sc.obstacles]
-    ctx.formations = {n: {r: (s.reference, (s.offset[0], s.offset[1])) for r, s in f.slots.items()}
-                      for n, f in sc.formations.items()}  # fmt: skip
+    ctx.formations = {
+        n: {r: (s.reference, (s.offset[0], s.offset[1])) for r, s in f.slots.items()} for n, f in sc.formations.items()
+    }
     ctx.start_formation = sc.leader.formation
     ctx.paper = paper_figures(run_dir / "scenario.toml")
     ctx.changes = None if ctx.paper else paper_changes(run_dir / "scenario.toml")
@@ -186,12 +189,17 @@ def _stopped_markdown(summary: Mapping[str, Any], followers: list[int]) -> list[
     for r in followers:
         until = ((summary.get("followers") or {}).get(str(r)) or {}).get("until_stopped")
         if isinstance(until, Mapping):
-            fresh = [e.get("sim_time_s") for e in events if e.get("event") == "started"
-                     and str(e.get("process", "")).split(".")[0] == f"agent-{r}"]  # fmt: skip
+            fresh = [
+                e.get("sim_time_s")
+                for e in events
+                if e.get("event") == "started" and str(e.get("process", "")).split(".")[0] == f"agent-{r}"
+            ]
             back = f", a fresh agent started at t={_num(fresh[0], '.2f')} s" if fresh else ""
-            out.append(f"R{r} stopped at t={_num(until.get('time_s'), '.2f')} s (its agent killed or lost{back}): its "
-                       f"figures above include the robot after that; until then RMS {_num(until.get('rms_m'))} m, "
-                       f"max {_num(until.get('max_m'))} m.")  # fmt: skip
+            out.append(
+                f"R{r} stopped at t={_num(until.get('time_s'), '.2f')} s (its agent killed or lost{back}): its "
+                f"figures above include the robot after that; until then RMS {_num(until.get('rms_m'))} m, "
+                f"max {_num(until.get('max_m'))} m."
+            )
     return out
 
 
@@ -277,8 +285,10 @@ def _markdown(
         "",
     ]
     if not followers:
-        lines += ["No follower metrics: " + ("the run ended before its first tick." if not summary.get("ticks")
-                                             else "the run has no follower.")]  # fmt: skip
+        lines += [
+            "No follower metrics: "
+            + ("the run ended before its first tick." if not summary.get("ticks") else "the run has no follower.")
+        ]
     else:
         lines += [
             "| follower | RMS error, m | max, m | RMS in turns, m | RMS on straights, m | mean lag in turns, m "
@@ -349,8 +359,10 @@ def _events_markdown(summary: Mapping[str, Any]) -> list[str]:
     if not events:
         return ["## Formation events", "", "None: the formation never changed.", ""]
     out = ["## Formation events", "", "| tick | time, s | robot | its formation from then |", "|---|---|---|---|"]
-    out += [f"| {e.get('tick')} | {_num(e.get('time_s'), '.2f')} | R{e.get('robot')} | {e.get('formation')} |"
-            for e in events]  # fmt: skip
+    out += [
+        f"| {e.get('tick')} | {_num(e.get('time_s'), '.2f')} | R{e.get('robot')} | {e.get('formation')} |"
+        for e in events
+    ]
     return [*out, ""]
 
 
@@ -384,8 +396,9 @@ def _faults_markdown(summary: Mapping[str, Any]) -> list[str]:
         out += ["## Processes", ""]
         unexpected = _unexpected_exits(events)
         out += [f"- {describe_event(e)}" for e in events if e.get("event") != "exited" or e in unexpected]
-        out += [f"- robot {d.get('robot')} lost its agent at tick {d.get('tick')} ({_t(d.get('time_s'))})"
-                for d in deaths]  # fmt: skip
+        out += [
+            f"- robot {d.get('robot')} lost its agent at tick {d.get('tick')} ({_t(d.get('time_s'))})" for d in deaths
+        ]
         if summary.get("failure"):
             out.append(f"- the run failed: {summary['failure']}")
         out.append("")
@@ -402,16 +415,29 @@ def _t(x: Any) -> str:
 
 
 def build_parser() -> Parser:
-    ap = Parser(prog="swarm report", description=__doc__,
-                epilog="example:\n  swarm run fig11_obstacles --out runs/fig11\n  swarm report runs/fig11")  # fmt: skip
+    ap = Parser(
+        prog="swarm report",
+        description=__doc__,
+        epilog="example:\n  swarm run fig11_obstacles --out runs/fig11\n  swarm report runs/fig11",
+    )
     ap.add_argument("run_dir", metavar="RUN_DIR", help="a run's folder, as swarm run printed it (runs/<run id>)")
-    ap.add_argument("--snapshots", type=integer(0, MAX_SNAPSHOTS), default=6, metavar="N",
-                    help="for a run with no formation switch, formation snapshots drawn on the trajectory figure, "
-                    f"evenly spaced from the start to the end, 0 to {MAX_SNAPSHOTS} (default: 6); a run with "
-                    "switches gets one at each switch and one mid-way through each formation")  # fmt: skip
+    ap.add_argument(
+        "--snapshots",
+        type=integer(0, MAX_SNAPSHOTS),
+        default=6,
+        metavar="N",
+        help="for a run with no formation switch, formation snapshots drawn on the trajectory figure, "
+        f"evenly spaced from the start to the end, 0 to {MAX_SNAPSHOTS} (default: 6); a run with "
+        "switches gets one at each switch and one mid-way through each formation",
+    )
     ap.add_argument("--format", choices=FORMATS, default="png", help="the figures' file format (default: png)")
-    ap.add_argument("--dpi", type=integer(50, 600), default=DEFAULT_DPI, metavar="N",
-                    help=f"resolution of PNG figures, 50 to 600 (default: {DEFAULT_DPI})")  # fmt: skip
+    ap.add_argument(
+        "--dpi",
+        type=integer(50, 600),
+        default=DEFAULT_DPI,
+        metavar="N",
+        help=f"resolution of PNG figures, 50 to 600 (default: {DEFAULT_DPI})",
+    )
     return ap
 
 

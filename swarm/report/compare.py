@@ -114,14 +114,14 @@ def figure(runs: Sequence[RunData]) -> Figure:
     for ax in (traj, err):
         ax.grid(alpha=0.3)
     leaders = {r for run in runs for r in run.robots if r not in run.followers}
-    robot_keys = [Line2D([], [], color="0.2", ls=style[r], label=f"R{r}" + (" (leader)" if r in leaders else ""))
-                  for r in robots]  # fmt: skip
+    robot_keys = [
+        Line2D([], [], color="0.2", ls=style[r], label=f"R{r}" + (" (leader)" if r in leaders else "")) for r in robots
+    ]
     err.legend(handles=robot_keys, loc="upper right", fontsize=8, title="robot", title_fontsize=8)
     differ = differing(runs)
     run_keys = [Line2D([], [], color=f"C{k}", lw=2.5, label=label(run, differ)) for k, run in enumerate(runs)]
     wide = sum(len(h.get_label()) for h in run_keys) > 150  # side by side they would run off the figure
-    fig.legend(handles=run_keys, loc="outside lower center", ncol=1 if wide or len(runs) > 3 else len(runs),
-               fontsize=9)  # fmt: skip
+    fig.legend(handles=run_keys, loc="outside lower center", ncol=1 if wide or len(runs) > 3 else len(runs), fontsize=9)
     fig.suptitle(f"{len(runs)} runs compared")
     return fig
 
@@ -152,14 +152,25 @@ def compare(run_dirs: Sequence[str | Path], out: str | Path) -> Path:
 
 
 def build_parser() -> Parser:
-    ap = Parser(prog="swarm compare", description=__doc__,
-                epilog="example:\n  swarm run fig6_turn_vn_1_5 --out runs/static\n"
-                "  swarm run fig7_turn_vn_dynamic --out runs/dynamic\n"
-                "  swarm compare runs/static runs/dynamic --out static-vs-dynamic.png")  # fmt: skip
-    ap.add_argument("run_dirs", nargs="+", metavar="RUN_DIR",
-                    help=f"the run folders to overlay, 1 to {MAX_RUNS}, each as swarm run printed it")  # fmt: skip
-    ap.add_argument("--out", default="compare.png", metavar="FILE",
-                    help="the figure to write, PNG, PDF or SVG by its suffix (default: compare.png)")  # fmt: skip
+    ap = Parser(
+        prog="swarm compare",
+        description=__doc__,
+        epilog="example:\n  swarm run fig6_turn_vn_1_5 --out runs/static\n"
+        "  swarm run fig7_turn_vn_dynamic --out runs/dynamic\n"
+        "  swarm compare runs/static runs/dynamic --out static-vs-dynamic.png",
+    )
+    ap.add_argument(
+        "run_dirs",
+        nargs="+",
+        metavar="RUN_DIR",
+        help=f"the run folders to overlay, 1 to {MAX_RUNS}, each as swarm run printed it",
+    )
+    ap.add_argument(
+        "--out",
+        default="compare.png",
+        metavar="FILE",
+        help="the figure to write, PNG, PDF or SVG by its suffix (default: compare.png)",
+    )
     return ap
 
 

@@ -108,13 +108,20 @@ def export(run_dir: str | Path, fmt: str = "csv", out: str | Path | None = None)
 
 
 def build_parser() -> Parser:
-    ap = Parser(prog="swarm export", description=__doc__,
-                epilog="example:\n  swarm run fig11_obstacles --out runs/fig11\n"
-                "  swarm export runs/fig11 --format parquet --out fig11.parquet")  # fmt: skip
+    ap = Parser(
+        prog="swarm export",
+        description=__doc__,
+        epilog="example:\n  swarm run fig11_obstacles --out runs/fig11\n"
+        "  swarm export runs/fig11 --format parquet --out fig11.parquet",
+    )
     ap.add_argument("run_dir", metavar="RUN_DIR", help="a run's folder, as swarm run printed it (runs/<run id>)")
     ap.add_argument("--format", choices=FORMATS, default="csv", help="the table's format (default: csv)")
-    ap.add_argument("--out", default=None, metavar="FILE",
-                    help="the file to write (default: RUN_DIR/run.csv or RUN_DIR/run.parquet)")  # fmt: skip
+    ap.add_argument(
+        "--out",
+        default=None,
+        metavar="FILE",
+        help="the file to write (default: RUN_DIR/run.csv or RUN_DIR/run.parquet)",
+    )
     return ap
 
 

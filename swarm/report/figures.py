@@ -225,8 +225,9 @@ def _time_marks(ax: Any, ctx: Context, beside: Sequence[Any] = ()) -> None:
     cells = ax.get_subplotspec().subgridspec(2, 1, height_ratios=[axes_in, lane_in], hspace=0.0)
     ax.set_subplotspec(cells[0])
     for other in beside:  # a panel sharing the y axis keeps the same height
-        other.set_subplotspec(other.get_subplotspec().subgridspec(2, 1, height_ratios=[axes_in, lane_in],
-                                                                  hspace=0.0)[0])  # fmt: skip
+        other.set_subplotspec(
+            other.get_subplotspec().subgridspec(2, 1, height_ratios=[axes_in, lane_in], hspace=0.0)[0]
+        )
     lane = fig.add_subplot(cells[1], sharex=ax)
     for color, row, width, (start, end, label) in zip(colors, rows, widths, marks, strict=True):
         if end is None:
@@ -511,8 +512,12 @@ def _swarm_lines(
     if scored:
         value, worst = max(scored)
         s = drawn[worst]
-        ax.plot(*gapped(s.t, s.v, dt_s), lw=1.6, color=robot_colour(worst),
-                label=f"largest {what}: R{worst} ({value:.2f} {unit})")  # fmt: skip
+        ax.plot(
+            *gapped(s.t, s.v, dt_s),
+            lw=1.6,
+            color=robot_colour(worst),
+            label=f"largest {what}: R{worst} ({value:.2f} {unit})",
+        )
 
 
 # -- formation error (Fig. 6b/d, 7b) ---------------------------------------------------------------
@@ -580,8 +585,12 @@ def vn(path: Any, data: Mapping[str, Series], ctx: Context, dpi: int) -> None:
             averages[r] = (t, smooth)
         else:
             ax.plot(*gapped(t, v, ctx.dt_s), lw=0.5, color=c, alpha=0.3)
-            ax.plot(*gapped(t, smooth, ctx.dt_s), lw=1.8, color=c,
-                    label=f"R{r}: {VN_SMOOTH_S:g} s moving average (mean {np.mean(v):.2f} m/s)")  # fmt: skip
+            ax.plot(
+                *gapped(t, smooth, ctx.dt_s),
+                lw=1.8,
+                color=c,
+                label=f"R{r}: {VN_SMOOTH_S:g} s moving average (mean {np.mean(v):.2f} m/s)",
+            )
         drawn.append((r, v))
     if not drawn:
         ax.text(0.5, 0.5, "no V_N in this run (l-psi followers have none)", ha="center", transform=ax.transAxes)
@@ -595,13 +604,28 @@ def vn(path: Any, data: Mapping[str, Series], ctx: Context, dpi: int) -> None:
         if ctx.many:  # every follower's ticks in one set of bars
             pooled = np.concatenate([v for _, v in drawn])
             share, _ = np.histogram(pooled, bins=edges)
-            hist.barh(edges[:-1] + 0.5 * np.diff(edges), 100.0 * share / len(pooled), height=0.9 * np.diff(edges),
-                      color="0.45", label=f"all {len(drawn)} followers")  # fmt: skip
+            hist.barh(
+                edges[:-1] + 0.5 * np.diff(edges),
+                100.0 * share / len(pooled),
+                height=0.9 * np.diff(edges),
+                color="0.45",
+                label=f"all {len(drawn)} followers",
+            )
             grid, median = _median_over(averages)
-            ax.plot([], [], lw=0.7, color="0.5", alpha=0.6,
-                    label=f"each follower's {VN_SMOOTH_S:g} s moving average ({len(drawn)}), faint")  # fmt: skip
-            ax.plot(*gapped(grid, median, ctx.dt_s), lw=2.0, color="k",
-                    label=f"median over the {len(drawn)} followers' averages")  # fmt: skip
+            ax.plot(
+                [],
+                [],
+                lw=0.7,
+                color="0.5",
+                alpha=0.6,
+                label=f"each follower's {VN_SMOOTH_S:g} s moving average ({len(drawn)}), faint",
+            )
+            ax.plot(
+                *gapped(grid, median, ctx.dt_s),
+                lw=2.0,
+                color="k",
+                label=f"median over the {len(drawn)} followers' averages",
+            )
         else:
             width = 0.9 * np.diff(edges) / len(drawn)  # the followers' bars side by side in each band
             for k, (r, v) in enumerate(drawn):
@@ -618,8 +642,7 @@ def vn(path: Any, data: Mapping[str, Series], ctx: Context, dpi: int) -> None:
         hist.set_title("time at each V_N", fontsize=9)
         hist.grid(alpha=0.3)
         # Under the figure: inside, it would hide the V_N lines it names.
-        ax.figure.legend(*ax.get_legend_handles_labels(), fontsize=8, loc="outside lower center", ncol=3,
-                         frameon=False)  # fmt: skip
+        ax.figure.legend(*ax.get_legend_handles_labels(), fontsize=8, loc="outside lower center", ncol=3, frameon=False)
     _time_axis(ax, ctx)
     ax.set_ylabel("V_N, m/s")
     note = f"\n{held} ticks holding (V_N = 0) not drawn" if held else ""
@@ -747,8 +770,13 @@ def _target_errors(ax: Any, data: Mapping[str, Series], base: str, ctx: Context,
         if s is not None and len(s):
             value = rms.get(f"{name}_rms_m")
             tag = f" (RMS {value:.3f} m)" if isinstance(value, (int, float)) else ""
-            ax.plot(*gapped(s.t, s.v, ctx.dt_s), lw=0.7, color=color, alpha=0.5 if name == "measured" else 0.9,
-                    label=label + tag)  # fmt: skip
+            ax.plot(
+                *gapped(s.t, s.v, ctx.dt_s),
+                lw=0.7,
+                color=color,
+                alpha=0.5 if name == "measured" else 0.9,
+                label=label + tag,
+            )
             arrays.append(s.v)
     top, cut = robust_top(arrays)
     ax.set_ylim(0.0, top)

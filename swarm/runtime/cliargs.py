@@ -143,13 +143,15 @@ def make_folder(what: str, path: str | Path) -> Path:
 def add_tls_arguments(group: argparse._ArgumentGroup) -> None:
     """--tls-ca/--tls-cert/--tls-key: the TLS identity of a router that hosts
     reach on --listen tls/... (swarm run --hosts, swarm doctor); read with :func:`tls`."""
-    group.add_argument("--tls-ca", metavar="FILE",
-                       help="with --listen tls/...: the CA the hosts check this router against (PEM)")  # fmt: skip
-    group.add_argument("--tls-cert", metavar="FILE",
-                       help="with --listen tls/...: this router's certificate, naming the address the "
-                       "hosts use (PEM)")  # fmt: skip
-    group.add_argument("--tls-key", metavar="FILE",
-                       help="with --listen tls/...: this router's private key (PEM)")  # fmt: skip
+    group.add_argument(
+        "--tls-ca", metavar="FILE", help="with --listen tls/...: the CA the hosts check this router against (PEM)"
+    )
+    group.add_argument(
+        "--tls-cert",
+        metavar="FILE",
+        help="with --listen tls/...: this router's certificate, naming the address the hosts use (PEM)",
+    )
+    group.add_argument("--tls-key", metavar="FILE", help="with --listen tls/...: this router's private key (PEM)")
 
 
 def tls(args: argparse.Namespace) -> Tls | None:

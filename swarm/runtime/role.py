@@ -219,8 +219,10 @@ class Role:
             if login is not None and args.auth:
                 user = trust.login_user(trust.read_settings(args.auth))
                 if user is not None and user != login:
-                    raise ValueError(f"--auth {args.auth}: this login is for {user}, not for {login}: give "
-                                     f"{login}.json of the run's swarm secure")  # fmt: skip
+                    raise ValueError(
+                        f"--auth {args.auth}: this login is for {user}, not for {login}: give "
+                        f"{login}.json of the run's swarm secure"
+                    )
             conf = session.config_from_args(args, connect_timeout_s=timeout_s)
         except ValueError as exc:
             self.complain(str(exc))

@@ -142,9 +142,11 @@ class Forked:
         self.args = list(argv)
         self.exit_path = f"{log_path}.exit"  # the child's own record of its exit code, removed once read
         self._p = _forkserver().Process(
-            target=_child, args=(module, list(argv), str(log_path), dict(env), self.exit_path), name=module,
+            target=_child,
+            args=(module, list(argv), str(log_path), dict(env), self.exit_path),
+            name=module,
             daemon=True,
-        )  # fmt: skip
+        )
         self._p.start()  # not to be interrupted: Child.start holds a Ctrl-C back until it returns
         self.pid: int = self._p.pid
         self.returncode: int | None = None

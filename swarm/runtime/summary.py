@@ -51,8 +51,12 @@ START_FAILED = "start_failed"  # the launcher could not start the run (a host mi
 END_REASONS = (LEADER_FINISHED, DURATION_REACHED, INTERRUPTED, TIMED_OUT, PEERS_TIMEOUT, ROLE_FAILED, START_FAILED)
 
 
-def describe_end(reason: str | None, ended_at_s: float | None, events: list[Mapping[str, Any]] | None = None,
-                 limit_s: float | None = None) -> str:  # fmt: skip
+def describe_end(
+    reason: str | None,
+    ended_at_s: float | None,
+    events: list[Mapping[str, Any]] | None = None,
+    limit_s: float | None = None,
+) -> str:
     """``end_reason`` in words, for a report line; for a failed run, with the
     processes that exited on their own (from the launcher's ``events``)."""
     at = "" if ended_at_s is None else f" at t={ended_at_s:.2f} s"
@@ -61,9 +65,11 @@ def describe_end(reason: str | None, ended_at_s: float | None, events: list[Mapp
         died = [
             f"{e.get('process')} {describe_exit(e['code'])}"
             for e in events or []
-            if e.get("event") == "exited" and isinstance(e.get("code"), int) and e["code"] != 0
+            if e.get("event") == "exited"
+            and isinstance(e.get("code"), int)
+            and e["code"] != 0
             and e.get("process") not in killed
-        ]  # fmt: skip
+        ]
         return f"a process failed{at}" + (f" ({'; '.join(died)})" if died else "")
     if reason == START_FAILED:
         why = [str(e.get("why")) for e in events or [] if e.get("event") == "start failed"]
@@ -285,10 +291,15 @@ def recording_cut(summary: Mapping[str, Any]) -> str | None:
         if isinstance(e, Mapping) and e.get("event") == "killed" and e.get("process") == "logger":
             t = e.get("sim_time_s")
             when = f" at sim t={t:.2f} s" if isinstance(t, (int, float)) else ""
-            fast = "; a lockstep run passes many ticks in a second, so it may hold none" \
-                if summary.get("mode") == "lockstep" else ""  # fmt: skip
-            return (f"the logger was killed{when}: the recording ends before that, without what the logger had "
-                    f"not yet written (up to its last second of wall time{fast})")  # fmt: skip
+            fast = (
+                "; a lockstep run passes many ticks in a second, so it may hold none"
+                if summary.get("mode") == "lockstep"
+                else ""
+            )
+            return (
+                f"the logger was killed{when}: the recording ends before that, without what the logger had "
+                f"not yet written (up to its last second of wall time{fast})"
+            )
     return None
 
 
@@ -322,8 +333,11 @@ def recording_gap(summary: Mapping[str, Any]) -> str | None:
         return f"the logger recorded {got} of the {sent_truth} ticks the world sent" + (
             f" (missing: {where})" if where else ""
         )
-    faulted = {_robot_of(e.get("process")) for e in summary.get("events") or []
-               if isinstance(e, Mapping) and e.get("event") in ("killed", "started")}  # fmt: skip
+    faulted = {
+        _robot_of(e.get("process"))
+        for e in summary.get("events") or []
+        if isinstance(e, Mapping) and e.get("event") in ("killed", "started")
+    }
     answered: dict[int, int] = {}
     for name, p in parts.items():
         rid = _robot_of(name)
@@ -337,8 +351,10 @@ def recording_gap(summary: Mapping[str, Any]) -> str | None:
     if ticks is None:  # a logger's stats from before per-sender ticks: the totals
         total = taken.get("telemetry")
         if not faulted and answered and isinstance(total, int) and total < sum(answered.values()):
-            return (f"the logger recorded {total} of the {sum(answered.values())} telemetry messages the followers "
-                    "sent (one per tick answered)")  # fmt: skip
+            return (
+                f"the logger recorded {total} of the {sum(answered.values())} telemetry messages the followers "
+                "sent (one per tick answered)"
+            )
         return None
     for rid, sent in sorted(answered.items()):
         t = ticks.get(str(rid))
@@ -353,8 +369,9 @@ def recording_gap(summary: Mapping[str, Any]) -> str | None:
             continue
         if (got := last - first + 1 - missing) < sent:
             where = _missing_ticks(f"R{rid}'s telemetry", t, sent_truth)
-            return (f"the logger recorded {got} of the {sent} telemetry messages R{rid} sent (one per tick answered)"
-                    + (f" (missing: {where})" if where else ""))  # fmt: skip
+            return f"the logger recorded {got} of the {sent} telemetry messages R{rid} sent (one per tick answered)" + (
+                f" (missing: {where})" if where else ""
+            )
     return None
 
 
@@ -461,9 +478,15 @@ def build(
     # them after the fault's window had ended (it does, COUNTS_FINAL_AFTER_TICKS later).
     killed = _killed_agents(processes, parts, events)
     for f, fault in zip(out["faults"], sc.faults, strict=True):
-        cut = sorted({int(name.split(">")[1]) for name in out["partial_links"]
-                      if fault.group in (LINK, NETWORK) and name.split(":")[0] in (fault.link_classes or LINK_CLASSES)
-                      and fault.applies_to(int(name.split(">")[1]))})  # fmt: skip
+        cut = sorted(
+            {
+                int(name.split(">")[1])
+                for name in out["partial_links"]
+                if fault.group in (LINK, NETWORK)
+                and name.split(":")[0] in (fault.link_classes or LINK_CLASSES)
+                and fault.applies_to(int(name.split(">")[1]))
+            }
+        )
         cut = [r for r in cut if _counts_cut(killed.get(r, []), f.get("start_tick"), f.get("end_tick"))]
         if cut:
             f["counts_partial_for"] = cut  # the robots whose agent's counts end at its last stats write

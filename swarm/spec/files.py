@@ -33,8 +33,9 @@ def description(path: Path) -> str:
 def resolve(spec: str | Path) -> Path:
     """A scenario's file from a path or from the name of a shipped scenario."""
     if not isinstance(spec, (str, Path)):
-        raise ScenarioError(f"a scenario is a shipped scenario's name or a TOML file's path, got "
-                            f"{type(spec).__name__} {spec!r:.60}")  # fmt: skip
+        raise ScenarioError(
+            f"a scenario is a shipped scenario's name or a TOML file's path, got {type(spec).__name__} {spec!r:.60}"
+        )
     p = Path(spec)
     if p.suffix == ".toml" or p.parent != Path(".") or p.exists():
         if not p.is_file():

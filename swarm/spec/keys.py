@@ -319,9 +319,18 @@ SECTIONS: dict[str, tuple[Mapping[str, Key], str, str]] = {
     "links": (LINK_KEYS, "faults of the one-way links: each message is dropped with this probability", "[links]"),
 }
 TOP_KEYS = (
-    "run", "robot", "camera", "leader", "formations", "controller", "followers", "obstacles", "links", "faults",
+    "run",
+    "robot",
+    "camera",
+    "leader",
+    "formations",
+    "controller",
+    "followers",
+    "obstacles",
+    "links",
+    "faults",
     "placement",
-)  # fmt: skip
+)
 
 
 def type_name(types: type | tuple[type, ...]) -> str:

@@ -210,20 +210,32 @@ def _formation(name: str, raw: Any, robots: tuple[int, ...]) -> Formation:
             slots[int(rid_text)] = Slot(st["reference"], Point(float(off[0]), float(off[1])))
         form = _wrap(where, Formation, name, slots)
     else:
-        raise ScenarioError(f"{where}.shape must be one of {', '.join(map(repr, SHAPES))}, got {shape!r}"
-                            + _suggest(str(shape), SHAPES))  # fmt: skip
+        raise ScenarioError(
+            f"{where}.shape must be one of {', '.join(map(repr, SHAPES))}, got {shape!r}" + _suggest(str(shape), SHAPES)
+        )
     form = Formation(name, form.slots)
     if sorted(form.robots) != list(robots):
-        hint = (f"; a custom formation places the robots its slots name, a shape (e.g. {where}.shape = \"wedge\")"
-                " places any number") if shape == "custom" else ""  # fmt: skip
+        hint = (
+            (
+                f'; a custom formation places the robots its slots name, a shape (e.g. {where}.shape = "wedge")'
+                " places any number"
+            )
+            if shape == "custom"
+            else ""
+        )
         raise ScenarioError(
             f"{where} covers robots {id_ranges(form.robots)}, the run has robots {id_ranges(robots)}{hint}"
         )
     return form
 
 
-def _check_sight(ld: Mapping[str, Any], formations: Mapping[str, Formation], camera: CameraParams,
-                 followers: Mapping[int, FollowerParams], forms_raw: Mapping[str, Any]) -> None:  # fmt: skip
+def _check_sight(
+    ld: Mapping[str, Any],
+    formations: Mapping[str, Formation],
+    camera: CameraParams,
+    followers: Mapping[int, FollowerParams],
+    forms_raw: Mapping[str, Any],
+) -> None:
     """Every follower sees its reference from its slot, and at a switch between
     the leader's two formations its new reference from its old slot, with a
     margin: the fuzzy controller's dmax_m in range (a follower that far from
@@ -245,8 +257,11 @@ def _check_sight(ld: Mapping[str, Any], formations: Mapping[str, Formation], cam
             check_switch(avoid, normal, cam)
         except ValueError as exc:
             pair = (forms_raw[ld["formation"]], forms_raw[ld["avoid_formation"]])
-            lines = [n for n, t in zip((ld["formation"], ld["avoid_formation"]), pair, strict=True)
-                     if t.get("shape") == "line" and t.get("follow", "ahead") == "ahead"]  # fmt: skip
+            lines = [
+                n
+                for n, t in zip((ld["formation"], ld["avoid_formation"]), pair, strict=True)
+                if t.get("shape") == "line" and t.get("follow", "ahead") == "ahead"
+            ]
             hint = _switch_hint(lines[0], ld["avoid_formation"]) if lines else ""
             raise ScenarioError(f"leader.avoid_formation: {exc}{hint}") from None
 
@@ -255,10 +270,12 @@ def _switch_hint(line: str, avoid: str) -> str:
     """The ways past a refused switch to a line that follows the robot ahead:
     the line alone (measured to hold), or the line on pairs (accepted, not safe)."""
     alone = f"--set leader.formation={line}" + ("" if avoid == line else " --set leader.avoid_formation=''")
-    return (f"; to keep the {line!r} throughout: {alone} (with --set controller.lookahead_m=1 for a long chain; "
-            f"README, 'Running things'); or a {line!r} with follow = 'pairs', which has the references of a wedge "
-            f"(--set formations.{line}.follow=pairs): the switch is then accepted, but measured with 30 robots it "
-            "let them touch (docs/paper.md, 'Beyond the paper: formations of many robots')")  # fmt: skip
+    return (
+        f"; to keep the {line!r} throughout: {alone} (with --set controller.lookahead_m=1 for a long chain; "
+        f"README, 'Running things'); or a {line!r} with follow = 'pairs', which has the references of a wedge "
+        f"(--set formations.{line}.follow=pairs): the switch is then accepted, but measured with 30 robots it "
+        "let them touch (docs/paper.md, 'Beyond the paper: formations of many robots')"
+    )
 
 
 def id_ranges(ids: Sequence[int]) -> str:
@@ -337,8 +354,9 @@ def chain_warnings(formations: Mapping[str, Formation], followers: Mapping[int, 
                 steering = "with the paper's steering (controller.lookahead_m = 0) heading swings grow"
             else:
                 values = " and ".join(f"{v:g}" for v in used)
-                steering = (f"with controller.lookahead_m = {values}, under {CHAIN_LOOKAHEAD_M:g} m, heading swings "
-                            "still grow")  # fmt: skip
+                steering = (
+                    f"with controller.lookahead_m = {values}, under {CHAIN_LOOKAHEAD_M:g} m, heading swings still grow"
+                )
             out.append(
                 f"formation {name!r}: {_robots(deep, 'follows', 'follow')} the leader through a chain of "
                 f'{links} other robots; {steering} at every link (docs/paper.md, "The steering look-ahead"): '
@@ -428,7 +446,7 @@ def _follower_params(where: str, t: Mapping[str, Any], robot: Mapping[str, Any],
             psi_gain=float(t["lpsi_psi_gain"]),
             d_m=float(t["lpsi_d_m"]),
             max_wheel_mps=fz.vn_max + fz.a_mps,
-        ),  # fmt: skip
+        ),
     )
 
 
@@ -458,8 +476,11 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
     for key in raw:
         if key not in TOP_KEYS:
             # A key of a section given without it (robots=30 for run.robots=30): name its place.
-            places = [f"{name}.{key}" for name, (schema, _, _) in SECTIONS.items()
-                      if "." not in name and name != "followers" and key in schema]  # fmt: skip
+            places = [
+                f"{name}.{key}"
+                for name, (schema, _, _) in SECTIONS.items()
+                if "." not in name and name != "followers" and key in schema
+            ]
             hint = f"; did you mean {' or '.join(map(repr, places))}?" if places else _suggest(key, TOP_KEYS)
             raise ScenarioError(f"unknown section [{key}]" + hint)
     run = _table(raw.get("run"), "run", RUN_KEYS)
@@ -617,8 +638,9 @@ def _placement(table: Any, robots: Sequence[int]) -> tuple[tuple[int, str], ...]
     out = []
     for key, host in table.items():
         if not str(key).isdigit() or int(key) not in robots:
-            raise ScenarioError(f"placement: {key!r} is not a robot of this run; robots are "
-                                f"{', '.join(map(str, robots))}")  # fmt: skip
+            raise ScenarioError(
+                f"placement: {key!r} is not a robot of this run; robots are {', '.join(map(str, robots))}"
+            )
         try:
             out.append((int(key), check_host_name(host)))
         except ValueError as exc:

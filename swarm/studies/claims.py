@@ -104,8 +104,14 @@ def claim_b_behind(rows: Rows) -> Claim:
 def claim_b_overshoot(rows: Rows) -> Claim:
     s2, s15, dyn = rows["static 2"], rows["static 1.5"], rows["dynamic"]
     n = len(s2)
-    ok = _count(n, lambda i: s2[i]["r2_max_ahead_m"] > 0.25 and s2[i]["r2_max_ahead_m"] > s15[i]["r2_max_ahead_m"]
-                and s2[i]["r2_max_ahead_m"] > dyn[i]["r2_max_ahead_m"])  # fmt: skip
+    ok = _count(
+        n,
+        lambda i: (
+            s2[i]["r2_max_ahead_m"] > 0.25
+            and s2[i]["r2_max_ahead_m"] > s15[i]["r2_max_ahead_m"]
+            and s2[i]["r2_max_ahead_m"] > dyn[i]["r2_max_ahead_m"]
+        ),
+    )
     text = (
         f"gets {_m(s2, 'r2_max_ahead_m')} ({_ci(s2, 'r2_max_ahead_m')}) ahead of its target (static 1.5 "
         f"{_m(s15, 'r2_max_ahead_m')}, dynamic "

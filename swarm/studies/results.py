@@ -40,11 +40,14 @@ DROPS = (0.0, 0.1, 0.3)
 NOISE: dict[str, dict[str, Any]] = {
     "low": {},
     "high": {
-        "camera.sigma_rho_m": 0.1, "camera.sigma_phi_deg": 5.0, "camera.sigma_beta_deg": 2.5,
-        "controller.ekf.sigma_rho_m": 0.1, "controller.ekf.sigma_phi_rad": 0.0873,
+        "camera.sigma_rho_m": 0.1,
+        "camera.sigma_phi_deg": 5.0,
+        "camera.sigma_beta_deg": 2.5,
+        "controller.ekf.sigma_rho_m": 0.1,
+        "controller.ekf.sigma_phi_rad": 0.0873,
         "controller.ekf.sigma_beta_rad": 0.0436,
     },
-}  # fmt: skip
+}
 
 
 def markers(what: str = "results table", settings: str = "") -> tuple[str, str]:
@@ -141,13 +144,21 @@ def write_into(path: Path, text: str, begin: str = BEGIN, end: str = END) -> Non
 
 
 def build_parser() -> Parser:
-    ap = Parser(prog="swarm results", description=__doc__,
-                epilog="examples:\n  swarm results --seeds 10 --jobs 2 --write docs/results.md\n"
-                "  swarm results --claims --seeds 10 --jobs 1 --set robot.wheel_noise_mps=0.1 "
-                "--write docs/results.md")  # fmt: skip
-    ap.add_argument("--seeds", type=integer(2, MAX_SEEDS), default=10, metavar="N",
-                    help=f"runs per cell of the table, seeds 0 to N-1, 2 to {MAX_SEEDS} (a confidence interval "
-                    f"needs two); {len(jobs([0]))} runs per seed (default: 10)")  # fmt: skip
+    ap = Parser(
+        prog="swarm results",
+        description=__doc__,
+        epilog="examples:\n  swarm results --seeds 10 --jobs 2 --write docs/results.md\n"
+        "  swarm results --claims --seeds 10 --jobs 1 --set robot.wheel_noise_mps=0.1 "
+        "--write docs/results.md",
+    )
+    ap.add_argument(
+        "--seeds",
+        type=integer(2, MAX_SEEDS),
+        default=10,
+        metavar="N",
+        help=f"runs per cell of the table, seeds 0 to N-1, 2 to {MAX_SEEDS} (a confidence interval "
+        f"needs two); {len(jobs([0]))} runs per seed (default: 10)",
+    )
     ap.add_argument(
         "--jobs",
         type=integer(1, MAX_JOBS),
@@ -155,32 +166,63 @@ def build_parser() -> Parser:
         metavar="J",
         help=f"runs at once, 1 to {MAX_JOBS} (default: the number of cores, {os.cpu_count() or 1})",
     )
-    ap.add_argument("--out", default=None, metavar="DIR",
-                    help="the sweep folder, created if needed; finished runs there are reused "
-                    "(default: sweeps/results, or sweeps/claims with --claims)")  # fmt: skip
-    ap.add_argument("--write", metavar="MARKDOWN", action="append", default=[],
-                    help="replace the table between the markers in this file (repeatable): "
-                    f"{BEGIN} ... {END}, or with --claims and --set, e.g. "
-                    f"{markers('claims', 'robot.wheel_noise_mps=0.1')[0]} ...")  # fmt: skip
-    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                    help="a scenario key for every run, e.g. robot.wheel_noise_mps=0.1 (repeatable; "
-                    "not a key the table varies)")  # fmt: skip
-    ap.add_argument("--claims", action="store_true",
-                    help=f"measure the paper's claims a-d instead ({len(claims.SWEEPS)} runs per seed, of the "
-                    "scenarios of tests/unit/studies/test_claims.py)")  # fmt: skip
-    ap.add_argument("--rows", metavar="CSV", default=None,
-                    help="with --claims: also write every run's row (sweep, seed and its metrics) to this CSV, "
-                    "the data tests/unit/studies/test_claims.py checks the claims over")  # fmt: skip
-    ap.add_argument("--sensitivity", action="store_true",
-                    help="measure the claims at every value of one setting at a time (the leader's speed, the "
-                    "camera's noise, the wheels' noise and bias), with l-psi and static V_N 1.7 and 1.8 beside; "
-                    "writes a figure per setting into --figures and, with --write, its section between "
-                    f"{markers('sensitivity', 'leader_speed')[0]} ... markers")  # fmt: skip
-    ap.add_argument("--axis", action="append", default=[], choices=list(sensitivity.AXIS_NAMES),
-                    help="with --sensitivity: only this setting (repeatable; default: all)")  # fmt: skip
-    ap.add_argument("--figures", default="docs/figures", metavar="DIR",
-                    help="with --sensitivity: where the figures go, sensitivity-<setting>.png "
-                    "(default: docs/figures)")  # fmt: skip
+    ap.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="the sweep folder, created if needed; finished runs there are reused "
+        "(default: sweeps/results, or sweeps/claims with --claims)",
+    )
+    ap.add_argument(
+        "--write",
+        metavar="MARKDOWN",
+        action="append",
+        default=[],
+        help="replace the table between the markers in this file (repeatable): "
+        f"{BEGIN} ... {END}, or with --claims and --set, e.g. "
+        f"{markers('claims', 'robot.wheel_noise_mps=0.1')[0]} ...",
+    )
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a scenario key for every run, e.g. robot.wheel_noise_mps=0.1 (repeatable; not a key the table varies)",
+    )
+    ap.add_argument(
+        "--claims",
+        action="store_true",
+        help=f"measure the paper's claims a-d instead ({len(claims.SWEEPS)} runs per seed, of the "
+        "scenarios of tests/unit/studies/test_claims.py)",
+    )
+    ap.add_argument(
+        "--rows",
+        metavar="CSV",
+        default=None,
+        help="with --claims: also write every run's row (sweep, seed and its metrics) to this CSV, "
+        "the data tests/unit/studies/test_claims.py checks the claims over",
+    )
+    ap.add_argument(
+        "--sensitivity",
+        action="store_true",
+        help="measure the claims at every value of one setting at a time (the leader's speed, the "
+        "camera's noise, the wheels' noise and bias), with l-psi and static V_N 1.7 and 1.8 beside; "
+        "writes a figure per setting into --figures and, with --write, its section between "
+        f"{markers('sensitivity', 'leader_speed')[0]} ... markers",
+    )
+    ap.add_argument(
+        "--axis",
+        action="append",
+        default=[],
+        choices=list(sensitivity.AXIS_NAMES),
+        help="with --sensitivity: only this setting (repeatable; default: all)",
+    )
+    ap.add_argument(
+        "--figures",
+        default="docs/figures",
+        metavar="DIR",
+        help="with --sensitivity: where the figures go, sensitivity-<setting>.png (default: docs/figures)",
+    )
     return ap
 
 
@@ -195,20 +237,27 @@ def run_sweeps(sweeps: Mapping[str, Sweep], out: Path) -> dict[str, list[dict[st
     unfit = [why for r in rows.values() for why in unfit_runs(r)]
     if unfit:
         # A failed run is run again by the next sweep; one with misses is kept, so it must be deleted.
-        print(f"swarm results: {len(unfit)} runs cannot enter the table; delete their folders under "
-              f"{out} and run again:\n  " + "\n  ".join(unfit[:10]), file=sys.stderr)  # fmt: skip
+        print(
+            f"swarm results: {len(unfit)} runs cannot enter the table; delete their folders under "
+            f"{out} and run again:\n  " + "\n  ".join(unfit[:10]),
+            file=sys.stderr,
+        )
         return None
     return rows
 
 
-def run_sensitivity(axes: Sequence[sensitivity.Axis], seeds: int, out: Path, workers: int | None,
-                    figures: Path, writes: Sequence[Path]) -> int:  # fmt: skip
+def run_sensitivity(
+    axes: Sequence[sensitivity.Axis], seeds: int, out: Path, workers: int | None, figures: Path, writes: Sequence[Path]
+) -> int:
     """Each axis's points, then its figure and its section (printed, and written into ``writes``)."""
     for n, axis in enumerate(axes, 1):
         points = []
         for k, value in enumerate(axis.values, 1):
-            print(f"[sensitivity] {axis.title} = {axis.label(value)}: value {k} of {len(axis.values)}, "
-                  f"axis {n} of {len(axes)}", flush=True)  # fmt: skip
+            print(
+                f"[sensitivity] {axis.title} = {axis.label(value)}: value {k} of {len(axis.values)}, "
+                f"axis {n} of {len(axes)}",
+                flush=True,
+            )
             settings, faults = axis.point(value)
             sweeps = sensitivity.plan(range(seeds), settings, faults, out, workers, axis.extras)
             rows = run_sweeps(sweeps, out)

@@ -38,17 +38,28 @@ EXTRAS: dict[str, dict[str, Any]] = {
 }
 EXTRA_SCENARIO = "fig7_turn_vn_dynamic.toml"
 # The controllers of the figures' lines, in legend order: claims' sweep or extra name -> legend.
-LINES = {"dynamic": "fuzzy, dynamic V_N", "static 1.5": "fuzzy, V_N = 1.5", "static 1.7": "fuzzy, V_N = 1.7",
-         "static 1.8": "fuzzy, V_N = 1.8", "static 2": "fuzzy, V_N = 2", "l-psi": "l-psi"}  # fmt: skip
+LINES = {
+    "dynamic": "fuzzy, dynamic V_N",
+    "static 1.5": "fuzzy, V_N = 1.5",
+    "static 1.7": "fuzzy, V_N = 1.7",
+    "static 1.8": "fuzzy, V_N = 1.8",
+    "static 2": "fuzzy, V_N = 2",
+    "l-psi": "l-psi",
+}
 SHORT = {c.__name__: name for c, name in zip(claims.CLAIMS, ("a", "b, behind", "b, overshoot", "c", "d"), strict=True)}
 
 
 def _camera(sigma_rho_m: float) -> dict[str, Any]:
     """The camera's three sigmas at one level (phi and beta from the table below), the EKF told them."""
     phi_deg, beta_deg = CAMERA_LEVELS[sigma_rho_m]
-    return {"camera.sigma_rho_m": sigma_rho_m, "camera.sigma_phi_deg": phi_deg, "camera.sigma_beta_deg": beta_deg,
-            "controller.ekf.sigma_rho_m": sigma_rho_m, "controller.ekf.sigma_phi_rad": math.radians(phi_deg),
-            "controller.ekf.sigma_beta_rad": math.radians(beta_deg)}  # fmt: skip
+    return {
+        "camera.sigma_rho_m": sigma_rho_m,
+        "camera.sigma_phi_deg": phi_deg,
+        "camera.sigma_beta_deg": beta_deg,
+        "controller.ekf.sigma_rho_m": sigma_rho_m,
+        "controller.ekf.sigma_phi_rad": math.radians(phi_deg),
+        "controller.ekf.sigma_beta_rad": math.radians(beta_deg),
+    }
 
 
 # sigma_rho (m) -> (sigma_phi, sigma_beta) in degrees: half the scenarios' default, the default
@@ -82,28 +93,62 @@ class Axis:
 
 
 AXES: tuple[Axis, ...] = (
-    Axis("leader_speed", "leader speed", "m/s", (1.0, 1.25, 1.5, 1.75, 2.0), 1.5,
-         lambda v: {"leader.speed_mps": v}, extras=tuple(EXTRAS),
-         note="every scenario's leader at this speed (shipped: 1.5 m/s); the turn rate stays 0.25 rad/s"),
-    Axis("camera_noise", "camera noise, sigma of rho", "m", tuple(CAMERA_LEVELS), None, _camera,
-         note="sigma of phi and beta " + ", ".join(f"{p:g} and {b:g} deg at {r:g} m"
-                                                   for r, (p, b) in CAMERA_LEVELS.items())
-         + ", the EKF told them, in every scenario (shipped: 0.05 m, claim c's 0.1 m)",
-         marks=((0.05, "the shipped 0.05 m (claims a, b, d)"), (0.1, "claim c's 0.1 m (fig9_ekf_noise)"))),
-    Axis("wheel_noise", "wheel noise", "m/s", (0.0, 0.05, 0.1), 0.0, lambda v: {"robot.wheel_noise_mps": v},
-         note="robot.wheel_noise_mps: Gaussian noise on every wheel of every robot, drawn per tick; "
-         "the EKF is not told of it"),
-    Axis("wheel_bias", "left wheel speed bias", "%", (0.0, 1.0, 2.0, 3.0), 0.0, lambda _v: {},
-         faults=lambda v: [f"wheel_bias *@0s left={v / 100:g}"],
-         note="every robot's left wheel turns this much faster than commanded (fault wheel_bias), as with "
-         "unequal wheel diameters: a drift of heading that a follower's EKF, predicting its own motion "
-         "from its commands, does not know"),
-)  # fmt: skip
+    Axis(
+        "leader_speed",
+        "leader speed",
+        "m/s",
+        (1.0, 1.25, 1.5, 1.75, 2.0),
+        1.5,
+        lambda v: {"leader.speed_mps": v},
+        extras=tuple(EXTRAS),
+        note="every scenario's leader at this speed (shipped: 1.5 m/s); the turn rate stays 0.25 rad/s",
+    ),
+    Axis(
+        "camera_noise",
+        "camera noise, sigma of rho",
+        "m",
+        tuple(CAMERA_LEVELS),
+        None,
+        _camera,
+        note="sigma of phi and beta "
+        + ", ".join(f"{p:g} and {b:g} deg at {r:g} m" for r, (p, b) in CAMERA_LEVELS.items())
+        + ", the EKF told them, in every scenario (shipped: 0.05 m, claim c's 0.1 m)",
+        marks=((0.05, "the shipped 0.05 m (claims a, b, d)"), (0.1, "claim c's 0.1 m (fig9_ekf_noise)")),
+    ),
+    Axis(
+        "wheel_noise",
+        "wheel noise",
+        "m/s",
+        (0.0, 0.05, 0.1),
+        0.0,
+        lambda v: {"robot.wheel_noise_mps": v},
+        note="robot.wheel_noise_mps: Gaussian noise on every wheel of every robot, drawn per tick; "
+        "the EKF is not told of it",
+    ),
+    Axis(
+        "wheel_bias",
+        "left wheel speed bias",
+        "%",
+        (0.0, 1.0, 2.0, 3.0),
+        0.0,
+        lambda _v: {},
+        faults=lambda v: [f"wheel_bias *@0s left={v / 100:g}"],
+        note="every robot's left wheel turns this much faster than commanded (fault wheel_bias), as with "
+        "unequal wheel diameters: a drift of heading that a follower's EKF, predicting its own motion "
+        "from its commands, does not know",
+    ),
+)
 AXIS_NAMES = {a.name: a for a in AXES}
 
 
-def plan(seeds: Sequence[int], settings: Mapping[str, Any], faults: Sequence[str], out: Path,
-         workers: int | None, extras: Sequence[str] = ()) -> dict[str, Sweep]:  # fmt: skip
+def plan(
+    seeds: Sequence[int],
+    settings: Mapping[str, Any],
+    faults: Sequence[str],
+    out: Path,
+    workers: int | None,
+    extras: Sequence[str] = (),
+) -> dict[str, Sweep]:
     """The sweeps of one point: the claims' (one per scenario, in ``out/<scenario>``) and the extra
     controllers' (in ``out/<scenario>-<extra>``). Every run's label names the settings and the faults,
     so the points of an axis share those folders and a point without either is the claims' own runs."""
@@ -112,15 +157,25 @@ def plan(seeds: Sequence[int], settings: Mapping[str, Any], faults: Sequence[str
 
     label = "; ".join(t for t in (settings_text(settings), ", ".join(faults)) if t)
     out_sweeps = {
-        name: Sweep(ROOT / "scenarios" / file, [Job(label, dict(settings), s) for s in seeds],
-                    out / Path(file).stem, workers=workers, logger=logger, faults=list(faults))
+        name: Sweep(
+            ROOT / "scenarios" / file,
+            [Job(label, dict(settings), s) for s in seeds],
+            out / Path(file).stem,
+            workers=workers,
+            logger=logger,
+            faults=list(faults),
+        )
         for name, (file, logger) in claims.SWEEPS.items()
-    }  # fmt: skip
+    }
     for name in extras:
         ov = {**EXTRAS[name], **settings}
-        out_sweeps[name] = Sweep(ROOT / "scenarios" / EXTRA_SCENARIO, [Job(label, ov, s) for s in seeds],
-                                 out / f"{Path(EXTRA_SCENARIO).stem}-{name.replace(' ', '-')}", workers=workers,
-                                 faults=list(faults))  # fmt: skip
+        out_sweeps[name] = Sweep(
+            ROOT / "scenarios" / EXTRA_SCENARIO,
+            [Job(label, ov, s) for s in seeds],
+            out / f"{Path(EXTRA_SCENARIO).stem}-{name.replace(' ', '-')}",
+            workers=workers,
+            faults=list(faults),
+        )
     return out_sweeps
 
 
@@ -187,8 +242,7 @@ def _ranges(axis: Axis, values: Sequence[float]) -> str:
             runs[-1].append(i)
         else:
             runs.append([i])
-    parts = [f"{axis.values[r[0]]:g}" if len(r) == 1 else f"{axis.values[r[0]]:g}-{axis.values[r[-1]]:g}"
-             for r in runs]  # fmt: skip
+    parts = [f"{axis.values[r[0]]:g}" if len(r) == 1 else f"{axis.values[r[0]]:g}-{axis.values[r[-1]]:g}" for r in runs]
     return f"{', '.join(parts)} {axis.unit}".strip()
 
 
@@ -201,8 +255,10 @@ def holds_for(axis: Axis, points: Sequence[Point], k: int) -> str:
     if every:
         parts.append(f"holds for {_ranges(axis, every)}")
     if some:
-        parts.append("holds in some seeds at " + ", ".join(
-            f"{axis.label(p.value)} ({p.claims[k].holds} of {p.claims[k].seeds})" for p in some))  # fmt: skip
+        parts.append(
+            "holds in some seeds at "
+            + ", ".join(f"{axis.label(p.value)} ({p.claims[k].holds} of {p.claims[k].seeds})" for p in some)
+        )
     parts.append(f"fails for {_ranges(axis, none)}" if none else "fails for none of these values")
     return "; ".join(parts)
 
@@ -216,27 +272,38 @@ def _cell(s: Stat | None, fmt: str = ".2f") -> str:
 def markdown(axis: Axis, points: Sequence[Point], figure_path: str) -> str:
     """The axis's section: where each claim holds, the table of seeds and the metrics, the figure."""
     seeds = points[0].claims[0].seeds
-    lines = [f"**{axis.title}** ({axis.note}); lockstep runs, seeds 0-{seeds - 1} per value, the criteria "
-             "of tests/unit/studies/test_claims.py "
-             "evaluated seed by seed; mean ± 95% confidence half-width over the seeds.",
-             ""]  # fmt: skip
+    lines = [
+        f"**{axis.title}** ({axis.note}); lockstep runs, seeds 0-{seeds - 1} per value, the criteria "
+        "of tests/unit/studies/test_claims.py "
+        "evaluated seed by seed; mean ± 95% confidence half-width over the seeds.",
+        "",
+    ]
     for k, c in enumerate(points[0].claims):
         lines.append(f"- {c.name}: {holds_for(axis, points, k)}.")
     head = " | ".join(axis.label(p.value) + (" (shipped)" if p.value == axis.shipped else "") for p in points)
     lines += ["", f"| | {head} |", "|---" * (len(points) + 1) + "|"]
     for k in range(len(points[0].claims)):
         short = SHORT[claims.CLAIMS[k].__name__]
-        lines.append(f"| claim {short}: seeds where it holds | "
-                     + " | ".join(f"{p.claims[k].holds}/{p.claims[k].seeds}" for p in points) + " |")  # fmt: skip
+        lines.append(
+            f"| claim {short}: seeds where it holds | "
+            + " | ".join(f"{p.claims[k].holds}/{p.claims[k].seeds}" for p in points)
+            + " |"
+        )
     for title, key, sweeps, _thr in METRICS:
         for name in sweeps:
             if all((name, key) not in p.stats for p in points):
                 continue
             who = LINES.get(name, "fuzzy, dynamic V_N, claim c's run (fig9_ekf_noise)")
-            lines.append(f"| {title.split(' (')[0]}: {who} | "
-                         + " | ".join(_cell(p.stats.get((name, key))) for p in points) + " |")  # fmt: skip
-    lines.append("| least distance between two robots' centres, m (claim d; touching below 0.4) | "
-                 + " | ".join(_cell(p.stats.get(("obstacles", "min_distance_m"))) for p in points) + " |")  # fmt: skip
+            lines.append(
+                f"| {title.split(' (')[0]}: {who} | "
+                + " | ".join(_cell(p.stats.get((name, key))) for p in points)
+                + " |"
+            )
+    lines.append(
+        "| least distance between two robots' centres, m (claim d; touching below 0.4) | "
+        + " | ".join(_cell(p.stats.get(("obstacles", "min_distance_m"))) for p in points)
+        + " |"
+    )
     for what, said in (("obstacle contact", "a robot touches an obstacle"), ("robot contact", "two robots touch")):
         cells = " | ".join(f"{p.counts.get(what, 0)}/{p.counts.get('runs', 0)}" for p in points)
         lines.append(f"| claim d: runs in which {said} | {cells} |")
@@ -262,8 +329,17 @@ def figure(axis: Axis, points: Sequence[Point]) -> Figure:
                 continue
             mean = [s.mean if s else math.nan for s in st]
             half = [0.0 if s is None or math.isnan(s.half) else s.half for s in st]
-            ax.errorbar(xs, mean, yerr=half, marker="o", ms=4, capsize=3, lw=1.4, color=colours[name],
-                        label=LINES.get(name, "fuzzy, dynamic V_N (claim c's run)"))  # fmt: skip
+            ax.errorbar(
+                xs,
+                mean,
+                yerr=half,
+                marker="o",
+                ms=4,
+                capsize=3,
+                lw=1.4,
+                color=colours[name],
+                label=LINES.get(name, "fuzzy, dynamic V_N (claim c's run)"),
+            )
         if thr is not None:
             ax.axhline(thr, color="0.3", ls="--", lw=1.0)
         if key in LOG_SCALE:
@@ -278,9 +354,15 @@ def figure(axis: Axis, points: Sequence[Point]) -> Figure:
     step = (max(xs) - min(xs)) / max(1, len(xs) - 1) if len(xs) > 1 else 1.0
     for k in range(n):
         dodge = (k - (n - 1) / 2) * 0.05 * step  # side by side where several claims hold alike
-        share.plot([x + dodge for x in xs], [100.0 * p.claims[k].holds / p.claims[k].seeds for p in points],
-                   marker="os^vD"[k % 5], ms=5, lw=1.2, label=f"claim {SHORT[claims.CLAIMS[k].__name__]}",
-                   color=palette.series_colour(k))  # fmt: skip
+        share.plot(
+            [x + dodge for x in xs],
+            [100.0 * p.claims[k].holds / p.claims[k].seeds for p in points],
+            marker="os^vD"[k % 5],
+            ms=5,
+            lw=1.2,
+            label=f"claim {SHORT[claims.CLAIMS[k].__name__]}",
+            color=palette.series_colour(k),
+        )
     share.set_ylim(-5, 105)
     share.set_title("seeds in which the claim holds, %", fontsize=10)
     for ax in axes:
@@ -294,8 +376,10 @@ def figure(axis: Axis, points: Sequence[Point]) -> Figure:
     seeds = points[0].claims[0].seeds
     marks = [what if what != "the shipped value" else f"the shipped {axis.label(x)}" for x, what in axis.dotted]
     shipped = "; dotted: " + " and ".join(marks) if marks else ""
-    fig.suptitle(f"The paper's claims against the {axis.title}\nmean and 95% interval over {seeds} seeds per "
-                 f"value{shipped}; dashed: the claim's threshold")  # fmt: skip
+    fig.suptitle(
+        f"The paper's claims against the {axis.title}\nmean and 95% interval over {seeds} seeds per "
+        f"value{shipped}; dashed: the claim's threshold"
+    )
     return fig
 
 

@@ -44,9 +44,37 @@ if TYPE_CHECKING:
 
 # 97.5% quantile of Student's t for n - 1 degrees of freedom (n <= 31), then normal.
 _T975 = (
-    12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160, 2.145, 2.131,
-    2.120, 2.110, 2.101, 2.093, 2.086, 2.080, 2.074, 2.069, 2.064, 2.060, 2.056, 2.052, 2.048, 2.045, 2.042,
-)  # fmt: skip
+    12.706,
+    4.303,
+    3.182,
+    2.776,
+    2.571,
+    2.447,
+    2.365,
+    2.306,
+    2.262,
+    2.228,
+    2.201,
+    2.179,
+    2.160,
+    2.145,
+    2.131,
+    2.120,
+    2.110,
+    2.101,
+    2.093,
+    2.086,
+    2.080,
+    2.074,
+    2.069,
+    2.064,
+    2.060,
+    2.056,
+    2.052,
+    2.048,
+    2.045,
+    2.042,
+)
 
 
 @dataclass(frozen=True)
@@ -80,15 +108,22 @@ def parse_set(text: str) -> tuple[str, list[Any]]:
         # Equal values (1.5 and 1.50, 2 and 2.0) would make one run twice, in one folder at once.
         if any(v == w and type(v) is type(w) or _numbers_equal(v, w) for w in out[:i]):
             first = next(w for w in values.split(",")[:i] if parse_value(w) == v)
-            raise ValueError(f"--set {key}: the value {values.split(',')[i].strip()!r} is given twice "
-                             f"(as {first.strip()!r} before it: the same value)")  # fmt: skip
+            raise ValueError(
+                f"--set {key}: the value {values.split(',')[i].strip()!r} is given twice "
+                f"(as {first.strip()!r} before it: the same value)"
+            )
     return key, out
 
 
 def _numbers_equal(a: Any, b: Any) -> bool:
     numbers = (int, float)
-    return (isinstance(a, numbers) and isinstance(b, numbers) and not isinstance(a, bool)
-            and not isinstance(b, bool) and a == b)  # fmt: skip
+    return (
+        isinstance(a, numbers)
+        and isinstance(b, numbers)
+        and not isinstance(a, bool)
+        and not isinstance(b, bool)
+        and a == b
+    )
 
 
 def grid(sets: Sequence[tuple[str, list[Any]]]) -> list[tuple[str, dict[str, Any]]]:
@@ -97,8 +132,9 @@ def grid(sets: Sequence[tuple[str, list[Any]]]) -> list[tuple[str, dict[str, Any
         return [("", {})]
     keys = [k for k, _ in sets]
     combos = itertools.product(*(v for _, v in sets))
-    return [(" ".join(f"{k}={v}" for k, v in zip(keys, c, strict=True)), dict(zip(keys, c, strict=True)))
-            for c in combos]  # fmt: skip
+    return [
+        (" ".join(f"{k}={v}" for k, v in zip(keys, c, strict=True)), dict(zip(keys, c, strict=True))) for c in combos
+    ]
 
 
 def metrics(summary: Mapping[str, Any]) -> dict[str, Any]:
@@ -165,8 +201,19 @@ def aggregate(rows: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
             mean = statistics.fmean(vals)
             std = statistics.stdev(vals) if n > 1 else 0.0
             half = half_width(vals)
-            out.append({"combination": label, "metric": k, "n": n, "mean": mean, "std": std, "ci95_low": mean - half,
-                        "ci95_high": mean + half, "min": min(vals), "max": max(vals)})  # fmt: skip
+            out.append(
+                {
+                    "combination": label,
+                    "metric": k,
+                    "n": n,
+                    "mean": mean,
+                    "std": std,
+                    "ci95_low": mean - half,
+                    "ci95_high": mean + half,
+                    "min": min(vals),
+                    "max": max(vals),
+                }
+            )
     return out
 
 
@@ -175,9 +222,18 @@ def _is_number(v: Any) -> bool:
 
 
 class Sweep:
-    def __init__(self, scenario: str | Path, jobs: Sequence[Job], out: str | Path, *, workers: int | None = None,
-                 logger: bool = False, progress: Callable[[str], None] = print,
-                 run_timeout_s: float = 600.0, faults: Sequence[Any] = ()) -> None:  # fmt: skip
+    def __init__(
+        self,
+        scenario: str | Path,
+        jobs: Sequence[Job],
+        out: str | Path,
+        *,
+        workers: int | None = None,
+        logger: bool = False,
+        progress: Callable[[str], None] = print,
+        run_timeout_s: float = 600.0,
+        faults: Sequence[Any] = (),
+    ) -> None:
         self.scenario = Path(scenario)
         from formation_swarm.spec import files as scenario_files
         from formation_swarm.spec import scenario as scenario_mod
@@ -270,8 +326,10 @@ class Sweep:
                 self._write(rows)
                 el = time.monotonic() - started
                 eta = el / finished * (len(todo) - finished)
-                self.progress(f"[sweep] {len(rows)}/{total} {job.name}: exit {res.exit_code}, "
-                              f"{_brief(rows[job.name])} ({el:.0f} s, about {eta:.0f} s left)")  # fmt: skip
+                self.progress(
+                    f"[sweep] {len(rows)}/{total} {job.name}: exit {res.exit_code}, "
+                    f"{_brief(rows[job.name])} ({el:.0f} s, about {eta:.0f} s left)"
+                )
 
     def _one(self, job: Job, run_dir: Path) -> RunResult | None:
         from formation_swarm.launch.launcher import Launch
@@ -279,8 +337,15 @@ class Sweep:
         for attempt in (1, 2):
             if self._stop.is_set():
                 return None
-            with Launch(self.scenario, seed=job.seed, out=run_dir, overrides=dict(job.overrides), logger=self.logger,
-                        faults=self.faults, progress=lambda _line: None) as launch:  # fmt: skip
+            with Launch(
+                self.scenario,
+                seed=job.seed,
+                out=run_dir,
+                overrides=dict(job.overrides),
+                logger=self.logger,
+                faults=self.faults,
+                progress=lambda _line: None,
+            ) as launch:
                 with self._lock:
                     self._live.add(launch)
                     if self._stop.is_set():  # a Ctrl-C came while it started
@@ -296,8 +361,10 @@ class Sweep:
             kept = run_dir.with_name(run_dir.name + ".incomplete")
             shutil.rmtree(kept, ignore_errors=True)
             run_dir.rename(kept)  # its logs and recording, to look into the loss
-            self.progress(f"[sweep] {job.name}: {gap}; running it again (its metrics would miss those ticks; "
-                          f"this attempt is kept in {kept})")  # fmt: skip
+            self.progress(
+                f"[sweep] {job.name}: {gap}; running it again (its metrics would miss those ticks; "
+                f"this attempt is kept in {kept})"
+            )
         return res
 
     def _row(self, job: Job, summary: Mapping[str, Any]) -> dict[str, Any]:
@@ -341,8 +408,9 @@ def _brief(row: Mapping[str, Any]) -> str:
     if len(rms) > BRIEF_FOLLOWERS:
         values = sorted(v for _, v in rms)
         worst = max(rms, key=lambda kv: kv[1])
-        return (f"{len(rms)} followers' RMS: median {statistics.median(values):.2f} m, "
-                f"worst {worst[1]:.2f} m (R{worst[0]})")  # fmt: skip
+        return (
+            f"{len(rms)} followers' RMS: median {statistics.median(values):.2f} m, worst {worst[1]:.2f} m (R{worst[0]})"
+        )
     return ", ".join(f"r{rid}_rms {v:.2f} m" for rid, v in rms) or "no follower metrics"
 
 
@@ -363,31 +431,64 @@ examples:
 def build_parser() -> Parser:
     ap = Parser(prog="swarm sweep", description=__doc__, epilog=EPILOG)
     ap.add_argument("scenario", help="a shipped scenario's name (see: swarm scenarios) or a scenario file (TOML)")
-    ap.add_argument("--seeds", type=integer(1, MAX_SEEDS), required=True, metavar="N",
-                    help=f"runs per combination, one per seed, 1 to {MAX_SEEDS} (required)")  # fmt: skip
-    ap.add_argument("--seed-start", type=seed, default=0, metavar="S",
-                    help="the first seed: the runs use seeds S to S+N-1 (default: 0)")  # fmt: skip
-    ap.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2",
-                    help="a scenario key and the values to sweep, e.g. controller.vn=1.5,dynamic (repeatable: "
-                    "the grid is every combination)")  # fmt: skip
-    ap.add_argument("--fault", action="append", default=[], metavar="'KIND TARGET@TIME ...'",
-                    help="a fault in every run, e.g. 'wheel_noise *@0s sigma_mps=0.1' (repeatable; "
-                    "docs/faults.md)")  # fmt: skip
-    ap.add_argument("--jobs", type=integer(1, MAX_JOBS), default=None, metavar="J",
-                    help=f"runs at once, 1 to {MAX_JOBS} (default: the number of cores, "
-                    f"{os.cpu_count() or 1})")  # fmt: skip
-    ap.add_argument("--out", default=None, metavar="DIR",
-                    help="the sweep folder, created if needed (default: sweeps/<scenario name>)")  # fmt: skip
-    ap.add_argument("--logger", action="store_true",
-                    help="record each run (recording.rrd): needed for the EKF target errors, slower")  # fmt: skip
+    ap.add_argument(
+        "--seeds",
+        type=integer(1, MAX_SEEDS),
+        required=True,
+        metavar="N",
+        help=f"runs per combination, one per seed, 1 to {MAX_SEEDS} (required)",
+    )
+    ap.add_argument(
+        "--seed-start",
+        type=seed,
+        default=0,
+        metavar="S",
+        help="the first seed: the runs use seeds S to S+N-1 (default: 0)",
+    )
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=V1,V2",
+        help="a scenario key and the values to sweep, e.g. controller.vn=1.5,dynamic (repeatable: "
+        "the grid is every combination)",
+    )
+    ap.add_argument(
+        "--fault",
+        action="append",
+        default=[],
+        metavar="'KIND TARGET@TIME ...'",
+        help="a fault in every run, e.g. 'wheel_noise *@0s sigma_mps=0.1' (repeatable; docs/faults.md)",
+    )
+    ap.add_argument(
+        "--jobs",
+        type=integer(1, MAX_JOBS),
+        default=None,
+        metavar="J",
+        help=f"runs at once, 1 to {MAX_JOBS} (default: the number of cores, {os.cpu_count() or 1})",
+    )
+    ap.add_argument(
+        "--out",
+        default=None,
+        metavar="DIR",
+        help="the sweep folder, created if needed (default: sweeps/<scenario name>)",
+    )
+    ap.add_argument(
+        "--logger",
+        action="store_true",
+        help="record each run (recording.rrd): needed for the EKF target errors, slower",
+    )
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.seed_start + args.seeds - 1 > SEED_MAX:
-        print(f"swarm sweep: argument --seed-start: seeds S to S+N-1 must stay within 2**63 - 1, got S "
-              f"{args.seed_start} and N {args.seeds}", file=sys.stderr)  # fmt: skip
+        print(
+            f"swarm sweep: argument --seed-start: seeds S to S+N-1 must stay within 2**63 - 1, got S "
+            f"{args.seed_start} and N {args.seeds}",
+            file=sys.stderr,
+        )
         return USAGE_ERROR
     try:
         sets = [parse_set(s) for s in args.set]
@@ -397,8 +498,11 @@ def main(argv: list[str] | None = None) -> int:
         from formation_swarm.spec import scenario as scenario_mod
 
         sc = scenario_mod.load(args.scenario)
-        jobs = [Job(label, ov, run_seed) for label, ov in grid(sets)
-                for run_seed in range(args.seed_start, args.seed_start + args.seeds)]  # fmt: skip
+        jobs = [
+            Job(label, ov, run_seed)
+            for label, ov in grid(sets)
+            for run_seed in range(args.seed_start, args.seed_start + args.seeds)
+        ]
         out = Path(args.out) if args.out else Path("sweeps") / _slug(sc.name)
         sweep = Sweep(args.scenario, jobs, out, workers=args.jobs, logger=args.logger, faults=args.fault)
         make_folder("--out" if args.out else "sweep folder", out)  # last: nothing made for a bad input
@@ -411,8 +515,10 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         return 130
     failed = [r["run"] for r in rows if r.get("exit_code") != 0]
-    print(f"[sweep] {len(rows)} runs; tables: {out / 'runs.csv'}, {out / 'aggregate.csv'}; "
-          f"figure: {out / 'aggregate.png'}")  # fmt: skip
+    print(
+        f"[sweep] {len(rows)} runs; tables: {out / 'runs.csv'}, {out / 'aggregate.csv'}; "
+        f"figure: {out / 'aggregate.png'}"
+    )
     if failed:
         print(f"[sweep] {len(failed)} runs failed: {', '.join(failed[:10])}", file=sys.stderr)
         return 1

@@ -68,9 +68,14 @@ def figure(agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "
     metrics = {r["metric"] for r in agg}
     panels: list[tuple[str, list[tuple[str, str]]]] = []  # (axis label, [(metric, line label)])
     for name, ylabel in PER_FOLLOWER.items():
-        lines = sorted(((m, f"R{m[1:-len(name) - 1]}") for m in metrics
-                        if m.startswith("r") and m[1:-len(name) - 1].isdigit() and m.endswith("_" + name)),
-                       key=lambda ml: int(ml[1][1:]))  # fmt: skip
+        lines = sorted(
+            (
+                (m, f"R{m[1 : -len(name) - 1]}")
+                for m in metrics
+                if m.startswith("r") and m[1 : -len(name) - 1].isdigit() and m.endswith("_" + name)
+            ),
+            key=lambda ml: int(ml[1][1:]),
+        )
         if lines:
             panels.append((ylabel, lines))
     panels += [(ylabel, [(name, "all robots")]) for name, ylabel in POOLED.items() if name in metrics]
@@ -94,8 +99,18 @@ def figure(agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "
             if many:  # each faint, unlabelled: their median and the worst are drawn over them
                 ax.plot(x, mean, marker="o", ms=2, lw=0.7, color=colour, alpha=0.35, ls="-" if numeric else "none")
             else:
-                ax.errorbar(x, mean, yerr=[low, high], marker="o", ms=4, capsize=4, lw=1.2, label=line_label,
-                            color=colour, ls="-" if numeric else "none")  # fmt: skip
+                ax.errorbar(
+                    x,
+                    mean,
+                    yerr=[low, high],
+                    marker="o",
+                    ms=4,
+                    capsize=4,
+                    lw=1.2,
+                    label=line_label,
+                    color=colour,
+                    ls="-" if numeric else "none",
+                )
         if many:
             _median_and_worst(ax, lines, labels, xs, by, numeric)
         ax.set_ylabel(ylabel)
@@ -105,8 +120,12 @@ def figure(agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "
         if numeric and len(labels) <= 12:
             ax.set_xticks(sorted(set(xs.values())))
         if not numeric:
-            ax.set_xticks([xs[lab] for lab in labels], [names[lab] for lab in labels],
-                          rotation=20 if sum(len(names[lab]) for lab in labels) > 60 else 0, fontsize=8)  # fmt: skip
+            ax.set_xticks(
+                [xs[lab] for lab in labels],
+                [names[lab] for lab in labels],
+                rotation=20 if sum(len(names[lab]) for lab in labels) > 60 else 0,
+                fontsize=8,
+            )
     for ax in axes[len(panels) :]:
         ax.axis("off")
     if "ekf_rms_m" not in {name for name in PER_FOLLOWER if any(m.endswith("_" + name) for m in metrics)}:
@@ -117,16 +136,25 @@ def figure(agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "
     seeds = sorted({j.seed for j in jobs})
     head = f"{title}: " if title else ""
     per = f"{len(seeds)} seed{'s' if len(seeds) != 1 else ''} per value"
-    fig.suptitle(f"{head}mean and 95% confidence interval over {per}" if len(seeds) > 1 else f"{head}{per}, "
-                 "no confidence interval")  # fmt: skip
+    fig.suptitle(
+        f"{head}mean and 95% confidence interval over {per}"
+        if len(seeds) > 1
+        else f"{head}{per}, no confidence interval"
+    )
     return fig
 
 
 MANY_LINES = 8  # beyond this many followers a panel draws each faint, with their median and the worst
 
 
-def _median_and_worst(ax: Any, lines: list[tuple[str, str]], labels: list[str], xs: Mapping[str, float],
-                      by: Mapping[tuple[str, str], Mapping[str, Any]], numeric: bool) -> None:  # fmt: skip
+def _median_and_worst(
+    ax: Any,
+    lines: list[tuple[str, str]],
+    labels: list[str],
+    xs: Mapping[str, float],
+    by: Mapping[tuple[str, str], Mapping[str, Any]],
+    numeric: bool,
+) -> None:
     """Over a panel's faint follower lines: the median of their means at each
     value, and the follower whose mean is largest, named."""
     import statistics
@@ -138,14 +166,23 @@ def _median_and_worst(ax: Any, lines: list[tuple[str, str]], labels: list[str], 
         if means:
             xs_drawn.append(xs[lab])
             medians.append(statistics.median(means))
-    ax.plot(xs_drawn, medians, marker="o", ms=4, lw=2.0, color="k", ls=ls,
-            label=f"median over the {len(lines)} followers")  # fmt: skip
+    ax.plot(
+        xs_drawn, medians, marker="o", ms=4, lw=2.0, color="k", ls=ls, label=f"median over the {len(lines)} followers"
+    )
     worst_metric, worst_label = max(
         lines, key=lambda ml: max((by[lab, ml[0]]["mean"] for lab in labels if (lab, ml[0]) in by), default=-1.0)
     )
     pts = [(xs[lab], by[lab, worst_metric]["mean"]) for lab in labels if (lab, worst_metric) in by]
-    ax.plot([p[0] for p in pts], [p[1] for p in pts], marker="o", ms=4, lw=1.5, ls=ls,
-            color=robot_colour(int(worst_label[1:])), label=f"largest mean at any value: {worst_label}")  # fmt: skip
+    ax.plot(
+        [p[0] for p in pts],
+        [p[1] for p in pts],
+        marker="o",
+        ms=4,
+        lw=1.5,
+        ls=ls,
+        color=robot_colour(int(worst_label[1:])),
+        label=f"largest mean at any value: {worst_label}",
+    )
 
 
 def write(path: Path, agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "") -> Path:

@@ -43,8 +43,9 @@ def replay(path: str | Path, seed: int, overrides: Mapping[str, Any] | None = No
     followers = {rid: Follower(sc.followers[rid], slots[rid].offset) for rid in sc.follower_ids}
     reference = {rid: slots[rid].reference for rid in sc.follower_ids}
     obs_links = {rid: Link(link_name("obs", WORLD, rid), sc.links.obs_drop, seed) for rid in sc.robots}
-    form_links = {rid: Link(link_name("formation", lead, rid), sc.links.formation_drop, seed)
-                  for rid in sc.follower_ids}  # fmt: skip
+    form_links = {
+        rid: Link(link_name("formation", lead, rid), sc.links.formation_drop, seed) for rid in sc.follower_ids
+    }
     cmd_links = {rid: Link(link_name("cmd", rid, WORLD), sc.links.cmd_drop, seed) for rid in sc.robots}
     seqs = dict.fromkeys(sc.robots, 0)  # each agent's one counter (commands, codes, telemetry)
     pending: dict[int, list[tuple[int, int]]] = {rid: [] for rid in sc.follower_ids}  # (tick, code) received

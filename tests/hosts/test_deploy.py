@@ -30,8 +30,9 @@ def test_a_unit_is_valid_for_systemd(unit: str, tmp_path: Path) -> None:
     if not swarm.is_file():
         pytest.skip(f"no swarm command beside {sys.executable} to stand for {INSTALLED}")
     (tmp_path / unit).write_text(text.replace(INSTALLED, str(swarm)))
-    res = subprocess.run(["systemd-analyze", "verify", str(tmp_path / unit)], capture_output=True, text=True,
-                         timeout=60, check=False)  # fmt: skip
+    res = subprocess.run(
+        ["systemd-analyze", "verify", str(tmp_path / unit)], capture_output=True, text=True, timeout=60, check=False
+    )
     assert res.returncode == 0, res.stderr
     mine = [line for line in res.stderr.splitlines() if unit in line]
     assert mine == [], mine  # no unknown key, no warning on this unit
@@ -39,8 +40,11 @@ def test_a_unit_is_valid_for_systemd(unit: str, tmp_path: Path) -> None:
 
 def test_the_host_unit_s_variables_are_those_of_its_example_environment() -> None:
     used = set(re.findall(r"\$\{(\w+)\}", (DEPLOY / "swarm-host.service").read_text()))
-    given = {line.split("=", 1)[0] for line in (DEPLOY / "host.env.example").read_text().splitlines()
-             if line and not line.startswith("#")}  # fmt: skip
+    given = {
+        line.split("=", 1)[0]
+        for line in (DEPLOY / "host.env.example").read_text().splitlines()
+        if line and not line.startswith("#")
+    }
     assert used == given == {"SWARM_ROUTER", "SWARM_HOST_NAME"}
 
 

@@ -40,8 +40,17 @@ PY = [sys.executable, "-m", "formation_swarm.cli"]
 
 # -- the wire -----------------------------------------------------------------------
 def test_a_request_round_trips_and_bad_ones_are_refused_with_a_reason() -> None:
-    req = HostRequest("start", __version__, run="r1", process="agent-3.2", scenario="x = 1", user="agent-3",
-                      password="p" * 32, world_grace_s=1.0, lockstep=True)  # fmt: skip
+    req = HostRequest(
+        "start",
+        __version__,
+        run="r1",
+        process="agent-3.2",
+        scenario="x = 1",
+        user="agent-3",
+        password="p" * 32,
+        world_grace_s=1.0,
+        lockstep=True,
+    )
     assert HostRequest.from_bytes(req.to_bytes()) == req
     good = msgpack.unpackb(req.to_bytes())
     cases = {
@@ -90,8 +99,13 @@ def test_a_host_login_answers_on_its_own_key_only_and_hears_nothing_of_the_run(t
 
     def open_as(settings_file: Path, mode: str = "client") -> zenoh.Session:
         settings = trust.read_settings(settings_file)
-        conf = make_config(mode, [] if mode == "router" else [endpoint], [endpoint] if mode == "router" else [],
-                           connect_timeout_s=3.0, settings=settings)  # fmt: skip
+        conf = make_config(
+            mode,
+            [] if mode == "router" else [endpoint],
+            [endpoint] if mode == "router" else [],
+            connect_timeout_s=3.0,
+            settings=settings,
+        )
         sessions.append(zenoh.open(conf))
         return sessions[-1]
 
@@ -132,22 +146,52 @@ class Hosts:
     def __init__(self, tmp_path: Path, names: list[str]) -> None:
         self.tmp = tmp_path
         self.endpoint = f"tcp/127.0.0.1:{free_port()}"
-        made = subprocess.run([*PY, "secure", "--hosts", ",".join(names), "--out", str(tmp_path / "sec")],
-                              capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+        made = subprocess.run(
+            [*PY, "secure", "--hosts", ",".join(names), "--out", str(tmp_path / "sec")],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=False,
+        )
         assert made.returncode == 0, made.stderr
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
         for n in names:
             log = open(tmp_path / f"host-{n}.log", "wb")  # noqa: SIM115 - closed with the process
             self.procs[n] = subprocess.Popen(
-                [*PY, "host", "--connect", self.endpoint, "--name", n, "--auth",
-                 str(tmp_path / "sec" / f"host-{n}.json"), "--workdir", str(tmp_path / f"work-{n}")],
-                stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-            )  # fmt: skip
+                [
+                    *PY,
+                    "host",
+                    "--connect",
+                    self.endpoint,
+                    "--name",
+                    n,
+                    "--auth",
+                    str(tmp_path / "sec" / f"host-{n}.json"),
+                    "--workdir",
+                    str(tmp_path / f"work-{n}"),
+                ],
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
+            )
             log.close()
 
     def run_argv(self, out: Path, names: str) -> list[str]:
-        return [*PY, "run", "fig11_obstacles", "--seed", "5", "--out", str(out), "--hosts", names,
-                "--listen", self.endpoint, "--host-logins", str(self.tmp / "sec" / "hosts.txt")]  # fmt: skip
+        return [
+            *PY,
+            "run",
+            "fig11_obstacles",
+            "--seed",
+            "5",
+            "--out",
+            str(out),
+            "--hosts",
+            names,
+            "--listen",
+            self.endpoint,
+            "--host-logins",
+            str(self.tmp / "sec" / "hosts.txt"),
+        ]
 
     def log(self, name: str) -> str:
         return (self.tmp / f"host-{name}.log").read_text()
@@ -197,8 +241,13 @@ def _agents(host_pid: int) -> list[int]:
 
 @pytest.mark.slow
 def test_a_run_on_two_hosts_is_the_local_run_and_leaves_a_full_folder(two_hosts: Hosts, tmp_path: Path) -> None:
-    local = subprocess.run([*PY, "run", "fig11_obstacles", "--seed", "5", "--no-logger", "--out", str(tmp_path / "l")],
-                           capture_output=True, text=True, timeout=300, check=False)  # fmt: skip
+    local = subprocess.run(
+        [*PY, "run", "fig11_obstacles", "--seed", "5", "--no-logger", "--out", str(tmp_path / "l")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
     assert local.returncode == 0, local.stdout + local.stderr
     out = tmp_path / "placed"
     run = subprocess.run(two_hosts.run_argv(out, "a,b"), capture_output=True, text=True, timeout=300, check=False)
@@ -279,15 +328,23 @@ def _alive(pid: int) -> bool:
 def test_process_faults_on_a_remote_agent_are_executed_by_its_host(two_hosts: Hosts, tmp_path: Path) -> None:
     out = tmp_path / "faults"
     # Every robot on b: a runs none, which the launcher warns of.
-    argv = [*two_hosts.run_argv(out, "a,b"), "--place", "1=b,2=b,3=b", "--fault", "restart agent-2@5s after=1s",
-            "--fault", "freeze agent-3@10s for=1s"]  # fmt: skip
+    argv = [
+        *two_hosts.run_argv(out, "a,b"),
+        "--place",
+        "1=b,2=b,3=b",
+        "--fault",
+        "restart agent-2@5s after=1s",
+        "--fault",
+        "freeze agent-3@10s for=1s",
+    ]
     run = subprocess.run(argv, capture_output=True, text=True, timeout=300, check=False)
     assert run.returncode == 0, run.stdout + run.stderr
     assert "[swarm] warning: host a runs no robot (the placement gave them none)" in run.stdout
     assert summary_placement(out) == {"agent-1": "b", "agent-2": "b", "agent-3": "b"}
     summary = json.loads((out / "summary.json").read_text())
-    done = [(e["event"], e["process"]) for e in summary["events"] if e["event"] in ("killed", "started", "frozen",
-                                                                                     "thawed")]  # fmt: skip
+    done = [
+        (e["event"], e["process"]) for e in summary["events"] if e["event"] in ("killed", "started", "frozen", "thawed")
+    ]
     assert done == [("killed", "agent-2"), ("started", "agent-2.2"), ("frozen", "agent-3"), ("thawed", "agent-3")]
     assert summary["processes"]["agent-2.2"]["host"] == "b"  # restarted where it ran
     assert "exit code 0" in (out / "logs" / "agent-2.2.log").read_text().splitlines()[-1]
@@ -334,8 +391,20 @@ def test_the_hosts_stop_a_run_s_agents_when_its_launcher_dies(two_hosts: Hosts, 
 
 
 def test_doctor_hears_the_hosts_then_names_the_one_that_went(two_hosts: Hosts, tmp_path: Path) -> None:
-    argv = [*PY, "doctor", "--listen", two_hosts.endpoint, "--hosts", "a,b", "--scenario", "fig11_obstacles",
-            "--host-logins", str(tmp_path / "sec" / "hosts.txt"), "--timeout", "30"]  # fmt: skip
+    argv = [
+        *PY,
+        "doctor",
+        "--listen",
+        two_hosts.endpoint,
+        "--hosts",
+        "a,b",
+        "--scenario",
+        "fig11_obstacles",
+        "--host-logins",
+        str(tmp_path / "sec" / "hosts.txt"),
+        "--timeout",
+        "30",
+    ]
     ok = subprocess.run(argv, capture_output=True, text=True, timeout=120, check=False)
     assert ok.returncode == 0, ok.stdout + ok.stderr
     lines = ok.stdout.splitlines()
@@ -358,12 +427,18 @@ def test_a_run_whose_host_never_comes_stops_at_the_deadline_naming_it(two_hosts:
     two_hosts.procs["b"].wait(timeout=10)
     out = tmp_path / "missing"
     started = time.monotonic()
-    run = subprocess.run([*two_hosts.run_argv(out, "a,b"), "--hosts-timeout", "3"], capture_output=True, text=True,
-                         timeout=120, check=False)  # fmt: skip
+    run = subprocess.run(
+        [*two_hosts.run_argv(out, "a,b"), "--hosts-timeout", "3"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert run.returncode == 1, run.stdout + run.stderr
     # b at least (a too if it had not reconnected yet: hosts retry their router with a back-off)
-    assert re.search(rf"\[swarm\] waiting up to 3 s for hosts? (a, )?b to connect to {re.escape(two_hosts.endpoint)}",
-                     run.stdout), run.stdout  # fmt: skip
+    assert re.search(
+        rf"\[swarm\] waiting up to 3 s for hosts? (a, )?b to connect to {re.escape(two_hosts.endpoint)}", run.stdout
+    ), run.stdout
     assert "swarm run: host b did not connect to " in run.stderr
     assert "within 3 s" in run.stderr
     assert time.monotonic() - started < 60
@@ -380,8 +455,11 @@ def test_a_run_whose_host_never_comes_stops_at_the_deadline_naming_it(two_hosts:
 def test_a_host_refuses_another_version_bad_requests_and_robots_it_may_not_run(tmp_path: Path) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     log = open(tmp_path / "host.log", "wb")  # noqa: SIM115 - closed with the process
-    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "a", "--robots", "2,3",
-                             "--workdir", str(tmp_path / "work")], stdout=log, stderr=subprocess.STDOUT)  # fmt: skip
+    host = subprocess.Popen(
+        [*PY, "host", "--connect", endpoint, "--name", "a", "--robots", "2,3", "--workdir", str(tmp_path / "work")],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
     log.close()
     router = zenoh.open(make_config("router", listen=[endpoint]))
     try:
@@ -402,16 +480,20 @@ def test_a_host_refuses_another_version_bad_requests_and_robots_it_may_not_run(t
         assert info.cores == os.cpu_count()
         other = ask(HostRequest("info", "0.0.1").to_bytes())
         assert not other.ok
-        assert other.error == (f"host a runs formation_swarm {__version__}, the launcher 0.0.1: install the same "
-                               "version on every machine of a run")  # fmt: skip
+        assert other.error == (
+            f"host a runs formation_swarm {__version__}, the launcher 0.0.1: install the same "
+            "version on every machine of a run"
+        )
         bad = ask(msgpack.packb({"op": "start"}))
         assert not bad.ok
         assert bad.error.startswith("bad request: missing field")
-        start = HostRequest("start", __version__, run="r1", process="agent-1", scenario="x = 1", user="agent-1",
-                            password="p" * 24)  # fmt: skip
+        start = HostRequest(
+            "start", __version__, run="r1", process="agent-1", scenario="x = 1", user="agent-1", password="p" * 24
+        )
         assert ask(start.to_bytes()).error == "host a may run robots 2, 3, not 1"
-        wrong_login = HostRequest("start", __version__, run="r1", process="agent-2", scenario="x = 1",
-                                  user="agent-3", password="p" * 24)  # fmt: skip
+        wrong_login = HostRequest(
+            "start", __version__, run="r1", process="agent-2", scenario="x = 1", user="agent-3", password="p" * 24
+        )
         assert "must be agent-2" in ask(wrong_login.to_bytes()).error
         assert "started" not in (tmp_path / "host.log").read_text()
     finally:
@@ -432,8 +514,9 @@ def test_a_scenario_s_placement_is_checked_and_place_wins_over_it(tmp_path: Path
         load("fig11_obstacles", {"placement": {"1": "B C"}})
     logins = trust.write_host_logins(tmp_path / "sec", ["b", "c"])[trust.HOST_LOGINS]
     common = {"listen": "tcp/127.0.0.1:7447", "host_logins": logins, "out": tmp_path / "run"}
-    launch = Launch("fig11_obstacles", overrides={"placement": {"1": "b", "3": "c"}}, hosts=["b", "c"],
-                    placement={3: "b"}, **common)  # fmt: skip
+    launch = Launch(
+        "fig11_obstacles", overrides={"placement": {"1": "b", "3": "c"}}, hosts=["b", "c"], placement={3: "b"}, **common
+    )
     assert launch.explicit == {1: "b", 3: "b"}
     alone = Launch("fig11_obstacles", overrides={"placement": {"1": "b"}}, out=tmp_path / "alone")
     assert alone.explicit == {}  # a run on this machine alone ignores it
@@ -451,20 +534,47 @@ def test_a_relative_auth_path_gives_the_agents_absolute_existing_files(tmp_path:
     settings = json.loads((sec / "host-a.json").read_text())
     assert settings["transport/link/tls/root_ca_certificate"] == trust.CA  # relative to the file, as written
     run = f"rel-{uuid.uuid4().hex[:8]}"
-    files = trust.write_run_secrets(tmp_path / "run", run, (1, 2), 1, world_is_router=False,
-                                    host_logins=trust.read_host_logins(sec / trust.HOST_LOGINS, ["a"]))  # fmt: skip
+    files = trust.write_run_secrets(
+        tmp_path / "run",
+        run,
+        (1, 2),
+        1,
+        world_is_router=False,
+        host_logins=trust.read_host_logins(sec / trust.HOST_LOGINS, ["a"]),
+    )
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     router = zenoh.open(make_config("router", listen=[endpoint], settings=trust.read_settings(files["router"])))
     log = open(tmp_path / "host.log", "wb")  # noqa: SIM115 - closed with the process
-    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "a", "--auth", "host-a.json",
-                             "--workdir", str(tmp_path / "work")], cwd=sec, stdout=log,
-                            stderr=subprocess.STDOUT)  # fmt: skip
+    host = subprocess.Popen(
+        [
+            *PY,
+            "host",
+            "--connect",
+            endpoint,
+            "--name",
+            "a",
+            "--auth",
+            "host-a.json",
+            "--workdir",
+            str(tmp_path / "work"),
+        ],
+        cwd=sec,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
     log.close()
     launcher = zenoh.open(make_config("client", [endpoint], settings=trust.read_settings(files["launcher"])))
     try:
         agent = trust.read_settings(files["agent-2"])["transport/auth/usrpwd"]
-        start = HostRequest("start", __version__, run=run, process="agent-2", scenario="x = 1", user="agent-2",
-                            password=agent["password"])  # fmt: skip
+        start = HostRequest(
+            "start",
+            __version__,
+            run=run,
+            process="agent-2",
+            scenario="x = 1",
+            user="agent-2",
+            password=agent["password"],
+        )
         reply = None
         deadline = time.monotonic() + 60
         while reply is None and time.monotonic() < deadline:
@@ -492,8 +602,12 @@ def test_a_relative_auth_path_gives_the_agents_absolute_existing_files(tmp_path:
 
 def test_a_host_waiting_for_its_router_says_so_and_stops_at_once_on_sigterm(tmp_path: Path) -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"  # nothing listens there
-    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "b", "--workdir", str(tmp_path / "work")],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
+    host = subprocess.Popen(
+        [*PY, "host", "--connect", endpoint, "--name", "b", "--workdir", str(tmp_path / "work")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     try:
         assert host.stdout is not None
         first = host.stdout.readline()  # said before it waits
@@ -517,8 +631,12 @@ def test_a_host_says_when_its_router_goes_and_comes_back(tmp_path: Path) -> None
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     lines: queue.SimpleQueue[str] = queue.SimpleQueue()
     router = zenoh.open(make_config("router", listen=[endpoint]))
-    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "b", "--workdir", str(tmp_path / "work")],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
+    host = subprocess.Popen(
+        [*PY, "host", "--connect", endpoint, "--name", "b", "--workdir", str(tmp_path / "work")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     threading.Thread(target=lambda: [lines.put(line) for line in host.stdout], daemon=True).start()  # type: ignore[union-attr]
 
     def said(fragment: str, timeout_s: float = 30.0) -> str:
@@ -534,7 +652,8 @@ def test_a_host_says_when_its_router_goes_and_comes_back(tmp_path: Path) -> None
         said("connected to a router at")
         router.close()
         assert said("lost its router at").strip() == (
-            f"host b: lost its router at {endpoint}; retrying (runs cannot reach this host meanwhile)")  # fmt: skip
+            f"host b: lost its router at {endpoint}; retrying (runs cannot reach this host meanwhile)"
+        )
         router = zenoh.open(make_config("router", listen=[endpoint]))
         assert said("connected again").strip() == f"host b: connected again to a router at {endpoint}"
     finally:
@@ -554,9 +673,20 @@ def test_a_lost_host_and_its_agents_are_told_in_sentences_and_name_the_failure()
     agent = {"event": "exited", "process": "agent-2", "sim_time_s": 5.3, "host_lost": "c"}
     assert describe_event(agent) == "agent-2 lost with host c at sim t=5.30 s"
     events = [lost, agent]
-    summary = summary_mod.build(run_id="r1", sc=load("fig11_obstacles"), mode="lockstep", parts={}, exit_code=1,
-                                end_reason=summary_mod.ROLE_FAILED, ended_at_s=5.3, interrupted=False,
-                                timed_out=False, processes={}, events=events, recording=None)  # fmt: skip
+    summary = summary_mod.build(
+        run_id="r1",
+        sc=load("fig11_obstacles"),
+        mode="lockstep",
+        parts={},
+        exit_code=1,
+        end_reason=summary_mod.ROLE_FAILED,
+        ended_at_s=5.3,
+        interrupted=False,
+        timed_out=False,
+        processes={},
+        events=events,
+        recording=None,
+    )
     assert summary["failure"] == "host c lost at sim t=5.30 s: robot 2 counted dead"
     assert "255" not in summary["ended"]
 
@@ -581,8 +711,18 @@ def test_secure_hosts_with_a_ca_suggests_tls_endpoints_and_says_to_copy_the_ca(
     assert "tls/" not in plain
     assert "links are plain TCP: each run sends the hosts its agents' passwords, and its data, unencrypted" in plain
     # A host whose login names the CA refuses a plain endpoint off this machine before it connects.
-    argv = [*PY, "host", "--connect", "tcp/192.0.2.1:7447", "--name", "b", "--auth",
-            str(tmp_path / "tls" / "host-b.json"), "--workdir", str(tmp_path / "work")]  # fmt: skip
+    argv = [
+        *PY,
+        "host",
+        "--connect",
+        "tcp/192.0.2.1:7447",
+        "--name",
+        "b",
+        "--auth",
+        str(tmp_path / "tls" / "host-b.json"),
+        "--workdir",
+        str(tmp_path / "work"),
+    ]
     res = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
     assert res.returncode == 2, res.stdout + res.stderr
     assert "names a CA, for TLS: connect with tls/ROUTER:PORT" in res.stderr
@@ -604,8 +744,18 @@ def test_a_tls_listen_needs_the_tls_files_and_a_loopback_one_is_told_apart() -> 
 
 def test_a_host_whose_login_is_another_host_s_says_so_at_start(tmp_path: Path) -> None:
     trust.write_host_logins(tmp_path / "sec", ["c"])
-    argv = [*PY, "host", "--connect", f"tcp/127.0.0.1:{free_port()}", "--name", "cc", "--auth",
-            str(tmp_path / "sec" / "host-c.json"), "--workdir", str(tmp_path / "work")]  # fmt: skip
+    argv = [
+        *PY,
+        "host",
+        "--connect",
+        f"tcp/127.0.0.1:{free_port()}",
+        "--name",
+        "cc",
+        "--auth",
+        str(tmp_path / "sec" / "host-c.json"),
+        "--workdir",
+        str(tmp_path / "work"),
+    ]
     res = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
     assert res.returncode == 2, res.stdout + res.stderr
     assert "this login is for host c, not for host cc (--name)" in res.stderr
@@ -631,25 +781,78 @@ def test_a_run_over_tls_on_a_host_started_with_a_relative_auth_path(tmp_path: Pa
     for argv in (  # the guide's commands (deploy/README.md, "Steps")
         ["req", "-x509", *ec, "-keyout", "ca.key", "-out", "ca.pem", "-days", "1", "-subj", "/CN=swarm test CA"],
         ["req", *ec, "-keyout", "router.key", "-out", "router.csr", "-subj", "/CN=router"],
-        ["x509", "-req", "-in", "router.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial",
-         "-out", "router.pem", "-days", "1", "-extfile", "ext.cnf"],
-    ):  # fmt: skip
+        [
+            "x509",
+            "-req",
+            "-in",
+            "router.csr",
+            "-CA",
+            "ca.pem",
+            "-CAkey",
+            "ca.key",
+            "-CAcreateserial",
+            "-out",
+            "router.pem",
+            "-days",
+            "1",
+            "-extfile",
+            "ext.cnf",
+        ],
+    ):
         subprocess.run(["openssl", *argv], cwd=tls, check=True, capture_output=True, timeout=30)
     sec = tmp_path / "sec"
-    made = subprocess.run([*PY, "secure", "--hosts", "a", "--out", str(sec), "--tls-ca", str(tls / "ca.pem")],
-                          capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+    made = subprocess.run(
+        [*PY, "secure", "--hosts", "a", "--out", str(sec), "--tls-ca", str(tls / "ca.pem")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
     assert made.returncode == 0, made.stderr
     endpoint = f"tls/127.0.0.1:{free_port()}"
     log = open(tmp_path / "host-a.log", "wb")  # noqa: SIM115 - closed with the process
-    host = subprocess.Popen([*PY, "host", "--connect", endpoint, "--name", "a", "--auth", "host-a.json",
-                             "--workdir", str(tmp_path / "work")], cwd=sec, stdout=log,
-                            stderr=subprocess.STDOUT)  # fmt: skip
+    host = subprocess.Popen(
+        [
+            *PY,
+            "host",
+            "--connect",
+            endpoint,
+            "--name",
+            "a",
+            "--auth",
+            "host-a.json",
+            "--workdir",
+            str(tmp_path / "work"),
+        ],
+        cwd=sec,
+        stdout=log,
+        stderr=subprocess.STDOUT,
+    )
     log.close()
     try:
         out = tmp_path / "run"
-        argv = [*PY, "run", "fig11_obstacles", "--seed", "5", "--no-logger", "--out", str(out), "--hosts", "a",
-                "--listen", endpoint, "--host-logins", str(sec / "hosts.txt"), "--tls-ca", str(tls / "ca.pem"),
-                "--tls-cert", str(tls / "router.pem"), "--tls-key", str(tls / "router.key")]  # fmt: skip
+        argv = [
+            *PY,
+            "run",
+            "fig11_obstacles",
+            "--seed",
+            "5",
+            "--no-logger",
+            "--out",
+            str(out),
+            "--hosts",
+            "a",
+            "--listen",
+            endpoint,
+            "--host-logins",
+            str(sec / "hosts.txt"),
+            "--tls-ca",
+            str(tls / "ca.pem"),
+            "--tls-cert",
+            str(tls / "router.pem"),
+            "--tls-key",
+            str(tls / "router.key"),
+        ]
         run = subprocess.run(argv, capture_output=True, text=True, timeout=300, check=False)
         assert run.returncode == 0, run.stdout + run.stderr + (tmp_path / "host-a.log").read_text()
         summary = json.loads((out / "summary.json").read_text())
@@ -675,8 +878,18 @@ def test_a_host_clears_the_logins_a_killed_one_left_and_keeps_its_workdir_to_its
     (work / "old-run" / "secrets").mkdir(parents=True)
     (work / "old-run" / "secrets" / "agent-2.json").write_text("{}")
     port = free_port()
-    argv = [*PY, "host", "--connect", f"tcp/127.0.0.1:{port}", "--name", "b", "--auth", str(sec["host-b"]),
-            "--workdir", str(work)]  # fmt: skip
+    argv = [
+        *PY,
+        "host",
+        "--connect",
+        f"tcp/127.0.0.1:{port}",
+        "--name",
+        "b",
+        "--auth",
+        str(sec["host-b"]),
+        "--workdir",
+        str(work),
+    ]
     first = subprocess.Popen(argv, stdout=subprocess.PIPE, text=True)
     try:
         assert first.stdout is not None
@@ -684,9 +897,24 @@ def test_a_host_clears_the_logins_a_killed_one_left_and_keeps_its_workdir_to_its
         assert said.startswith(f"host b: removed the logins of 1 run(s) a previous host process left in {work}")
         assert not (work / "old-run" / "secrets").exists()
         assert (work / "old-run").is_dir()  # its logs stay
-        second = subprocess.run([*PY, "host", "--connect", f"tcp/127.0.0.1:{port}", "--name", "c", "--auth",
-                                 str(sec["host-c"]), "--workdir", str(work)],
-                                capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+        second = subprocess.run(
+            [
+                *PY,
+                "host",
+                "--connect",
+                f"tcp/127.0.0.1:{port}",
+                "--name",
+                "c",
+                "--auth",
+                str(sec["host-c"]),
+                "--workdir",
+                str(work),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=False,
+        )
         assert second.returncode == 2, second.stderr
         assert f"--workdir {work} is in use by another swarm host: give each its own" in second.stderr
     finally:

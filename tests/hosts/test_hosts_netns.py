@@ -49,9 +49,24 @@ def _tls_files(folder: Path, ips: list[str]) -> tuple[Path, Path, Path]:
     for argv in (
         ["req", "-x509", *ec, "-keyout", ca_key, "-out", ca, "-days", "1", "-subj", "/CN=swarm test CA"],
         ["req", *ec, "-keyout", key, "-out", folder / "router.csr", "-subj", "/CN=router"],
-        ["x509", "-req", "-in", folder / "router.csr", "-CA", ca, "-CAkey", ca_key, "-CAcreateserial",
-         "-out", cert, "-days", "1", "-extfile", ext],
-    ):  # fmt: skip
+        [
+            "x509",
+            "-req",
+            "-in",
+            folder / "router.csr",
+            "-CA",
+            ca,
+            "-CAkey",
+            ca_key,
+            "-CAcreateserial",
+            "-out",
+            cert,
+            "-days",
+            "1",
+            "-extfile",
+            ext,
+        ],
+    ):
         subprocess.run(["openssl", *map(str, argv)], check=True, capture_output=True, timeout=30)
     return ca, cert, key
 
@@ -131,15 +146,31 @@ def site() -> Iterator[Site]:
 
 def _start_hosts(site: Site, tmp_path: Path) -> dict[str, subprocess.Popen[bytes]]:
     ca, _cert, _key = _tls_files(tmp_path / "tls", list(site.router_ip.values()))
-    made = subprocess.run([*PY, "secure", "--hosts", "a,b", "--out", str(tmp_path / "sec"), "--tls-ca", str(ca)],
-                          capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+    made = subprocess.run(
+        [*PY, "secure", "--hosts", "a,b", "--out", str(tmp_path / "sec"), "--tls-ca", str(ca)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
     assert made.returncode == 0, made.stderr
     procs = {}
     for h in ("a", "b"):
         log = open(tmp_path / f"host-{h}.log", "wb")  # noqa: SIM115 - closed with the process
         auth = tmp_path / "sec" / f"host-{h}.json"
-        argv = [*site.exec(h), *PY, "host", "--name", h, "--connect", f"tls/{site.router_ip[h]}:{PORT}",
-                "--auth", str(auth), "--workdir", str(tmp_path / f"work-{h}")]  # fmt: skip
+        argv = [
+            *site.exec(h),
+            *PY,
+            "host",
+            "--name",
+            h,
+            "--connect",
+            f"tls/{site.router_ip[h]}:{PORT}",
+            "--auth",
+            str(auth),
+            "--workdir",
+            str(tmp_path / f"work-{h}"),
+        ]
         procs[h] = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         log.close()
     return procs
@@ -152,13 +183,31 @@ def _router_flags(site: Site, tmp_path: Path) -> list[str]:
         "cert": tmp_path / "tls" / "router.pem",
         "key": tmp_path / "tls" / "router.key",
     }
-    return ["--hosts", "a,b", "--listen", f"tls/0.0.0.0:{PORT}", "--host-logins", str(tmp_path / "sec" / "hosts.txt"),
-            *(f for n in ("ca", "cert", "key") for f in (f"--tls-{n}", str(tls[n])))]  # fmt: skip
+    return [
+        "--hosts",
+        "a,b",
+        "--listen",
+        f"tls/0.0.0.0:{PORT}",
+        "--host-logins",
+        str(tmp_path / "sec" / "hosts.txt"),
+        *(f for n in ("ca", "cert", "key") for f in (f"--tls-{n}", str(tls[n]))),
+    ]
 
 
 def _run_argv(site: Site, tmp_path: Path, out: Path) -> list[str]:
-    return [*site.exec("run"), *PY, "run", "fig11_obstacles", "--seed", "7", "--out", str(out), "--timeout", "240",
-            *_router_flags(site, tmp_path)]  # fmt: skip
+    return [
+        *site.exec("run"),
+        *PY,
+        "run",
+        "fig11_obstacles",
+        "--seed",
+        "7",
+        "--out",
+        str(out),
+        "--timeout",
+        "240",
+        *_router_flags(site, tmp_path),
+    ]
 
 
 # The hosts retry their router every 0.5 s at most (protocol.session.make_config), and the

@@ -39,9 +39,24 @@ def _tls_files(folder: Path, host_ip: str) -> tuple[Path, Path, Path]:
     for argv in (
         ["req", "-x509", *ec, "-keyout", ca_key, "-out", ca, "-days", "1", "-subj", "/CN=swarm test CA"],
         ["req", *ec, "-keyout", key, "-out", folder / "router.csr", "-subj", "/CN=router"],
-        ["x509", "-req", "-in", folder / "router.csr", "-CA", ca, "-CAkey", ca_key, "-CAcreateserial",
-         "-out", cert, "-days", "1", "-extfile", ext],
-    ):  # fmt: skip
+        [
+            "x509",
+            "-req",
+            "-in",
+            folder / "router.csr",
+            "-CA",
+            ca,
+            "-CAkey",
+            ca_key,
+            "-CAcreateserial",
+            "-out",
+            cert,
+            "-days",
+            "1",
+            "-extfile",
+            ext,
+        ],
+    ):
         subprocess.run(["openssl", *map(str, argv)], check=True, capture_output=True, timeout=30)
     return ca, cert, key
 
@@ -86,9 +101,28 @@ def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tupl
     py = [sys.executable, "-m"]
     ca, cert, key = _tls_files(tmp_path / "tls", host_ip)
     secure = tmp_path / "secure"
-    made = subprocess.run([*py, "formation_swarm.cli", "secure", str(scenario), "--run", run, "--out", str(secure),
-                           "--tls-ca", str(ca), "--tls-cert", str(cert), "--tls-key", str(key)],
-                          capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+    made = subprocess.run(
+        [
+            *py,
+            "formation_swarm.cli",
+            "secure",
+            str(scenario),
+            "--run",
+            run,
+            "--out",
+            str(secure),
+            "--tls-ca",
+            str(ca),
+            "--tls-cert",
+            str(cert),
+            "--tls-key",
+            str(key),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
     assert made.returncode == 0, made.stderr
     procs: dict[str, subprocess.Popen[bytes]] = {}
 
@@ -102,26 +136,75 @@ def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tupl
 
     common = ["--scenario", str(scenario), "--run", run]
     try:
-        start("router", [*py, "formation_swarm.nodes.router", "--config", str(ROUTER_CONFIG), "--listen", router,
-                         *auth("router")])  # fmt: skip
-        start("world", [*py, "formation_swarm.nodes.world", *common, "--stats", str(tmp_path / "world.json"),
-                        "--zenoh-mode", "client", "--connect", router, "--expect-logger",
-                        "--out", str(tmp_path / "run"), *auth("world")])  # fmt: skip
-        start("logger", [*py, "formation_swarm.nodes.logger", *common, "--out", str(tmp_path / "recording.rrd"),
-                         "--stats", str(tmp_path / "logger.json"), "--connect", router, *auth("logger")])  # fmt: skip
+        start(
+            "router",
+            [*py, "formation_swarm.nodes.router", "--config", str(ROUTER_CONFIG), "--listen", router, *auth("router")],
+        )
+        start(
+            "world",
+            [
+                *py,
+                "formation_swarm.nodes.world",
+                *common,
+                "--stats",
+                str(tmp_path / "world.json"),
+                "--zenoh-mode",
+                "client",
+                "--connect",
+                router,
+                "--expect-logger",
+                "--out",
+                str(tmp_path / "run"),
+                *auth("world"),
+            ],
+        )
+        start(
+            "logger",
+            [
+                *py,
+                "formation_swarm.nodes.logger",
+                *common,
+                "--out",
+                str(tmp_path / "recording.rrd"),
+                "--stats",
+                str(tmp_path / "logger.json"),
+                "--connect",
+                router,
+                *auth("logger"),
+            ],
+        )
         for rid in (1, 2, 3):
             agent = [*py, "formation_swarm.nodes.agent", "--id", str(rid), *common, *auth(f"agent-{rid}")]
-            start(f"agent-{rid}", ["ip", "netns", "exec", ns, *agent, "--stats", str(tmp_path / f"agent-{rid}.json"),
-                                   "--connect", router])  # fmt: skip
+            start(
+                f"agent-{rid}",
+                [
+                    "ip",
+                    "netns",
+                    "exec",
+                    ns,
+                    *agent,
+                    "--stats",
+                    str(tmp_path / f"agent-{rid}.json"),
+                    "--connect",
+                    router,
+                ],
+            )
         # From the robots' host, a client that trusts the CA but has no login is refused.
-        rogue = ("import sys, zenoh\n"
-                 "from formation_swarm.protocol.session import make_config\n"
-                 f"conf = make_config('client', [{router!r}], connect_timeout_s=3.0,\n"
-                 f"    settings={{'transport/link/tls/root_ca_certificate': {str(ca)!r}}})\n"
-                 "try:\n    zenoh.open(conf)\n"
-                 "except zenoh.ZError as exc:\n    print('refused:', exc); sys.exit(7)\n")  # fmt: skip
-        refused = subprocess.run(["ip", "netns", "exec", ns, sys.executable, "-c", rogue], capture_output=True,
-                                 text=True, timeout=60, check=False)  # fmt: skip
+        rogue = (
+            "import sys, zenoh\n"
+            "from formation_swarm.protocol.session import make_config\n"
+            f"conf = make_config('client', [{router!r}], connect_timeout_s=3.0,\n"
+            f"    settings={{'transport/link/tls/root_ca_certificate': {str(ca)!r}}})\n"
+            "try:\n    zenoh.open(conf)\n"
+            "except zenoh.ZError as exc:\n    print('refused:', exc); sys.exit(7)\n"
+        )
+        refused = subprocess.run(
+            ["ip", "netns", "exec", ns, sys.executable, "-c", rogue],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=False,
+        )
         assert refused.returncode == 7, refused.stdout + refused.stderr
         assert "Unable to connect" in refused.stdout
         assert procs["world"].wait(timeout=180) == 0, (tmp_path / "world.log").read_text()

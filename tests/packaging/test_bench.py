@@ -73,8 +73,9 @@ def test_bare_exchange_with_the_controller_steps_the_followers_filter():
 )
 def test_a_benchmark_refuses_bad_flags_on_one_line(script: str, argv: list[str], said: str) -> None:
     """Before anything runs: exit 2 and argparse's one line, not a traceback."""
-    proc = subprocess.run([sys.executable, str(ROOT / "bench" / script), *argv], capture_output=True, text=True,
-                          timeout=60, check=False)  # fmt: skip
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "bench" / script), *argv], capture_output=True, text=True, timeout=60, check=False
+    )
     assert proc.returncode == 2, proc.stderr
     assert said in proc.stderr
     assert "Traceback" not in proc.stderr

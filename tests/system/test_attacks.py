@@ -83,10 +83,26 @@ def attacks(k: Keys, tick: int) -> list[tuple[str, bytes]]:
 
 def _telemetry(tick: int) -> bytes:
     return Telemetry(
-        2, HUGE_SEQ, tick, 0.0, reference=1, formation=0, measured=None, estimate=None, target_cov=None, rho_m=None,
-        alpha_rad=None, vn=None, left_mps=0.0, right_mps=0.0, steering_to=0, changing=False, obs_dropped=0,
-        formation_dropped=0, rejected=0,
-    ).to_bytes()  # fmt: skip
+        2,
+        HUGE_SEQ,
+        tick,
+        0.0,
+        reference=1,
+        formation=0,
+        measured=None,
+        estimate=None,
+        target_cov=None,
+        rho_m=None,
+        alpha_rad=None,
+        vn=None,
+        left_mps=0.0,
+        right_mps=0.0,
+        steering_to=0,
+        changing=False,
+        obs_dropped=0,
+        formation_dropped=0,
+        rejected=0,
+    ).to_bytes()
 
 
 def run_under_attack(swarm_launch: Callable[..., Launch], user: str | None, mode: str, **kwargs: Any) -> RunResult:
@@ -162,18 +178,24 @@ def test_a_robots_own_credentials_cannot_send_what_could_not_be_true(
     tick = int(launch.sim_time() / 0.05)
     k = Keys(launch.run_id)
     with rogue(launch, "agent-3") as sess:
-        put_all(sess, [
-            (k.cmd(3), Command(3, HUGE_SEQ, tick, 1e308, -1e308, 0, False).to_bytes()),
-            (k.cmd(3), Command(3, HUGE_SEQ, FAR_TICK, 1.0, 1.0, 0, False).to_bytes()),
-            (k.cmd(3), Command(3, HUGE_SEQ, tick, 1.0, 1.0, 200, False).to_bytes()),
-        ], rounds=5)  # fmt: skip
+        put_all(
+            sess,
+            [
+                (k.cmd(3), Command(3, HUGE_SEQ, tick, 1e308, -1e308, 0, False).to_bytes()),
+                (k.cmd(3), Command(3, HUGE_SEQ, FAR_TICK, 1.0, 1.0, 0, False).to_bytes()),
+                (k.cmd(3), Command(3, HUGE_SEQ, tick, 1.0, 1.0, 200, False).to_bytes()),
+            ],
+            rounds=5,
+        )
         res = launch.wait(timeout_s=240)
     assert_unharmed(res)
     s = res.summary
     assert s["trajectory_digest"] == clean_digest
     assert s["rejected"]["world"] == {
-        "wheel speed out of bounds": 5, "tick ahead of the world": 5, "unknown formation": 5
-    }  # fmt: skip
+        "wheel speed out of bounds": 5,
+        "tick ahead of the world": 5,
+        "unknown formation": 5,
+    }
 
 
 def test_without_the_router_the_receivers_still_refuse_what_could_not_be_true(
@@ -188,15 +210,22 @@ def test_without_the_router_the_receivers_still_refuse_what_could_not_be_true(
     tick = int(launch.sim_time() / 0.05)
     k = Keys(launch.run_id)
     with rogue(launch, None) as sess:
-        put_all(sess, [
-            (k.cmd(3), Command(3, HUGE_SEQ, tick, 1e308, 1e308, 0, False).to_bytes()),
-            (k.cmd(2), Command(2, HUGE_SEQ, FAR_TICK, 1.0, 1.0, 0, False).to_bytes()),
-            (k.codes, FormationCode(1, HUGE_SEQ, FAR_TICK, LINE).to_bytes()),  # to every follower
-            (k.obs(3), Observation(0, HUGE_SEQ, 0, 0.0, (0.0, 0.0, 0.0), (), ()).to_bytes()),  # a replay of tick 0
-            (k.obs(2), Observation(0, HUGE_SEQ, FAR_TICK, 0.0, (0.0, 0.0, 0.0), ((1, 1e200, 0, 0),), ()).to_bytes()),
-            (k.truth, pack_batch([Truth(0, HUGE_SEQ, FAR_TICK, 0.0, ((1, 0.0, 0.0, 0.0, True),), ()).to_bytes()])),
-            (k.telemetry(2), pack_batch([_telemetry(FAR_TICK)])),
-        ], rounds=4)  # fmt: skip
+        put_all(
+            sess,
+            [
+                (k.cmd(3), Command(3, HUGE_SEQ, tick, 1e308, 1e308, 0, False).to_bytes()),
+                (k.cmd(2), Command(2, HUGE_SEQ, FAR_TICK, 1.0, 1.0, 0, False).to_bytes()),
+                (k.codes, FormationCode(1, HUGE_SEQ, FAR_TICK, LINE).to_bytes()),  # to every follower
+                (k.obs(3), Observation(0, HUGE_SEQ, 0, 0.0, (0.0, 0.0, 0.0), (), ()).to_bytes()),  # a replay of tick 0
+                (
+                    k.obs(2),
+                    Observation(0, HUGE_SEQ, FAR_TICK, 0.0, (0.0, 0.0, 0.0), ((1, 1e200, 0, 0),), ()).to_bytes(),
+                ),
+                (k.truth, pack_batch([Truth(0, HUGE_SEQ, FAR_TICK, 0.0, ((1, 0.0, 0.0, 0.0, True),), ()).to_bytes()])),
+                (k.telemetry(2), pack_batch([_telemetry(FAR_TICK)])),
+            ],
+            rounds=4,
+        )
         res = launch.wait(timeout_s=240)
     assert_unharmed(res)
     s = res.summary
@@ -213,12 +242,27 @@ def test_without_the_router_the_receivers_still_refuse_what_could_not_be_true(
 
 
 def test_a_second_agent_for_a_flying_robot_is_refused(swarm_launch: Callable[..., Launch], tmp_path: Path) -> None:
-    launch = swarm_launch(FIG11, logger=False, overrides={"run.duration_s": 600.0,
-                                                          "leader.waypoints": [[0.0, 0.0], [0.0, 1000.0]]})  # fmt: skip
+    launch = swarm_launch(
+        FIG11, logger=False, overrides={"run.duration_s": 600.0, "leader.waypoints": [[0.0, 0.0], [0.0, 1000.0]]}
+    )
     assert launch.wait_until(lambda: launch.sim_time() >= 1.0, timeout_s=60)
-    argv = [sys.executable, "-m", "formation_swarm.nodes.agent", "--id", "2", "--scenario",
-            str(launch.run_dir / "scenario.toml"), "--run", launch.run_id, "--connect", launch.endpoint,
-            "--auth", str(launch.run_dir / "secrets" / "agent-2.json"), "--peers-timeout", "20"]  # fmt: skip
+    argv = [
+        sys.executable,
+        "-m",
+        "formation_swarm.nodes.agent",
+        "--id",
+        "2",
+        "--scenario",
+        str(launch.run_dir / "scenario.toml"),
+        "--run",
+        launch.run_id,
+        "--connect",
+        launch.endpoint,
+        "--auth",
+        str(launch.run_dir / "secrets" / "agent-2.json"),
+        "--peers-timeout",
+        "20",
+    ]
     try:
         second = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
         assert second.returncode == 4, second.stderr
@@ -234,13 +278,34 @@ def test_a_second_world_for_a_running_run_is_refused(swarm_launch: Callable[...,
     """Started twice (by hand, or by a service manager), a world joined the run and
     stepped phantom robots to its end, saying exit 0. It now refuses, as a second
     agent does, and writes neither stats nor a summary over the first one's."""
-    launch = swarm_launch(FIG11, logger=False, auth=False, overrides={
-        "run.duration_s": 600.0, "leader.waypoints": [[0.0, 0.0], [0.0, 1000.0]]})  # fmt: skip
+    launch = swarm_launch(
+        FIG11,
+        logger=False,
+        auth=False,
+        overrides={"run.duration_s": 600.0, "leader.waypoints": [[0.0, 0.0], [0.0, 1000.0]]},
+    )
     assert launch.wait_until(lambda: launch.sim_time() >= 1.0, timeout_s=60)
-    argv = [sys.executable, "-m", "formation_swarm.nodes.world", "--scenario", str(launch.run_dir / "scenario.toml"),
-            "--run", launch.run_id, "--zenoh-mode", "client", "--connect", launch.endpoint, "--mode", "realtime",
-            "--stats", str(tmp_path / "second.json"), "--out", str(tmp_path / "second"),
-            "--peers-timeout", "20"]  # fmt: skip
+    argv = [
+        sys.executable,
+        "-m",
+        "formation_swarm.nodes.world",
+        "--scenario",
+        str(launch.run_dir / "scenario.toml"),
+        "--run",
+        launch.run_id,
+        "--zenoh-mode",
+        "client",
+        "--connect",
+        launch.endpoint,
+        "--mode",
+        "realtime",
+        "--stats",
+        str(tmp_path / "second.json"),
+        "--out",
+        str(tmp_path / "second"),
+        "--peers-timeout",
+        "20",
+    ]
     try:
         second = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
         assert second.returncode == 4, second.stderr
@@ -261,14 +326,32 @@ def test_the_deploy_router_refuses_strangers_and_keeps_each_role_to_its_keys(tmp
     starts it: no login, no connection; a robot's login drives that robot only."""
     run = "deploy-check"
     secure = tmp_path / "secure"
-    made = subprocess.run([sys.executable, "-m", "formation_swarm.cli", "secure", FIG11, "--run", run, "--out",
-                           str(secure)], capture_output=True, text=True, timeout=60, check=False)  # fmt: skip
+    made = subprocess.run(
+        [sys.executable, "-m", "formation_swarm.cli", "secure", FIG11, "--run", run, "--out", str(secure)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
     assert made.returncode == 0, made.stderr
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     config = ROOT / "deploy" / "router.json5"
-    router = subprocess.Popen([sys.executable, "-m", "formation_swarm.nodes.router", "--config", str(config),
-                               "--listen", endpoint, "--auth", str(secure / "router.json")],
-                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
+    router = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "formation_swarm.nodes.router",
+            "--config",
+            str(config),
+            "--listen",
+            endpoint,
+            "--auth",
+            str(secure / "router.json"),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     try:
         assert router.stdout is not None
         assert "listening on" in router.stdout.readline()
@@ -370,8 +453,10 @@ def test_a_router_without_auth_says_that_anyone_who_reaches_it_can_join() -> Non
         assert router.stdout is not None
         assert router.stdout.readline().startswith(f"router: listening on {endpoint}")
         said = router.stdout.readline()
-        assert said.startswith("router: no --auth: no logins and no access rules; anyone who reaches this port can "
-                               "join any run through it and drive its robots"), said  # fmt: skip
+        assert said.startswith(
+            "router: no --auth: no logins and no access rules; anyone who reaches this port can "
+            "join any run through it and drive its robots"
+        ), said
     finally:
         router.terminate()
         router.wait(timeout=10)

@@ -256,8 +256,13 @@ def test_a_role_that_crashes_is_named_with_its_code_and_its_log(tmp_path: Path) 
     (the world would wait for it) and says which process, its exit code and
     its log's end."""
     lines: list[str] = []
-    launch = Launch("fig6_turn_vn_2", serve_web=True, web_ports=(free_port(), free_port()), out=tmp_path / "run",
-                    progress=lines.append)  # fmt: skip
+    launch = Launch(
+        "fig6_turn_vn_2",
+        serve_web=True,
+        web_ports=(free_port(), free_port()),
+        out=tmp_path / "run",
+        progress=lines.append,
+    )
     with socket.socket() as taken:
         taken.bind(("0.0.0.0", launch.web_ports[1]))  # taken now, between the check and the logger
         taken.listen()
@@ -288,7 +293,8 @@ def test_a_role_that_crashes_is_named_with_its_code_and_its_log(tmp_path: Path) 
     assert rep.returncode == 0, rep.stderr
     assert len(rep.stdout.splitlines()) == 1
     assert "report.md only, no figures: nothing was recorded: the run ended before its first tick (exit code 1)" in (
-        rep.stdout)  # fmt: skip
+        rep.stdout
+    )
     assert "Traceback" not in rep.stdout + rep.stderr
 
 
@@ -316,23 +322,41 @@ def test_print_result_sums_up_many_followers_and_lists_the_worst(tmp_path: Path)
     followers["4"].update(seen_ticks=195, frames=200)  # 2.5%: said on its line only, were it listed
     events = [{"robot": r, "formation": "line", "time_s": 5.0} for r in range(1, 14)]
     events.append({"robot": 4, "formation": "triangle", "time_s": 9.05})
-    summary = {"run_id": "r1", "ticks": 200, "sim_time_s": 10.0, "followers": followers, "formation_events": events,
-               "events": [{"event": "killed", "process": "agent-2", "tick": 40, "sim_time_s": 2.0}]}  # fmt: skip
+    summary = {
+        "run_id": "r1",
+        "ticks": 200,
+        "sim_time_s": 10.0,
+        "followers": followers,
+        "formation_events": events,
+        "events": [{"event": "killed", "process": "agent-2", "tick": 40, "sim_time_s": 2.0}],
+    }
     out = io.StringIO()
     print_result(RunResult(tmp_path, summary, 0), out)
     lines = out.getvalue().splitlines()
     # Measured: R2-4, R6 and R8-13 at r/100, R5 at 0.9; sorted, the 6th of these 11 is R9's 0.09.
-    assert "  12 followers: formation error RMS median 0.090 m, best 0.020 m, worst 0.900 m (R5), " \
-           "largest error 1.000 m (R5)" in lines  # fmt: skip
+    assert (
+        "  12 followers: formation error RMS median 0.090 m, best 0.020 m, worst 0.900 m (R5), "
+        "largest error 1.000 m (R5)" in lines
+    )
     assert (
         "  the 5 worst by RMS over the whole run, then 3 more that lost sight of their reference or were killed"
         ' (all 12: summary.json, "followers"):'
     ) in lines
     listed = [line.split(":")[0].strip() for line in lines if line.startswith("  follower R")]
-    assert listed == ["follower R5", "follower R13", "follower R12", "follower R11", "follower R10",
-                      "follower R2", "follower R3", "follower R7"]  # fmt: skip
-    assert "  follower R3: formation error RMS 0.030 m, max 0.060 m (its reference in view in 180 of 200 camera" \
-           " frames)" in lines  # fmt: skip
+    assert listed == [
+        "follower R5",
+        "follower R13",
+        "follower R12",
+        "follower R11",
+        "follower R10",
+        "follower R2",
+        "follower R3",
+        "follower R7",
+    ]
+    assert (
+        "  follower R3: formation error RMS 0.030 m, max 0.060 m (its reference in view in 180 of 200 camera"
+        " frames)" in lines
+    )
     assert "  formation changes: line at 5.00 s: robots 1-13; triangle at 9.05 s: R4" in lines
     # Up to 10 followers, each has its line and the events are listed one by one.
     few = {**summary, "followers": {k: followers[k] for k in list(followers)[:10]}}
@@ -348,11 +372,17 @@ def test_print_result_sums_up_many_followers_and_lists_the_worst(tmp_path: Path)
 def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: Path) -> None:
     """A summary without ticks or metrics, with None and missing values."""
     summary = {
-        "run_id": "r1", "ticks": None, "sim_time_s": None, "followers": None, "min_distance_m": None,
-        "formation_events": None, "events": [{"event": "exited", "process": "world", "code": 1, "sim_time_s": -1.0,
-                                              "log_tail": ["ValueError: boom"]}],
+        "run_id": "r1",
+        "ticks": None,
+        "sim_time_s": None,
+        "followers": None,
+        "min_distance_m": None,
+        "formation_events": None,
+        "events": [
+            {"event": "exited", "process": "world", "code": 1, "sim_time_s": -1.0, "log_tail": ["ValueError: boom"]}
+        ],
         "recording": "recording.rrd",
-    }  # fmt: skip
+    }
     out = io.StringIO()
     print_result(RunResult(tmp_path, summary, 1), out)
     text = out.getvalue()
@@ -384,8 +414,10 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     stopped = {**many, "followers": {**many["followers"], "10": {"rms_m": 0.1, "until_stopped": until}}}
     print_result(RunResult(tmp_path, {**stopped, "events": [kill]}, 0), out)
     lines = {line.split(":")[0].strip(): line for line in out.getvalue().splitlines() if "follower R" in line}
-    said = ("follower R10: formation error RMS 0.050 m, max 0.200 m until its agent was killed at t=2.00 s; over "
-            "the whole run, the robot after that included: RMS 0.100 m, max - m")  # fmt: skip
+    said = (
+        "follower R10: formation error RMS 0.050 m, max 0.200 m until its agent was killed at t=2.00 s; over "
+        "the whole run, the robot after that included: RMS 0.100 m, max - m"
+    )
     assert lines["follower R10"].strip() == said
     assert "killed" not in lines["follower R2"]
     out = io.StringIO()  # lost otherwise (its host gone, a crash): the world's death, the same way
@@ -403,9 +435,12 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     print_result(RunResult(tmp_path, {**realtime, "world_scheduling": why}, 1), out)
     assert f"late ticks 3 (worst 55.1 ms) (world scheduling {why}), messages dropped -" in out.getvalue()
     out = io.StringIO()  # the followers' skipped observations (the leader's are not theirs)
-    parts = {"agent-1": {"role": "leader", "answered": 100, "superseded": 50},
-             "agent-2": {"role": "follower", "answered": 80, "superseded": 20},
-             "agent-3": {"role": "follower", "answered": 90, "superseded": 10}, "world": {"ticks": 5}}  # fmt: skip
+    parts = {
+        "agent-1": {"role": "leader", "answered": 100, "superseded": 50},
+        "agent-2": {"role": "follower", "answered": 80, "superseded": 20},
+        "agent-3": {"role": "follower", "answered": 90, "superseded": 10},
+        "world": {"ticks": 5},
+    }
     print_result(RunResult(tmp_path, {**realtime, "parts": parts}, 1), out)
     said = "late ticks 3 (worst 55.1 ms), followers skipped 15.0% of their observations, messages dropped -"
     assert said in out.getvalue()
@@ -428,9 +463,14 @@ def test_help_is_written_for_people() -> None:
     proc = swarm(["--help"], cwd=Path.cwd())
     assert proc.returncode == 0
     assert proc.stdout.split("\n\n")[1].startswith("swarm: an emulator of vision-based leader-follower formation")
-    parsers = {"swarm": cli.build_parser(), "report": report.build_parser(), "sweep": sweep.build_parser(),
-               "results": results.build_parser(), "export": export.build_parser(),
-               "compare": compare.build_parser()}  # fmt: skip
+    parsers = {
+        "swarm": cli.build_parser(),
+        "report": report.build_parser(),
+        "sweep": sweep.build_parser(),
+        "results": results.build_parser(),
+        "export": export.build_parser(),
+        "compare": compare.build_parser(),
+    }
     for sub in parsers["swarm"]._subparsers._group_actions[0].choices.values():  # type: ignore[union-attr]
         if sub.add_help:  # the ones with their own parser here, not a module's
             parsers[sub.prog] = sub
@@ -460,7 +500,7 @@ def test_no_arguments_prints_the_help() -> None:
         (["--config", "{tmp}/missing.json5"], "--config {tmp}/missing.json5: not a Zenoh configuration Zenoh accepts"),
         (["--listen", "tcp/127.0.0.1:99999"], "the port must be a number in [1, 65535]"),
     ],
-)  # fmt: skip
+)
 def test_a_role_with_a_bad_zenoh_flag_says_so_in_one_line(tmp_path: Path, flags: list[str], fragment: str) -> None:
     argv = ["world", "--scenario", "fig11_obstacles", "--run", "x", *(f.format(tmp=tmp_path) for f in flags)]
     proc = swarm(argv, cwd=tmp_path)
@@ -520,8 +560,9 @@ def test_print_result_names_the_first_contacts(tmp_path: Path) -> None:
     print_result(RunResult(tmp_path, many, 0), out)
     assert '(the first 4 of 71 in summary.json, "contacts")\n' in out.getvalue()
     out = io.StringIO()
-    print_result(RunResult(tmp_path, {**base, "collisions": 1, "obstacle_collisions": 0, "contacts": contacts[:1]}, 0),
-                 out)  # fmt: skip
+    print_result(
+        RunResult(tmp_path, {**base, "collisions": 1, "obstacle_collisions": 0, "contacts": contacts[:1]}, 0), out
+    )
     assert "  first contact: R3 and R15 at 24.45 s\n" in out.getvalue()
     out = io.StringIO()  # none, or a summary from before contacts were listed: no line
     print_result(RunResult(tmp_path, {**base, "collisions": 0, "obstacle_collisions": 0}, 0), out)

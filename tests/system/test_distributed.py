@@ -101,8 +101,12 @@ def _cpu_hogs(n: int = 2) -> object:
 def test_same_seed_same_digest_other_seed_differs(
     swarm_run: Callable[..., RunResult], swarm_launch: Callable[..., Launch]
 ) -> None:
-    a, c = (r.summary for r in run_together(swarm_launch, (FIG11, {"seed": 7, "logger": False}),
-                                            (FIG11, {"seed": 8, "logger": False})))  # fmt: skip
+    a, c = (
+        r.summary
+        for r in run_together(
+            swarm_launch, (FIG11, {"seed": 7, "logger": False}), (FIG11, {"seed": 8, "logger": False})
+        )
+    )
     with _cpu_hogs():  # the same run on a loaded machine, each process exec'd rather than forked
         b = swarm_run(FIG11, seed=7, logger=False, fork=False).summary  # timing changes, trajectories must not
     assert a["lockstep_misses"] == b["lockstep_misses"] == 0
@@ -127,8 +131,12 @@ def test_forked_roles_are_what_exec_would_start(swarm_launch: Callable[..., Laun
     # The real-time world, every thread of it (Zenoh's too), in the real-time
     # class at the priority asked (swarm run --rt-priority) where this machine
     # allows it; nothing else.
-    rt = subprocess.run([sys.executable, "-c", "import os; os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(10))"],
-                        check=False).returncode == 0  # fmt: skip
+    rt = (
+        subprocess.run(
+            [sys.executable, "-c", "import os; os.sched_setscheduler(0, os.SCHED_RR, os.sched_param(10))"], check=False
+        ).returncode
+        == 0
+    )
     for name, pid in launch.pids().items():
         tids = [int(t.name) for t in Path(f"/proc/{pid}/task").iterdir()]
         policies = {os.sched_getscheduler(tid) for tid in tids}
@@ -154,8 +162,13 @@ def test_a_forked_role_does_not_run_the_launchers_main_script_again(tmp_path: Pa
     nothing of it (for a benchmark script, that was its imports, 20 ms a child)."""
     script = tmp_path / "launcher_script.py"
     script.write_text(MAIN_SCRIPT)
-    out = subprocess.run([sys.executable, str(script), str(tmp_path / "role.log")], capture_output=True, text=True,
-                         timeout=120, check=True).stdout  # fmt: skip
+    out = subprocess.run(
+        [sys.executable, str(script), str(tmp_path / "role.log")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
+    ).stdout
     assert out == "the main script ran\nexit 0\n"  # once: in the launcher, not again in its child
     assert (tmp_path / "role.log").read_text().startswith("usage: swarm agent")
 
@@ -198,8 +211,14 @@ def test_runs_with_observation_and_formation_code_drops_are_reproducible(
     """Whether a message drops is decided on its link's own sequence number, which
     nothing timed by the wall clock (the world's status messages) may advance."""
     lossy = {"links.obs_drop": 0.3, "links.formation_drop": 0.3}
-    a, clean = (r.summary for r in run_together(swarm_launch, (FIG11, {"seed": 3, "logger": False, "overrides": lossy}),
-                                                (FIG11, {"seed": 3, "logger": False})))  # fmt: skip
+    a, clean = (
+        r.summary
+        for r in run_together(
+            swarm_launch,
+            (FIG11, {"seed": 3, "logger": False, "overrides": lossy}),
+            (FIG11, {"seed": 3, "logger": False}),
+        )
+    )
     with _cpu_hogs():  # another timing: status messages fall on other ticks
         b = swarm_run(FIG11, seed=3, logger=False, overrides=lossy).summary
     assert a["lockstep_misses"] == b["lockstep_misses"] == 0
@@ -242,8 +261,14 @@ def test_a_lockstep_run_is_its_one_process_replica(
 def test_formation_changes_through_30_percent_drops(swarm_launch: Callable[..., Launch]) -> None:
     # Seed 2: at 30% the drops hit two of the four changes (measured delays
     # 0.05, 0.05, 0.10, 0.15 s), so re-sending is exercised, not just bounded.
-    clean, lossy = (r.summary for r in run_together(swarm_launch, (FIG11, {"seed": 2, "logger": False}),
-                    (FIG11, {"seed": 2, "logger": False, "overrides": {"links.formation_drop": 0.3}})))  # fmt: skip
+    clean, lossy = (
+        r.summary
+        for r in run_together(
+            swarm_launch,
+            (FIG11, {"seed": 2, "logger": False}),
+            (FIG11, {"seed": 2, "logger": False, "overrides": {"links.formation_drop": 0.3}}),
+        )
+    )
 
     def delays(s: dict) -> list[float]:
         leader = dict((n, t) for n, t in _events(s, 1))

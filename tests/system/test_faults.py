@@ -230,8 +230,9 @@ def test_actuators(runs: list[dict[str, Any]], text: str, robot: int, ticks: int
 
 def test_actuator_faults_change_the_trajectories(runs: list[dict[str, Any]], swarm_run: Callable[..., Any]) -> None:
     """The same schedule without its four actuator faults flies differently from 15 s on."""
-    plain = swarm_run(FIG11, mode="lockstep", logger=False, faults=SCHEDULE[:-4],
-                      overrides={"run.duration_s": SECONDS}).summary  # fmt: skip
+    plain = swarm_run(
+        FIG11, mode="lockstep", logger=False, faults=SCHEDULE[:-4], overrides={"run.duration_s": SECONDS}
+    ).summary
     assert plain["trajectory_digest"] != runs[0]["trajectory_digest"]
     for key in ("mean_m", "max_m"):  # per follower, per second of the run
         for rid in ("2", "3"):
@@ -246,7 +247,11 @@ def test_actuator_faults_change_the_trajectories(runs: list[dict[str, Any]], swa
 def test_restart(process_runs: list[dict[str, Any]]) -> None:
     f = fault(process_runs[0], "restart agent-3@3s after=1")
     assert [(e["event"], e["tick"]) for e in f["events"]] == [
-        ("killed", 60), ("started", 80), ("readmitted", 80), ("rejoined", 80)]  # fmt: skip
+        ("killed", 60),
+        ("started", 80),
+        ("readmitted", 80),
+        ("rejoined", 80),
+    ]
     assert process_runs[0]["processes"]["agent-3.2"]["exit_code"] == -9  # killed again at 12 s
 
 
@@ -287,10 +292,15 @@ def test_the_same_faults_in_real_time(swarm_run: Callable[..., Any]) -> None:
     """In real time the schedule is placed on the world's wall-clock ticks: a
     partition still cuts exactly its ticks' observations, and the camera and
     wheel faults act on exactly their ticks."""
-    faults = ["partition 3@2s for=1s from=world", "blackout 2@3s for=1s", "stuck 3@4s for=0.5s wheel=right",
-              "delay cmd:2@1s for=2s ms=120"]  # fmt: skip
-    res = swarm_run(FIG11, mode="realtime", logger=False, faults=faults, overrides={"run.duration_s": 6.0},
-                    timeout_s=60)  # fmt: skip
+    faults = [
+        "partition 3@2s for=1s from=world",
+        "blackout 2@3s for=1s",
+        "stuck 3@4s for=0.5s wheel=right",
+        "delay cmd:2@1s for=2s ms=120",
+    ]
+    res = swarm_run(
+        FIG11, mode="realtime", logger=False, faults=faults, overrides={"run.duration_s": 6.0}, timeout_s=60
+    )
     s = res.summary
     assert res.exit_code == 0
     assert s["links"]["obs:0>3"]["partitioned"] == TICKS_PER_S  # the world publishes every tick

@@ -141,16 +141,18 @@ def test_a_partitions_count_outlives_a_later_restart_and_a_kill_inside_it_is_mar
     from formation_swarm.launch.console import describe_fault
 
     alone = swarm_run(FIG11, mode="lockstep", logger=False, faults=["partition 2@30s for=5s from=leader"]).summary
-    later = swarm_run(FIG11, mode="lockstep", logger=False,
-                      faults=["partition 2@30s for=5s from=leader", "restart agent-2@45s"]).summary  # fmt: skip
+    later = swarm_run(
+        FIG11, mode="lockstep", logger=False, faults=["partition 2@30s for=5s from=leader", "restart agent-2@45s"]
+    ).summary
     # Codes the leader sent in ticks 600..699: every 10 ticks, and every tick for
     # 1 s after its change to triangle at tick 608.
     assert alone["faults"][0]["counts"] == {"partitioned": 29}
     assert later["faults"][0]["counts"] == {"partitioned": 29}
     assert "counts_partial_for" not in later["faults"][0]
     assert describe_fault(later["faults"][0]) == "partition 2@30s for=5s from=leader: 29 messages lost to the partition"
-    inside = swarm_run(FIG11, mode="lockstep", logger=False,
-                       faults=["partition 2@30s for=5s from=leader", "restart agent-2@32s"]).summary  # fmt: skip
+    inside = swarm_run(
+        FIG11, mode="lockstep", logger=False, faults=["partition 2@30s for=5s from=leader", "restart agent-2@32s"]
+    ).summary
     cut = inside["faults"][0]
     assert cut["counts_partial_for"] == [2]
     # The restarted agent (from tick 660) counts the rest; the killed one's last write is wall-timed.

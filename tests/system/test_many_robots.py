@@ -174,8 +174,10 @@ def test_thirty_robots_keep_their_references_along_the_turning_path(
     worst = max(rms, key=rms.__getitem__)
     table = {r: round(v, 2) for r, v in rms.items()}
     print(f"30-robot {shape}, look-ahead {lookahead_m:g} m, {sc.duration_s:g} s, per-follower RMS error (m):", table)
-    print(f"  min {min(rms.values()):.2f}, median {statistics.median(rms.values()):.2f},"
-          f" max {rms[worst]:.2f} (robot {worst}); closest {s['min_distance_m']:.2f} m")  # fmt: skip
+    print(
+        f"  min {min(rms.values()):.2f}, median {statistics.median(rms.values()):.2f},"
+        f" max {rms[worst]:.2f} (robot {worst}); closest {s['min_distance_m']:.2f} m"
+    )
     # The typical follower stays where FIS-1 still grades its error: below dmax_m,
     # beyond which the error is simply "Far".
     assert statistics.median(rms.values()) < sc.followers[2].fuzzy.dmax_m

@@ -134,8 +134,9 @@ def test_a_lockstep_freeze_skips_the_robot_and_waits_long_for_its_first_answer()
 
 
 def test_recovery_first_below_settled_and_the_window() -> None:
-    rec = Recovery(3, "readmitted", "restart agent-3@20s", since_tick=10, watched=(3,), dt_s=0.5, window_s=2.0,
-                   hold_s=1.0)  # fmt: skip
+    rec = Recovery(
+        3, "readmitted", "restart agent-3@20s", since_tick=10, watched=(3,), dt_s=0.5, window_s=2.0, hold_s=1.0
+    )
     errors = [2.0, 1.0, 0.4, 0.6, 0.3, 0.2, 0.1]  # ticks 10..16; window 4 ticks, hold 2 ticks
     rec.add(9, {3: 9.0})  # before the return: not counted
     for k, e in enumerate(errors):
@@ -205,8 +206,9 @@ def test_the_worlds_bookkeeping_starts_empty_whatever_it_is_given(name: str) -> 
 
 
 def test_calls_skip_faults_of_other_groups_and_a_call_is_frozen() -> None:
-    faults = _faults("blackout 2@1s for=1s", "wheel_noise 3@1s sigma_mps=0.1", "partition 2@1s for=1s",
-                     "kill agent-3@2s")  # fmt: skip
+    faults = _faults(
+        "blackout 2@1s for=1s", "wheel_noise 3@1s sigma_mps=0.1", "partition 2@1s for=1s", "kill agent-3@2s"
+    )
     got = calls(faults, 0.05)
     assert [(t, [(c.action, c.index) for c in cs]) for t, cs in got.items()] == [(40, [(KILL, 3)])]
     with pytest.raises(dataclasses.FrozenInstanceError):
@@ -262,9 +264,17 @@ def test_a_late_rejoin_counts_its_ticks_and_a_pending_one_is_in_the_stats() -> N
     stats = pf.stats()
     assert stats["rejoins"] == [
         rejoin,
-        {"robot": 2, "fault": "restart agent-2@1s after=1", "cause": "restart", "since_tick": 40,
-         "readmitted_tick": 50, "rejoined_tick": None, "ticks_to_rejoin": None, "wall_s_to_rejoin": None},
-    ]  # fmt: skip
+        {
+            "robot": 2,
+            "fault": "restart agent-2@1s after=1",
+            "cause": "restart",
+            "since_tick": 40,
+            "readmitted_tick": 50,
+            "rejoined_tick": None,
+            "ticks_to_rejoin": None,
+            "wall_s_to_rejoin": None,
+        },
+    ]
     assert pf.rejoining[2]["since_wall_s"] == 2.0  # the pending one's wall time is not in the stats only
 
 
@@ -274,7 +284,9 @@ def test_not_back_names_the_restart_it_gave_up_on() -> None:
     pf.not_back(3, wall_s=9.0)
     pf.not_back(3, wall_s=9.5)  # no "start" pending any more
     assert [(e["event"], e["fault"]) for e in pf.fault_log][-2:] == [
-        ("not back", "restart agent-3@1s after=0.5"), ("not back", None)]  # fmt: skip
+        ("not back", "restart agent-3@1s after=0.5"),
+        ("not back", None),
+    ]
     assert 3 not in pf.starting
 
 
@@ -351,7 +363,11 @@ def test_a_lockstep_restart_rejoins_on_its_tick_and_repeats_to_the_bit(swarm_run
         f = _fault(s)
         assert (f["start_tick"], f["end_tick"]) == (400, 420)
         assert [(e["event"], e["tick"]) for e in f["events"]] == [
-            ("killed", 400), ("started", 420), ("readmitted", 420), ("rejoined", 420)]  # fmt: skip
+            ("killed", 400),
+            ("started", 420),
+            ("readmitted", 420),
+            ("rejoined", 420),
+        ]
         assert [(e["event"], e["process"]) for e in f["executed"]] == [("killed", "agent-3"), ("started", "agent-3.2")]
         (rejoin,) = f["rejoins"]
         # Lockstep waits at tick 420 for the fresh process: no tick passes, only wall time.
@@ -394,8 +410,14 @@ def test_a_restarted_leader_goes_on_along_its_path_and_its_codes_are_heard(
 ) -> None:
     """Its pilot starts from the segment nearest its pose; its formation codes
     count from seq 1 again and the followers take them (ordered by tick, seq)."""
-    res = swarm_run(FIG11, seed=1, logger=False, faults=["restart agent-1@10s after=1"],
-                    overrides={"run.duration_s": 40.0}, timeout_s=240)  # fmt: skip
+    res = swarm_run(
+        FIG11,
+        seed=1,
+        logger=False,
+        faults=["restart agent-1@10s after=1"],
+        overrides={"run.duration_s": 40.0},
+        timeout_s=240,
+    )
     s = res.summary
     assert res.exit_code == 0
     assert s["failure"] is None
@@ -412,8 +434,14 @@ def test_a_restarted_leader_goes_on_along_its_path_and_its_codes_are_heard(
 def test_a_realtime_restart_readmits_the_robot_when_its_fresh_agent_appears(
     swarm_run: Callable[..., RunResult],
 ) -> None:
-    res = swarm_run(FIG11, mode="realtime", logger=False, faults=["restart agent-3@3s after=1"],
-                    overrides={"run.duration_s": 12.0}, timeout_s=120)  # fmt: skip
+    res = swarm_run(
+        FIG11,
+        mode="realtime",
+        logger=False,
+        faults=["restart agent-3@3s after=1"],
+        overrides={"run.duration_s": 12.0},
+        timeout_s=120,
+    )
     s = res.summary
     assert res.exit_code == 0
     f = _fault(s)
@@ -430,8 +458,9 @@ def test_a_realtime_restart_readmits_the_robot_when_its_fresh_agent_appears(
 
 
 def _hold_runs(swarm_run: Callable[..., RunResult], fault: str) -> dict[str, Any]:
-    res = swarm_run(FIG11, seed=1, mode="lockstep", logger=False, faults=[fault], overrides={"run.duration_s": 25},
-                    timeout_s=240)  # fmt: skip
+    res = swarm_run(
+        FIG11, seed=1, mode="lockstep", logger=False, faults=[fault], overrides={"run.duration_s": 25}, timeout_s=240
+    )
     s = res.summary
     assert s["lockstep_misses"] == 0
     for agent in ("agent-2", "agent-3"):  # the fault took no other process down
@@ -493,8 +522,9 @@ def test_a_leader_frozen_beyond_the_zenoh_lease_is_lost_then_rejoins(swarm_run: 
     drops its session and the world counts it lost; once SIGCONTed its Zenoh
     client reconnects and declares its token again, the agent sees the world
     back, and the world re-admits the robot."""
-    res = swarm_run(FIG11, mode="realtime", logger=False, faults=["freeze agent-1@5s for=15s"],
-                    overrides=SHORT, timeout_s=120)  # fmt: skip
+    res = swarm_run(
+        FIG11, mode="realtime", logger=False, faults=["freeze agent-1@5s for=15s"], overrides=SHORT, timeout_s=120
+    )
     s = res.summary
     assert res.exit_code == 0, s["failure"]  # the leader came back: not a failed run
     f = _fault(s)

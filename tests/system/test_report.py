@@ -65,7 +65,8 @@ def test_a_run_without_a_recording_gets_report_md_and_says_why_no_figures(
     assert main([str(tmp_path)]) == 0
     assert capsys.readouterr().out.endswith(
         "report.md only, no figures: nothing was recorded: the run ended before its first tick (exit code 130); "
-        "see its logs/\n")  # fmt: skip
+        "see its logs/\n"
+    )
     md = (tmp_path / "report" / "report.md").read_text()
     assert "No follower metrics: the run ended before its first tick." in md
     assert "no ticks (- s simulated)" in md
@@ -80,16 +81,51 @@ def test_a_run_without_a_recording_gets_report_md_and_says_why_no_figures(
 
 FAULTED = {
     "faults": [
-        {"fault": "kill agent-3@20s", "kind": "kill", "target": "agent-3", "at_s": 20.0, "for_s": None,
-         "start_tick": 400, "end_tick": None, "counts": {},
-         "events": [{"tick": 400, "time_s": 20.0, "event": "killed", "robot": 3}],
-         "recoveries": [{"watched": [2], "since_tick": 400, "since_s": 20.0, "bound_m": 0.5,
-                        "first_below_after_s": 1.25, "settled_after_s": None, "window_s": 5.0,
-                        "max_in_window_m": 0.99}]},
-        {"fault": "drop obs:2@10s for=5s p=0.3", "kind": "drop", "target": "obs:2", "at_s": 10.0, "for_s": 5.0,
-         "start_tick": 200, "end_tick": 300, "counts": {"dropped": 31}, "events": []},
-        {"fault": "wheel_noise *@0s sigma_mps=0.1", "kind": "wheel_noise", "target": "*", "at_s": 0.0,
-         "for_s": None, "start_tick": 0, "end_tick": None, "counts": {}, "events": []},
+        {
+            "fault": "kill agent-3@20s",
+            "kind": "kill",
+            "target": "agent-3",
+            "at_s": 20.0,
+            "for_s": None,
+            "start_tick": 400,
+            "end_tick": None,
+            "counts": {},
+            "events": [{"tick": 400, "time_s": 20.0, "event": "killed", "robot": 3}],
+            "recoveries": [
+                {
+                    "watched": [2],
+                    "since_tick": 400,
+                    "since_s": 20.0,
+                    "bound_m": 0.5,
+                    "first_below_after_s": 1.25,
+                    "settled_after_s": None,
+                    "window_s": 5.0,
+                    "max_in_window_m": 0.99,
+                }
+            ],
+        },
+        {
+            "fault": "drop obs:2@10s for=5s p=0.3",
+            "kind": "drop",
+            "target": "obs:2",
+            "at_s": 10.0,
+            "for_s": 5.0,
+            "start_tick": 200,
+            "end_tick": 300,
+            "counts": {"dropped": 31},
+            "events": [],
+        },
+        {
+            "fault": "wheel_noise *@0s sigma_mps=0.1",
+            "kind": "wheel_noise",
+            "target": "*",
+            "at_s": 0.0,
+            "for_s": None,
+            "start_tick": 0,
+            "end_tick": None,
+            "counts": {},
+            "events": [],
+        },
     ],
     "events": [
         {"event": "killed", "process": "agent-3", "sim_time_s": 20.0},
@@ -97,7 +133,7 @@ FAULTED = {
         {"event": "exited", "process": "logger", "code": 1, "sim_time_s": 31.5},
     ],
     "deaths": [{"robot": 3, "tick": 400, "time_s": 20.0}],
-}  # fmt: skip
+}
 
 
 def test_faults_are_marked_on_the_time_axes_and_listed() -> None:
@@ -106,8 +142,12 @@ def test_faults_are_marked_on_the_time_axes_and_listed() -> None:
     marks = fault_marks(FAULTED)
     # A kill is an instant; a windowed fault its window; an open-ended one runs to the end;
     # the logger's own exit is marked, agent 3's is the kill's doing.
-    assert marks == [(20.0, None, "kill agent-3"), (10.0, 15.0, "drop obs:2"), (0.0, math.inf, "wheel_noise *"),
-                     (31.5, None, "logger exited")]  # fmt: skip
+    assert marks == [
+        (20.0, None, "kill agent-3"),
+        (10.0, 15.0, "drop obs:2"),
+        (0.0, math.inf, "wheel_noise *"),
+        (31.5, None, "logger exited"),
+    ]
     text = "\n".join(_faults_markdown(FAULTED))
     assert (
         "| `kill agent-3@20s` | from 400 | killed R3 at tick 400 (20.00 s); R2 below 0.5 m 1.25 s after the return "
@@ -124,13 +164,20 @@ def test_faults_are_marked_on_the_time_axes_and_listed() -> None:
 def test_switches_snapshots_and_limits() -> None:
     from formation_swarm.report.figures import moving_average, robust_top, snapshot_times, switches
 
-    events = [{"tick": 392, "time_s": 19.6, "robot": 1, "formation": "line"},
-              {"tick": 393, "time_s": 19.65, "robot": 3, "formation": "line"},
-              {"tick": 608, "time_s": 30.4, "robot": 1, "formation": "triangle"}]  # fmt: skip
+    events = [
+        {"tick": 392, "time_s": 19.6, "robot": 1, "formation": "line"},
+        {"tick": 393, "time_s": 19.65, "robot": 3, "formation": "line"},
+        {"tick": 608, "time_s": 30.4, "robot": 1, "formation": "triangle"},
+    ]
     assert switches(events) == [(19.6, "line"), (30.4, "triangle")]  # a leader's and its followers' change: one
     # At the start, each switch and mid-way through each formation: the line between the obstacles at 25 s.
-    assert snapshot_times([19.6, 30.4], 53.0, 6) == [(0.0, "start"), (19.6, "switch"), (25.0, "held"),
-                                                     (30.4, "switch"), (41.7, "held")]  # fmt: skip
+    assert snapshot_times([19.6, 30.4], 53.0, 6) == [
+        (0.0, "start"),
+        (19.6, "switch"),
+        (25.0, "held"),
+        (30.4, "switch"),
+        (41.7, "held"),
+    ]
     assert [t for t, _ in snapshot_times([], 40.0, 5)] == [0.0, 10.0, 20.0, 30.0, 40.0]
     # A formation flown less than 2 s (a 20 s run that switches at 19.6 s) gets no mid-way snapshot,
     # whose label fell on the switch's.
@@ -178,8 +225,11 @@ def test_cf_paper_only_for_a_shipped_scenario_as_shipped(tmp_path: Path) -> None
 
     text = shipped()["fig7_turn_vn_dynamic"].read_text()
     (tmp_path / "a.toml").write_text(text.replace("seed = 1", "seed = 7"))
-    assert paper_figures(tmp_path / "a.toml") == {"trajectories": "Fig. 7a", "formation_error": "Fig. 7b",
-                                                  "vn": "Fig. 8"}  # fmt: skip
+    assert paper_figures(tmp_path / "a.toml") == {
+        "trajectories": "Fig. 7a",
+        "formation_error": "Fig. 7b",
+        "vn": "Fig. 8",
+    }
     (tmp_path / "b.toml").write_text(text.replace('vn = "dynamic"', "vn = 1.5"))
     assert paper_figures(tmp_path / "b.toml") == {}
     (tmp_path / "c.toml").write_text(text + '\n[[faults]]\nfault = "kill agent-2@5s"\n')
@@ -297,10 +347,16 @@ def test_a_swarm_figure_draws_the_median_and_names_the_worst(monkeypatch: pytest
 def test_the_report_names_the_first_contacts_and_the_scenario_warnings() -> None:
     from formation_swarm.report.build import _markdown
 
-    summary = {"run_id": "r1", "collisions": 2, "obstacle_collisions": 0,
-               "contacts": [{"tick": 489, "time_s": 24.45, "robots": [3, 15]},
-                            {"tick": 490, "time_s": 24.5, "robots": [7, 11]}],
-               "scenario_warnings": ["formation 'two': robots 10-30 sit up to 22.5 m to the side"]}  # fmt: skip
+    summary = {
+        "run_id": "r1",
+        "collisions": 2,
+        "obstacle_collisions": 0,
+        "contacts": [
+            {"tick": 489, "time_s": 24.45, "robots": [3, 15]},
+            {"tick": 490, "time_s": 24.5, "robots": [7, 11]},
+        ],
+        "scenario_warnings": ["formation 'two': robots 10-30 sit up to 22.5 m to the side"],
+    }
     md = _markdown(summary, [])
     assert "First contacts: R3 and R15 at 24.45 s, R7 and R11 at 24.50 s.\n" in md
     assert "## Scenario warnings\n\n- formation 'two': robots 10-30 sit up to 22.5 m" in md

@@ -64,8 +64,9 @@ def start(tmp_path: Path) -> Iterator[Callable[..., Proc]]:
     def run(name: str, role: str, *args: str) -> Proc:
         out, err = tmp_path / f"{name}.out", tmp_path / f"{name}.err"
         with out.open("wb") as o, err.open("wb") as e:
-            popen = subprocess.Popen([sys.executable, "-m", MODULES[role], *args], stdout=o, stderr=e,
-                                     stdin=subprocess.DEVNULL)  # fmt: skip
+            popen = subprocess.Popen(
+                [sys.executable, "-m", MODULES[role], *args], stdout=o, stderr=e, stdin=subprocess.DEVNULL
+            )
         proc = Proc(name, popen, out, err, time.monotonic())
         procs.append(proc)
         return proc
@@ -103,8 +104,9 @@ def test_mismatched_run_ids_give_up_at_the_deadline_with_one_line(tmp_path: Path
     common = ["--scenario", str(_turn(tmp_path)), *deadline]
     world = start("world", "world", *common, "--run", world_run, "--listen", endpoint, "--expect-logger")
     agent = start("agent-2", "agent", *common, "--id", "2", "--run", other_run, "--connect", endpoint)
-    logger = start("logger", "logger", *common, "--run", other_run, "--connect", endpoint,
-                   "--out", str(tmp_path / "rec.rrd"))  # fmt: skip
+    logger = start(
+        "logger", "logger", *common, "--run", other_run, "--connect", endpoint, "--out", str(tmp_path / "rec.rrd")
+    )
     # The deadline starts in main(), after the imports (1-2 s alone, more on a
     # loaded machine): the wait is timed from the first line, printed then.
     printed = _first_lines(world, agent, logger)
@@ -145,8 +147,14 @@ def _inside_zenoh_open(pid: int) -> bool:
     runtime threads exist: it is opening its session, which, with no router
     to reach, it cannot finish."""
     try:
-        caught = int(next(line.split()[1] for line in Path(f"/proc/{pid}/status").read_text().splitlines()
-                          if line.startswith("SigCgt:")), 16)  # fmt: skip
+        caught = int(
+            next(
+                line.split()[1]
+                for line in Path(f"/proc/{pid}/status").read_text().splitlines()
+                if line.startswith("SigCgt:")
+            ),
+            16,
+        )
         names = {(t / "comm").read_text().strip() for t in Path(f"/proc/{pid}/task").iterdir()}
     except (OSError, StopIteration):
         return False
@@ -198,8 +206,20 @@ def test_world_by_hand_with_out_writes_the_summary_of_swarm_run(
     endpoint, run, out = f"tcp/127.0.0.1:{free_port()}", _run_id("hand"), tmp_path / "by-hand"
     common = ["--scenario", str(scenario), "--run", run]
     world = start("world", "world", *common, "--listen", endpoint, "--out", str(out))
-    agents = [start(f"agent-{r}", "agent", *common, "--id", str(r), "--connect", endpoint,
-                    "--stats", str(tmp_path / f"agent-{r}.json")) for r in (1, 2)]  # fmt: skip
+    agents = [
+        start(
+            f"agent-{r}",
+            "agent",
+            *common,
+            "--id",
+            str(r),
+            "--connect",
+            endpoint,
+            "--stats",
+            str(tmp_path / f"agent-{r}.json"),
+        )
+        for r in (1, 2)
+    ]
     for p in (world, *agents):
         assert p.wait(timeout_s=120) == 0, p.lines("err")
     hand = json.loads((out / "summary.json").read_text())
@@ -246,8 +266,12 @@ def test_git_commit_of_a_checkout_a_worktree_packed_refs_and_none(tmp_path: Path
     assert summary_mod.git_commit(repo) == a
     # A worktree: .git is a file; its HEAD names a branch kept, packed, in the main repository.
     wt = tmp_path / "wt"
-    _git(repo, (".git/worktrees/wt/HEAD", "ref: refs/heads/topic\n"), (".git/worktrees/wt/commondir", "../..\n"),
-         (".git/packed-refs", f"# pack-refs with: peeled\n{b} refs/heads/topic\n"))  # fmt: skip
+    _git(
+        repo,
+        (".git/worktrees/wt/HEAD", "ref: refs/heads/topic\n"),
+        (".git/worktrees/wt/commondir", "../..\n"),
+        (".git/packed-refs", f"# pack-refs with: peeled\n{b} refs/heads/topic\n"),
+    )
     _git(wt, (".git", f"gitdir: {repo / '.git/worktrees/wt'}\n"))
     assert summary_mod.git_commit(wt) == b
     _git(repo, (".git/HEAD", b + "\n"))  # detached

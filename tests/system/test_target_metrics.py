@@ -116,8 +116,27 @@ def test_the_target_error_is_against_the_formation_the_follower_flew() -> None:
     robots = tuple((rid, p.x_m, p.y_m, p.theta_rad, True) for rid, p in poses.items())
     recorder.add_truths([Truth(0, 1, 7, 0.35, robots, ((3, *world_target),))])
     seen = to_body_frame(poses[3], *flown_target)  # a perfect reading of the line slot's target
-    tel = Telemetry(3, 1, 7, 0.35, new.reference, line, seen, seen, (0.01, 0.0, 0.01), 1.5, 0.0, 1.5, 1.5, 1.5,
-                    new.reference, True, 0, 0, 0)  # fmt: skip
+    tel = Telemetry(
+        3,
+        1,
+        7,
+        0.35,
+        new.reference,
+        line,
+        seen,
+        seen,
+        (0.01, 0.0, 0.01),
+        1.5,
+        0.0,
+        1.5,
+        1.5,
+        1.5,
+        new.reference,
+        True,
+        0,
+        0,
+        0,
+    )
     recorder.add_telemetry([tel])
     recorder.send(final=True)
     errors = recorder.stats()["target_errors"]["3"]
@@ -127,8 +146,13 @@ def test_the_target_error_is_against_the_formation_the_follower_flew() -> None:
     assert (triangle, line) == (0, 1)
     unknown = Recorder(rec, sc)
     unknown.add_truths([Truth(0, 1, 7, 0.35, robots, ((3, *world_target),))])
-    unknown.add_telemetry([Telemetry(3, 1, 7, 0.35, new.reference, 9, seen, seen, None, 1.5, 0.0, 1.5, 1.5, 1.5,
-                                     new.reference, True, 0, 0, 0)])  # fmt: skip
+    unknown.add_telemetry(
+        [
+            Telemetry(
+                3, 1, 7, 0.35, new.reference, 9, seen, seen, None, 1.5, 0.0, 1.5, 1.5, 1.5, new.reference, True, 0, 0, 0
+            )
+        ]
+    )
     unknown.send(final=True)
     far = math.dist(world_target, flown_target)
     assert unknown.stats()["target_errors"]["3"]["ekf_rms_m"] == pytest.approx(far, rel=1e-6)

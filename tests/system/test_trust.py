@@ -186,9 +186,22 @@ def test_a_role_given_another_roles_login_is_refused_before_it_connects(
     """The router would let it in, and its rules keep it from every key it needs:
     an agent 2 with agent 3's login waited out the run and then said it ended well."""
     files = trust.write_run_secrets(tmp_path / "secrets", "r1", ROBOTS, leader_id=1, world_is_router=False)
-    argv = [sys.executable, "-m", "formation_swarm.cli", *[a.format(tmp=tmp_path) for a in role],
-            "--scenario", "fig11_obstacles", "--run", "r1", "--connect", "tcp/127.0.0.1:9", "--auth",
-            str(files[login]), "--peers-timeout", "30"]  # fmt: skip
+    argv = [
+        sys.executable,
+        "-m",
+        "formation_swarm.cli",
+        *[a.format(tmp=tmp_path) for a in role],
+        "--scenario",
+        "fig11_obstacles",
+        "--run",
+        "r1",
+        "--connect",
+        "tcp/127.0.0.1:9",
+        "--auth",
+        str(files[login]),
+        "--peers-timeout",
+        "30",
+    ]
     t0 = time.monotonic()
     proc = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
     assert proc.returncode == 2, proc.stderr

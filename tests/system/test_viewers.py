@@ -37,8 +37,9 @@ def _saving_viewer(args: list[str], out: Path) -> Iterator[subprocess.Popen[byte
     """``rerun ARGS --save OUT``, stopped and reaped at the end. ``rerun`` is a
     Python launcher that starts the real binary as its child: the whole
     process group is stopped, or the binary would outlive the test."""
-    proc = subprocess.Popen([RERUN, *args, "--save", str(out)], stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, start_new_session=True)  # fmt: skip
+    proc = subprocess.Popen(
+        [RERUN, *args, "--save", str(out)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
     try:
         yield proc
     finally:
@@ -83,8 +84,14 @@ def test_live_stream_carries_what_the_recording_has(tmp_path: Path, swarm_run: C
         ticks = res.summary["ticks"]
         got = _wait_rows(live, "/robots/r3/ekf/target", ticks, timeout_s=20)
     recorded = rrd_rows(res.recording)
-    for entity in ("/robots/r1/trajectory", "/robots/r2/trajectory", "/robots/r3/trajectory",
-                   "/robots/r2/ekf/target", "/robots/r3/ekf/target", "/robots/r2/fis/v_n"):  # fmt: skip
+    for entity in (
+        "/robots/r1/trajectory",
+        "/robots/r2/trajectory",
+        "/robots/r3/trajectory",
+        "/robots/r2/ekf/target",
+        "/robots/r3/ekf/target",
+        "/robots/r2/fis/v_n",
+    ):
         assert recorded[entity] == ticks, entity
         assert got.get(entity, 0) == ticks, (entity, got.get(entity, 0), ticks)
 
@@ -92,8 +99,14 @@ def test_live_stream_carries_what_the_recording_has(tmp_path: Path, swarm_run: C
 def test_served_web_viewer_answers_and_streams(tmp_path: Path, swarm_launch: Callable[..., Launch]) -> None:
     grpc_port, web_port, viewer_port = free_port(), free_port(), free_port()
     said: list[str] = []
-    launch = swarm_launch(FIG11, mode="realtime", serve_web=True, web_ports=(grpc_port, web_port),
-                          overrides={"run.duration_s": 4.0}, progress=said.append)  # fmt: skip
+    launch = swarm_launch(
+        FIG11,
+        mode="realtime",
+        serve_web=True,
+        web_ports=(grpc_port, web_port),
+        overrides={"run.duration_s": 4.0},
+        progress=said.append,
+    )
     address = f"http://127.0.0.1:{web_port}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc_port}%2Fproxy"
     assert launch.wait_until(lambda: any(address in line for line in said), timeout_s=60), said
     with urllib.request.urlopen(address, timeout=10) as page:
@@ -209,11 +222,15 @@ def test_the_event_log_has_every_robots_formation_switch_the_leaders_too(swarm_r
     res = swarm_run(FIG11)
     logged = [e for e in _texts(res.recording, "/events") if " flies " in e[1]]
     # Each robot's first formation, at its first tick; then its switches, as the world saw them.
-    assert [text for t, text in logged if t == 0.0] == ["R1 (leader) flies triangle", "R2 flies triangle",
-                                                       "R3 flies triangle"]  # fmt: skip
+    assert [text for t, text in logged if t == 0.0] == [
+        "R1 (leader) flies triangle",
+        "R2 flies triangle",
+        "R3 flies triangle",
+    ]
     expected = [(round(e["time_s"], 2), e["robot"], e["formation"]) for e in res.summary["formation_events"]]
     assert [(t, text.split()[0], text.split()[-1]) for t, text in logged if t > 0] == sorted(
-        (t, f"R{r}", f) for t, r, f in expected)  # fmt: skip
+        (t, f"R{r}", f) for t, r, f in expected
+    )
     assert (19.6, "R1 (leader) flies line") in logged
 
 
@@ -251,10 +268,25 @@ def test_serve_web_on_a_taken_port_is_refused_before_anything_starts(tmp_path: P
         with pytest.raises(ValueError, match=f"^--web-port {taken}: cannot serve the web viewer there \\("):
             Launch(FIG11, serve_web=True, web_ports=(free, taken), out=tmp_path / "a")
         proc = subprocess.run(
-            [sys.executable, "-m", "formation_swarm.cli", "run", str(FIG11), "--serve-web", "--grpc-port", str(taken),
-             "--web-port", str(free), "--out", str(tmp_path / "b")],
-            capture_output=True, text=True, timeout=120, check=False,
-        )  # fmt: skip
+            [
+                sys.executable,
+                "-m",
+                "formation_swarm.cli",
+                "run",
+                str(FIG11),
+                "--serve-web",
+                "--grpc-port",
+                str(taken),
+                "--web-port",
+                str(free),
+                "--out",
+                str(tmp_path / "b"),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
     assert proc.returncode == 2, proc.stderr
     assert proc.stdout == ""
     assert proc.stderr.startswith(f"swarm run: --grpc-port {taken}: cannot serve the web viewer there (")

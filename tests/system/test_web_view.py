@@ -29,8 +29,13 @@ from tests.helpers import RERUN, SCENARIOS, wait_listening
 WIDTH, HEIGHT = 1600, 1000
 TOP_BAR, TIME_BAR = 36, 28  # px: Rerun's top bar, the collapsed time panel
 COLUMNS = (1.5, 1.75, 1.75)  # the blueprint's column shares: map | 3 series | 2 series and the events
-SERIES = {(1, 0): "formation error", (1, 1): "V_N", (1, 2): "target error", (2, 0): "wheel speeds",
-          (2, 1): "link drops"}  # fmt: skip
+SERIES = {
+    (1, 0): "formation error",
+    (1, 1): "V_N",
+    (1, 2): "target error",
+    (2, 0): "wheel speeds",
+    (2, 1): "link drops",
+}
 ADDRESS = re.compile(r"http://127\.0\.0\.1:\d+/\?url=\S+")
 
 
@@ -125,9 +130,24 @@ def test_every_panel_draws_live_and_from_the_recording(tmp_path: Path) -> None:
     # busy machine before the run, and with it the served data, is over.
     grpc_port, web_port = free_port(), free_port()
     run_dir = tmp_path / "run"
-    argv = [swarm, "run", str(SCENARIOS / "fig11_obstacles.toml"), "--mode", "realtime", "--out", str(run_dir),
-            "--set", "run.duration_s=20", "--fault", "drop obs:2@2s for=5s p=0.3",
-            "--serve-web", "--grpc-port", str(grpc_port), "--web-port", str(web_port)]  # fmt: skip
+    argv = [
+        swarm,
+        "run",
+        str(SCENARIOS / "fig11_obstacles.toml"),
+        "--mode",
+        "realtime",
+        "--out",
+        str(run_dir),
+        "--set",
+        "run.duration_s=20",
+        "--fault",
+        "drop obs:2@2s for=5s p=0.3",
+        "--serve-web",
+        "--grpc-port",
+        str(grpc_port),
+        "--web-port",
+        str(web_port),
+    ]
     with chromium(exe, tmp_path / "profile") as page:
         with _group(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT) as run:
             lines = _lines(run)

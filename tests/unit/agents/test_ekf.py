@@ -244,5 +244,7 @@ def test_target_covariance_is_first_order_in_the_whole_state() -> None:
     point, cov = ekf.target(off)
     np.testing.assert_allclose(cov, j @ ekf._kf.P @ j.T, rtol=1e-6, atol=1e-12)
     x, y, phi = base[:3, 0]
-    assert point == pytest.approx((x + off.x_m * math.cos(phi) - off.y_m * math.sin(phi),
-                                   y + off.x_m * math.sin(phi) + off.y_m * math.cos(phi)), abs=1e-12)  # fmt: skip
+    assert point == pytest.approx(
+        (x + off.x_m * math.cos(phi) - off.y_m * math.sin(phi), y + off.x_m * math.sin(phi) + off.y_m * math.cos(phi)),
+        abs=1e-12,
+    )

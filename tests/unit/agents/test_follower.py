@@ -143,8 +143,18 @@ def test_defaults_are_the_scenario_files_defaults() -> None:
     """One source per fact: a scenario that sets nothing gets the follower defaults."""
     sc = scenario_mod.load(ROOT / "scenarios" / "fig7_turn_vn_dynamic.toml")
     p, default = sc.followers[2], FollowerParams()
-    for name in ("width_m", "marker_offset_m", "dt_s", "clearance_m", "lost_after_s", "use_ekf", "law",
-                 "hold_speed_mps", "resume_speed_mps", "hold_after_s"):  # fmt: skip
+    for name in (
+        "width_m",
+        "marker_offset_m",
+        "dt_s",
+        "clearance_m",
+        "lost_after_s",
+        "use_ekf",
+        "law",
+        "hold_speed_mps",
+        "resume_speed_mps",
+        "hold_after_s",
+    ):
         assert getattr(p, name) == getattr(default, name), name
     assert (default.clearance_m, default.lost_after_s) == (1.0, 1.0)
 
@@ -159,8 +169,14 @@ def test_parameters_are_frozen() -> None:
 SLOT = Point(-1.5, -1.5)  # the paper's two-robot offset
 
 
-def _fly(p: FollowerParams, ref_speed_mps: Callable[[int], float], ticks: int, start_back_m: float = 0.0,
-         start_right_m: float = 0.0, seed: int = 0) -> list[tuple[Decision, float, Pose]]:  # fmt: skip
+def _fly(
+    p: FollowerParams,
+    ref_speed_mps: Callable[[int], float],
+    ticks: int,
+    start_back_m: float = 0.0,
+    start_right_m: float = 0.0,
+    seed: int = 0,
+) -> list[tuple[Decision, float, Pose]]:
     """A reference driving north at ``ref_speed_mps(tick)``, seen by the default
     camera (noise included); the follower starts on its slot, moved back and
     right. Per tick: the decision, the follower's distance to its true target
@@ -211,8 +227,9 @@ def test_a_follower_holds_at_its_stopped_reference_and_resumes_when_it_moves(see
 
 
 @pytest.mark.parametrize(("back_m", "right_m"), [(4.0, 0.0), (4.0, 1.0), (2.0, -2.0)])
-def test_a_follower_behind_a_standing_reference_drives_up_and_holds_at_its_target(back_m: float,
-                                                                                  right_m: float) -> None:  # fmt: skip
+def test_a_follower_behind_a_standing_reference_drives_up_and_holds_at_its_target(
+    back_m: float, right_m: float
+) -> None:
     """The reference stands from the start: the paper's controller brings the
     follower up (it never slows below 1 m/s), and it stops on reaching its
     target: within d0, level with it, or at the closest approach within dn.

@@ -314,8 +314,11 @@ def test_a_slow_leader_is_warned_of() -> None:
         " (vm -+ a_mps, or a static vn -+ a_mps), and they never drive slower than 1 m/s: they will overrun their"
         " targets and may hit their references"
     ]
-    with pytest.warns(ScenarioWarning, match="follower 2's fuzzy controller holds steadily, 1.5-2.5 m/s .* it never"
-                      " drives faster than 2.5 m/s: it will fall behind and may lose its reference"):  # fmt: skip
+    with pytest.warns(
+        ScenarioWarning,
+        match="follower 2's fuzzy controller holds steadily, 1.5-2.5 m/s .* it never"
+        " drives faster than 2.5 m/s: it will fall behind and may lose its reference",
+    ):
         # (a faster turn: at 0.25 rad/s the paper's corners are too tight for 2.6 m/s, which the loader refuses)
         sm.load(SCENARIOS / "fig6_turn_vn_2.toml", overrides={"leader.speed_mps": 2.6, "leader.turn_rate_rps": 0.3})
     # The l-psi baseline is not the fuzzy controller: no warning for it.
@@ -381,8 +384,12 @@ def test_a_deep_chain_with_the_papers_steering_is_warned_of() -> None:
         ' steering look-ahead"): --set controller.lookahead_m=1 keeps them level'
     ]
     # Three links (the 4-robot line), a look-ahead of 1 m or more, or the l-psi law: no warning.
-    quiet_ones = ({"run.robots": 4}, {"controller.lookahead_m": 1.0}, {"controller.lookahead_m": 2.0},
-                  {"controller.law": "lpsi"})  # fmt: skip
+    quiet_ones = (
+        {"run.robots": 4},
+        {"controller.lookahead_m": 1.0},
+        {"controller.lookahead_m": 2.0},
+        {"controller.law": "lpsi"},
+    )
     for quiet in quiet_ones:
         assert _warned(turn, {**line, **quiet}) == [], quiet
 

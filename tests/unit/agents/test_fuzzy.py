@@ -131,10 +131,16 @@ RHO_AT = {"Close": 0.5 * P.d0_m, "Enough": 0.5 * (P.dn_m + P.d1_m), "Far": 2 * P
 DRHO_AT = {"Positive": 2 * P.drho_rate_tol_mps, "Zero": 0.0, "Negative": -2 * P.drho_rate_tol_mps}
 
 TABLE1 = [  # (rho, alpha, left wheel, right wheel) as printed in the paper
-    ("Close", "Left", "S", "S"), ("Close", "Center", "S", "S"), ("Close", "Right", "S", "S"),
-    ("Enough", "Left", "M", "S"), ("Enough", "Center", "M", "M"), ("Enough", "Right", "S", "M"),
-    ("Far", "Left", "F", "M"), ("Far", "Center", "F", "F"), ("Far", "Right", "M", "F"),
-]  # fmt: skip
+    ("Close", "Left", "S", "S"),
+    ("Close", "Center", "S", "S"),
+    ("Close", "Right", "S", "S"),
+    ("Enough", "Left", "M", "S"),
+    ("Enough", "Center", "M", "M"),
+    ("Enough", "Right", "S", "M"),
+    ("Far", "Left", "F", "M"),
+    ("Far", "Center", "F", "F"),
+    ("Far", "Right", "M", "F"),
+]
 
 
 @pytest.mark.parametrize(("rho_set", "alpha_set", "left", "right"), TABLE1)
@@ -147,10 +153,16 @@ def test_table1_rule_by_rule(rho_set: str, alpha_set: str, left: str, right: str
 
 
 TABLE2 = [
-    ("Positive", "Close", "M"), ("Positive", "Enough", "H"), ("Positive", "Far", "H"),
-    ("Zero", "Close", "M"), ("Zero", "Enough", "M"), ("Zero", "Far", "M"),
-    ("Negative", "Close", "L"), ("Negative", "Enough", "L"), ("Negative", "Far", "M"),
-]  # fmt: skip
+    ("Positive", "Close", "M"),
+    ("Positive", "Enough", "H"),
+    ("Positive", "Far", "H"),
+    ("Zero", "Close", "M"),
+    ("Zero", "Enough", "M"),
+    ("Zero", "Far", "M"),
+    ("Negative", "Close", "L"),
+    ("Negative", "Enough", "L"),
+    ("Negative", "Far", "M"),
+]
 
 
 @pytest.mark.parametrize(("drho_set", "rho_set", "vn"), TABLE2)
@@ -228,8 +240,13 @@ def test_parameters_are_frozen_and_ordered() -> None:
     # The breakpoints' order is strict where the sets need a width, loose where they may touch.
     FuzzyParams(d1_m=0.5)  # dn = d1: Enough is a triangle's top, allowed
     FuzzyParams(vm=1.5, vn_max=1.5)  # one V_N for all three levels, allowed
-    for kwargs, name in (({"dn_m": 0.1}, "dn_m"), ({"dmax_m": 1.0}, "dmax_m"), ({"d1_m": 0.4}, "d1_m"),
-                         ({"vm": 1.4}, "vm"), ({"vn_max": 1.6}, "vn_max")):  # fmt: skip
+    for kwargs, name in (
+        ({"dn_m": 0.1}, "dn_m"),
+        ({"dmax_m": 1.0}, "dmax_m"),
+        ({"d1_m": 0.4}, "d1_m"),
+        ({"vm": 1.4}, "vm"),
+        ({"vn_max": 1.6}, "vn_max"),
+    ):
         with pytest.raises(ValueError, match=name):
             FuzzyParams(**kwargs)
     assert SpeedMode().dynamic

@@ -30,11 +30,14 @@ def test_zero_burst_is_heartbeat_only() -> None:
     assert [t for t in range(7) if rep.due(0)] == [0, 2, 4, 6]
 
 
-@pytest.mark.parametrize(("kwargs", "name"), [
-    ({"burst_s": -1.0, "period_s": 0.5, "dt_s": 0.05}, "code_burst_s"),
-    ({"burst_s": 1.0, "period_s": 0.0, "dt_s": 0.05}, "code_period_s"),
-    ({"burst_s": 1.0, "period_s": float("nan"), "dt_s": 0.05}, "code_period_s"),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"burst_s": -1.0, "period_s": 0.5, "dt_s": 0.05}, "code_burst_s"),
+        ({"burst_s": 1.0, "period_s": 0.0, "dt_s": 0.05}, "code_period_s"),
+        ({"burst_s": 1.0, "period_s": float("nan"), "dt_s": 0.05}, "code_period_s"),
+    ],
+)
 def test_bad_repeat_parameters_name_themselves(kwargs: dict, name: str) -> None:
     with pytest.raises(ValueError, match=name):
         CodeRepeats(**kwargs)

@@ -44,10 +44,15 @@ def test_closed_loop_on_the_paper_turning_path_with_camera_noise(seed: int) -> N
     assert res.max(2) < 0.5
 
 
-@pytest.mark.parametrize(("kwargs", "name"), [
-    ({"l_gain": 0.0}, "l_gain"), ({"psi_gain": -1.0}, "psi_gain"), ({"d_m": math.nan}, "d_m"),
-    ({"max_wheel_mps": 0.0}, "max_wheel"),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [
+        ({"l_gain": 0.0}, "l_gain"),
+        ({"psi_gain": -1.0}, "psi_gain"),
+        ({"d_m": math.nan}, "d_m"),
+        ({"max_wheel_mps": 0.0}, "max_wheel"),
+    ],
+)
 def test_bad_parameters_name_themselves(kwargs: dict, name: str) -> None:
     with pytest.raises(ValueError, match=name):
         LpsiParams(**kwargs)

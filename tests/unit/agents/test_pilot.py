@@ -81,8 +81,9 @@ def test_bad_parameters_name_themselves(kwargs: dict, name: str) -> None:
 
 def test_the_goal_is_the_look_ahead_point_on_a_segment_away_from_the_origin() -> None:
     # A 1 m leg from (5, 3) going north, look-ahead 0.5 m; the robot 0.2 m east of it, 0.3 m along.
-    pilot = PathPilot(((5.0, 3.0), (5.0, 4.0), (5.0, 9.0)), speed_mps=1.0, width_m=0.5, lookahead_m=0.5,
-                      max_turn_rate_rps=10.0)  # fmt: skip
+    pilot = PathPilot(
+        ((5.0, 3.0), (5.0, 4.0), (5.0, 9.0)), speed_mps=1.0, width_m=0.5, lookahead_m=0.5, max_turn_rate_rps=10.0
+    )
     left, right = pilot.step(Pose(5.2, 3.3, NORTH))
     # Goal (5, 3.8): body frame x = -0.2 (left), y = 0.5; curvature 2 * 0.2 / 0.29.
     omega = 2.0 * 0.2 / (0.2**2 + 0.5**2)
@@ -91,8 +92,9 @@ def test_the_goal_is_the_look_ahead_point_on_a_segment_away_from_the_origin() ->
 
 def test_the_projection_on_a_leg_along_x_away_from_the_origin() -> None:
     # A 1 m leg from (5, 3) going east, look-ahead 0.5 m; the robot 0.3 m along it, 0.2 m north of it.
-    pilot = PathPilot(((5.0, 3.0), (6.0, 3.0), (9.0, 3.0)), speed_mps=1.0, width_m=0.5, lookahead_m=0.5,
-                      max_turn_rate_rps=10.0)  # fmt: skip
+    pilot = PathPilot(
+        ((5.0, 3.0), (6.0, 3.0), (9.0, 3.0)), speed_mps=1.0, width_m=0.5, lookahead_m=0.5, max_turn_rate_rps=10.0
+    )
     left, right = pilot.step(Pose(5.3, 3.2, 0.0))
     # Goal (5.8, 3): body frame x = 0.2 (right), y = 0.5.
     omega = -2.0 * 0.2 / (0.2**2 + 0.5**2)

@@ -52,8 +52,14 @@ def test_parse_alive_takes_this_runs_tokens_only() -> None:
     assert K.parse_alive(K.alive("world", 0)) == ("world", "0")
     assert K.parse_alive(K.alive("agent", 7)) == ("agent", "7")
     assert K.parse_alive(K.alive("logger", "main")) == ("logger", "main")
-    for bad in ("swarm/run-2/alive/agent/7", "swarm/run-1/alive/agent", "swarm/run-1/alive/agent/7/x",
-                "swarm/run-1/alive/robot/7", "swarm/run-1/alive/7/agent", K.obs(7)):  # fmt: skip
+    for bad in (
+        "swarm/run-2/alive/agent/7",
+        "swarm/run-1/alive/agent",
+        "swarm/run-1/alive/agent/7/x",
+        "swarm/run-1/alive/robot/7",
+        "swarm/run-1/alive/7/agent",
+        K.obs(7),
+    ):
         assert K.parse_alive(bad) is None, bad
 
 

@@ -359,8 +359,15 @@ def test_accept_is_for_links_without_faults_and_faults_need_dt() -> None:
         Link("obs:0>2", 0.0, 0, [(0, Fault.parse("kill agent-2@1s"))], DT)
     plain = Link("obs:0>2", 0.0, 0)
     assert plain.deliver(1, 0, "x") == ["x"]
-    assert plain.stats() == {"received": 1, "dropped": 0, "partitioned": 0, "delayed": 0, "duplicated": 0,
-                             "reordered": 0, "held": 0}  # fmt: skip
+    assert plain.stats() == {
+        "received": 1,
+        "dropped": 0,
+        "partitioned": 0,
+        "delayed": 0,
+        "duplicated": 0,
+        "reordered": 0,
+        "held": 0,
+    }
 
 
 def test_a_faults_draws_do_not_depend_on_the_other_faults_of_the_schedule() -> None:

@@ -38,7 +38,7 @@ EXAMPLES = [
     Telemetry(2, 11, 3, 0.15, 1, 0, (0.1, 1.2), None, None, None, 0.2, 1.5, 0.5, 0.6, 0, True, 4, 1, 0),
     Telemetry(
         2, 12, 3, 0.15, 1, 0, (0.1, 1.2), (0.1, 1.1), (0.01, 0.0, 0.02), 1.1, 0.2, None, 0.5, 0.6, 2, False, 0, 0, 0
-    ),  # fmt: skip
+    ),
     Truth(0, 13, 3, 0.15, ((1, 0.0, 0.0, 1.57, True), (2, -1.5, -1.5, 1.57, False)), ((2, -1.5, -1.4),)),
     FaultCall(0, 15, 3, 0.15, "freeze", "agent-2", 1),
     Status(0, 14, 3, 0.15, "running", 1120),
@@ -138,8 +138,14 @@ def test_the_wire_format_is_pinned() -> None:
     assert msgpack.unpackb(CMD.to_bytes()) == [2, 1, 2, 9, 3, 0.4, -0.1, 1, False]
     tags = {type(m).__name__: type(m).TAG for m in EXAMPLES}
     assert tags == {
-        "Observation": 1, "Command": 2, "FormationCode": 3, "Telemetry": 4, "Truth": 5, "Status": 6, "FaultCall": 7
-    }  # fmt: skip
+        "Observation": 1,
+        "Command": 2,
+        "FormationCode": 3,
+        "Telemetry": 4,
+        "Truth": 5,
+        "Status": 6,
+        "FaultCall": 7,
+    }
     assert VERSION == 1
 
 

@@ -98,8 +98,10 @@ def test_bad_batches_are_counted_once_and_bad_items_each() -> None:
     assert rej.by_reason["sender mismatch"] == 2
 
 
-@pytest.mark.parametrize(("kwargs", "name"), [({"window_s": -1.0}, "window_s"), ({"max_bytes": 0}, "max_bytes"),
-                                              ({"max_bytes": 10**6}, "max_bytes")])  # fmt: skip
+@pytest.mark.parametrize(
+    ("kwargs", "name"),
+    [({"window_s": -1.0}, "window_s"), ({"max_bytes": 0}, "max_bytes"), ({"max_bytes": 10**6}, "max_bytes")],
+)
 def test_bad_parameters_name_themselves(kwargs: dict, name: str) -> None:
     with pytest.raises(ValueError, match=name):
         BatchPublisher(FakePub(), **kwargs)
@@ -243,9 +245,11 @@ def test_a_message_larger_than_max_bytes_still_leaves_at_once() -> None:
 def test_zenoh_errors_lose_their_rust_source_places() -> None:
     from formation_swarm.protocol.session import zenoh_reason
 
-    raw = ("Can not create a new TCP listener bound to tcp/127.0.0.1:24473: [Address already in use (os error 98)"
-           " at /root/.cargo/registry/src/zenoh-link-tcp-1.0.0/src/unicast.rs:61.] at"
-           " /root/.cargo/git/checkouts/zenoh/src/net/runtime/orchestrator.rs:388.")  # fmt: skip
+    raw = (
+        "Can not create a new TCP listener bound to tcp/127.0.0.1:24473: [Address already in use (os error 98)"
+        " at /root/.cargo/registry/src/zenoh-link-tcp-1.0.0/src/unicast.rs:61.] at"
+        " /root/.cargo/git/checkouts/zenoh/src/net/runtime/orchestrator.rs:388."
+    )
     assert zenoh_reason(Exception(raw)) == (
         "Can not create a new TCP listener bound to tcp/127.0.0.1:24473: [Address already in use (os error 98)]"
     )

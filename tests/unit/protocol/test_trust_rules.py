@@ -34,12 +34,19 @@ def test_the_grants_of_a_three_robot_run() -> None:
     g = trust.grants("r1", ROBOTS, leader_id=1)
     assert list(g) == ["world", "logger", "launcher", "agent-1", "agent-2", "agent-3"]
     assert g["world"] == Grants(
-        publish=(f"{R}/robot/1/obs", f"{R}/robot/2/obs", f"{R}/robot/3/obs", f"{R}/world/truth", f"{R}/world/status",
-                 f"{R}/world/faults", f"{R}/robot/wake/cmd"),
+        publish=(
+            f"{R}/robot/1/obs",
+            f"{R}/robot/2/obs",
+            f"{R}/robot/3/obs",
+            f"{R}/world/truth",
+            f"{R}/world/status",
+            f"{R}/world/faults",
+            f"{R}/robot/wake/cmd",
+        ),
         subscribe=(f"{R}/robot/*/cmd",),
         tokens=(f"{R}/alive/world/0",),
         watch=(f"{R}/alive/*/*",),
-    )  # fmt: skip
+    )
     assert g["logger"] == Grants(
         subscribe=(f"{R}/world/**", f"{R}/robot/*/telemetry", f"{R}/robot/*/formation"),  # codes: the leader's switches
         tokens=(f"{R}/alive/logger/0",),
@@ -47,9 +54,10 @@ def test_the_grants_of_a_three_robot_run() -> None:
     )
     # The launcher hears the run's status and the world's fault calls, and holds a token of its own.
     assert g["launcher"] == Grants(
-        subscribe=(f"{R}/world/status", f"{R}/world/faults"), tokens=(f"{R}/alive/launcher/0",),
+        subscribe=(f"{R}/world/status", f"{R}/world/faults"),
+        tokens=(f"{R}/alive/launcher/0",),
         watch=(f"{R}/alive/*/*",),
-    )  # fmt: skip
+    )
     # Only the leader may publish formation codes, on one key for all its followers.
     assert g["agent-1"] == Grants(
         publish=(f"{R}/robot/1/cmd", f"{R}/robot/1/telemetry", f"{R}/robot/*/formation"),
@@ -93,8 +101,19 @@ def test_the_router_rules_of_a_two_robot_run() -> None:
     """Deny by default; each user allowed exactly its grants, flow by flow."""
     rows = {  # user -> (rule, flow, messages, keys)
         "world": [
-            ("put", "ingress", ["put"], [f"{R}/robot/1/obs", f"{R}/robot/2/obs", f"{R}/world/truth",
-                                         f"{R}/world/status", f"{R}/world/faults", f"{R}/robot/wake/cmd"]),
+            (
+                "put",
+                "ingress",
+                ["put"],
+                [
+                    f"{R}/robot/1/obs",
+                    f"{R}/robot/2/obs",
+                    f"{R}/world/truth",
+                    f"{R}/world/status",
+                    f"{R}/world/faults",
+                    f"{R}/robot/wake/cmd",
+                ],
+            ),
             ("sub", "ingress", ["declare_subscriber"], [f"{R}/robot/*/cmd"]),
             ("data", "egress", ["put"], [f"{R}/robot/*/cmd"]),
             ("token", "ingress", ["liveliness_token"], [f"{R}/alive/world/0"]),
@@ -102,8 +121,12 @@ def test_the_router_rules_of_a_two_robot_run() -> None:
             ("seen", "egress", SEEN, [f"{R}/alive/*/*"]),
         ],
         "logger": [
-            ("sub", "ingress", ["declare_subscriber"], [f"{R}/world/**", f"{R}/robot/*/telemetry",
-                                                        f"{R}/robot/*/formation"]),
+            (
+                "sub",
+                "ingress",
+                ["declare_subscriber"],
+                [f"{R}/world/**", f"{R}/robot/*/telemetry", f"{R}/robot/*/formation"],
+            ),
             ("data", "egress", ["put"], [f"{R}/world/**", f"{R}/robot/*/telemetry", f"{R}/robot/*/formation"]),
             ("token", "ingress", ["liveliness_token"], [f"{R}/alive/logger/0"]),
             ("watch", "ingress", WATCHING, [f"{R}/alive/world/0", f"{R}/alive/agent/*"]),
@@ -132,9 +155,14 @@ def test_the_router_rules_of_a_two_robot_run() -> None:
             ("watch", "ingress", WATCHING, [f"{R}/alive/world/0", f"{R}/alive/agent/2", f"{R}/alive/logger/0"]),
             ("seen", "egress", SEEN, [f"{R}/alive/world/0", f"{R}/alive/agent/2", f"{R}/alive/logger/0"]),
         ],
-    }  # fmt: skip
-    learn = {"id": "learn-subscribers", "permission": "allow", "flows": ["egress"],
-             "messages": ["declare_subscriber"], "key_exprs": [f"{R}/**"]}  # fmt: skip
+    }
+    learn = {
+        "id": "learn-subscribers",
+        "permission": "allow",
+        "flows": ["egress"],
+        "messages": ["declare_subscriber"],
+        "key_exprs": [f"{R}/**"],
+    }
     rules = [learn] + [
         {"id": f"{user}-{rule}", "permission": "allow", "flows": [flow], "messages": messages, "key_exprs": keys}
         for user, own in rows.items()

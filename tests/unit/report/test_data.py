@@ -18,8 +18,9 @@ from tests.helpers import ROOT, SCENARIOS
 
 
 def _run(out: Path, scenario: str, seed: int) -> Path:
-    with Launch(SCENARIOS / scenario, seed=seed, out=out, overrides={"run.duration_s": 2.0},
-                progress=lambda _line: None) as launch:  # fmt: skip
+    with Launch(
+        SCENARIOS / scenario, seed=seed, out=out, overrides={"run.duration_s": 2.0}, progress=lambda _line: None
+    ) as launch:
         res = launch.wait(timeout_s=120.0)
     assert res.exit_code == 0
     return res.run_dir
@@ -120,8 +121,10 @@ def test_compare_draws_a_line_per_robot_per_run(runs: tuple[Path, Path], tmp_pat
     assert len(err.lines) == 2 + 1  # every follower of each run
     assert err.lines[2].get_ydata().tolist() == b.formation_error_m[b.index(2)].tolist()
     labels = [t.get_text() for t in fig.legends[0].get_texts()]
-    assert labels == ["fig11-s3: fig11-obstacles, seed 3, fuzzy, V_N dynamic",
-                      "fig7-s5: turn-vn-dynamic, seed 5, fuzzy, V_N dynamic"]  # fmt: skip
+    assert labels == [
+        "fig11-s3: fig11-obstacles, seed 3, fuzzy, V_N dynamic",
+        "fig7-s5: turn-vn-dynamic, seed 5, fuzzy, V_N dynamic",
+    ]
     assert main([str(runs[0]), str(runs[1]), "--out", str(tmp_path / "c.png")]) == 0
     assert (tmp_path / "c.png").stat().st_size > 10_000
 

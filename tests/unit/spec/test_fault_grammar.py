@@ -75,10 +75,20 @@ def test_ticks_of_a_fault() -> None:
 
 
 def test_link_faults_by_link() -> None:
-    faults = [Fault.parse(t) for t in ("drop obs:2@1s p=0.1", "partition 3@1s for=1s from=leader",
-                                      "delay links:*@1s ticks=1", "partition 2@1s for=1s")]  # fmt: skip
+    faults = [
+        Fault.parse(t)
+        for t in (
+            "drop obs:2@1s p=0.1",
+            "partition 3@1s for=1s from=leader",
+            "delay links:*@1s ticks=1",
+            "partition 2@1s for=1s",
+        )
+    ]
     assert [str(f) for f in link_faults(faults, "obs", 2)] == [
-        "drop obs:2@1s p=0.1", "delay links:*@1s ticks=1", "partition 2@1s for=1s"]  # fmt: skip
+        "drop obs:2@1s p=0.1",
+        "delay links:*@1s ticks=1",
+        "partition 2@1s for=1s",
+    ]
     assert [f.kind for f in link_faults(faults, "obs", 3)] == ["delay"]
     assert [f.kind for f in link_faults(faults, "formation", 3)] == ["partition", "delay"]
 
@@ -132,7 +142,10 @@ def test_scenario_faults_from_tables_and_the_command_line(tmp_path: Path) -> Non
     path.write_text(src + TOML_FAULTS)
     sc = scenario_mod.load(path, faults=["freeze agent-2@1s for=2s"])
     assert [str(f) for f in sc.faults] == [
-        "freeze agent-2@1s for=2s", "drop obs:2@5s for=2.5s p=0.4", "kill agent-3@20s"]  # fmt: skip
+        "freeze agent-2@1s for=2s",
+        "drop obs:2@5s for=2.5s p=0.4",
+        "kill agent-3@20s",
+    ]
     # The scenario as run holds every fault, so each process reads the same schedule.
     from formation_swarm.spec.files import dumps
 
@@ -176,16 +189,20 @@ def test_summary_gathers_each_faults_ticks_events_and_counts() -> None:
 
     sc = scenario_mod.load("fig11_obstacles", faults=["restart agent-3@20s after=1", "drop obs:2@10s for=5s p=0.3"])
     parts = {
-        "world": {"fault_log": [
-            {"tick": 400, "time_s": 20.0, "fault": "restart agent-3@20s after=1", "event": "killed", "robot": 3},
-            {"tick": 420, "time_s": 21.0, "fault": "restart agent-3@20s after=1", "event": "rejoined", "robot": 3},
-        ]},
-    }  # fmt: skip
+        "world": {
+            "fault_log": [
+                {"tick": 400, "time_s": 20.0, "fault": "restart agent-3@20s after=1", "event": "killed", "robot": 3},
+                {"tick": 420, "time_s": 21.0, "fault": "restart agent-3@20s after=1", "event": "rejoined", "robot": 3},
+            ]
+        },
+    }
     # The link layer's per-fault counts, summed over the fault's links (summary._link_sums).
     link_faults = {"0": {"fault": "drop obs:2@10s for=5s p=0.3", "dropped": 30}}
     out = fault_effects(sc, parts, link_faults=link_faults)
     assert [(f["fault"], f["start_tick"], f["end_tick"]) for f in out] == [
-        ("drop obs:2@10s for=5s p=0.3", 200, 300), ("restart agent-3@20s after=1", 400, 420)]  # fmt: skip
+        ("drop obs:2@10s for=5s p=0.3", 200, 300),
+        ("restart agent-3@20s after=1", 400, 420),
+    ]
     assert out[0]["counts"] == {"dropped": 30}
     assert [e["event"] for e in out[1]["events"]] == ["killed", "rejoined"]
 
@@ -257,10 +274,13 @@ def test_report_md_says_partition_losses_rejection_reasons_and_a_killed_follower
         "until then RMS 0.800 m, max 1.500 m."
     ) in text
     # Restarted: when its fresh agent started (the console says it; report.md did not).
-    summary["events"] = [{"event": "killed", "process": "agent-3", "sim_time_s": 20.0},
-                         {"event": "started", "process": "agent-3.2", "sim_time_s": 21.0}]  # fmt: skip
+    summary["events"] = [
+        {"event": "killed", "process": "agent-3", "sim_time_s": 20.0},
+        {"event": "started", "process": "agent-3.2", "sim_time_s": 21.0},
+    ]
     assert "R3 stopped at t=20.00 s (its agent killed or lost, a fresh agent started at t=21.00 s): " in _markdown(
-        summary, [3])  # fmt: skip
+        summary, [3]
+    )
 
 
 def test_the_results_line_says_why_messages_were_rejected() -> None:
@@ -307,8 +327,9 @@ def test_a_fault_that_lasts_past_the_runs_end_is_warned_of_not_refused() -> None
     with pytest.warns(ScenarioWarning, match="lasts past the run's end"):
         sc = scenario_mod.load("fig11_obstacles", {"run.duration_s": 15}, faults=["partition 2@14s for=10s"])
     assert "fault 'partition 2@14s for=10s' lasts past the run's end (15 s): it is cut there, after 1 s" in sc.warnings
-    exact = scenario_mod.load("fig11_obstacles", {"run.duration_s": 15}, faults=["partition 2@14s for=1s",
-                                                                             "kill agent-3@14s"])  # fmt: skip
+    exact = scenario_mod.load(
+        "fig11_obstacles", {"run.duration_s": 15}, faults=["partition 2@14s for=1s", "kill agent-3@14s"]
+    )
     assert not [w for w in exact.warnings if "past the run's end" in w]  # ends on the end; a kill has no window
 
 
@@ -385,8 +406,16 @@ def test_which_robots_and_links_a_fault_names() -> None:
 
 
 def test_link_faults_take_only_faults_on_that_link() -> None:
-    faults = [Fault.parse(t) for t in ("drop cmd:2@1s p=0.1", "blackout 2@1s", "stuck 2@1s", "kill agent-2@1s",
-                                      "partition 2@1s for=1s from=world")]  # fmt: skip
+    faults = [
+        Fault.parse(t)
+        for t in (
+            "drop cmd:2@1s p=0.1",
+            "blackout 2@1s",
+            "stuck 2@1s",
+            "kill agent-2@1s",
+            "partition 2@1s for=1s from=world",
+        )
+    ]
     assert [str(f) for f in link_faults(faults, "obs", 2)] == ["partition 2@1s for=1s from=world"]
     assert [str(f) for f in link_faults(faults, "cmd", 2)] == [
         "drop cmd:2@1s p=0.1",
@@ -397,8 +426,15 @@ def test_link_faults_take_only_faults_on_that_link() -> None:
 
 
 def test_of_robot_takes_one_group_for_one_robot() -> None:
-    texts = ("blackout 2@1s", "stuck 2@1s", "drop obs:2@1s p=0.1", "kill agent-2@1s", "partition 2@1s for=1s",
-             "bias 3@1s rho_m=1", "slip *@1s fraction=0.1")  # fmt: skip
+    texts = (
+        "blackout 2@1s",
+        "stuck 2@1s",
+        "drop obs:2@1s p=0.1",
+        "kill agent-2@1s",
+        "partition 2@1s for=1s",
+        "bias 3@1s rho_m=1",
+        "slip *@1s fraction=0.1",
+    )
     faults = [Fault.parse(t) for t in texts]
 
     def kinds(group: str, rid: int) -> list[str]:
@@ -476,11 +512,19 @@ def test_one_fault_given_alone_is_one_fault(tmp_path: Path) -> None:
 def test_report_md_marks_the_counts_a_killed_agent_left_partial_or_unwritten() -> None:
     from formation_swarm.report.build import _faults_markdown
 
-    fault = {"fault": "partition 2@5s for=2s", "start_tick": 100, "end_tick": 140, "events": [],
-             "counts": {"partitioned": 12}, "counts_partial_for": [2]}  # fmt: skip
+    fault = {
+        "fault": "partition 2@5s for=2s",
+        "start_tick": 100,
+        "end_tick": 140,
+        "events": [],
+        "counts": {"partitioned": 12},
+        "counts_partial_for": [2],
+    }
     rows = [line for line in _faults_markdown({"faults": [fault]}) if line.startswith("| `")]
-    assert rows == ["| `partition 2@5s for=2s` | 100-139 | - | at least 12 messages lost to the partition "
-                    "(killed agents' counts end at their last stats write) |"]  # fmt: skip
+    assert rows == [
+        "| `partition 2@5s for=2s` | 100-139 | - | at least 12 messages lost to the partition "
+        "(killed agents' counts end at their last stats write) |"
+    ]
     fault["counts"] = {}
     rows = [line for line in _faults_markdown({"faults": [fault]}) if line.startswith("| `")]
     assert rows == ["| `partition 2@5s for=2s` | 100-139 | - | not counted: R2's agent killed before it wrote them |"]

@@ -36,8 +36,10 @@ def test_every_shipped_scenario_loads(path: Path) -> None:
         ({"run.dt_s": "fast"}, "run.dt_s must be"),
         ({"run.robots": 1}, f"run.robots must be in [2, {MAX_ROBOTS}], got 1"),
         ({"run.robots": MAX_ROBOTS + 1}, f"run.robots must be in [2, {MAX_ROBOTS}]"),
-        ({"obstacles": [{"x_m": 0.0, "y_m": 0.0, "radius_m": 1.0}] * (MAX_OBSTACLES + 1)},
-         f"at most {MAX_OBSTACLES} obstacles, got {MAX_OBSTACLES + 1}"),
+        (
+            {"obstacles": [{"x_m": 0.0, "y_m": 0.0, "radius_m": 1.0}] * (MAX_OBSTACLES + 1)},
+            f"at most {MAX_OBSTACLES} obstacles, got {MAX_OBSTACLES + 1}",
+        ),
         ({"obstacles": [{"x_m": 0.0, "y_m": 0.0, "radius": 1.0}]}, "did you mean 'radius_m'?"),
         ({"obstacles": [{"x_m": 0.0, "y_m": 0.0, "radius_m": 0.0}]}, "obstacles[0].radius_m must be > 0, got 0.0"),
         ({"run.seed": -3}, "run.seed must be in [0, 2**63 - 1], got -3"),
@@ -48,10 +50,12 @@ def test_every_shipped_scenario_loads(path: Path) -> None:
         ({"controller.lookahead_m": True}, "controller.lookahead_m must be a number, got true"),
         ({"controller.hold_speed_mps": -0.1}, "controller.hold_speed_mps must be >= 0, got -0.1"),
         ({"controller.hold_after_s": 0}, "controller.hold_after_s must be > 0, got 0"),
-        ({"controller.resume_speed_mps": 0.05},
-         "controller: resume_speed_mps must be >= hold_speed_mps (0.1), got 0.05"),
+        (
+            {"controller.resume_speed_mps": 0.05},
+            "controller: resume_speed_mps must be >= hold_speed_mps (0.1), got 0.05",
+        ),
     ],
-)  # fmt: skip
+)
 def test_bad_keys_and_values_name_the_key(overrides: dict, message: str) -> None:
     with pytest.raises(sm.ScenarioError) as info:
         sm.load(FIG11, overrides=overrides)

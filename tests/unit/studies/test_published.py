@@ -81,9 +81,17 @@ def test_the_whole_results_table_is_what_the_code_computes() -> None:
     rows = []
     for job in jobs:
         s = _REPLAYS[_key(job.seed, job.overrides)]
-        rows.append({"combination": job.label, "seed": job.seed, "run": job.name, "exit_code": 0,
-                     "lockstep_misses": 0, "r2_rms_m": s["followers"]["2"]["rms_m"],
-                     "r2_max_m": s["followers"]["2"]["max_m"]})  # fmt: skip
+        rows.append(
+            {
+                "combination": job.label,
+                "seed": job.seed,
+                "run": job.name,
+                "exit_code": 0,
+                "lockstep_misses": 0,
+                "r2_rms_m": s["followers"]["2"]["rms_m"],
+                "r2_max_m": s["followers"]["2"]["max_m"],
+            }
+        )
     table = results.table(rows, len(SEEDS))
     for doc in ("docs/results.md", "README.md"):
         published = (ROOT / doc).read_text().split(results.BEGIN)[1].split(results.END)[0]

@@ -19,8 +19,19 @@ LABEL = "fuzzy, dynamic V_N | noise low | obs drop 10%"
 
 
 def _rows(values: list[float], label: str = LABEL, **extra: object) -> list[dict]:
-    return [{"combination": label, "seed": s, "run": f"r{s}", "exit_code": 0, "lockstep_misses": 0,
-             "r2_rms_m": v, "r2_max_m": 2 * v, **extra} for s, v in enumerate(values)]  # fmt: skip
+    return [
+        {
+            "combination": label,
+            "seed": s,
+            "run": f"r{s}",
+            "exit_code": 0,
+            "lockstep_misses": 0,
+            "r2_rms_m": v,
+            "r2_max_m": 2 * v,
+            **extra,
+        }
+        for s, v in enumerate(values)
+    ]
 
 
 def _t_half_width(values: list[float]) -> float:
@@ -79,15 +90,16 @@ def test_the_grid_is_the_published_one() -> None:
     dyn_high_30 = by_label["fuzzy, dynamic V_N | noise high | obs drop 30%"]
     assert dyn_high_30["controller.vn"] == "dynamic"
     assert dyn_high_30["links.obs_drop"] == 0.3
-    assert by_label["fuzzy, static V_N = 1.5 | noise low | obs drop 0%"] == {"controller.vn": 1.5,
-                                                                              "links.obs_drop": 0.0}  # fmt: skip
+    assert by_label["fuzzy, static V_N = 1.5 | noise low | obs drop 0%"] == {
+        "controller.vn": 1.5,
+        "links.obs_drop": 0.0,
+    }
     assert by_label["l-psi (Desai et al.) | noise low | obs drop 10%"]["controller.law"] == "lpsi"
     # High noise: the EKF is told the camera's sigmas (Fig. 9's noise).
     high = results.NOISE["high"]
     assert high["controller.ekf.sigma_rho_m"] == high["camera.sigma_rho_m"]
     assert high["controller.ekf.sigma_phi_rad"] == pytest.approx(math.radians(high["camera.sigma_phi_deg"]), abs=1e-4)
-    assert high["controller.ekf.sigma_beta_rad"] == pytest.approx(math.radians(high["camera.sigma_beta_deg"]),
-                                                                  abs=1e-4)  # fmt: skip
+    assert high["controller.ekf.sigma_beta_rad"] == pytest.approx(math.radians(high["camera.sigma_beta_deg"]), abs=1e-4)
     assert sorted({j.seed for j in jobs}) == [0, 1, 2]
 
 
@@ -201,7 +213,7 @@ def _claim_rows(n: int = 3) -> dict[str, list[dict]]:
             obstacle_collisions=0,
             min_distance_m=1.3,
             r3_max_m=4.0,
-        ),  # fmt: skip
+        ),
     }
 
 

@@ -76,11 +76,25 @@ def test_a_statistic_is_the_mean_with_students_t_half_width(n: int) -> None:
 
 
 def _row(seed: int, rms: float, ahead: float = 0.0, lag: float = 0.8) -> dict:
-    return {"seed": seed, "exit_code": 0, "lockstep_misses": 0, "r2_rms_m": rms, "r2_max_m": 2 * rms,
-            "r2_turn_rms_m": 1.2, "r2_straight_rms_m": 0.8, "r2_turn_mean_lag_m": lag, "r2_max_ahead_m": ahead,
-            "r2_ekf_rms_m": 0.1, "r2_measured_rms_m": 0.25, "r2_ekf_ratio": 0.4, "collisions": 0,
-            "obstacle_collisions": 0, "min_distance_m": 1.3, "r3_max_m": 4.0,
-            **{f"r{i}_formations": "line>triangle" for i in (1, 2, 3)}}  # fmt: skip
+    return {
+        "seed": seed,
+        "exit_code": 0,
+        "lockstep_misses": 0,
+        "r2_rms_m": rms,
+        "r2_max_m": 2 * rms,
+        "r2_turn_rms_m": 1.2,
+        "r2_straight_rms_m": 0.8,
+        "r2_turn_mean_lag_m": lag,
+        "r2_max_ahead_m": ahead,
+        "r2_ekf_rms_m": 0.1,
+        "r2_measured_rms_m": 0.25,
+        "r2_ekf_ratio": 0.4,
+        "collisions": 0,
+        "obstacle_collisions": 0,
+        "min_distance_m": 1.3,
+        "r3_max_m": 4.0,
+        **{f"r{i}_formations": "line>triangle" for i in (1, 2, 3)},
+    }
 
 
 def _rows(dynamic_rms: float) -> dict[str, list[dict]]:
@@ -121,7 +135,11 @@ def test_the_section_and_the_figure_of_an_axis(tmp_path: Path) -> None:
     assert len(panels) == 6
     assert [len(ax.lines) > 0 for ax in panels] == [True] * 6
     assert [t.get_text() for t in panels[0].get_legend().get_texts()] == [
-        "fuzzy, dynamic V_N", "fuzzy, V_N = 1.5", "fuzzy, V_N = 2", "l-psi"]  # fmt: skip
+        "fuzzy, dynamic V_N",
+        "fuzzy, V_N = 1.5",
+        "fuzzy, V_N = 2",
+        "l-psi",
+    ]
     path = sensitivity.write_figure(tmp_path / "s.png", axis, pts)
     assert path.stat().st_size > 20_000
 

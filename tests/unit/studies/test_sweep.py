@@ -77,8 +77,9 @@ def test_aggregate_mean_std_and_t_interval() -> None:
 
 def test_bad_set_value_fails_before_any_run(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="controller.vn"):
-        Sweep(SCENARIOS / "fig7_turn_vn_dynamic.toml", [Job("controller.vn=fast", {"controller.vn": "fast"}, 0)],
-              tmp_path)  # fmt: skip
+        Sweep(
+            SCENARIOS / "fig7_turn_vn_dynamic.toml", [Job("controller.vn=fast", {"controller.vn": "fast"}, 0)], tmp_path
+        )
 
 
 def test_sweep_writes_tables_and_resumes(tmp_path: Path) -> None:
@@ -109,8 +110,14 @@ def test_sweep_writes_tables_and_resumes(tmp_path: Path) -> None:
     assert again[1]["r2_rms_m"] == rows[1]["r2_rms_m"]  # lockstep: the rerun is the same run
     # The same combination with a fault (or a changed scenario) is another run, never a finished one reused.
     lines.clear()
-    blind = Sweep(SCENARIOS / "fig7_turn_vn_dynamic.toml", jobs[:1], tmp_path, workers=1, progress=lines.append,
-                  faults=["blackout 2@1s"]).run()  # fmt: skip
+    blind = Sweep(
+        SCENARIOS / "fig7_turn_vn_dynamic.toml",
+        jobs[:1],
+        tmp_path,
+        workers=1,
+        progress=lines.append,
+        faults=["blackout 2@1s"],
+    ).run()
     assert not any("already done" in line for line in lines)
     assert blind[0]["run"] != jobs[0].name
     assert blind[0]["r2_rms_m"] != rows[0]["r2_rms_m"]
@@ -118,24 +125,37 @@ def test_sweep_writes_tables_and_resumes(tmp_path: Path) -> None:
 
 def _rows(values: list[object]) -> list[dict[str, object]]:
     """runs.csv rows: two followers, three seeds per value, r2's RMS = value + seed / 10."""
-    return [{"combination": f"links.obs_drop={v}", "seed": s, "run": f"{v}-{s}",
-             "r2_rms_m": (v if isinstance(v, float) else k) + s / 10, "r3_rms_m": 1.0 + s, "r2_max_m": 2.0,
-             "r3_max_m": 3.0, "min_distance_m": 1.5, "ticks": 100}
-            for k, v in enumerate(values) for s in range(3)]  # fmt: skip
+    return [
+        {
+            "combination": f"links.obs_drop={v}",
+            "seed": s,
+            "run": f"{v}-{s}",
+            "r2_rms_m": (v if isinstance(v, float) else k) + s / 10,
+            "r3_rms_m": 1.0 + s,
+            "r2_max_m": 2.0,
+            "r3_max_m": 3.0,
+            "min_distance_m": 1.5,
+            "ticks": 100,
+        }
+        for k, v in enumerate(values)
+        for s in range(3)
+    ]
 
 
 def test_sweep_figure_draws_each_metric_with_its_interval() -> None:
     from formation_swarm.studies.sweep_figure import figure
 
     values = [0.0, 0.1, 0.3]
-    jobs = [Job(f"links.obs_drop={v}", {"links.obs_drop": v, "run.duration_s": 5.0}, s) for v in values
-            for s in range(3)]  # fmt: skip
+    jobs = [
+        Job(f"links.obs_drop={v}", {"links.obs_drop": v, "run.duration_s": 5.0}, s) for v in values for s in range(3)
+    ]
     agg = aggregate(_rows(values))
     fig = figure(agg, jobs, "fig11_obstacles")
     rms, peak, dist = (ax for ax in fig.axes if ax.axison)
     (spare,) = (ax for ax in fig.axes if not ax.axison)  # says why there is no EKF panel
     assert [t.get_text() for t in spare.texts] == [
-        "no EKF target errors: they come from the recordings (swarm sweep --logger)"]  # fmt: skip
+        "no EKF target errors: they come from the recordings (swarm sweep --logger)"
+    ]
     assert [c.get_label() for c in rms.containers] == ["R2", "R3"]  # one line per follower
     assert [c.get_label() for c in peak.containers] == ["R2", "R3"]
     assert [c.get_label() for c in dist.containers] == ["all robots"]  # pooled
@@ -155,8 +175,15 @@ def test_a_sweep_figure_of_many_followers_draws_their_median_and_the_worst_and_o
 
     values = [0.0, 0.3]
     jobs = [Job(f"links.obs_drop={v}", {"links.obs_drop": v}, 0) for v in values]
-    rows = [{"combination": f"links.obs_drop={v}", "seed": 0, "run": f"{v}",
-             **{f"r{r}_rms_m": v + r / 100 for r in range(2, 21)}} for v in values]  # fmt: skip
+    rows = [
+        {
+            "combination": f"links.obs_drop={v}",
+            "seed": 0,
+            "run": f"{v}",
+            **{f"r{r}_rms_m": v + r / 100 for r in range(2, 21)},
+        }
+        for v in values
+    ]
     fig = figure(aggregate(rows), jobs)
     (ax,) = (a for a in fig.axes if a.axison)
     assert [t.get_text() for t in ax.get_legend().get_texts()] == [
@@ -198,8 +225,12 @@ def test_a_sweep_says_the_loaders_warnings_once_each_in_its_own_words(tmp_path) 
 
 def test_a_lockstep_run_whose_recording_misses_ticks_is_not_taken_as_done(tmp_path: Path) -> None:
     follower = {"role": "follower", "answered": 880}
-    whole = {"mode": "lockstep", "exit_code": 0, "messages": {"truth_sent": 880},
-             "parts": {"logger": {"messages": {"truth": 880, "telemetry": 880}}, "agent-2": follower}}  # fmt: skip
+    whole = {
+        "mode": "lockstep",
+        "exit_code": 0,
+        "messages": {"truth_sent": 880},
+        "parts": {"logger": {"messages": {"truth": 880, "telemetry": 880}}, "agent-2": follower},
+    }
     lossy = {**whole, "parts": {**whole["parts"], "logger": {"messages": {"truth": 715, "telemetry": 880}}}}
     assert summary_mod.recording_gap(whole) is None
     assert summary_mod.recording_gap(lossy) == "the logger recorded 715 of the 880 ticks the world sent"
@@ -208,8 +239,10 @@ def test_a_lockstep_run_whose_recording_misses_ticks_is_not_taken_as_done(tmp_pa
         "the logger recorded 820 of the 880 telemetry messages the followers sent (one per tick answered)"
     )
     # Where, robot by robot: the logger's per-sender first and last tick and the gaps between.
-    ticks = {"0": {"first": 0, "last": 879, "missing": 0, "gaps": []},
-             "2": {"first": 3, "last": 822, "missing": 0, "gaps": []}}  # fmt: skip
+    ticks = {
+        "0": {"first": 0, "last": 879, "missing": 0, "gaps": []},
+        "2": {"first": 3, "last": 822, "missing": 0, "gaps": []},
+    }
     placed = {**no_tel, "parts": {**no_tel["parts"], "logger": {**no_tel["parts"]["logger"], "ticks": ticks}}}
     assert summary_mod.recording_gap(placed) == (
         "the logger recorded 820 of the 880 telemetry messages R2 sent (one per tick answered) "
@@ -267,8 +300,10 @@ def test_a_run_that_lost_ticks_is_run_again_and_the_lossy_attempt_kept(tmp_path:
     assert json.loads((kept / "summary.json").read_text())["ticks"] == 40
     assert summary_mod.recording_gap(json.loads((tmp_path / "runs" / name / "summary.json").read_text())) is None
     again = [line for line in lines if "running it again" in line]
-    assert again == [f"[sweep] {name}: the logger recorded 25 of the 40 ticks the world sent; running it again "
-                     f"(its metrics would miss those ticks; this attempt is kept in {kept})"]  # fmt: skip
+    assert again == [
+        f"[sweep] {name}: the logger recorded 25 of the 40 ticks the world sent; running it again "
+        f"(its metrics would miss those ticks; this attempt is kept in {kept})"
+    ]
 
 
 def test_ctrl_c_stops_the_run_in_flight_and_marks_it_interrupted(tmp_path: Path) -> None:
@@ -284,8 +319,23 @@ def test_ctrl_c_stops_the_run_in_flight_and_marks_it_interrupted(tmp_path: Path)
     from tests.helpers import our_processes
 
     out = tmp_path / "sw"
-    cmd = [sys.executable, "-m", "formation_swarm.cli", "sweep", "fig11_obstacles", "--seeds", "2", "--jobs", "1",
-           "--set", "run.robots=20", "--set", "leader.formation=line", "--out", str(out)]  # fmt: skip
+    cmd = [
+        sys.executable,
+        "-m",
+        "formation_swarm.cli",
+        "sweep",
+        "fig11_obstacles",
+        "--seeds",
+        "2",
+        "--jobs",
+        "1",
+        "--set",
+        "run.robots=20",
+        "--set",
+        "leader.formation=line",
+        "--out",
+        str(out),
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and not list(out.glob("runs/*/stats/agent-2.json")):
@@ -310,7 +360,11 @@ def test_a_sweeps_rows_and_progress_list_followers_by_number() -> None:
     """JSON's keys are text: r10 came before r2 in the tables and on the progress line."""
     row = sweep.metrics({"followers": {str(r): {"rms_m": r / 10} for r in (2, 10, 3, 11)}})
     assert [k for k in row if k.endswith("_rms_m") and k.count("_") == 2] == [
-        "r2_rms_m", "r3_rms_m", "r10_rms_m", "r11_rms_m"]  # fmt: skip
+        "r2_rms_m",
+        "r3_rms_m",
+        "r10_rms_m",
+        "r11_rms_m",
+    ]
     few = sweep.metrics({"followers": {str(r): {"rms_m": r / 10} for r in (3, 2)}})
     assert sweep._brief(few) == "r2_rms 0.20 m, r3_rms 0.30 m"
     # Beyond four followers, one line says their spread, not each.

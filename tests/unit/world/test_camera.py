@@ -75,8 +75,14 @@ def test_noise_is_three_draws_per_robot_in_id_order_added_to_the_truth() -> None
     want = []
     for rid, n in zip((3, 4), draws[1:], strict=True):
         rho, phi, beta = true_reading(poses[1], poses[rid], params.marker_offset_m)
-        want.append((rid, max(0.0, rho + params.sigma_rho_m * n[0]), wrap_angle(phi + params.sigma_phi_rad * n[1]),
-                     wrap_angle(beta + params.sigma_beta_rad * n[2])))  # fmt: skip
+        want.append(
+            (
+                rid,
+                max(0.0, rho + params.sigma_rho_m * n[0]),
+                wrap_angle(phi + params.sigma_phi_rad * n[1]),
+                wrap_angle(beta + params.sigma_beta_rad * n[2]),
+            )
+        )
     assert [v for m in seen for v in m] == pytest.approx([v for w in want for v in w], abs=1e-15)
     assert seen[0].rho_m >= 0.0  # robot 3 almost on top: the noise may not make rho negative
 

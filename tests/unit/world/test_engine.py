@@ -355,9 +355,20 @@ def test_follower_metrics_from_samples() -> None:
     d = m.as_dict()
     # No camera frame was taken: whether it saw its reference is not known, and the metrics stand.
     assert (d.pop("acquired"), d.pop("frames"), d.pop("seen_ticks")) == (None, 0, 0)
-    assert d == pytest.approx({"rms_m": math.sqrt(26 / 3), "max_m": 4.0, "samples": 3, "turn_rms_m": math.sqrt(12.5),
-                               "straight_rms_m": 1.0, "turn_max_m": 4.0, "turn_samples": 2, "turn_mean_lag_m": 0.75,
-                               "max_lag_m": 2.0, "max_ahead_m": 0.5})  # fmt: skip
+    assert d == pytest.approx(
+        {
+            "rms_m": math.sqrt(26 / 3),
+            "max_m": 4.0,
+            "samples": 3,
+            "turn_rms_m": math.sqrt(12.5),
+            "straight_rms_m": 1.0,
+            "turn_max_m": 4.0,
+            "turn_samples": 2,
+            "turn_mean_lag_m": 0.75,
+            "max_lag_m": 2.0,
+            "max_ahead_m": 0.5,
+        }
+    )
     solo = FollowerMetrics()
     solo.add(1.0)  # no along-heading error given: neither behind nor ahead
     assert (solo.max_lag_m, solo.max_ahead_m) == (0.0, 0.0)

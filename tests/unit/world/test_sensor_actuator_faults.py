@@ -236,8 +236,7 @@ def test_a_wheel_bias_scales_each_wheel() -> None:
 def test_wheel_noise_has_the_standard_deviation_asked_for(source: str) -> None:
     sigma, n = 0.1, 10_000
     faults = [Fault.parse(f"wheel_noise 2@0s sigma_mps={sigma}")] if source == "fault" else []
-    wheels = Wheels(faults, seed=4, robot_id=2, dt_s=0.05, noise_sigma_mps=0.0 if faults else sigma,
-                    max_wheel_mps=3.0)  # fmt: skip
+    wheels = Wheels(faults, seed=4, robot_id=2, dt_s=0.05, noise_sigma_mps=0.0 if faults else sigma, max_wheel_mps=3.0)
     speeds = np.array([wheels.turn(k, 1.0, 1.5) for k in range(n)])
     for wheel, commanded in ((0, 1.0), (1, 1.5)):
         assert abs(speeds[:, wheel].mean() - commanded) < 4 * sigma / math.sqrt(n)
@@ -284,8 +283,13 @@ def _digest(sc_faults: Sequence[str], seed: int, **overrides: object) -> str:
     return eng.digest()
 
 
-FAULTY = ["wheel_noise *@0s sigma_mps=0.1", "outliers 3@0s p=0.05", "slip 3@2s for=2s fraction=0.4 wheel=right",
-          "wheel_bias 2@0s left=0.03 right=-0.03", "stuck 2@5s for=1s wheel=left"]  # fmt: skip
+FAULTY = [
+    "wheel_noise *@0s sigma_mps=0.1",
+    "outliers 3@0s p=0.05",
+    "slip 3@2s for=2s fraction=0.4 wheel=right",
+    "wheel_bias 2@0s left=0.03 right=-0.03",
+    "stuck 2@5s for=1s wheel=left",
+]
 
 
 def test_a_run_without_faults_has_the_digest_it_had_before_faults_existed() -> None:
@@ -316,7 +320,10 @@ def test_outliers_are_exactly_the_documented_draws_scaled_to_range_and_view() ->
     camera = CameraParams(fov_rad=math.pi / 2, range_m=10.0)
     cam = CameraFaults(faults, seed=7, robot_id=2, dt_s=0.05, camera=camera)
     assert [(e.fault.kind, e.rng is None) for e in cam.effects] == [
-        ("range", True), ("outliers", False), ("outliers", False)]  # fmt: skip
+        ("range", True),
+        ("outliers", False),
+        ("outliers", False),
+    ]
     poses = {1: Pose(1.0, 0.0, 0.0), 2: Pose(0.0, 0.0, 0.0), 3: Pose(0.0, 2.0, 0.0)}
     readings = [MarkerReading(1, 1.0, 0.1, 0.2), MarkerReading(3, 2.0, 0.3, 0.4)]
     out = cam.apply(0, poses, readings)
@@ -333,8 +340,14 @@ def test_outliers_are_exactly_the_documented_draws_scaled_to_range_and_view() ->
 
 
 def test_a_robot_turning_on_one_wheel_backwards_is_moving() -> None:
-    wheels = Wheels([Fault.parse("wheel_bias 2@0s right=0.5")], seed=0, robot_id=2, dt_s=0.05,
-                    noise_sigma_mps=0.0, max_wheel_mps=3.0)  # fmt: skip
+    wheels = Wheels(
+        [Fault.parse("wheel_bias 2@0s right=0.5")],
+        seed=0,
+        robot_id=2,
+        dt_s=0.05,
+        noise_sigma_mps=0.0,
+        max_wheel_mps=3.0,
+    )
     assert wheels.turn(0, 0.0, -1.0) == (0.0, -1.5)
     assert wheels.turn(1, 0.0, 0.0) == (0.0, 0.0)
     assert [(e.ticks, e.effect) for e in wheels.effects] == [(2, 1)]
@@ -342,8 +355,9 @@ def test_a_robot_turning_on_one_wheel_backwards_is_moving() -> None:
 
 def test_wheel_noise_adds_the_documented_draws() -> None:
     f = Fault.parse("wheel_noise 2@0s sigma_mps=0.1")
-    wheels = Wheels([f, Fault.parse("stuck 3@0s")], seed=3, robot_id=2, dt_s=0.05, noise_sigma_mps=0.0,
-                    max_wheel_mps=3.0)  # fmt: skip
+    wheels = Wheels(
+        [f, Fault.parse("stuck 3@0s")], seed=3, robot_id=2, dt_s=0.05, noise_sigma_mps=0.0, max_wheel_mps=3.0
+    )
     rng = _key_rng(3, 2, 0x41435455, f, 0)
     for k in range(5):
         n_l, n_r = rng.standard_normal(2).tolist()
