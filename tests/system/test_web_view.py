@@ -23,7 +23,7 @@ import pytest
 
 from formation_swarm.launch.launcher import free_port
 from formation_swarm.nodes import viewer
-from tests.browser import Page, chromium, find_chromium
+from tests.helpers.browser import Page, chromium, find_chromium
 from tests.helpers import RERUN, SCENARIOS, wait_listening
 
 WIDTH, HEIGHT = 1600, 1000
