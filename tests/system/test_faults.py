@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +24,7 @@ import pytest
 
 from formation_swarm.common.faults import KINDS
 from formation_swarm.launch.launcher import Launch
+from tests.helpers.links import assert_same_links
 
 FIG11 = "fig11_obstacles"
 SECONDS = 20.0
@@ -103,21 +104,6 @@ def test_the_schedules_repeat_to_the_bit(runs: list[dict[str, Any]], process_run
     # The process schedule kills agent-3 (its restart, agent-3.2, at 12 s): its inbound links only.
     assert process_runs[0]["partial_links"] == ["formation:1>3", "obs:0>3"]
     assert runs[0]["partial_links"] == []
-
-
-def assert_same_links(a: dict[str, Any], b: dict[str, Any], partial: Sequence[str] = ()) -> None:
-    """Two runs' link counts: the same, but for the leader's very last formation
-    code, which may reach a follower after the world's "done" has closed its
-    inbox (the run is over; no trajectory depends on it): one code either way;
-    and but for the ``partial`` links, received by an agent that was SIGKILLed,
-    whose counts are those of its last write (every second of wall time)."""
-    assert a.keys() - set(partial) == b.keys() - set(partial)  # one killed before its first write has none
-    for name in a.keys() - set(partial):
-        if name.startswith("formation:"):
-            assert abs(a[name]["received"] - b[name]["received"]) <= 1, name
-            assert (a[name]["dropped"], a[name]["partitioned"]) == (b[name]["dropped"], b[name]["partitioned"])
-        else:
-            assert a[name] == b[name], name
 
 
 def _without_wall_times(s: dict[str, Any]) -> list[dict[str, Any]]:

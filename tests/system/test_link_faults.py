@@ -17,7 +17,7 @@ from formation_swarm.common.faults import Fault
 from formation_swarm.launch.launcher import Launch, RunResult
 from formation_swarm.protocol.links import Link, faults_on
 from tests.helpers import run_together
-from tests.system.test_faults import assert_same_links
+from tests.helpers.links import assert_same_links
 
 pytestmark = pytest.mark.slow
 

@@ -37,7 +37,7 @@ from formation_swarm.spec import scenario as sm
 from formation_swarm.world.engine import WorldEngine
 from formation_swarm.world.kinematics import Pose
 from tests.helpers import SCENARIOS
-from tests.unit.runtime.test_role_inputs import FakePub, FakeRole
+from tests.helpers.fakes import FakePub, FakeRole
 
 TURN = SCENARIOS / "fig7_turn_vn_dynamic.toml"
 

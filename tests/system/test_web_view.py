@@ -23,8 +23,8 @@ import pytest
 
 from formation_swarm.launch.launcher import free_port
 from formation_swarm.nodes import viewer
-from tests.helpers.browser import Page, chromium, find_chromium
 from tests.helpers import RERUN, SCENARIOS, wait_listening
+from tests.helpers.browser import Page, chromium, find_chromium
 
 WIDTH, HEIGHT = 1600, 1000
 TOP_BAR, TIME_BAR = 36, 28  # px: Rerun's top bar, the collapsed time panel

@@ -23,7 +23,7 @@ from formation_swarm.world import kinematics
 from formation_swarm.world.camera import CameraParams, observe
 from formation_swarm.world.kinematics import Pose, from_body_frame
 from tests.helpers import ROOT
-from tests.unit.agents.test_avoidance import fly_the_change
+from tests.helpers.swap_sides import fly_the_change
 
 READING = (2.0, 0.2, 0.3)  # rho_r, phi, beta: the reference 2 m ahead, a little right, turned left
 OFFSET = Point(-1.5, -1.0)
