@@ -63,8 +63,16 @@ class Module:
         return self.path.removesuffix(".py").replace("/", ".")
 
 
-T = "tests/"
-PUBLISHED = T + "test_published.py"  # the published figures recomputed (seconds): last, it is the slowest
+def T(name: str) -> str:  # noqa: N802 - reads as the tests folder
+    """A test file's path (``name`` may end in ``::test``) wherever under tests/ it lives."""
+    file, sep, node = name.partition("::")
+    found = sorted((ROOT / "tests").rglob(file))
+    if len(found) != 1:
+        raise SystemExit(f"tools/mutate.py: {len(found)} test files named {file} under tests/")
+    return f"{found[0].relative_to(ROOT)}{sep}{node}"
+
+
+PUBLISHED = T("test_published.py")  # the published figures recomputed (seconds): last, it is the slowest
 
 
 def _unit_tests(path: str, fixtures: tuple[str, ...] = ("swarm_run", "swarm_launch", "tmp_path")) -> tuple[str, ...]:
@@ -80,80 +88,92 @@ def _unit_tests(path: str, fixtures: tuple[str, ...] = ("swarm_run", "swarm_laun
 
 
 # The tests of tests/system/test_process_faults.py that start no process.
-PROCESS_FAULT_UNITS = _unit_tests(T + "test_process_faults.py")
+PROCESS_FAULT_UNITS = _unit_tests(T("test_process_faults.py"))
 MODULES = (
     Module(
         "agents/geometry.py",
-        (T + "test_geometry.py", T + "test_ekf.py", T + "test_follower.py", T + "test_avoidance.py", PUBLISHED),
+        (T("test_geometry.py"), T("test_ekf.py"), T("test_follower.py"), T("test_avoidance.py"), PUBLISHED),
     ),
-    Module("agents/ekf.py", (T + "test_ekf.py", T + "test_follower.py", T + "test_closed_loop.py", PUBLISHED)),
+    Module("agents/ekf.py", (T("test_ekf.py"), T("test_follower.py"), T("test_closed_loop.py"), PUBLISHED)),
     Module(
         "agents/fuzzy.py",
         (
-            T + "test_fuzzy.py",
-            T + "test_follower.py",
-            T + "test_closed_loop.py",
-            T + "test_formation_tree.py",
+            T("test_fuzzy.py"),
+            T("test_follower.py"),
+            T("test_closed_loop.py"),
+            T("test_formation_tree.py"),
             PUBLISHED,
         ),
     ),
-    Module("agents/avoidance.py", (T + "test_geometry.py", T + "test_avoidance.py", T + "test_follower.py", PUBLISHED)),
+    Module("agents/avoidance.py", (T("test_geometry.py"), T("test_avoidance.py"), T("test_follower.py"), PUBLISHED)),
     Module(
         "agents/follower.py",
         (
-            T + "test_follower.py",
-            T + "test_closed_loop.py",
-            T + "test_avoidance.py",
-            T + "test_ekf.py",
-            T + "test_lpsi.py",
-            T + "test_formation_tree.py",
+            T("test_follower.py"),
+            T("test_closed_loop.py"),
+            T("test_avoidance.py"),
+            T("test_ekf.py"),
+            T("test_lpsi.py"),
+            T("test_formation_tree.py"),
             PUBLISHED,
         ),
     ),
     Module(
-        "agents/formation.py", (T + "test_formation_tree.py", T + "test_geometry.py", T + "test_scenario.py", PUBLISHED)
+        "agents/formation.py", (T("test_formation_tree.py"), T("test_geometry.py"), T("test_scenario.py"), PUBLISHED)
     ),
-    Module("agents/leader.py", (T + "test_leader.py", PUBLISHED)),
-    Module("agents/lpsi.py", (T + "test_lpsi.py", T + "test_follower.py", PUBLISHED)),
-    Module("agents/pilot.py", (T + "test_pilot.py", T + "test_closed_loop.py", PUBLISHED)),
+    Module("agents/leader.py", (T("test_leader.py"), PUBLISHED)),
+    Module("agents/lpsi.py", (T("test_lpsi.py"), T("test_follower.py"), PUBLISHED)),
+    Module("agents/pilot.py", (T("test_pilot.py"), T("test_closed_loop.py"), PUBLISHED)),
     Module(
         "world/kinematics.py",
-        (T + "test_kinematics.py", T + "test_camera.py", T + "test_geometry.py", T + "test_engine.py", PUBLISHED),
+        (T("test_kinematics.py"), T("test_camera.py"), T("test_geometry.py"), T("test_engine.py"), PUBLISHED),
     ),
-    Module("world/camera.py", (T + "test_camera.py", T + "test_camera_frame.py", T + "test_geometry.py", PUBLISHED)),
+    Module("world/camera.py", (T("test_camera.py"), T("test_camera_frame.py"), T("test_geometry.py"), PUBLISHED)),
     Module(
         "world/engine.py",
         (
-            T + "test_engine.py",
-            T + "test_world_engine.py",
-            T + "test_camera_frame.py",
-            T + "test_sensor_actuator_faults.py",
-            T + "test_avoidance.py",
+            T("test_engine.py"),
+            T("test_world_engine.py"),
+            T("test_camera_frame.py"),
+            T("test_sensor_actuator_faults.py"),
+            T("test_avoidance.py"),
             PUBLISHED,
         ),
     ),
-    Module("world/hardware_faults.py", (T + "test_sensor_actuator_faults.py",)),
+    Module("world/hardware_faults.py", (T("test_sensor_actuator_faults.py"),)),
     Module(
         "protocol/keys.py",
-        (T + "test_keys.py", T + "test_protocol.py", T + "test_messages.py", T + "test_role_inputs.py"),
+        (
+            T("test_keys.py"),
+            T("test_protocol.py"),
+            T("test_messages.py"),
+            T("test_agent_inputs.py"),
+            T("test_world_inputs.py"),
+        ),
     ),
-    Module("protocol/links.py", (T + "test_links.py",)),
-    Module("protocol/codec.py", (T + "test_messages.py", T + "test_protocol.py", T + "test_role_inputs.py")),
-    Module("protocol/messages.py", (T + "test_messages.py", T + "test_protocol.py", T + "test_role_inputs.py")),
-    Module("protocol/batch.py", (T + "test_protocol.py", T + "test_messages.py")),
-    Module("protocol/trust.py", (T + "test_trust_rules.py",)),
-    Module("agents/inbox.py", (T + "test_inbox.py", T + "test_role_inputs.py")),
-    Module("swarm/common/faults.py", (T + "test_fault_grammar.py",)),
+    Module("protocol/links.py", (T("test_links.py"),)),
+    Module(
+        "protocol/codec.py",
+        (T("test_messages.py"), T("test_protocol.py"), T("test_agent_inputs.py"), T("test_world_inputs.py")),
+    ),
+    Module(
+        "protocol/messages.py",
+        (T("test_messages.py"), T("test_protocol.py"), T("test_agent_inputs.py"), T("test_world_inputs.py")),
+    ),
+    Module("protocol/batch.py", (T("test_protocol.py"), T("test_messages.py"))),
+    Module("protocol/trust.py", (T("test_trust_rules.py"),)),
+    Module("agents/inbox.py", (T("test_inbox.py"), T("test_agent_inputs.py"), T("test_world_inputs.py"))),
+    Module("swarm/common/faults.py", (T("test_fault_grammar.py"),)),
     Module("world/process_faults.py", PROCESS_FAULT_UNITS),
     Module("world/recovery.py", PROCESS_FAULT_UNITS),
     Module(
         "swarm/studies/sweep.py",
-        (T + "test_results.py", T + "test_sweep.py::test_aggregate_mean_std_and_t_interval"),
+        (T("test_results.py"), T("test_sweep.py::test_aggregate_mean_std_and_t_interval")),
         scope=("_T975", "aggregate", "_is_number"),
     ),
     Module(
         "swarm/studies/results.py",
-        (T + "test_results.py",),
+        (T("test_results.py"),),
         scope=("CONTROLLERS", "DROPS", "NOISE", "jobs", "table", "write_into", "unfit_runs"),
     ),
 )
