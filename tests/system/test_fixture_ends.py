@@ -5,6 +5,7 @@ as a run), Ctrl-C stops the session after every process is stopped."""
 from __future__ import annotations
 
 import json
+import re
 import textwrap
 from pathlib import Path
 
@@ -126,21 +127,19 @@ def test_the_fixture_refuses_wrong_arguments_in_a_sentence(pytester: pytest.Pyte
     result.assert_outcomes(passed=1)
 
 
-def test_the_readmes_fixture_examples_pass_as_written(pytester: pytest.Pytester) -> None:
-    """Every code block of README's "In your own test suite", run as a user's test file."""
-    readme = (ROOT / "README.md").read_text()
-    section = readme.split("### In your own test suite", 1)[1].split("\n## ", 1)[0]
-    blocks: list[str] = []
-    block: list[str] = []
-    for line in [*section.splitlines(), "end"]:
-        if line.startswith("    ") or (block and not line.strip()):
-            block.append(line[4:])
-        elif block:
-            blocks.append("\n".join(block).strip())
-            block = []
-    source = "\n\n\n".join(b for b in blocks if b.startswith("def test_"))
-    tests = source.count("\ndef test_") + source.startswith("def test_")
-    assert tests == 4, source
-    pytester.makepyfile(source + "\n")
+def test_the_docs_fixture_examples_pass_as_written(pytester: pytest.Pytester) -> None:
+    """Every ```python block of tests in README's "In your own test suite" and
+    in docs/testing.md, run together as a user's test file."""
+    after = (ROOT / "README.md").read_text().split("### In your own test suite", 1)[1]
+    readme = re.split(r"^##+ ", after, maxsplit=1, flags=re.M)[0]
+    testing = (ROOT / "docs" / "testing.md").read_text()
+    found = {
+        doc: re.findall(r"^```python\n(def test_.*?)^```$", text, re.M | re.S)
+        for doc, text in (("README", readme), ("docs/testing.md", testing))
+    }
+    assert all(found.values()), found
+    source = "\n\n".join(block for blocks in found.values() for block in blocks)
+    tests = len(re.findall(r"^def test_", source, re.M))
+    pytester.makepyfile(source)
     result = pytester.runpytest_subprocess("-p", "no:cacheprovider")
     result.assert_outcomes(passed=tests)
