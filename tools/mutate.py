@@ -144,6 +144,8 @@ MODULES = (
     Module("protocol/trust.py", (T + "test_trust_rules.py",)),
     Module("agents/inbox.py", (T + "test_inbox.py", T + "test_role_inputs.py")),
     Module("swarm/common/faults.py", (T + "test_fault_grammar.py",)),
+    Module("swarm/common/fault_kinds.py", (T + "test_fault_grammar.py",)),
+    Module("swarm/common/fault_schedule.py", (T + "test_fault_grammar.py",)),
     Module("world/process_faults.py", PROCESS_FAULT_UNITS),
     Module("world/recovery.py", PROCESS_FAULT_UNITS),
     Module(

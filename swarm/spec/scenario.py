@@ -37,7 +37,8 @@ from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode, speed_range
 from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.lpsi import LpsiParams
 from formation_swarm.agents.pilot import CORNERS, turn_room
-from formation_swarm.common.faults import Fault, check_against, parse_all, past_the_end
+from formation_swarm.common.fault_schedule import check_against, past_the_end
+from formation_swarm.common.faults import Fault, parse_all
 from formation_swarm.protocol.keys import MAX_ROBOT_ID, check_host_name
 from formation_swarm.spec.files import deep_set, resolve
 from formation_swarm.spec.keys import (

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from formation_swarm.common.fault_schedule import check_against
 from formation_swarm.common.faults import (
     ACTUATOR,
     KINDS,
@@ -18,12 +19,11 @@ from formation_swarm.common.faults import (
     PROCESS,
     SENSOR,
     Fault,
-    check_against,
     link_faults,
     of_robot,
-    reference,
     seconds,
 )
+from formation_swarm.common.faults_doc import reference
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.spec.scenario import ScenarioError
 from tests.helpers import ROOT
@@ -480,7 +480,7 @@ def test_at_most_256_faults() -> None:
 
 
 def test_update_doc_rewrites_between_the_markers_only(tmp_path: Path) -> None:
-    from formation_swarm.common.faults import BEGIN, END, update_doc
+    from formation_swarm.common.faults_doc import BEGIN, END, update_doc
 
     doc = tmp_path / "faults.md"
     doc.write_text(f"head\n{BEGIN}\nold\n{END}\ntail\n")
