@@ -149,7 +149,7 @@ MODULES = (
     Module("world/process_faults.py", PROCESS_FAULT_UNITS),
     Module("world/recovery.py", PROCESS_FAULT_UNITS),
     Module(
-        "swarm/studies/sweep.py",
+        "swarm/studies/tables.py",
         (T + "test_results.py", T + "test_sweep.py::test_aggregate_mean_std_and_t_interval"),
         scope=("_T975", "aggregate", "_is_number"),
     ),
