@@ -25,191 +25,47 @@ a comma list of ids or ``*`` (the default); ROBOTS alone for partitions,
 sensor and actuator faults.
 
 Nothing here knows Zenoh or processes: the world, the agents and the
-launcher each take the part of the schedule that is theirs.
+launcher each take the part of the schedule that is theirs. The kinds and
+their parameters are in ``fault_kinds``, the checks of a schedule against
+its run in ``fault_schedule``, the table of docs/faults.md in ``faults_doc``.
 """
 
 from __future__ import annotations
 
 import difflib
-import math
 import re
-from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
-PROCESS = "process"
-LINK = "link"
-NETWORK = "network"
-SENSOR = "sensor"
-ACTUATOR = "actuator"
+from formation_swarm.common.fault_kinds import (
+    ACTUATOR,
+    ALL_LINKS,
+    KINDS,
+    LINK,
+    LINK_CLASSES,
+    NETWORK,
+    PROCESS,
+    SENSOR,
+    seconds,
+    value_text,
+)
 
-LINK_CLASSES = ("obs", "cmd", "formation")
-ALL_LINKS = "links"
-MAX_FAULTS = 256
-
-
-@dataclass(frozen=True)
-class Param:
-    """One parameter of a fault kind: a number in [low, high] or one of ``choices``."""
-
-    doc: str
-    unit: str = ""
-    default: float | str | None = None  # None: required (unless ``one_of`` says otherwise)
-    low: float = 0.0
-    high: float = math.inf
-    open_low: bool = False
-    choices: tuple[str, ...] = ()
-
-    def check(self, where: str, value: Any) -> float | str:
-        if self.choices:
-            if value not in self.choices:
-                raise ValueError(f"{where} must be one of {', '.join(self.choices)}, got {value!r}")
-            return str(value)
-        if isinstance(value, str):  # a duration as the fault's times are written: 1, 1s or 500ms
-            value = seconds(where, value) if self.unit == "s" else _number(where, value, self.unit)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ValueError(f"{where} must be a finite number, got {value!r}")
-        low_ok = value > self.low if self.open_low else value >= self.low
-        if not low_ok or value > self.high:
-            lo = "(" if self.open_low else "["
-            raise ValueError(f"{where} must be in {lo}{self.low:g}, {self.high:g}], got {value!r}")
-        return float(value)
-
-
-def _p(doc: str, default: float | None = None) -> Param:
-    return Param(doc, "", default, 0.0, 1.0)
-
-
-@dataclass(frozen=True)
-class Kind:
-    group: str
-    doc: str
-    params: Mapping[str, Param] = field(default_factory=dict)
-    needs_for: bool = False  # a duration is required
-    allows_for: bool = True
-    one_of: tuple[str, ...] = ()  # exactly one of these parameters is given
-
-
-KINDS: dict[str, Kind] = {
-    "kill": Kind(PROCESS, "SIGKILL the process; an agent's robot stops where it is", allows_for=False),
-    "restart": Kind(
-        PROCESS,
-        "SIGKILL an agent, then start a fresh process for the same robot `after` seconds later; "
-        "the world re-admits the robot when it is back",
-        {"after": Param("time between the kill and the fresh start", "s", 1.0)},
-        allows_for=False,
-    ),
-    "freeze": Kind(PROCESS, "SIGSTOP the process, SIGCONT it `for` seconds later", needs_for=True),
-    "drop": Kind(LINK, "each message is lost with probability p", {"p": _p("probability of loss")}),
-    "burst": Kind(
-        LINK,
-        "Gilbert-Elliott losses: a two-state chain per link, stepped at each message",
-        {
-            "p_bad": _p("probability, per message, of going from the good state to the bad one"),
-            "p_good": _p("probability, per message, of going back from bad to good"),
-            "loss": _p("probability of loss in the bad state (none in the good one)", 1.0),
-        },
-    ),
-    "delay": Kind(
-        LINK,
-        "each message is held back: `ticks` (lockstep) or `ms` (real time; either unit is converted "
-        "with dt in the other mode), plus a uniform jitter of up to `jitter_ticks`/`jitter_ms`",
-        {
-            "ticks": Param("fixed delay", "ticks", None),
-            "ms": Param("fixed delay", "ms", None),
-            "jitter_ticks": Param("largest extra delay, drawn uniformly per message", "ticks", 0.0),
-            "jitter_ms": Param("largest extra delay, drawn uniformly per message", "ms", 0.0),
-        },
-        one_of=("ticks", "ms"),
-    ),
-    "duplicate": Kind(LINK, "each message is delivered twice with probability p", {"p": _p("probability")}),
-    "reorder": Kind(
-        LINK,
-        "each message is held back with probability p and delivered after the link's next message",
-        {"p": _p("probability")},
-    ),
-    "partition": Kind(
-        NETWORK,
-        "cut the robots off, both ways: from the world (observations and commands), from their leader "
-        "(formation codes) or both",
-        {"from": Param("what they are cut off from", default="both", choices=("world", "leader", "both"))},
-        needs_for=True,
-    ),
-    "blackout": Kind(SENSOR, "the camera sees nothing (camera faults apply to followers: the leader has none)"),
-    "bias": Kind(
-        SENSOR,
-        "every camera reading is offset",
-        {
-            "rho_m": Param("added to the distance", "m", 0.0, -math.inf),
-            "phi_deg": Param("added to the orientation", "deg", 0.0, -math.inf),
-            "beta_deg": Param("added to the bearing", "deg", 0.0, -math.inf),
-        },
-    ),
-    "outliers": Kind(
-        SENSOR,
-        "each reading is replaced, with probability p, by a wrong one drawn uniformly within the camera's "
-        "range and field of view",
-        {"p": _p("probability")},
-    ),
-    "range": Kind(
-        SENSOR, "the camera sees no farther than `m`", {"m": Param("the reduced range", "m", None, open_low=True)}
-    ),
-    "wheel_noise": Kind(
-        ACTUATOR,
-        "each wheel's speed gets Gaussian noise, drawn per tick",
-        {"sigma_mps": Param("standard deviation", "m/s", None)},
-    ),
-    "wheel_bias": Kind(
-        ACTUATOR,
-        "each wheel turns a fraction faster (> 0) or slower (< 0) than commanded",
-        {
-            "left": Param("fraction added to the left wheel's speed", "", 0.0, -1.0, 1.0),
-            "right": Param("fraction added to the right wheel's speed", "", 0.0, -1.0, 1.0),
-        },
-    ),
-    "slip": Kind(
-        ACTUATOR,
-        "the wheels lose a fraction of their speed on the ground",
-        {
-            "fraction": Param("fraction of the speed lost", "", None, 0.0, 1.0),
-            "wheel": Param("which wheel slips", default="both", choices=("left", "right", "both")),
-        },
-    ),
-    "stuck": Kind(
-        ACTUATOR,
-        "a wheel does not turn",
-        {"wheel": Param("which wheel", default="left", choices=("left", "right", "both"))},
-    ),
-}
-
-_TIME = re.compile(r"^([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)(ms|s)?$")
-
-
-def _number(where: str, text: str, unit: str = "") -> float:
-    given, text = text, text.strip()
-    if unit in ("s", "ms", "m", "m/s", "deg") and text.endswith(unit):
-        text = text[: -len(unit)]
-    try:
-        return float(text)
-    except ValueError:
-        raise ValueError(f"{where} must be a number{f' in {unit}' if unit else ''}, got {given!r}") from None
-
-
-def seconds(where: str, value: Any) -> float:
-    """``20``, ``20s``, ``"1500ms"`` -> seconds (>= 0, finite)."""
-    if isinstance(value, str):
-        m = _TIME.match(value.strip())
-        if not m:
-            sign = "a time >= 0 s, " if value.strip().startswith("-") else "a time "
-            raise ValueError(f"{where} must be {sign}such as 20, 20s or 1500ms, got {value!r}")
-        out = float(m.group(1)) / (1000.0 if m.group(2) == "ms" else 1.0)
-    elif isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f"{where} must be a time in s, got {value!r}")
-    else:
-        out = float(value)
-    if not (math.isfinite(out) and out >= 0.0):
-        raise ValueError(f"{where} must be a time >= 0 s, got {value!r}")
-    return out
+# The grammar's public face: the kinds' groups are named from here too.
+__all__ = [
+    "ACTUATOR",
+    "KINDS",
+    "LINK",
+    "LINK_CLASSES",
+    "NETWORK",
+    "PROCESS",
+    "SENSOR",
+    "Fault",
+    "link_faults",
+    "of_robot",
+    "parse_all",
+    "seconds",
+]
 
 
 def _robots(where: str, text: str) -> tuple[int, ...] | None:
@@ -229,10 +85,6 @@ def _robots(where: str, text: str) -> tuple[int, ...] | None:
 
 def _robots_text(robots: tuple[int, ...] | None) -> str:
     return "*" if robots is None else ",".join(map(str, robots))
-
-
-def _fmt(v: float | str) -> str:
-    return v if isinstance(v, str) else f"{v:g}"
 
 
 @dataclass(frozen=True)
@@ -395,7 +247,7 @@ class Fault:
         out = [self.kind, f"{self.target}@{self.at_s:g}s"]
         if self.for_s is not None:
             out.append(f"for={self.for_s:g}s")
-        out += [f"{k}={_fmt(v)}" for k, v in self.params]
+        out += [f"{k}={value_text(v)}" for k, v in self.params]
         return " ".join(out)
 
     def to_table(self) -> dict[str, Any]:
@@ -430,67 +282,6 @@ def _canonical_target(kind: str, target: str, where: str) -> str:
             )
         return f"{cls_}:{_robots_text(_robots(where, robots))}"
     return _robots_text(_robots(where, target))
-
-
-def check_against(
-    faults: Sequence[Fault], robots: Sequence[int], leader_id: int, duration_s: float, dt_s: float
-) -> None:
-    """Faults that cannot apply to this run: unknown robots, a start past the end,
-    a formation link to the leader, a camera fault on the leader (it has none),
-    two process faults on one process at once."""
-    if len(faults) > MAX_FAULTS:
-        raise ValueError(f"at most {MAX_FAULTS} faults, got {len(faults)}")
-    known = set(robots)
-    busy: dict[str, list[tuple[int, int | None, Fault]]] = {}
-    for f in faults:
-        where = f"fault '{f}'"
-        if f.start_tick(dt_s) >= (ticks := int(round(duration_s / dt_s))):  # ticks 0 .. ticks - 1 are run
-            last = (ticks - 1) * dt_s
-            raise ValueError(
-                f"{where}: starts at {f.at_s:g} s, at or after the run's end ({duration_s:g} s; its "
-                f"last tick is at {last:g} s)"
-            )
-        named = f.robots
-        if named is not None and (unknown := sorted(set(named) - known)):
-            raise ValueError(
-                f"{where}: no robot {', '.join(map(str, unknown))} in this run; robots are "
-                f"{', '.join(map(str, robots))}"
-            )
-        if (
-            f.group == LINK
-            and "formation" in f.link_classes
-            and named is not None
-            and leader_id in named
-            and f.link_classes == ("formation",)
-        ):
-            raise ValueError(f"{where}: robot {leader_id} is the leader; formation links go to followers")
-        if f.group == SENSOR and named is not None and leader_id in named:
-            raise ValueError(
-                f"{where}: robot {leader_id} is the leader; it has no camera in this model (sensor faults apply "
-                "to followers; '*' names them all)"
-            )
-        if f.kind == "partition" and f.param("from") == "leader" and named is not None and leader_id in named:
-            raise ValueError(f"{where}: robot {leader_id} is the leader; it cannot be cut off from itself")
-        if f.group == PROCESS:
-            start, end = f.start_tick(dt_s), f.end_tick(dt_s)
-            for s2, e2, other in busy.get(f.target, []):
-                # A kill lasts to the end of the run; the others until they end.
-                if (e2 is None or start < e2) and (end is None or s2 < end):
-                    raise ValueError(f"{where} overlaps '{other}' on the same process")
-            busy.setdefault(f.target, []).append((start, end, f))
-
-
-def past_the_end(faults: Sequence[Fault], duration_s: float, dt_s: float) -> list[str]:
-    """Warnings for faults whose window reaches past the run's last tick: they
-    are cut there, which a schedule written for a longer run may not mean."""
-    ticks = int(round(duration_s / dt_s))
-    out = []
-    for f in faults:
-        end = f.end_tick(dt_s)
-        if f.for_s is not None and end is not None and end > ticks:
-            kept = (ticks - f.start_tick(dt_s)) * dt_s
-            out.append(f"fault '{f}' lasts past the run's end ({duration_s:g} s): it is cut there, after {kept:g} s")
-    return out
 
 
 def parse_all(
@@ -529,57 +320,9 @@ def of_robot(faults: Iterable[Fault], group: str, robot_id: int) -> tuple[Fault,
     return tuple(f for f in faults if f.group == group and f.applies_to(robot_id))
 
 
-def reference() -> str:
-    """The table of every kind and parameter in docs/faults.md (``make docs``)."""
-    out = ["| kind | group | target | duration | parameters | what it does |", "|---|---|---|---|---|---|"]
-    targets = {
-        PROCESS: "`agent-N`, `logger`",
-        LINK: "`CLASS[:ROBOTS]`",
-        NETWORK: "ROBOTS",
-        SENSOR: "ROBOTS",
-        ACTUATOR: "ROBOTS",
-    }
-    for name, k in KINDS.items():
-        target = "`agent-N`" if name == "restart" else targets[k.group]
-        duration = "required" if k.needs_for else ("none" if not k.allows_for else "optional (none: to the end)")
-        params = []
-        for pname, p in k.params.items():
-            if p.choices:
-                rng = " \\| ".join(p.choices)
-            else:
-                hi = "" if p.high == math.inf else f"{p.high:g}"
-                lo = "" if p.low == -math.inf else f"{p.low:g}"
-                if lo and hi:
-                    rng = f"{'(' if p.open_low else '['}{lo}, {hi}]"
-                elif lo:
-                    rng = f"{'>' if p.open_low else '>='} {lo}"
-                else:
-                    rng = "any"
-            default = "required" if p.default is None else (f"default {_fmt(p.default)}")
-            if pname in k.one_of:
-                default = f"one of {'/'.join(k.one_of)}"
-            unit = f" {p.unit}" if p.unit else ""
-            params.append(f"`{pname}`{unit} {rng}, {default}: {p.doc}")
-        out.append(f"| `{name}` | {k.group} | {target} | {duration} | {'<br>'.join(params) or '-'} | {k.doc} |")
-    return "\n".join(out) + "\n"
-
-
-BEGIN, END = "<!-- kinds: generated by make docs -->", "<!-- /kinds -->"
-
-
-def update_doc(path: str) -> None:
-    """Rewrite the table of kinds between the markers of ``path``."""
-    from pathlib import Path
-
-    text = Path(path).read_text()
-    head, sep, rest = text.partition(BEGIN)
-    _, sep2, tail = rest.partition(END)
-    if not (sep and sep2):
-        raise SystemExit(f"{path}: no {BEGIN} ... {END} markers")
-    Path(path).write_text(f"{head}{BEGIN}\n{reference()}{END}{tail}")
-
-
-if __name__ == "__main__":
+if __name__ == "__main__":  # make docs: the table of kinds in docs/faults.md
     import sys
+
+    from formation_swarm.common.faults_doc import update_doc
 
     update_doc(sys.argv[1] if len(sys.argv) > 1 else "docs/faults.md")

@@ -94,41 +94,42 @@ def deep_set(raw: Mapping[str, Any], path: tuple[str, ...], value: Any) -> dict[
 def dumps(raw: Mapping[str, Any]) -> str:
     """The scenario as run, as TOML (the subset scenarios use)."""
     lines: list[str] = []
-
-    def val(v: Any) -> str:
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, str):
-            return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-        if isinstance(v, (int, float)):
-            return repr(v)
-        if isinstance(v, list):
-            return "[" + ", ".join(val(x) for x in v) + "]"
-        if isinstance(v, dict):
-            return "{ " + ", ".join(f'"{k}" = {val(x)}' for k, x in v.items()) + " }"
-        raise TypeError(f"cannot write {type(v).__name__} to TOML")
-
-    def table(prefix: str, t: Mapping[str, Any]) -> None:
-        scalars = {k: v for k, v in t.items() if not isinstance(v, dict) and not _is_table_array(v)}
-        subs = {k: v for k, v in t.items() if isinstance(v, dict)}
-        arrays = {k: v for k, v in t.items() if _is_table_array(v)}
-        if prefix and (scalars or not subs):
-            lines.append(f"[{prefix}]")
-        for k, v in scalars.items():
-            lines.append(f'"{k}" = {val(v)}' if not k.isidentifier() else f"{k} = {val(v)}")
-        if scalars:
-            lines.append("")
-        for k, v in subs.items():
-            table(f"{prefix}.{k}" if prefix else k, v)
-        for k, v in arrays.items():
-            for item in v:
-                lines.append(f"[[{prefix + '.' if prefix else ''}{k}]]")
-                for ik, iv in item.items():
-                    lines.append(f"{ik} = {val(iv)}")
-                lines.append("")
-
-    table("", raw)
+    _write_table(lines, "", raw)
     return "\n".join(lines)
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f'"{k}" = {_toml_value(x)}' for k, x in v.items()) + " }"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def _write_table(lines: list[str], prefix: str, t: Mapping[str, Any]) -> None:
+    """One table's lines: its values, then its sub-tables, then its arrays of tables."""
+    scalars = {k: v for k, v in t.items() if not isinstance(v, dict) and not _is_table_array(v)}
+    subs = {k: v for k, v in t.items() if isinstance(v, dict)}
+    arrays = {k: v for k, v in t.items() if _is_table_array(v)}
+    if prefix and (scalars or not subs):
+        lines.append(f"[{prefix}]")
+    for k, v in scalars.items():
+        lines.append(f'"{k}" = {_toml_value(v)}' if not k.isidentifier() else f"{k} = {_toml_value(v)}")
+    if scalars:
+        lines.append("")
+    for k, v in subs.items():
+        _write_table(lines, f"{prefix}.{k}" if prefix else k, v)
+    for k, v in arrays.items():
+        for item in v:
+            lines.append(f"[[{prefix + '.' if prefix else ''}{k}]]")
+            lines += [f"{ik} = {_toml_value(iv)}" for ik, iv in item.items()]
+            lines.append("")
 
 
 def _is_table_array(v: Any) -> bool:

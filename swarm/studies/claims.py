@@ -61,7 +61,7 @@ def _m(rows: Sequence[Mapping[str, Any]], key: str, sign: str = "") -> str:
 
 def _ci(rows: Sequence[Mapping[str, Any]], key: str, fmt: str = ".3f") -> str:
     """``"mean 0.727 ± 0.004"``: the mean over the seeds and its 95% confidence half-width (Student t)."""
-    from formation_swarm.studies.sweep import half_width
+    from formation_swarm.studies.tables import half_width
 
     vals = [float(r[key]) for r in rows]
     mean, half = statistics.fmean(vals), half_width(vals)

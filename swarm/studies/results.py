@@ -15,18 +15,22 @@ table from being written.
 
 from __future__ import annotations
 
+import argparse
 import os
 import re
 import sys
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser, integer, make_folder
 from formation_swarm.runtime.proc import interrupt_on_stop_signals
 from formation_swarm.spec.files import parse_overrides
-from formation_swarm.studies import claims, sensitivity
-from formation_swarm.studies.sweep import MAX_JOBS, MAX_SEEDS, Job, Sweep, aggregate
+from formation_swarm.studies import claims, sensitivity, sensitivity_figure
+from formation_swarm.studies.jobs import Job
+from formation_swarm.studies.sweep import MAX_JOBS, MAX_SEEDS, Sweep
+from formation_swarm.studies.tables import aggregate
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "fig7_turn_vn_dynamic.toml"
@@ -151,6 +155,13 @@ def build_parser() -> Parser:
         "  swarm results --claims --seeds 10 --jobs 1 --set robot.wheel_noise_mps=0.1 "
         "--write docs/results.md",
     )
+    _add_run_arguments(ap)
+    _add_study_arguments(ap)
+    return ap
+
+
+def _add_run_arguments(ap: Parser) -> None:
+    """How many runs, where, and where the table goes."""
     ap.add_argument(
         "--seeds",
         type=integer(2, MAX_SEEDS),
@@ -189,6 +200,10 @@ def build_parser() -> Parser:
         metavar="KEY=VALUE",
         help="a scenario key for every run, e.g. robot.wheel_noise_mps=0.1 (repeatable; not a key the table varies)",
     )
+
+
+def _add_study_arguments(ap: Parser) -> None:
+    """The claims and the sensitivity studies instead of the baseline table."""
     ap.add_argument(
         "--claims",
         action="store_true",
@@ -223,12 +238,11 @@ def build_parser() -> Parser:
         metavar="DIR",
         help="with --sensitivity: where the figures go, sensitivity-<setting>.png (default: docs/figures)",
     )
-    return ap
 
 
 def claim_sweeps(seeds: Sequence[int], settings: Mapping[str, Any], out: Path, workers: int | None) -> dict[str, Sweep]:
     """One sweep per scenario the claims are measured on, each in its own folder under ``out``."""
-    return sensitivity.plan(seeds, settings, [], out, workers)
+    return sensitivity.plan(seeds, settings, [], out, workers=workers)
 
 
 def run_sweeps(sweeps: Mapping[str, Sweep], out: Path) -> dict[str, list[dict[str, Any]]] | None:
@@ -247,7 +261,13 @@ def run_sweeps(sweeps: Mapping[str, Sweep], out: Path) -> dict[str, list[dict[st
 
 
 def run_sensitivity(
-    axes: Sequence[sensitivity.Axis], seeds: int, out: Path, workers: int | None, figures: Path, writes: Sequence[Path]
+    axes: Sequence[sensitivity.Axis],
+    seeds: int,
+    out: Path,
+    *,
+    workers: int | None,
+    figures: Path,
+    writes: Sequence[Path],
 ) -> int:
     """Each axis's points, then its figure and its section (printed, and written into ``writes``)."""
     for n, axis in enumerate(axes, 1):
@@ -259,13 +279,13 @@ def run_sensitivity(
                 flush=True,
             )
             settings, faults = axis.point(value)
-            sweeps = sensitivity.plan(range(seeds), settings, faults, out, workers, axis.extras)
+            sweeps = sensitivity.plan(range(seeds), settings, faults, out, workers=workers, extras=axis.extras)
             rows = run_sweeps(sweeps, out)
             if rows is None:
                 return 1
             points.append(sensitivity.measure(value, rows))
         png = figures / f"sensitivity-{axis.name}.png"
-        sensitivity.write_figure(png, axis, points)
+        sensitivity_figure.write_figure(png, axis, points)
         rel = png.relative_to(figures.parent) if figures.name == "figures" else png
         text = sensitivity.markdown(axis, points, str(rel))
         print(text)
@@ -285,48 +305,68 @@ def write_all(writes: Sequence[Path], text: str, begin: str, end: str) -> bool:
     return True
 
 
+@dataclass
+class _Plan:
+    """What a command line asks for, checked before any run."""
+
+    settings: dict[str, Any]
+    axes: list[sensitivity.Axis] = field(default_factory=list)  # --sensitivity: the settings to vary
+    sweeps: dict[str, Sweep] = field(default_factory=dict)  # otherwise: the sweeps of the table
+    markers: tuple[str, str] = ("", "")  # the table's, in the --write files
+
+
+def _plan(args: argparse.Namespace, out: Path, writes: Sequence[Path]) -> _Plan:
+    """The runs and the markers of the command line; ValueError for a bad input, before
+    anything is made."""
+    if args.sensitivity and (args.claims or args.set):
+        raise ValueError("--sensitivity varies its own settings: it takes neither --claims nor --set")
+    if args.axis and not args.sensitivity:
+        raise ValueError("--axis needs --sensitivity")
+    if args.rows and not args.claims:
+        raise ValueError("--rows needs --claims")
+    plan = _Plan(parse_overrides(args.set))
+    if args.sensitivity:
+        plan.axes = [sensitivity.AXIS_NAMES[a] for a in args.axis] or list(sensitivity.AXES)
+        for target in writes:  # before the runs, not after
+            for axis in plan.axes:
+                check_markers(target, *markers("sensitivity", axis.name))
+    else:
+        plan.markers = markers("claims" if args.claims else "results table", settings_text(plan.settings))
+        for target in writes:
+            check_markers(target, *plan.markers)  # before the runs, not after
+        if args.claims:
+            plan.sweeps = claim_sweeps(range(args.seeds), plan.settings, out, args.jobs)
+        else:
+            plan.sweeps = {"": Sweep(SCENARIO, jobs(range(args.seeds), plan.settings), out, workers=args.jobs)}
+    if args.sensitivity and Path(args.figures).exists() and not Path(args.figures).is_dir():
+        raise ValueError(f"--figures {args.figures}: is an existing file, not a folder")
+    make_folder("--out", out)  # last: nothing made for a bad input
+    if args.sensitivity:
+        make_folder("--figures", Path(args.figures))
+    return plan
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     out = Path(args.out or ("sweeps/claims" if args.claims or args.sensitivity else "sweeps/results"))
     writes = [Path(t) for t in args.write]
     try:
-        if args.sensitivity and (args.claims or args.set):
-            raise ValueError("--sensitivity varies its own settings: it takes neither --claims nor --set")
-        if args.axis and not args.sensitivity:
-            raise ValueError("--axis needs --sensitivity")
-        if args.rows and not args.claims:
-            raise ValueError("--rows needs --claims")
-        settings = parse_overrides(args.set)
-        if args.sensitivity:
-            axes = [sensitivity.AXIS_NAMES[a] for a in args.axis] or list(sensitivity.AXES)
-            for target in writes:  # before the runs, not after
-                for axis in axes:
-                    check_markers(target, *markers("sensitivity", axis.name))
-        else:
-            begin, end = markers("claims" if args.claims else "results table", settings_text(settings))
-            for target in writes:
-                check_markers(target, begin, end)  # before the runs, not after
-            if args.claims:
-                sweeps = claim_sweeps(range(args.seeds), settings, out, args.jobs)
-            else:
-                sweeps = {"": Sweep(SCENARIO, jobs(range(args.seeds), settings), out, workers=args.jobs)}
-        if args.sensitivity and Path(args.figures).exists() and not Path(args.figures).is_dir():
-            raise ValueError(f"--figures {args.figures}: is an existing file, not a folder")
-        make_folder("--out", out)  # last: nothing made for a bad input
-        if args.sensitivity:
-            make_folder("--figures", Path(args.figures))
+        plan = _plan(args, out, writes)
     except ValueError as exc:
         print(f"swarm results: {exc}", file=sys.stderr)
         return USAGE_ERROR
     interrupt_on_stop_signals()
     try:
         if args.sensitivity:
-            return run_sensitivity(axes, args.seeds, out, args.jobs, Path(args.figures), writes)
-        rows = run_sweeps(sweeps, out)
+            return run_sensitivity(
+                plan.axes, args.seeds, out, workers=args.jobs, figures=Path(args.figures), writes=writes
+            )
+        rows = run_sweeps(plan.sweeps, out)
     except KeyboardInterrupt:
         return 130
     if rows is None:
         return 1
+    settings = plan.settings
     text = claims.table(rows, settings_text(settings)) if args.claims else table(rows[""], args.seeds, settings)
     print(text)
     if args.rows:
@@ -335,4 +375,4 @@ def main(argv: list[str] | None = None) -> int:
         except OSError as exc:
             print(f"swarm results: --rows {args.rows}: cannot write it ({exc.strerror or exc})", file=sys.stderr)
             return 1
-    return 0 if write_all(writes, text, begin, end) else 1
+    return 0 if write_all(writes, text, *plan.markers) else 1

@@ -10,7 +10,8 @@ of an axis is the claims' own runs (no setting changed), so those runs are
 shared with ``swarm results --claims``.
 
 ``plan`` names the sweeps of a point, ``measure`` reads their rows into one
-``Point`` per value, ``markdown`` and ``figure`` say them.
+``Point`` per value, ``markdown`` says them and ``sensitivity_figure`` draws
+them.
 """
 
 from __future__ import annotations
@@ -25,8 +26,6 @@ from typing import TYPE_CHECKING, Any
 from formation_swarm.studies import claims
 
 if TYPE_CHECKING:
-    from matplotlib.figure import Figure
-
     from formation_swarm.studies.sweep import Sweep
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -146,14 +145,16 @@ def plan(
     settings: Mapping[str, Any],
     faults: Sequence[str],
     out: Path,
+    *,
     workers: int | None,
     extras: Sequence[str] = (),
 ) -> dict[str, Sweep]:
     """The sweeps of one point: the claims' (one per scenario, in ``out/<scenario>``) and the extra
     controllers' (in ``out/<scenario>-<extra>``). Every run's label names the settings and the faults,
     so the points of an axis share those folders and a point without either is the claims' own runs."""
+    from formation_swarm.studies.jobs import Job
     from formation_swarm.studies.results import settings_text
-    from formation_swarm.studies.sweep import Job, Sweep
+    from formation_swarm.studies.sweep import Sweep
 
     label = "; ".join(t for t in (settings_text(settings), ", ".join(faults)) if t)
     out_sweeps = {
@@ -187,7 +188,7 @@ class Stat:
 
 
 def stat(values: Sequence[float]) -> Stat:
-    from formation_swarm.studies.sweep import half_width
+    from formation_swarm.studies.tables import half_width
 
     vals = [float(v) for v in values if v is not None and math.isfinite(float(v))]
     if not vals:
@@ -203,10 +204,6 @@ METRICS: tuple[tuple[str, str, tuple[str, ...], float | None], ...] = (
     ("largest lead on the target, m (claim b: > 0.25 at V_N 2)", "r2_max_ahead_m", tuple(LINES), 0.25),
     ("EKF / raw target error RMS (claim c: <= 0.5)", "r2_ekf_ratio", ("ekf",), 0.5),
 )
-
-
-LOG_SCALE = ("r2_rms_m", "r2_max_m")
-SYMLOG_SCALE = ("r2_turn_mean_lag_m", "r2_max_ahead_m")
 
 
 @dataclass
@@ -309,109 +306,3 @@ def markdown(axis: Axis, points: Sequence[Point], figure_path: str) -> str:
         lines.append(f"| claim d: runs in which {said} | {cells} |")
     lines += ["", f"![{axis.title}]({figure_path})"]
     return "\n".join(lines)
-
-
-def figure(axis: Axis, points: Sequence[Point]) -> Figure:
-    """Six panels against the axis: the five metrics (mean and 95% interval per controller, the
-    claim's threshold dashed) and the share of seeds in which each claim holds."""
-    from matplotlib.figure import Figure
-
-    from formation_swarm.common import palette
-
-    fig = Figure(figsize=(15, 8.2), layout="constrained")
-    axes = fig.subplots(2, 3).ravel()
-    xs = [p.value for p in points]
-    colours = {name: palette.series_colour(i) for i, name in enumerate((*LINES, "ekf"))}
-    for ax, (title, key, sweeps, thr) in zip(axes, METRICS, strict=False):
-        for name in sweeps:
-            st = [p.stats.get((name, key)) for p in points]
-            if all(s is None or s.n == 0 for s in st):
-                continue
-            mean = [s.mean if s else math.nan for s in st]
-            half = [0.0 if s is None or math.isnan(s.half) else s.half for s in st]
-            ax.errorbar(
-                xs,
-                mean,
-                yerr=half,
-                marker="o",
-                ms=4,
-                capsize=3,
-                lw=1.4,
-                color=colours[name],
-                label=LINES.get(name, "fuzzy, dynamic V_N (claim c's run)"),
-            )
-        if thr is not None:
-            ax.axhline(thr, color="0.3", ls="--", lw=1.0)
-        if key in LOG_SCALE:
-            _log_axis(ax)  # l-psi's 0.1 m and a static V_N's 10 m on one panel
-            title += ", log scale"
-        elif key in SYMLOG_SCALE and max((abs(m) for m in _means(points, key)), default=0.0) > 3.0:
-            _symlog_axis(ax)  # the 0.25 and 0.5 m thresholds readable beside 10 m
-            title += ", log > 1 m"
-        ax.set_title(title, fontsize=10)
-    share = axes[5]
-    n = len(points[0].claims)
-    step = (max(xs) - min(xs)) / max(1, len(xs) - 1) if len(xs) > 1 else 1.0
-    for k in range(n):
-        dodge = (k - (n - 1) / 2) * 0.05 * step  # side by side where several claims hold alike
-        share.plot(
-            [x + dodge for x in xs],
-            [100.0 * p.claims[k].holds / p.claims[k].seeds for p in points],
-            marker="os^vD"[k % 5],
-            ms=5,
-            lw=1.2,
-            label=f"claim {SHORT[claims.CLAIMS[k].__name__]}",
-            color=palette.series_colour(k),
-        )
-    share.set_ylim(-5, 105)
-    share.set_title("seeds in which the claim holds, %", fontsize=10)
-    for ax in axes:
-        ax.set_xlabel(f"{axis.title}, {axis.unit}")
-        ax.set_xticks(xs)
-        ax.grid(alpha=0.3)
-        for x, _what in axis.dotted:
-            ax.axvline(x, color="0.6", ls=":", lw=1.0)
-    for ax in (axes[0], axes[4], share):
-        ax.legend(fontsize=8, loc="best")
-    seeds = points[0].claims[0].seeds
-    marks = [what if what != "the shipped value" else f"the shipped {axis.label(x)}" for x, what in axis.dotted]
-    shipped = "; dotted: " + " and ".join(marks) if marks else ""
-    fig.suptitle(
-        f"The paper's claims against the {axis.title}\nmean and 95% interval over {seeds} seeds per "
-        f"value{shipped}; dashed: the claim's threshold"
-    )
-    return fig
-
-
-def _means(points: Sequence[Point], key: str) -> list[float]:
-    return [st.mean for p in points for (_name, k), st in p.stats.items() if k == key and st.n]
-
-
-def _symlog_axis(ax: Any) -> None:
-    """Linear within 1 m of 0, log beyond, labelled in plain numbers."""
-    from matplotlib.ticker import FixedLocator, FuncFormatter
-
-    ax.set_yscale("symlog", linthresh=1.0)
-    ax.yaxis.set_major_locator(FixedLocator([-5, -2, -1, -0.5, 0, 0.25, 0.5, 1, 2, 5, 10, 20]))
-    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
-
-
-def _log_axis(ax: Any) -> None:
-    """A log y axis labelled in plain numbers: 0.1, 0.2, 0.5, 1, 2, 5, ..."""
-    from matplotlib.ticker import FuncFormatter
-
-    ax.set_yscale("log")
-    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
-
-    def minor(v: float, _pos: int) -> str:
-        return f"{v:g}" if v > 0 and round(v / 10 ** math.floor(math.log10(v))) in (2, 5) else ""
-
-    ax.yaxis.set_minor_formatter(FuncFormatter(minor))
-
-
-def write_figure(path: Path, axis: Axis, points: Sequence[Point], dpi: int = 110) -> Path:
-    fig = figure(axis, points)
-    tmp = path.with_name(path.stem + ".tmp" + path.suffix)
-    fig.savefig(tmp, dpi=dpi)
-    tmp.replace(path)  # never a half-written figure
-    return path

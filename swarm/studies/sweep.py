@@ -13,21 +13,16 @@ value, one line per follower.
 
 from __future__ import annotations
 
-import csv
-import hashlib
-import itertools
 import json
-import math
 import os
 import shutil
-import statistics
 import sys
 import threading
 import time
 import warnings
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -35,190 +30,14 @@ from formation_swarm.common.checks import SEED_MAX
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser, integer, make_folder, seed
 from formation_swarm.runtime.proc import interrupt_on_stop_signals
+from formation_swarm.studies.jobs import Job, grid, parse_set, slug
+from formation_swarm.studies.tables import aggregate, brief, metrics, write_csv
 
 # The launcher and the scenario loader bring Zenoh, scipy and filterpy (1-2 s
 # of imports): they are imported where a sweep needs them, so that --help and
 # a bad flag answer at once.
 if TYPE_CHECKING:
     from formation_swarm.launch.launcher import Launch, RunResult
-
-# 97.5% quantile of Student's t for n - 1 degrees of freedom (n <= 31), then normal.
-_T975 = (
-    12.706,
-    4.303,
-    3.182,
-    2.776,
-    2.571,
-    2.447,
-    2.365,
-    2.306,
-    2.262,
-    2.228,
-    2.201,
-    2.179,
-    2.160,
-    2.145,
-    2.131,
-    2.120,
-    2.110,
-    2.101,
-    2.093,
-    2.086,
-    2.080,
-    2.074,
-    2.069,
-    2.064,
-    2.060,
-    2.056,
-    2.052,
-    2.048,
-    2.045,
-    2.042,
-)
-
-
-@dataclass(frozen=True)
-class Job:
-    label: str  # the combination, e.g. "controller.vn=1.5"
-    overrides: Mapping[str, Any]
-    seed: int
-    # What else makes the run (the scenario as run, faults included, without its
-    # seed): a finished run is reused only for the very same scenario.
-    context: str = ""
-
-    @property
-    def name(self) -> str:
-        digest = hashlib.blake2b((self.label + "\n" + self.context).encode(), digest_size=4).hexdigest()
-        return f"{_slug(self.label) or 'base'}-{digest}-s{self.seed}"
-
-
-def parse_set(text: str) -> tuple[str, list[Any]]:
-    """``key=v1,v2`` -> (key, [v1, v2]); values are TOML (numbers, booleans,
-    quoted strings) or else bare strings."""
-    key, sep, values = text.partition("=")
-    if not sep or not key.strip() or not values.strip():
-        raise ValueError(f"--set takes key=v1,v2,..., got {text!r}")
-    from formation_swarm.spec.files import parse_value
-
-    key = key.strip()
-    if key == "run.seed":
-        raise ValueError("--set run.seed: a sweep gives every combination its seeds; use --seeds N and --seed-start S")
-    out = [parse_value(raw) for raw in values.split(",")]
-    for i, v in enumerate(out):
-        # Equal values (1.5 and 1.50, 2 and 2.0) would make one run twice, in one folder at once.
-        if any(v == w and type(v) is type(w) or _numbers_equal(v, w) for w in out[:i]):
-            first = next(w for w in values.split(",")[:i] if parse_value(w) == v)
-            raise ValueError(
-                f"--set {key}: the value {values.split(',')[i].strip()!r} is given twice "
-                f"(as {first.strip()!r} before it: the same value)"
-            )
-    return key, out
-
-
-def _numbers_equal(a: Any, b: Any) -> bool:
-    numbers = (int, float)
-    return (
-        isinstance(a, numbers)
-        and isinstance(b, numbers)
-        and not isinstance(a, bool)
-        and not isinstance(b, bool)
-        and a == b
-    )
-
-
-def grid(sets: Sequence[tuple[str, list[Any]]]) -> list[tuple[str, dict[str, Any]]]:
-    """Every combination of the values, as (label, overrides)."""
-    if not sets:
-        return [("", {})]
-    keys = [k for k, _ in sets]
-    combos = itertools.product(*(v for _, v in sets))
-    return [
-        (" ".join(f"{k}={v}" for k, v in zip(keys, c, strict=True)), dict(zip(keys, c, strict=True))) for c in combos
-    ]
-
-
-def metrics(summary: Mapping[str, Any]) -> dict[str, Any]:
-    """The flat row of one run's summary: what the sweep tables hold."""
-    row: dict[str, Any] = {
-        "exit_code": summary.get("exit_code"),
-        "ticks": summary.get("ticks"),
-        "min_distance_m": summary.get("min_distance_m"),
-        "collisions": summary.get("collisions"),
-        "obstacle_collisions": summary.get("obstacle_collisions"),
-        "lockstep_misses": summary.get("lockstep_misses"),
-        "drops": summary.get("drops_total"),
-        "rejected": summary.get("rejected_total"),
-        "ticks_per_s": summary.get("ticks_per_s"),
-    }
-    for rid, m in sorted(summary.get("followers", {}).items(), key=_by_robot):
-        for k in ("rms_m", "max_m", "turn_rms_m", "straight_rms_m", "turn_mean_lag_m", "max_lag_m", "max_ahead_m"):
-            row[f"r{rid}_{k}"] = m.get(k)
-    errs = summary.get("parts", {}).get("logger", {}).get("target_errors", {})
-    for rid, e in sorted(errs.items(), key=_by_robot):
-        row[f"r{rid}_measured_rms_m"] = e.get("measured_rms_m")
-        row[f"r{rid}_ekf_rms_m"] = e.get("ekf_rms_m")
-        if e.get("measured_rms_m") and e.get("ekf_rms_m") is not None:
-            row[f"r{rid}_ekf_ratio"] = e["ekf_rms_m"] / e["measured_rms_m"]
-    seq: dict[int, list[str]] = {}
-    for ev in summary.get("formation_events", []):
-        seq.setdefault(ev["robot"], []).append(ev["formation"])
-    for rid, names in sorted(seq.items()):
-        row[f"r{rid}_formations"] = ">".join(names)
-    return row
-
-
-def _by_robot(kv: tuple[Any, Any]) -> tuple[int, str]:
-    """A summary's per-robot entry in robot order (its JSON keys are text: R10 would come before R2)."""
-    key = str(kv[0])
-    return (int(key), key) if key.isdigit() else (1 << 62, key)
-
-
-def t975(n: int) -> float:
-    """The 97.5% quantile of Student's t for the mean of ``n`` >= 2 values (the normal's beyond 31)."""
-    return _T975[n - 2] if n - 2 < len(_T975) else 1.96
-
-
-def half_width(vals: Sequence[float]) -> float:
-    """The 95% confidence half-width of the mean of ``vals`` (Student t); nan for fewer than two."""
-    n = len(vals)
-    return t975(n) * statistics.stdev(vals) / math.sqrt(n) if n > 1 else math.nan
-
-
-def aggregate(rows: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
-    """Per combination and numeric metric: n, mean, std and the 95% CI of the mean."""
-    by_label: dict[str, list[Mapping[str, Any]]] = {}
-    for r in rows:
-        by_label.setdefault(r["combination"], []).append(r)
-    out = []
-    for label, group in by_label.items():
-        keys = [k for k in group[0] if k not in ("combination", "seed", "run")]
-        for k in keys:
-            vals = [float(r[k]) for r in group if _is_number(r.get(k))]
-            vals = [v for v in vals if math.isfinite(v)]
-            if not vals:
-                continue
-            n = len(vals)
-            mean = statistics.fmean(vals)
-            std = statistics.stdev(vals) if n > 1 else 0.0
-            half = half_width(vals)
-            out.append(
-                {
-                    "combination": label,
-                    "metric": k,
-                    "n": n,
-                    "mean": mean,
-                    "std": std,
-                    "ci95_low": mean - half,
-                    "ci95_high": mean + half,
-                    "min": min(vals),
-                    "max": max(vals),
-                }
-            )
-    return out
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 class Sweep:
@@ -328,7 +147,7 @@ class Sweep:
                 eta = el / finished * (len(todo) - finished)
                 self.progress(
                     f"[sweep] {len(rows)}/{total} {job.name}: exit {res.exit_code}, "
-                    f"{_brief(rows[job.name])} ({el:.0f} s, about {eta:.0f} s left)"
+                    f"{brief(rows[job.name])} ({el:.0f} s, about {eta:.0f} s left)"
                 )
 
     def _one(self, job: Job, run_dir: Path) -> RunResult | None:
@@ -374,8 +193,8 @@ class Sweep:
         ordered = [rows[j.name] for j in self.jobs if j.name in rows]
         if not ordered:  # nothing finished (an early Ctrl-C): no empty tables
             return
-        _write_csv(self.out / "runs.csv", ordered)
-        _write_csv(self.out / "aggregate.csv", aggregate(ordered))
+        write_csv(self.out / "runs.csv", ordered)
+        write_csv(self.out / "aggregate.csv", aggregate(ordered))
 
 
 def _load_done(run_dir: Path) -> dict[str, Any] | None:
@@ -386,37 +205,6 @@ def _load_done(run_dir: Path) -> dict[str, Any] | None:
     except (OSError, json.JSONDecodeError):
         return None
     return s if isinstance(s, dict) and s.get("exit_code") == 0 and summary_mod.recording_gap(s) is None else None
-
-
-def _write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:
-    cols: list[str] = []
-    for r in rows:
-        cols += [k for k in r if k not in cols]
-    tmp = path.with_suffix(".csv.tmp")
-    with tmp.open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=cols)
-        w.writeheader()
-        w.writerows(rows)
-    tmp.replace(path)  # never a half-written table
-
-
-BRIEF_FOLLOWERS = 4  # beyond, a progress line gives the followers' median and worst RMS, not each
-
-
-def _brief(row: Mapping[str, Any]) -> str:
-    rms = [(k[1:-6], float(row[k])) for k in row if k.endswith("_rms_m") and k.count("_") == 2 and _is_number(row[k])]
-    if len(rms) > BRIEF_FOLLOWERS:
-        values = sorted(v for _, v in rms)
-        worst = max(rms, key=lambda kv: kv[1])
-        return (
-            f"{len(rms)} followers' RMS: median {statistics.median(values):.2f} m, worst {worst[1]:.2f} m (R{worst[0]})"
-        )
-    return ", ".join(f"r{rid}_rms {v:.2f} m" for rid, v in rms) or "no follower metrics"
-
-
-def _slug(text: str) -> str:
-    out = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in text)
-    return out.strip("_")[:60]
 
 
 MAX_SEEDS = 10_000  # runs per combination: each takes seconds to minutes
@@ -503,7 +291,7 @@ def main(argv: list[str] | None = None) -> int:
             for label, ov in grid(sets)
             for run_seed in range(args.seed_start, args.seed_start + args.seeds)
         ]
-        out = Path(args.out) if args.out else Path("sweeps") / _slug(sc.name)
+        out = Path(args.out) if args.out else Path("sweeps") / slug(sc.name)
         sweep = Sweep(args.scenario, jobs, out, workers=args.jobs, logger=args.logger, faults=args.fault)
         make_folder("--out" if args.out else "sweep folder", out)  # last: nothing made for a bad input
     except (ValueError, OSError) as exc:

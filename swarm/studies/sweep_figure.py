@@ -7,6 +7,7 @@ one line per follower (the minimum distance between robots: one for the run).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -15,7 +16,7 @@ from formation_swarm.common.palette import robot_colour
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from formation_swarm.studies.sweep import Job
+    from formation_swarm.studies.jobs import Job
 
 # Per-follower metrics (r<id>_<name> in runs.csv), then metrics of the whole run: name -> axis label.
 PER_FOLLOWER = {
@@ -45,28 +46,46 @@ def _is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
-def figure(agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "") -> Figure:
-    """One panel per metric present in ``agg`` (aggregate()'s rows); in each, one
-    error bar line per follower (or one for a pooled metric) over the combinations."""
-    from matplotlib.figure import Figure
+@dataclass(frozen=True)
+class _XAxis:
+    """Where each combination sits along a panel's x axis, and how the axis reads."""
 
+    labels: list[str]  # the combinations, in job order
+    xs: dict[str, float]  # combination -> x
+    title: str
+    numeric: bool  # one numeric key swept: its values along the axis; else one tick per combination
+    names: dict[str, str]  # combination -> its tick's text, when not numeric
+
+    @property
+    def step(self) -> float:
+        """The mean distance between neighbouring combinations."""
+        span = (max(self.xs.values()) - min(self.xs.values())) if len(self.xs) > 1 else 1.0
+        return span / max(1, len(self.xs) - 1)
+
+
+def _x_axis(jobs: Sequence[Job]) -> _XAxis:
     labels = list(dict.fromkeys(j.label for j in jobs))
     keys = swept(jobs)
-    numeric = len(keys) == 1 and all(_is_number(v) for v in next(iter(keys.values())))
-    if numeric:
+    if len(keys) == 1 and all(_is_number(v) for v in next(iter(keys.values()))):
         key = next(iter(keys))
         first = {}
         for j in jobs:
             first.setdefault(j.label, j.overrides[key])
-        xs = {lab: float(first[lab]) for lab in labels}
-        xlabel = key
-    else:  # one tick per combination, named by its value when one key is swept
-        xs = {lab: float(k) for k, lab in enumerate(labels)}
-        xlabel = " x ".join(keys) or "combination"
-        names = {j.label: str(j.overrides[next(iter(keys))]) if len(keys) == 1 else j.label or "base" for j in jobs}
-    by = {(r["combination"], r["metric"]): r for r in agg}
-    metrics = {r["metric"] for r in agg}
-    panels: list[tuple[str, list[tuple[str, str]]]] = []  # (axis label, [(metric, line label)])
+        return _XAxis(labels=labels, xs={lab: float(first[lab]) for lab in labels}, title=key, numeric=True, names={})
+    # One tick per combination, named by its value when one key is swept.
+    names = {j.label: str(j.overrides[next(iter(keys))]) if len(keys) == 1 else j.label or "base" for j in jobs}
+    return _XAxis(
+        labels=labels,
+        xs={lab: float(k) for k, lab in enumerate(labels)},
+        title=" x ".join(keys) or "combination",
+        numeric=False,
+        names=names,
+    )
+
+
+def _panels(metrics: set[str]) -> list[tuple[str, list[tuple[str, str]]]]:
+    """The panels of the metrics present: (axis label, [(metric, line label)])."""
+    panels: list[tuple[str, list[tuple[str, str]]]] = []
     for name, ylabel in PER_FOLLOWER.items():
         lines = sorted(
             (
@@ -78,54 +97,25 @@ def figure(agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "
         )
         if lines:
             panels.append((ylabel, lines))
-    panels += [(ylabel, [(name, "all robots")]) for name, ylabel in POOLED.items() if name in metrics]
+    return panels + [(ylabel, [(name, "all robots")]) for name, ylabel in POOLED.items() if name in metrics]
+
+
+def figure(agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "") -> Figure:
+    """One panel per metric present in ``agg`` (aggregate()'s rows); in each, one
+    error bar line per follower (or one for a pooled metric) over the combinations."""
+    from matplotlib.figure import Figure
+
+    x = _x_axis(jobs)
+    by = {(r["combination"], r["metric"]): r for r in agg}
+    metrics = {r["metric"] for r in agg}
+    panels = _panels(metrics)
     n = max(1, len(panels))
     cols = 2 if n > 1 else 1
     rows = (n + cols - 1) // cols
     fig = Figure(figsize=(6 * cols, 3.6 * rows + 0.6), layout="constrained")
     axes = fig.subplots(rows, cols, squeeze=False).ravel()
-    span = (max(xs.values()) - min(xs.values())) if len(xs) > 1 else 1.0
-    step = span / max(1, len(xs) - 1)
     for ax, (ylabel, lines) in zip(axes, panels, strict=False):
-        many = len(lines) > MANY_LINES
-        for k, (metric, line_label) in enumerate(lines):
-            dodge = 0.0 if many else (k - (len(lines) - 1) / 2) * 0.06 * step  # several robots' bars side by side
-            pts = [(xs[lab] + dodge, by[lab, metric]) for lab in labels if (lab, metric) in by]
-            x = [p[0] for p in pts]
-            mean = [p[1]["mean"] for p in pts]
-            low = [p[1]["mean"] - p[1]["ci95_low"] if p[1]["n"] > 1 else 0.0 for p in pts]
-            high = [p[1]["ci95_high"] - p[1]["mean"] if p[1]["n"] > 1 else 0.0 for p in pts]
-            colour = robot_colour(int(line_label[1:])) if line_label[1:].isdigit() else "0.3"
-            if many:  # each faint, unlabelled: their median and the worst are drawn over them
-                ax.plot(x, mean, marker="o", ms=2, lw=0.7, color=colour, alpha=0.35, ls="-" if numeric else "none")
-            else:
-                ax.errorbar(
-                    x,
-                    mean,
-                    yerr=[low, high],
-                    marker="o",
-                    ms=4,
-                    capsize=4,
-                    lw=1.2,
-                    label=line_label,
-                    color=colour,
-                    ls="-" if numeric else "none",
-                )
-        if many:
-            _median_and_worst(ax, lines, labels, xs, by, numeric)
-        ax.set_ylabel(ylabel)
-        ax.set_xlabel(xlabel)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="best")
-        if numeric and len(labels) <= 12:
-            ax.set_xticks(sorted(set(xs.values())))
-        if not numeric:
-            ax.set_xticks(
-                [xs[lab] for lab in labels],
-                [names[lab] for lab in labels],
-                rotation=20 if sum(len(names[lab]) for lab in labels) > 60 else 0,
-                fontsize=8,
-            )
+        _draw_panel(ax, ylabel, lines, x, by)
     for ax in axes[len(panels) :]:
         ax.axis("off")
     if "ekf_rms_m" not in {name for name in PER_FOLLOWER if any(m.endswith("_" + name) for m in metrics)}:
@@ -147,19 +137,52 @@ def figure(agg: Sequence[Mapping[str, Any]], jobs: Sequence[Job], title: str = "
 MANY_LINES = 8  # beyond this many followers a panel draws each faint, with their median and the worst
 
 
+def _draw_panel(
+    ax: Any, ylabel: str, lines: list[tuple[str, str]], x: _XAxis, by: Mapping[tuple[str, str], Mapping[str, Any]]
+) -> None:
+    """One panel: each line's mean and confidence interval at each combination."""
+    many = len(lines) > MANY_LINES
+    ls = "-" if x.numeric else "none"
+    for k, (metric, line_label) in enumerate(lines):
+        dodge = 0.0 if many else (k - (len(lines) - 1) / 2) * 0.06 * x.step  # several robots' bars side by side
+        pts = [(x.xs[lab] + dodge, by[lab, metric]) for lab in x.labels if (lab, metric) in by]
+        xs = [p[0] for p in pts]
+        mean = [p[1]["mean"] for p in pts]
+        low = [p[1]["mean"] - p[1]["ci95_low"] if p[1]["n"] > 1 else 0.0 for p in pts]
+        high = [p[1]["ci95_high"] - p[1]["mean"] if p[1]["n"] > 1 else 0.0 for p in pts]
+        colour = robot_colour(int(line_label[1:])) if line_label[1:].isdigit() else "0.3"
+        if many:  # each faint, unlabelled: their median and the worst are drawn over them
+            ax.plot(xs, mean, marker="o", ms=2, lw=0.7, color=colour, alpha=0.35, ls=ls)
+        else:
+            ax.errorbar(
+                xs, mean, yerr=[low, high], marker="o", ms=4, capsize=4, lw=1.2, label=line_label, color=colour, ls=ls
+            )
+    if many:
+        _median_and_worst(ax, lines, x, by)
+    ax.set_ylabel(ylabel)
+    ax.set_xlabel(x.title)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="best")
+    if x.numeric and len(x.labels) <= 12:
+        ax.set_xticks(sorted(set(x.xs.values())))
+    if not x.numeric:
+        ax.set_xticks(
+            [x.xs[lab] for lab in x.labels],
+            [x.names[lab] for lab in x.labels],
+            rotation=20 if sum(len(x.names[lab]) for lab in x.labels) > 60 else 0,
+            fontsize=8,
+        )
+
+
 def _median_and_worst(
-    ax: Any,
-    lines: list[tuple[str, str]],
-    labels: list[str],
-    xs: Mapping[str, float],
-    by: Mapping[tuple[str, str], Mapping[str, Any]],
-    numeric: bool,
+    ax: Any, lines: list[tuple[str, str]], x: _XAxis, by: Mapping[tuple[str, str], Mapping[str, Any]]
 ) -> None:
     """Over a panel's faint follower lines: the median of their means at each
     value, and the follower whose mean is largest, named."""
     import statistics
 
-    ls = "-" if numeric else "none"
+    ls = "-" if x.numeric else "none"
+    labels, xs = x.labels, x.xs
     xs_drawn, medians = [], []
     for lab in labels:
         means = [by[lab, metric]["mean"] for metric, _ in lines if (lab, metric) in by]

@@ -8,7 +8,8 @@ import pytest
 
 from formation_swarm.spec import files as scenario_files
 from formation_swarm.spec import scenario as sm
-from formation_swarm.spec.keys import MAX_OBSTACLES, MAX_ROBOTS, markdown
+from formation_swarm.spec.keys import MAX_OBSTACLES, MAX_ROBOTS
+from formation_swarm.spec.keys_doc import markdown
 from tests.helpers import ROOT, SCENARIOS
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"

@@ -19,7 +19,8 @@ from pathlib import Path
 import pytest
 
 from formation_swarm.studies import claims
-from formation_swarm.studies.sweep import Job, Sweep
+from formation_swarm.studies.jobs import Job
+from formation_swarm.studies.sweep import Sweep
 from tests.helpers import ROOT, SCENARIOS
 
 SEEDS = range(10)

@@ -12,7 +12,7 @@ import pytest
 from scipy import stats
 
 from formation_swarm.studies import claims, results
-from formation_swarm.studies.sweep import aggregate
+from formation_swarm.studies.tables import aggregate
 
 ROWS_PER_SEED = [1.0, 2.5, 0.5, 3.0, 1.5]  # one metric over five seeds
 LABEL = "fuzzy, dynamic V_N | noise low | obs drop 10%"

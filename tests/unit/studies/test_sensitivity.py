@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from scipy import stats
 
-from formation_swarm.studies import claims, results, sensitivity
+from formation_swarm.studies import claims, results, sensitivity, sensitivity_figure
 from formation_swarm.studies.sensitivity import AXIS_NAMES, Point
 
 
@@ -39,12 +39,12 @@ def test_the_shipped_value_is_the_claims_own_runs() -> None:
     assert speed.point(1.5) == ({}, [])
     assert speed.point(1.0) == ({"leader.speed_mps": 1.0}, [])
     out = Path("/nonexistent")
-    shipped = sensitivity.plan(range(3), {}, [], out, 1, speed.extras)
+    shipped = sensitivity.plan(range(3), {}, [], out, workers=1, extras=speed.extras)
     own = results.claim_sweeps(range(3), {}, out, 1)
     for name, sweep in own.items():  # the same run folders: the claims' runs are not run twice
         assert [j.name for j in shipped[name].jobs] == [j.name for j in sweep.jobs]
         assert shipped[name].out == sweep.out
-    slow = sensitivity.plan(range(3), {"leader.speed_mps": 1.0}, [], out, 1, speed.extras)
+    slow = sensitivity.plan(range(3), {"leader.speed_mps": 1.0}, [], out, workers=1, extras=speed.extras)
     assert set(slow) == set(claims.SWEEPS) | {"static 1.7", "static 1.8", "l-psi"}
     assert not {j.name for j in slow["dynamic"].jobs} & {j.name for j in own["dynamic"].jobs}
     assert slow["l-psi"].jobs[0].overrides == {"controller.law": "lpsi", "leader.speed_mps": 1.0}
@@ -54,7 +54,7 @@ def test_a_bias_is_a_fault_on_every_left_wheel_and_the_camera_noise_is_told_to_t
     bias = AXIS_NAMES["wheel_bias"]
     assert bias.point(0.0) == ({}, [])
     assert bias.point(3.0) == ({}, ["wheel_bias *@0s left=0.03"])
-    sweep = sensitivity.plan(range(1), *bias.point(3.0), Path("/nonexistent"), 1)["dynamic"]
+    sweep = sensitivity.plan(range(1), *bias.point(3.0), Path("/nonexistent"), workers=1)["dynamic"]
     assert sweep.faults == ["wheel_bias *@0s left=0.03"]
     cam, faults = AXIS_NAMES["camera_noise"].point(0.1)  # Fig. 9's camera
     assert faults == []
@@ -130,7 +130,7 @@ def test_the_section_and_the_figure_of_an_axis(tmp_path: Path) -> None:
     least = "| least distance between two robots' centres, m (claim d; touching below 0.4) |"
     assert least + " 1.30 ± 0.00 | 1.30 ± 0.00 | 1.30 ± 0.00 |" in text
     assert "![wheel noise](figures/sensitivity-wheel_noise.png)" in text
-    fig = sensitivity.figure(axis, pts)
+    fig = sensitivity_figure.figure(axis, pts)
     panels = fig.axes
     assert len(panels) == 6
     assert [len(ax.lines) > 0 for ax in panels] == [True] * 6
@@ -140,7 +140,7 @@ def test_the_section_and_the_figure_of_an_axis(tmp_path: Path) -> None:
         "fuzzy, V_N = 2",
         "l-psi",
     ]
-    path = sensitivity.write_figure(tmp_path / "s.png", axis, pts)
+    path = sensitivity_figure.write_figure(tmp_path / "s.png", axis, pts)
     assert path.stat().st_size > 20_000
 
 

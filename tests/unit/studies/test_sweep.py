@@ -11,8 +11,10 @@ import numpy as np
 import pytest
 
 from formation_swarm.runtime import summary as summary_mod
-from formation_swarm.studies import sweep
-from formation_swarm.studies.sweep import Job, Sweep, aggregate, grid, parse_set
+from formation_swarm.studies import sweep, tables
+from formation_swarm.studies.jobs import Job, grid, parse_set
+from formation_swarm.studies.sweep import Sweep
+from formation_swarm.studies.tables import aggregate
 from tests.helpers import SCENARIOS
 
 
@@ -212,7 +214,6 @@ def test_a_sweep_says_the_loaders_warnings_once_each_in_its_own_words(tmp_path) 
     import warnings as w
 
     from formation_swarm.spec import scenario as sm
-    from formation_swarm.studies.sweep import Job, Sweep
 
     lines: list[str] = []
     jobs = [Job("leader.speed_mps=1.0", {"leader.speed_mps": 1.0}, s) for s in range(3)]
@@ -358,16 +359,16 @@ def test_ctrl_c_stops_the_run_in_flight_and_marks_it_interrupted(tmp_path: Path)
 
 def test_a_sweeps_rows_and_progress_list_followers_by_number() -> None:
     """JSON's keys are text: r10 came before r2 in the tables and on the progress line."""
-    row = sweep.metrics({"followers": {str(r): {"rms_m": r / 10} for r in (2, 10, 3, 11)}})
+    row = tables.metrics({"followers": {str(r): {"rms_m": r / 10} for r in (2, 10, 3, 11)}})
     assert [k for k in row if k.endswith("_rms_m") and k.count("_") == 2] == [
         "r2_rms_m",
         "r3_rms_m",
         "r10_rms_m",
         "r11_rms_m",
     ]
-    few = sweep.metrics({"followers": {str(r): {"rms_m": r / 10} for r in (3, 2)}})
-    assert sweep._brief(few) == "r2_rms 0.20 m, r3_rms 0.30 m"
+    few = tables.metrics({"followers": {str(r): {"rms_m": r / 10} for r in (3, 2)}})
+    assert tables.brief(few) == "r2_rms 0.20 m, r3_rms 0.30 m"
     # Beyond four followers, one line says their spread, not each.
-    five = sweep.metrics({"followers": {str(r): {"rms_m": r / 10} for r in (2, 10, 3, 11, 4)}})
-    assert sweep._brief(five) == "5 followers' RMS: median 0.40 m, worst 1.10 m (R11)"
-    assert sweep._brief(sweep.metrics({"followers": {"2": {"rms_m": None}}})) == "no follower metrics"
+    five = tables.metrics({"followers": {str(r): {"rms_m": r / 10} for r in (2, 10, 3, 11, 4)}})
+    assert tables.brief(five) == "5 followers' RMS: median 0.40 m, worst 1.10 m (R11)"
+    assert tables.brief(tables.metrics({"followers": {"2": {"rms_m": None}}})) == "no follower metrics"

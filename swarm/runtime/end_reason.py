@@ -1,0 +1,78 @@
+"""Why a run ended (``end_reason``: one of ``END_REASONS``) and, in words,
+why it ended or why a run that ended still failed: a process that exited on
+its own, a host lost, a leader or every follower without its agent.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any
+
+from formation_swarm.runtime.children import describe_exit
+
+if TYPE_CHECKING:
+    from formation_swarm.spec.scenario import Scenario
+
+LEADER_FINISHED = "leader_finished"  # the leader reached its last waypoint
+DURATION_REACHED = "duration_reached"  # the scenario's duration_s ran out
+INTERRUPTED = "interrupted"  # SIGINT or SIGTERM
+TIMED_OUT = "timed_out"  # the wall-clock limit: swarm run --timeout, Launch.wait's, the fixture's timeout_s
+PEERS_TIMEOUT = "peers_timeout"  # the world's peers did not appear within --peers-timeout
+ROLE_FAILED = "role_failed"  # the world exited with an error (see "events" and "processes")
+START_FAILED = "start_failed"  # the launcher could not start the run (a host missing, refusing, unfit)
+END_REASONS = (LEADER_FINISHED, DURATION_REACHED, INTERRUPTED, TIMED_OUT, PEERS_TIMEOUT, ROLE_FAILED, START_FAILED)
+
+
+def describe_end(
+    reason: str | None,
+    ended_at_s: float | None,
+    events: list[Mapping[str, Any]] | None = None,
+    limit_s: float | None = None,
+) -> str:
+    """``end_reason`` in words, for a report line; for a failed run, with the
+    processes that exited on their own (from the launcher's ``events``)."""
+    at = "" if ended_at_s is None else f" at t={ended_at_s:.2f} s"
+    if reason == ROLE_FAILED:
+        killed = {e.get("process") for e in events or [] if e.get("event") == "killed"}
+        died = [
+            f"{e.get('process')} {describe_exit(e['code'])}"
+            for e in events or []
+            if e.get("event") == "exited"
+            and isinstance(e.get("code"), int)
+            and e["code"] != 0
+            and e.get("process") not in killed
+        ]
+        return f"a process failed{at}" + (f" ({'; '.join(died)})" if died else "")
+    if reason == START_FAILED:
+        why = [str(e.get("why")) for e in events or [] if e.get("event") == "start failed"]
+        return "the run could not start" + (f": {why[0]}" if why else "")
+    return {
+        LEADER_FINISHED: f"the leader reached its last waypoint{at}",
+        DURATION_REACHED: f"the scenario's duration was reached{at}",
+        INTERRUPTED: f"stopped by a signal (Ctrl-C, SIGINT or SIGTERM){at}",
+        TIMED_OUT: f"the wall-clock limit{f' of {limit_s:g} s' if limit_s else ''} was reached{at}",
+        PEERS_TIMEOUT: "the peers did not appear in time",
+    }.get(reason or "", f"unknown ({reason})")
+
+
+def describe_host_lost(ev: Mapping[str, Any]) -> str:
+    """A "host lost" event of a run on hosts (its token went mid-run) as a sentence."""
+    t = ev.get("sim_time_s")
+    when = f"at sim t={t:.2f} s" if isinstance(t, (int, float)) and t >= 0 else "before the run started"
+    robots = [str(r) for r in ev.get("robots") or []]
+    dead = f"robot{'s' if len(robots) > 1 else ''} {', '.join(robots)} counted dead" if robots else "it ran no robot"
+    return f"host {ev.get('host')} lost {when}: {dead}"
+
+
+def robots_lost(world: Mapping[str, Any], sc: Scenario) -> str | None:
+    """Why a run that ran to its end still failed: its leader lost its agent
+    (the formation could not fly its path), or every follower did, for good
+    (a robot whose agent came back, after a restart say, is not lost). None if not."""
+    dead = world.get("dead_robots")  # at the end of the run; None in stats that do not say
+    deaths = {d.get("robot"): d for d in world.get("deaths", []) if dead is None or d.get("robot") in dead}
+    leader = sc.leader.robot_id
+    if leader in deaths:
+        return f"the leader (robot {leader}) lost its agent at t={deaths[leader].get('time_s', 0.0):.2f} s"
+    if sc.follower_ids and all(rid in deaths for rid in sc.follower_ids):
+        return f"every follower ({', '.join(map(str, sc.follower_ids))}) lost its agent"
+    return None
