@@ -152,8 +152,14 @@ MODULES = (
         ),
     ),
     Module("protocol/links.py", (T("test_links.py"),)),
-    Module("protocol/codec.py", (T("test_messages.py"), T("test_protocol.py"), T("test_agent_inputs.py"), T("test_world_inputs.py"))),
-    Module("protocol/messages.py", (T("test_messages.py"), T("test_protocol.py"), T("test_agent_inputs.py"), T("test_world_inputs.py"))),
+    Module(
+        "protocol/codec.py",
+        (T("test_messages.py"), T("test_protocol.py"), T("test_agent_inputs.py"), T("test_world_inputs.py")),
+    ),
+    Module(
+        "protocol/messages.py",
+        (T("test_messages.py"), T("test_protocol.py"), T("test_agent_inputs.py"), T("test_world_inputs.py")),
+    ),
     Module("protocol/batch.py", (T("test_protocol.py"), T("test_messages.py"))),
     Module("protocol/trust.py", (T("test_trust_rules.py"),)),
     Module("agents/inbox.py", (T("test_inbox.py"), T("test_agent_inputs.py"), T("test_world_inputs.py"))),
