@@ -1,12 +1,13 @@
-"""The world's state and physics, with no I/O: one object the world process
-drives tick by tick (and tests drive directly).
+"""The world's state and physics, with no I/O: one object the world's tick
+(world.tick) drives tick by tick (and tests drive directly).
 
 It integrates every robot (eq. 7-10), simulates the cameras and the leader's
 obstacle sensing, holds each robot's latest command and stops a robot whose
 command is stale or whose process is gone, and applies the scenario's sensor
 and actuator faults and wheel noise (``hardware_faults``). The run's figures
 are world.metrics' (formation errors, recoveries, digest) and
-world.contacts'.
+world.contacts'. A command reaches :meth:`WorldEngine.set_command` judged
+already (world.commands): the engine executes it as given.
 """
 
 from __future__ import annotations
@@ -77,7 +78,6 @@ class WorldEngine:
     robots: dict[int, RobotState] = field(init=False)
     metrics: RunMetrics = field(init=False)
     stale_stops: int = field(init=False, default=0)
-    clamped_commands: int = field(init=False, default=0)  # wheel speeds beyond robot.max_wheel_mps
     formation_events: list[dict[str, object]] = field(init=False, default_factory=list)
     cameras: dict[int, CameraFaults] = field(init=False, default_factory=dict)  # followers only
     wheels: dict[int, Wheels] = field(init=False, default_factory=dict)
@@ -161,15 +161,14 @@ class WorldEngine:
             yield rid, (tuple(r.pose), readings, obstacles)
 
     def set_command(self, rid: int, left_mps: float, right_mps: float, formation: int, now_s: float) -> None:
+        """Robot ``rid`` runs these wheel speeds from now (``now_s``, on the clock
+        staleness is measured on) and flies ``formation``. Taken as given: the
+        speeds within the motors' limit and the code one of the run's
+        (world.commands judged the command)."""
         r = self.robots[rid]
-        limit = self.scenario.max_wheel_mps
-        if not (-limit <= left_mps <= limit and -limit <= right_mps <= limit):
-            self.clamped_commands += 1  # the robot's motors cannot do more, whatever it is told
-            left_mps = min(max(left_mps, -limit), limit)
-            right_mps = min(max(right_mps, -limit), limit)
         r.command = (left_mps, right_mps)
         r.command_time_s = now_s
-        if formation != r.formation and formation < len(self.scenario.formation_names):
+        if formation != r.formation:
             self.formation_events.append(
                 {
                     "tick": self.tick,
@@ -260,7 +259,6 @@ class WorldEngine:
             "obstacle_collisions": contacts.obstacle_collisions,
             "contacts": contacts.listed,  # the first CONTACTS_LISTED; obstacles by their index in the scenario
             "stale_stops": self.stale_stops,
-            "clamped_commands": self.clamped_commands,
             # By tick, then robot: commands of one tick arrive in any order.
             "formation_events": sorted(self.formation_events, key=lambda e: (e["tick"], e["robot"])),
             "error_windows": m.error_windows(),
