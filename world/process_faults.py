@@ -27,8 +27,9 @@ the "start" call, or the loss, to the agent's first command) and
 formation-error :class:`~formation_swarm.world.recovery.Recovery` records:
 the returning follower's, or each follower's when the leader returns.
 
-No Zenoh here: nodes.world publishes the calls, feeds the liveliness
-changes and the commands, and does the waiting.
+No Zenoh here: world.tick feeds it the liveliness changes and the
+commands and makes the calls' messages; the world process
+(nodes.world_node) publishes them and does the waiting.
 """
 
 from __future__ import annotations

@@ -291,12 +291,17 @@ def test_enumerated_strings_are_the_code_s() -> None:
 # -- rejection reasons -------------------------------------------------------------
 
 
+WORLD_GATE = "formation_swarm.world.commands"
+
+
 def test_the_rejection_reasons_are_the_code_s() -> None:
     documented = {r[0] for r in table(section("What a receiver rejects"))}
     src = inspect.getsource(codec)
     ours = set(re.findall(r'DecodeError\("([^"]+)"', src)) | set(re.findall(r'by_reason\["([^"]+)"\]', src))
     for mod in ("formation_swarm.nodes.agent", "formation_swarm.nodes.world", "formation_swarm.nodes.logger"):
         ours |= set(re.findall(r'\.reject\("([^"]+)"\)', inspect.getsource(importlib.import_module(mod))))
+    # The world judges a command in world.commands (its process, nodes.world*, rejects nothing itself).
+    ours |= set(re.findall(r'\.reject\("([^"]+)"\)', inspect.getsource(importlib.import_module(WORLD_GATE))))
     ours |= set(
         re.findall(r'return "([^"]+)"', inspect.getsource(importlib.import_module("formation_swarm.agents.inbox")))
     )

@@ -11,6 +11,7 @@ import pytest
 from formation_swarm.spec import files as scenario_files
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.world.camera import CameraFrame, CameraParams, observe
+from formation_swarm.world.contacts import Contacts
 from formation_swarm.world.engine import WorldEngine
 from formation_swarm.world.kinematics import Pose
 
@@ -96,17 +97,16 @@ def test_contacts_and_the_closest_distance_are_the_pair_loops(robots: int) -> No
     gen = np.random.default_rng(5)
     touches = 0
     for _ in range(300):
-        eng = WorldEngine(sc, 0)
-        ids = sorted(eng.robots)
+        contacts = Contacts(sc.diameter_m, sc.obstacles, sc.dt_s)
         centre = sc.obstacles[0]
         poses = {
             rid: Pose(centre.x_m + float(gen.uniform(-3, 3)), centre.y_m + float(gen.uniform(-3, 3)), 0.0)
-            for rid in ids
+            for rid in sc.robots
         }
-        eng._contacts(poses)
+        contacts.measure(poses, 0)
         least, touching = _contacts_by_pairs(poses, sc.diameter_m, list(sc.obstacles))
-        assert eng.min_distance_m == least
-        assert eng._touching == touching
+        assert contacts.min_distance_m == least
+        assert contacts.touching == touching
         touches += len(touching)
     assert touches > 25 * robots
 

@@ -1,0 +1,330 @@
+"""The world process around its tick: the session, the publishers, the
+liveliness tokens, the inbox and the clock.
+
+:class:`World` waits, up to ``--peers-timeout``, for an agent per robot (and
+the logger, and the executor of process faults when promised): their
+liveliness tokens and the matching of every observation publisher, each
+change waking the loop. Then its loop runs the tick (world.tick) on its
+clock (nodes.world_clock) and publishes what the tick returns; at a process
+fault's tick it publishes the FaultCall on ``Keys.faults`` before the tick's
+observations, and in lockstep it waits at a restart for the fresh agent.
+After "done" it stays up (it may be the router) until the others have left.
+"""
+
+from __future__ import annotations
+
+import gc
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import zenoh
+
+from formation_swarm.nodes.world_clock import CLOCKS
+from formation_swarm.nodes.world_inbox import Inbox
+from formation_swarm.protocol.batch import BatchPublisher
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.runtime import role as role_mod
+from formation_swarm.runtime import summary as summary_mod
+from formation_swarm.world.process_faults import Call
+from formation_swarm.world.setup import WorldSetup
+from formation_swarm.world.tick import WorldTick
+
+LINGER_S = 2.0  # after "done", at most this long for the agents to leave
+# ... and for the logger, which leaves once it has every follower's last
+# telemetry: a router that left first would lose what it had not yet forwarded.
+# Longer, for a logger the machine starves (it runs at nice 10).
+LINGER_LOGGER_S = 10.0
+
+
+@dataclass
+class Peers:
+    """Who of the run is there, from the liveliness tokens."""
+
+    agents_seen: set[int] = field(default_factory=set)
+    logger_seen: bool = False
+    executor_seen: bool = False
+    present: set[str] = field(default_factory=set)  # alive keys of the agents and the logger
+
+
+@dataclass
+class Outbox:
+    """The world's publishers: each robot's observations, the truth, the status, the fault calls."""
+
+    obs: dict[int, zenoh.Publisher]
+    truth: BatchPublisher
+    status: zenoh.Publisher
+    faults: zenoh.Publisher | None  # only with an executor of the calls (--process-faults)
+    matching: list[Any] = field(default_factory=list)
+
+    @classmethod
+    def declare(
+        cls, sess: zenoh.Session, keys: Keys, robots: tuple[int, ...], truth_cc: zenoh.CongestionControl, calls: bool
+    ) -> Outbox:
+        block = zenoh.CongestionControl.BLOCK  # Zenoh never drops an observation; our link layer may
+        return cls(
+            obs={rid: sess.declare_publisher(keys.obs(rid), congestion_control=block) for rid in robots},
+            truth=BatchPublisher(sess.declare_publisher(keys.truth, congestion_control=truth_cc)),
+            status=sess.declare_publisher(keys.status),
+            faults=sess.declare_publisher(keys.faults, congestion_control=block) if calls else None,
+        )
+
+    def listen(self, wake: Callable[[], None]) -> None:
+        """A matching change wakes the loop: before tick 0, and when a fresh agent subscribes mid-run."""
+        self.matching = [p.declare_matching_listener(lambda _status: wake()) for p in self.obs.values()]
+
+    def hears(self, rid: int) -> bool:
+        """Whether robot ``rid``'s observations have a subscriber."""
+        return self.obs[rid].matching_status.matching
+
+
+@dataclass(frozen=True)
+class Options:
+    """How this world runs: its run, its seed and mode, whom it waits for."""
+
+    run_id: str
+    seed: int
+    mode: str = "lockstep"  # or "realtime" (nodes.world_clock.CLOCKS)
+    expect_logger: bool = False
+    executor: bool = False  # a process executes the fault calls (--process-faults)
+    where: str = ""  # the session's endpoints, for messages
+
+
+class World:
+    """The world process of one run."""
+
+    def __init__(self, sess: zenoh.Session, setup: WorldSetup, role: role_mod.Role, opts: Options) -> None:
+        self.session = sess
+        self.opts = opts
+        self.keys = Keys(opts.run_id)
+        self.role = role
+        self.t0 = time.monotonic()  # wall clock of the loop's start, for the fault log
+        self.tick = WorldTick(setup, opts.seed, lockstep=opts.mode == "lockstep", wall_s=self._wall_s)
+        self.clock = CLOCKS[opts.mode](
+            self.tick, self._drain, role.stop, deadline_s=setup.lockstep_deadline_s, thaw_s=role.peers_timeout_s
+        )
+        self.peers = Peers()
+        self.inbox: Inbox | None = None
+        self.out: Outbox | None = None
+        self.end_reason = summary_mod.INTERRUPTED
+        self.ended_at_s: float | None = None  # sim time when the run ended; None if it never started
+        self.loop_wall_s = 0.0
+        self.loop_cpu_s = 0.0  # CPU time of this process over the loop (all its threads)
+
+    def _wall_s(self) -> float:
+        """Wall seconds since the loop started (before: since the world started)."""
+        return time.monotonic() - self.t0
+
+    def _drain(self, until: float) -> None:
+        if self.inbox is not None:
+            self.inbox.drain(until)
+
+    def run(self) -> int:
+        s, k = self.session, self.keys
+        # A second world of the run (started twice by hand or by a service) would
+        # step the same robots and say the run is its own: asked of the router first
+        # (before our liveliness subscriber: with it, Zenoh 1.10 answered this query empty).
+        replies = s.liveliness().get(k.alive("world", 0), timeout=role_mod.DUPLICATE_QUERY_S)
+        if any(reply.ok is not None for reply in replies):
+            self.role.complain(
+                f"run {k.run_id!r} already has a world ({self.opts.where}); two worlds would both step its robots: "
+                "not starting"
+            )
+            return role_mod.EXIT_DUPLICATE
+        robots = self.tick.setup.robots
+        self.out = Outbox.declare(s, k, robots, self.clock.truth_congestion, self.opts.executor)
+        self.inbox = inbox = Inbox(s, k, robots, self.tick.receive, self._on_alive)
+        self.role.stop.add_waker(inbox.wake)
+        self.out.listen(inbox.wake)
+        s.liveliness().declare_subscriber(k.alive_any, inbox.alive_changed, history=True)
+        token = s.liveliness().declare_token(k.alive("world", 0))
+        try:
+            return self._run(self.out)
+        finally:
+            inbox.close()
+            token.undeclare()
+
+    def _run(self, out: Outbox) -> int:
+        stop = self.role.stop
+        if not self._wait_ready(out):
+            if stop.is_set():
+                return stop.exit_code
+            self.end_reason = summary_mod.PEERS_TIMEOUT
+            return role_mod.EXIT_NO_PEERS
+        tick, sc = self.tick, self.tick.setup
+        out.status.put(tick.status("running").to_bytes())
+        self.role.say(
+            f"run {self.keys.run_id} started: {len(sc.robots)} agents"
+            f"{' and the logger' if self.opts.expect_logger else ''} present; {self.clock.name}, "
+            f"up to {sc.ticks} ticks of {sc.dt_s:g} s"
+        )
+        gc.freeze()  # start-up objects leave the collector's scans
+        self.t0 = time.monotonic()
+        cpu0 = time.process_time()
+        code = self._loop(out)
+        self.loop_wall_s = time.monotonic() - self.t0
+        self.loop_cpu_s = time.process_time() - cpu0
+        self.ended_at_s = tick.engine.time_s
+        if code == 0:
+            self.end_reason = summary_mod.LEADER_FINISHED if tick.leader_done else summary_mod.DURATION_REACHED
+        self._send_truth()  # the last tick's
+        out.truth.flush()  # before "done": the logger stops listening after it
+        out.status.put(tick.finish().to_bytes())
+        self._linger()
+        return code
+
+    def _linger(self) -> None:
+        """Stay up (we may be the router) until the agents and the logger have left
+        on "done", so that their last messages still get routed. Bounded: the
+        agents LINGER_S, the logger LINGER_LOGGER_S."""
+        start, logger = time.monotonic(), self.keys.alive("logger", 0)
+        while not self.role.stop.is_set():
+            now = time.monotonic()
+            ends = [start + (LINGER_LOGGER_S if key == logger else LINGER_S) for key in self.peers.present]
+            if not ends or now >= max(ends):
+                return
+            self._drain(until=max(ends))
+
+    def _wait_ready(self, out: Outbox) -> bool:
+        """Every agent's token (declared after its subscribers and after its
+        command publisher matched us), every observation publisher matched and,
+        if expected, the logger's token and the fault executor's (declared after
+        its subscriber to the calls); until the role's peers deadline. A token
+        or a matching change wakes the loop."""
+        want, peers = set(self.tick.setup.robots), self.peers
+        while not self.role.stop.is_set():
+            self._drain(until=0.0)
+            if (
+                peers.agents_seen >= want
+                and all(out.hears(rid) for rid in out.obs)
+                and (peers.logger_seen or not self.opts.expect_logger)
+                and (peers.executor_seen or not self.opts.executor)
+            ):
+                return True
+            if self.role.left_s() <= 0:
+                self._give_up(want, out)
+                return False
+            self._drain(until=self.role.deadline)
+        return False
+
+    def _give_up(self, want: set[int], out: Outbox) -> None:
+        missing, peers = [], self.peers
+        if absent := sorted(want - peers.agents_seen):
+            missing.append(f"no agent for robot{'s' if len(absent) > 1 else ''} {', '.join(map(str, absent))}")
+        if self.opts.expect_logger and not peers.logger_seen:
+            missing.append("no logger")
+        if self.opts.executor and not peers.executor_seen:
+            missing.append("no executor of the process faults (the launcher's token alive/launcher/0)")
+        if deaf := sorted(r for r in out.obs if r in peers.agents_seen and not out.hears(r)):
+            missing.append(f"agents {', '.join(map(str, deaf))} present but not subscribed to their observations")
+        self.role.gave_up(
+            f"{' and '.join(missing)} in run {self.keys.run_id!r} ({self.opts.where}); "
+            "check --run and --connect of the missing processes"
+        )
+
+    def _on_alive(self, key: str, present: bool) -> None:
+        parsed = self.keys.parse_alive(key)
+        if parsed is None:
+            return
+        role, ident = parsed
+        peers = self.peers
+        if role in ("agent", "logger"):
+            (peers.present.add if present else peers.present.discard)(key)
+        if role == "logger":
+            peers.logger_seen = peers.logger_seen or present
+        elif role == "launcher":
+            peers.executor_seen = peers.executor_seen or present
+        elif role == "agent" and ident.isdigit() and int(ident) in self.tick.engine.robots:
+            rid = int(ident)
+            if present:
+                peers.agents_seen.add(rid)
+            if lost := self.tick.agent_token(rid, present):
+                print(f"world: {lost}", flush=True)
+
+    def _send_truth(self) -> None:
+        if self.out is not None and (truth := self.tick.truth()) is not None:
+            self.out.truth.put(truth.to_bytes())
+
+    def _loop(self, out: Outbox) -> int:
+        tick, clock, stop = self.tick, self.clock, self.role.stop
+        clock.begin()
+        while tick.running:
+            if stop.is_set():
+                return stop.exit_code
+            now = clock.start_tick()
+            tick.start(now - clock.started)
+            self._process_faults(out)  # this tick's fault calls and returning agents, before its observations
+            for rid, obs in tick.observations():
+                out.obs[rid].put(obs.to_bytes())
+            # While the agents work on this tick: the last tick's ground truth and metrics.
+            self._send_truth()
+            tick.record()
+            clock.answers()
+            if clock.status_due(now):
+                out.status.put(tick.status("running").to_bytes())
+            tick.close()
+            clock.before_step(self._send_truth)
+            tick.step()
+        return 0
+
+    def _process_faults(self, out: Outbox) -> None:
+        """The fault calls of this tick, published before its observations and
+        applied to the world; then the robots whose agent is back are re-admitted."""
+        tick = self.tick
+        for call in tick.calls_due():
+            if out.faults is not None:
+                out.faults.put(tick.call_message(call).to_bytes())
+            if (rid := tick.apply_call(call)) is not None:
+                self._await_fresh_agent(rid, call, out)
+        for rid in tick.readmit(out.hears):
+            print(f"world: robot {rid} is back at t={tick.engine.time_s:.2f} s", flush=True)
+
+    def _await_fresh_agent(self, rid: int, call: Call, out: Outbox) -> None:
+        """Lockstep, at a restart's "start": wait until the fresh agent's token is
+        there and its observations are subscribed (bounded by --peers-timeout)."""
+        timeout_s = self.role.peers_timeout_s
+        deadline = time.monotonic() + timeout_s
+        while not self.role.stop.is_set():
+            self._drain(until=0.0)
+            if self.tick.back(rid) and out.hears(rid):
+                return
+            if time.monotonic() >= deadline:
+                self.tick.not_back(rid)
+                print(
+                    f"world: no fresh agent for robot {rid} within {timeout_s:g} s of its restart "
+                    f"at t={self.tick.engine.time_s:.2f} s ('{call.fault}'); it stays stopped",
+                    flush=True,
+                )
+                return
+            self._drain(until=deadline)
+
+    def stats(self, wall_s: float) -> dict[str, Any]:
+        tick, clock = self.tick, self.clock
+        out = tick.summary()
+        out.update(
+            {
+                "mode": clock.name,
+                "wall_time_s": wall_s,
+                "loop_wall_time_s": self.loop_wall_s,
+                "answer_wait_s": clock.wait_s,
+                "ticks_per_s": tick.engine.tick / self.loop_wall_s if self.loop_wall_s > 0 else math.nan,
+                "lockstep_misses": tick.misses,
+                "late_answers": tick.late_answers,
+                "late_ticks": clock.late_ticks,
+                "wake_ups": 0 if self.inbox is None else self.inbox.wakes,
+                "max_tick_lateness_s": clock.max_tick_lateness_s,
+                "p99_tick_lateness_s": clock.p99_lateness_s(),
+                "cpu_s": time.process_time(),  # the process's CPU time so far (user + system, all threads)
+                "loop_cpu_s": self.loop_cpu_s,
+                **tick.faults.stats(),  # deaths, fault_log, rejoins, recoveries
+                "leader_done": tick.leader_done,
+                "end_reason": self.end_reason,
+                "ended_at_s": self.ended_at_s,
+                "messages": dict(tick.counts),
+                "cmd_links": tick.link_stats(),
+                "rejected": tick.rejected(),
+            }
+        )
+        return out
