@@ -53,7 +53,7 @@ from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.links import Link, faults_on, link_name
-from formation_swarm.protocol.messages import Command, FaultCall, Observation, Status, Truth
+from formation_swarm.protocol.messages import WORLD_ID, Command, FaultCall, Observation, Status, Truth
 from formation_swarm.runtime import cliargs, proc
 from formation_swarm.runtime import role as role_mod
 from formation_swarm.runtime import summary as summary_mod
@@ -321,7 +321,9 @@ class World:
 
     def _publish_status(self, pub: zenoh.Publisher, state: str) -> None:
         seq = self._next_seq("status")
-        pub.put(Status(0, seq, self.engine.tick, self.engine.time_s, state, self.sc.ticks).to_bytes())
+        eng = self.engine
+        msg = Status(sender=WORLD_ID, seq=seq, tick=eng.tick, time_s=eng.time_s, state=state, total_ticks=self.sc.ticks)
+        pub.put(msg.to_bytes())
 
     def _drain(self, until: float) -> None:
         """Handle what has arrived; if nothing has, wait for it until ``until``
@@ -434,7 +436,16 @@ class World:
         for rid, (pose, readings, obstacles) in eng.each_observation(observed):
             eng.robots[rid].answered = False
             seq = self._next_seq(link_name("obs", 0, rid))
-            obs_pubs[rid].put(Observation(0, seq, tick, t, pose, tuple(readings), tuple(obstacles)).to_bytes())
+            obs = Observation(
+                sender=WORLD_ID,
+                seq=seq,
+                tick=tick,
+                time_s=t,
+                pose=pose,
+                readings=tuple(readings),
+                obstacles=tuple(obstacles),
+            )
+            obs_pubs[rid].put(obs.to_bytes())
             self.counts["obs_sent"] += 1
 
     def _take_truth(self) -> None:
@@ -456,7 +467,9 @@ class World:
         (tick, time_s, robots, poses, formations), self.truth_due = self.truth_due, None
         eng = self.engine
         targets = tuple((rid, *eng.target_in(rid, formation, poses)) for rid, formation in formations.items())
-        truth_pub.put(Truth(0, self._next_seq("truth"), tick, time_s, robots, targets).to_bytes())
+        seq = self._next_seq("truth")
+        truth = Truth(sender=WORLD_ID, seq=seq, tick=tick, time_s=time_s, robots=robots, targets=targets)
+        truth_pub.put(truth.to_bytes())
         self.counts["truth_sent"] += 1
 
     def _loop(
@@ -559,13 +572,13 @@ class World:
     def _publish_call(self, call: Call) -> None:
         if self.fault_pub is not None:
             msg = FaultCall(
-                0,
-                self._next_seq("faults"),
-                self.engine.tick,
-                self.engine.time_s,
-                call.action,
-                call.fault.target,
-                call.index,
+                sender=WORLD_ID,
+                seq=self._next_seq("faults"),
+                tick=self.engine.tick,
+                time_s=self.engine.time_s,
+                action=call.action,
+                process=call.fault.target,
+                index=call.index,
             )
             self.fault_pub.put(msg.to_bytes())
 

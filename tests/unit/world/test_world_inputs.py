@@ -28,13 +28,17 @@ def test_lockstep_world_takes_an_answer_only_for_the_tick_it_published() -> None
     for _ in range(5):
         eng.step(eng.time_s)
     assert eng.tick == 5
-    world._on_command(Command(2, 1, 4, 1.0, 1.0, 0, False))  # the answer to tick 4, late
-    world._on_command(Command(2, 2, 6, 1.0, 1.0, 0, False))  # to a tick not published yet: refused
+    world._on_command(
+        Command(sender=2, seq=1, tick=4, left_mps=1.0, right_mps=1.0, formation=0, done=False)
+    )  # the answer to tick 4, late
+    world._on_command(
+        Command(sender=2, seq=2, tick=6, left_mps=1.0, right_mps=1.0, formation=0, done=False)
+    )  # to a tick not published yet: refused
     assert not eng.robots[2].answered
     assert eng.robots[2].command == (0.0, 0.0)
     assert world.late_answers == 1
     assert world.rejections.by_reason == {"tick ahead of the world": 1}
-    world._on_command(Command(2, 3, 5, 1.0, 1.2, 0, False))
+    world._on_command(Command(sender=2, seq=3, tick=5, left_mps=1.0, right_mps=1.2, formation=0, done=False))
     assert eng.robots[2].answered
     assert eng.robots[2].command == (1.0, 1.2)
     assert world.late_answers == 1
@@ -50,16 +54,28 @@ def test_a_command_with_a_huge_seq_costs_the_real_agent_that_tick_only() -> None
     eng = world.engine
     for _ in range(5):
         eng.step(eng.time_s)
-    world._on_command(Command(2, 9, 5, 1.0, 1.0, 0, False))  # the real agent, tick 5
-    world._on_command(Command(2, 2**53 - 10**6, 5, 2.0, 2.0, 0, False))  # the forgery, same tick
+    world._on_command(
+        Command(sender=2, seq=9, tick=5, left_mps=1.0, right_mps=1.0, formation=0, done=False)
+    )  # the real agent, tick 5
+    world._on_command(
+        Command(sender=2, seq=2**53 - 10**6, tick=5, left_mps=2.0, right_mps=2.0, formation=0, done=False)
+    )  # the forgery, same tick
     assert eng.robots[2].command == (2.0, 2.0)
-    world._on_command(Command(2, 10, 5, 1.0, 1.0, 0, False))  # the real one's retry of tick 5: older
+    world._on_command(
+        Command(sender=2, seq=10, tick=5, left_mps=1.0, right_mps=1.0, formation=0, done=False)
+    )  # the real one's retry of tick 5: older
     assert world.rejections.by_reason == {"replayed or reordered": 1}
     eng.step(eng.time_s)
-    world._on_command(Command(2, 11, 6, 1.1, 1.1, 0, False))  # tick 6: taken
+    world._on_command(
+        Command(sender=2, seq=11, tick=6, left_mps=1.1, right_mps=1.1, formation=0, done=False)
+    )  # tick 6: taken
     assert eng.robots[2].command == (1.1, 1.1)
-    world._on_command(Command(2, 11, 6, 1.1, 1.1, 0, False))  # its replay: refused
-    world._on_command(Command(2, 2**53 - 10**6, 9, 2.0, 2.0, 0, False))  # a tick to come: refused
+    world._on_command(
+        Command(sender=2, seq=11, tick=6, left_mps=1.1, right_mps=1.1, formation=0, done=False)
+    )  # its replay: refused
+    world._on_command(
+        Command(sender=2, seq=2**53 - 10**6, tick=9, left_mps=2.0, right_mps=2.0, formation=0, done=False)
+    )  # a tick to come: refused
     assert world.rejections.by_reason == {"replayed or reordered": 2, "tick ahead of the world": 1}
     assert eng.robots[2].command == (1.1, 1.1)
 
@@ -68,12 +84,16 @@ def test_the_world_rejects_and_counts_a_command_for_an_unknown_formation() -> No
     world = _world()
     eng = world.engine
     n = len(FIG11.formation_names)
-    world._on_command(Command(2, 1, 0, 1.0, 1.0, n, False))  # one past the last code
-    world._on_command(Command(3, 1, 0, 1.0, 1.0, 255, False))
+    world._on_command(
+        Command(sender=2, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=n, done=False)
+    )  # one past the last code
+    world._on_command(Command(sender=3, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=255, done=False))
     assert world.rejections.by_reason == {"unknown formation": 2}
     assert [eng.robots[r].answered for r in (2, 3)] == [False, False]
     assert eng.robots[2].command == eng.robots[3].command == (0.0, 0.0)
-    world._on_command(Command(2, 2, 0, 1.0, 1.0, n - 1, False))  # the last code: taken
+    world._on_command(
+        Command(sender=2, seq=2, tick=0, left_mps=1.0, right_mps=1.0, formation=n - 1, done=False)
+    )  # the last code: taken
     assert eng.robots[2].command == (1.0, 1.0)
     assert world.rejections.by_reason == {"unknown formation": 2}
 
@@ -82,16 +102,16 @@ def test_realtime_world_takes_the_latest_command_whatever_its_tick() -> None:
     world = _world("realtime")
     for _ in range(5):
         world.engine.step(world.engine.time_s)
-    world._on_command(Command(3, 1, 4, 0.5, 0.7, 0, False))
+    world._on_command(Command(sender=3, seq=1, tick=4, left_mps=0.5, right_mps=0.7, formation=0, done=False))
     assert world.engine.robots[3].command == (0.5, 0.7)
     assert world.late_answers == 0
 
 
 def test_only_the_leader_ends_the_run() -> None:
     world = _world()
-    world._on_command(Command(2, 1, 0, 0.0, 0.0, 0, True))
+    world._on_command(Command(sender=2, seq=1, tick=0, left_mps=0.0, right_mps=0.0, formation=0, done=True))
     assert not world.leader_done
-    world._on_command(Command(1, 2, 0, 0.0, 0.0, 0, True))
+    world._on_command(Command(sender=1, seq=2, tick=0, left_mps=0.0, right_mps=0.0, formation=0, done=True))
     assert world.leader_done
 
 
