@@ -311,6 +311,12 @@ def test_messages_carry_no_instance_dict() -> None:
         assert not hasattr(msg, "__dict__"), type(msg).__name__
 
 
+def test_messages_are_built_by_keyword_and_keep_their_wire_order() -> None:
+    with pytest.raises(TypeError):
+        Command(2, 9, 3, 0.4, -0.1, 1, False)  # type: ignore[misc]  # a swapped pair would pass silently
+    assert _raw(CMD) == [2, VERSION, 2, 9, 3, 0.4, -0.1, 1, False]  # header, then the fields as declared
+
+
 def test_a_list_of_only_non_finite_numbers_is_rejected() -> None:
     with pytest.raises(DecodeError, match="not finite"):
         Observation.from_bytes(msgpack.packb([1, 1, 0, 1, 1, 0.0, [math.inf, math.nan, math.inf], [], []]))
