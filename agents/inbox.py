@@ -22,7 +22,9 @@ a code whose (tick, seq), is not above the last one handed over and taken is
 "replayed or reordered". That is how a duplicated or reordered message ends.
 
 Each check returns the reason of a rejection (counted by the agent) or None.
-No Zenoh here: the agent process feeds it decoded messages.
+:class:`ObservationInbox` runs them on a role's observations and keeps the
+newest for its answer. No Zenoh here: the agent process feeds the role
+decoded messages.
 """
 
 from __future__ import annotations
@@ -30,7 +32,9 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 
-from formation_swarm.protocol.messages import FormationCode, Observation
+from formation_swarm.protocol.codec import Rejections
+from formation_swarm.protocol.links import Link
+from formation_swarm.protocol.messages import WORLD_ID, FormationCode, Observation
 
 # Beyond the camera's range a reading is noise: allow 8 sigma of it (a false
 # rejection about once in 1e15 readings) and nothing more.
@@ -96,3 +100,47 @@ class InboxChecks:
             return "replayed or reordered"
         self.last_handed_code = (fc.tick, fc.seq)
         return None
+
+
+class ObservationInbox:
+    """The observations a role takes, until it answers.
+
+    Each is checked on arrival, passed through the receiving end of the
+    observation link, and what the link hands over is checked again for
+    order. Only the newest observation taken is answered (after a stall the
+    older ones are stale: ``superseded`` counts them), with the newest
+    reading the link handed over since the last answer (None: lost, held,
+    or only replays)."""
+
+    def __init__(self, link: Link[Observation], checks: InboxChecks, rejections: Rejections) -> None:
+        self.link = link
+        self.checks = checks
+        self.rejections = rejections
+        self.superseded = 0
+        self._newest: Observation | None = None
+        self._reading: Observation | None = None
+
+    def take(self, obs: Observation) -> bool:
+        """Whether ``obs`` was taken (else its rejection is counted)."""
+        if obs.sender != WORLD_ID:
+            self.rejections.reject("sender mismatch")
+            return False
+        if (why := self.checks.observation(obs)) is not None:
+            self.rejections.reject(why)
+            return False
+        for got in self.link.deliver(obs.seq, obs.tick, obs):
+            if (why := self.checks.reading(got)) is not None:
+                self.rejections.reject(why)
+            else:
+                self._reading = got
+        self.superseded += self._newest is not None
+        self._newest = obs
+        return True
+
+    def pop(self) -> tuple[Observation, Observation | None] | None:
+        """The observation to answer and its reading; None if none was taken since the last."""
+        if self._newest is None:
+            return None
+        got = (self._newest, self._reading)
+        self._newest = self._reading = None
+        return got

@@ -51,7 +51,7 @@ class LpsiParams:
 
 
 def control(
-    ref: Point, phi_rad: float, v_ref_mps: float, w_ref_rps: float, offset: Point, width_m: float, p: LpsiParams
+    ref: Point, phi_rad: float, v_ref_mps: float, w_ref_rps: float, *, offset: Point, width_m: float, p: LpsiParams
 ) -> tuple[float, float]:
     """(left, right) wheel speeds, m/s. ``ref``, ``phi_rad``: the reference's centre and
     heading in the follower frame; ``offset``: the slot in the reference's frame."""

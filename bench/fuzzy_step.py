@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 
 from formation_swarm.agents import fuzzy  # noqa: E402
 from formation_swarm.agents.ekf import EkfParams, TargetEKF  # noqa: E402
-from formation_swarm.agents.follower import Follower, FollowerParams  # noqa: E402
+from formation_swarm.agents.follower import FollowerParams, FuzzyController  # noqa: E402
 from formation_swarm.agents.geometry import Point  # noqa: E402
 
 
@@ -62,11 +62,11 @@ def main() -> None:
             ekf.predict(1.5, 1.5, 0.05)
             ekf.update(readings[i])
 
-    fol = Follower(FollowerParams(), Point(-1.5, -1.5))
+    fol = FuzzyController(FollowerParams(), Point(-1.5, -1.5))
 
     def follower_ticks(count: int) -> None:
         for i in range(count):
-            fol.step(readings[i])
+            fol.decide(readings[i])
 
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}; median of {args.repeat} batches")
     print(f"fuzzy step (FIS-2 + FIS-1 both wheels): {median_us(fuzzy_steps, n, args.repeat):8.2f} us")

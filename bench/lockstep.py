@@ -18,7 +18,7 @@ on a loaded machine:
 - bare, low-latency: the same exchange over the transport every ``swarm``
   process uses (protocol.session: Zenoh's low-latency unicast transport).
 - bare + controller: the bare exchange in which each follower, before it
-  answers, runs the paper's controller on a camera reading (agents.follower:
+  answers, runs the paper's controller on a camera reading (agents.fuzzy_controller:
   the EKF on filterpy and the two-stage fuzzy controller, as a run's
   follower steps) and, after it, the EKF's next prediction, as a run's
   follower does while it waits. No decoding, checking, physics, camera,
@@ -176,17 +176,17 @@ READINGS = [(2.0 + 0.2 * math.sin(i / 7), 0.05 * math.cos(i / 11), 0.1 * math.si
 
 
 class _Brain:
-    """A run's follower controller (agents.follower.Follower), counting its steps."""
+    """A run's follower controller (agents.fuzzy_controller.FuzzyController), counting its steps."""
 
     def __init__(self) -> None:
-        from formation_swarm.agents.follower import Follower, FollowerParams
+        from formation_swarm.agents.follower import FollowerParams, FuzzyController
         from formation_swarm.agents.geometry import Point
 
-        self.follower = Follower(FollowerParams(), Point(-1.5, -1.5))
+        self.follower = FuzzyController(FollowerParams(), Point(-1.5, -1.5))
         self.ticks = 0
 
     def step(self, reading: tuple[float, float, float]) -> None:
-        self.follower.step(reading)
+        self.follower.decide(reading)
         self.ticks += 1
 
     def prepare(self) -> None:

@@ -17,7 +17,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from formation_swarm.protocol.messages import Observation, Truth  # noqa: E402
+from formation_swarm.protocol.messages import WORLD_ID, Observation, Truth  # noqa: E402
 from formation_swarm.spec import files as scenario_files  # noqa: E402
 from formation_swarm.spec import scenario as scenario_mod  # noqa: E402
 from formation_swarm.world.engine import WorldEngine  # noqa: E402
@@ -33,10 +33,18 @@ def per_tick(n: int, ticks: int) -> dict[str, float]:
         obs = eng.observations(ids) if hasattr(eng, "observations") else {r: eng.observation(r) for r in ids}
         t1 = time.process_time()
         for pose, readings, obstacles in obs.values():
-            Observation(0, eng.tick + 1, eng.tick, eng.time_s, pose, tuple(readings), tuple(obstacles)).to_bytes()
+            Observation(
+                sender=WORLD_ID,
+                seq=eng.tick + 1,
+                tick=eng.tick,
+                time_s=eng.time_s,
+                pose=pose,
+                readings=tuple(readings),
+                obstacles=tuple(obstacles),
+            ).to_bytes()
         robots = tuple((rid, *r.pose, r.alive) for rid, r in eng.robots.items())
         targets = tuple((rid, *eng.true_target(rid)) for rid in sc.follower_ids)
-        Truth(0, eng.tick + 1, eng.tick, eng.time_s, robots, targets).to_bytes()
+        Truth(sender=0, seq=eng.tick + 1, tick=eng.tick, time_s=eng.time_s, robots=robots, targets=targets).to_bytes()
         t2 = time.process_time()
         for rid in ids:
             eng.set_command(rid, 1.0, 1.0, 0, eng.time_s)

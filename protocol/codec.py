@@ -177,7 +177,7 @@ formation_code = int_in(0, 255)
 T = TypeVar("T", bound="Message")
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Message:
     """The header every message starts with; a subclass adds its fields, its
     ``TAG``, one checker per field in ``CHECKS`` and the ``SENDERS`` range."""
@@ -219,7 +219,7 @@ class Message:
         if type(tick) is not int or not 0 <= tick <= MAX_TICK:
             count("tick", tick)
         values = [c(n, v) for c, n, v in zip(cls.CHECKS, names[3:], raw[5:], strict=True)]
-        return cls(sender, seq, tick, *values)
+        return cls(**dict(zip(names, (sender, seq, tick, *values), strict=True)))
 
     @classmethod
     def _names(cls) -> tuple[str, ...]:

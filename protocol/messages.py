@@ -4,6 +4,9 @@ Each message is a frozen dataclass encoded with msgpack as an array::
 
     [tag, version, sender, seq, tick, field_1, field_2, ...]
 
+Messages are built by keyword only (``kw_only``): a record of 19 fields is
+one swapped pair away from a silent bug. The wire keeps the fields' order.
+
 The header, the field checkers, the decoder and the rejection counter are in
 protocol.codec; batches of logger-bound messages in protocol.batch. Their
 public names are importable from here too, so that a user of the protocol
@@ -65,7 +68,7 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Observation(Message):
     """World -> agent, tick k: what the robot's sensors give it.
 
@@ -85,7 +88,7 @@ class Observation(Message):
     CHECKS = (number, numbers(3), records(robot_id, number, number, number), records(number, number, number))
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Command(Message):
     """Agent -> world, answer to tick k: wheel speeds (m/s) and the agent's state.
 
@@ -103,7 +106,7 @@ class Command(Message):
     CHECKS = (number, number, formation_code, boolean)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class FormationCode(Message):
     """Leader -> one follower: the formation to fly, repeated (agents.leader.CodeRepeats)."""
 
@@ -114,7 +117,7 @@ class FormationCode(Message):
     CHECKS = (formation_code,)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Telemetry(Message):
     """Agent -> logger: a follower's estimator and controller state at tick k.
 
@@ -162,7 +165,7 @@ class Telemetry(Message):
     )
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Truth(Message):
     """World -> logger: ground truth at tick k (before the step, after the
     commands of tick k).
@@ -181,7 +184,7 @@ class Truth(Message):
     CHECKS = (number, records(robot_id, number, number, number, boolean), records(robot_id, number, number))
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class Status(Message):
     """World -> all: progress; state "done" ends the run for every process."""
 
@@ -194,7 +197,7 @@ class Status(Message):
     CHECKS = (number, one_of("waiting", "running", "done"), count)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, kw_only=True)
 class FaultCall(Message):
     """World -> the executor of process faults (swarm run's launcher): do
     ``action`` to ``process`` now, at tick k, for fault number ``index`` of the

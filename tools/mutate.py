@@ -106,17 +106,24 @@ MODULES = (
         ),
     ),
     Module("agents/avoidance.py", (T("test_geometry.py"), T("test_avoidance.py"), T("test_follower.py"), PUBLISHED)),
-    Module(
-        "agents/follower.py",
-        (
-            T("test_follower.py"),
-            T("test_closed_loop.py"),
-            T("test_avoidance.py"),
-            T("test_ekf.py"),
-            T("test_lpsi.py"),
-            T("test_formation_tree.py"),
-            PUBLISHED,
-        ),
+    *(
+        Module(
+            path,
+            (
+                T("test_follower.py"),
+                T("test_closed_loop.py"),
+                T("test_avoidance.py"),
+                T("test_ekf.py"),
+                T("test_lpsi.py"),
+                T("test_formation_tree.py"),
+                PUBLISHED,
+            ),
+        )
+        for path in ("agents/tracking.py", "agents/fuzzy_controller.py", "agents/lpsi_controller.py")
+    ),
+    *(
+        Module(path, (T("test_roles.py"), T("test_agent_inputs.py"), PUBLISHED))
+        for path in ("agents/follower_role.py", "agents/leader_role.py", "agents/leader_policy.py")
     ),
     Module(
         "agents/formation.py", (T("test_formation_tree.py"), T("test_geometry.py"), T("test_scenario.py"), PUBLISHED)

@@ -141,7 +141,15 @@ class WorldTick:
         """The FaultCall that asks the executor to do ``call``."""
         eng = self.engine
         seq = self._next_seq("faults")
-        return FaultCall(WORLD_ID, seq, eng.tick, eng.time_s, call.action, call.fault.target, call.index)
+        return FaultCall(
+            sender=WORLD_ID,
+            seq=seq,
+            tick=eng.tick,
+            time_s=eng.time_s,
+            action=call.action,
+            process=call.fault.target,
+            index=call.index,
+        )
 
     def apply_call(self, call: Call) -> int | None:
         """The world's side of a call, before the tick's observations; the robot
@@ -188,7 +196,18 @@ class WorldTick:
             eng.robots[rid].answered = False
             seq = self._next_seq(link_name("obs", WORLD_ID, rid))
             self.counts["obs_sent"] += 1
-            yield rid, Observation(WORLD_ID, seq, tick, t, pose, tuple(readings), tuple(obstacles))
+            yield (
+                rid,
+                Observation(
+                    sender=WORLD_ID,
+                    seq=seq,
+                    tick=tick,
+                    time_s=t,
+                    pose=pose,
+                    readings=tuple(readings),
+                    obstacles=tuple(obstacles),
+                ),
+            )
 
     def take_truth(self) -> None:
         """Ground truth of tick k, once its commands are in, before its step: the
@@ -210,11 +229,20 @@ class WorldTick:
         eng = self.engine
         targets = tuple((rid, *eng.target_in(rid, formation, poses)) for rid, formation in formations.items())
         self.counts["truth_sent"] += 1
-        return Truth(WORLD_ID, self._next_seq("truth"), tick, time_s, robots, targets)
+        return Truth(
+            sender=WORLD_ID, seq=self._next_seq("truth"), tick=tick, time_s=time_s, robots=robots, targets=targets
+        )
 
     def status(self, state: str) -> Status:
         eng = self.engine
-        return Status(WORLD_ID, self._next_seq("status"), eng.tick, eng.time_s, state, self.setup.ticks)
+        return Status(
+            sender=WORLD_ID,
+            seq=self._next_seq("status"),
+            tick=eng.tick,
+            time_s=eng.time_s,
+            state=state,
+            total_ticks=self.setup.ticks,
+        )
 
     # -- the tick's course ----------------------------------------------------------
     def record(self) -> None:

@@ -1,15 +1,22 @@
 """A formation change that crosses the leader's bow, flown in one process: the
-world's own engine with the leader's pilot and the follower's brain."""
+world's own engine with the leader's pilot and the follower's role, which
+takes the formation code as its agent would."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
-from formation_swarm.agents.follower import Follower
+from formation_swarm.agents.controller import ControllerSetup, FollowerController, FollowerInput, FollowerOutput
+from formation_swarm.agents.follower import make_controller
+from formation_swarm.agents.follower_role import FollowerRole
 from formation_swarm.agents.pilot import PathPilot
+from formation_swarm.nodes.agent_setup import role_for
+from formation_swarm.protocol.messages import FormationCode
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.world.engine import WorldEngine
 from formation_swarm.world.kinematics import Pose
+from tests.helpers.fakes import answer, observation
 
 # The follower flies slightly ahead of its leader on the right, then is told to
 # take the slot on its left: the straight way there crosses the leader's bow.
@@ -38,6 +45,17 @@ clearance_m = 1.0
 CHANGE_AT_S = 8.0
 
 
+class StraightToTheSlot:
+    """A controller told of no formation change: it flies straight to its new
+    slot (eq. 13 skipped)."""
+
+    def __init__(self, inner: FollowerController) -> None:
+        self.inner = inner
+
+    def step(self, inp: FollowerInput) -> FollowerOutput:
+        return self.inner.step(replace(inp, slot_moved=False))
+
+
 def fly_the_change(tmp_path: Path, seed: int, avoidance: bool) -> dict:
     """The run's summary; the formation changes from "right" to "left" at CHANGE_AT_S."""
     path = tmp_path / "swap_sides.toml"
@@ -46,20 +64,22 @@ def fly_the_change(tmp_path: Path, seed: int, avoidance: bool) -> dict:
     eng = WorldEngine(sc, seed)
     ld = sc.leader
     pilot = PathPilot(ld.waypoints, ld.speed_mps, sc.width_m, ld.lookahead_m, ld.turn_rate_rps)
-    follower = Follower(sc.followers[2], sc.formations["right"].slots[2].offset)
+    controller = make_controller(
+        ControllerSetup(robot_id=2, params=sc.followers[2], slot=sc.formations["right"].slots[2])
+    )
+    follower = role_for(sc, 2, seed, controller if avoidance else StraightToTheSlot(controller))
+    assert isinstance(follower, FollowerRole)
     code = sc.code_of("right")
     while eng.tick < sc.ticks:
-        now = eng.time_s
+        tick, now = eng.tick, eng.time_s
         if now >= CHANGE_AT_S and code != sc.code_of("left"):
             code = sc.code_of("left")
-            follower.set_offset(sc.formations["left"].slots[2].offset)
-            if not avoidance:
-                follower.changing = False  # straight to the new slot: eq. 13 skipped
+            # Stamped with the tick before: the follower flies it from this one.
+            follower.take_code(FormationCode(sender=1, seq=tick, tick=tick - 1, code=code))
         pose, _, _ = eng.observation(1)
         eng.set_command(1, *pilot.step(Pose(*pose)), code, now)
         _, readings, _ = eng.observation(2)
-        reading = next(((rho, phi, beta) for rid, rho, phi, beta in readings if rid == 1), None)
-        d = follower.step(reading)
-        eng.set_command(2, d.left_mps, d.right_mps, code, now)
+        cmd = answer(follower, observation(tick, tuple(readings), dt_s=sc.dt_s)).command
+        eng.set_command(2, cmd.left_mps, cmd.right_mps, cmd.formation, now)
         eng.step(now)
     return eng.summary()

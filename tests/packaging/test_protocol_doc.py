@@ -298,8 +298,10 @@ def test_the_rejection_reasons_are_the_code_s() -> None:
     documented = {r[0] for r in table(section("What a receiver rejects"))}
     src = inspect.getsource(codec)
     ours = set(re.findall(r'DecodeError\("([^"]+)"', src)) | set(re.findall(r'by_reason\["([^"]+)"\]', src))
-    for mod in ("formation_swarm.nodes.agent", "formation_swarm.nodes.world", "formation_swarm.nodes.logger"):
-        ours |= set(re.findall(r'\.reject\("([^"]+)"\)', inspect.getsource(importlib.import_module(mod))))
+    agent = ("nodes.agent_wire", "agents.inbox", "agents.role_base", "agents.follower_role")
+    for mod in (*agent, "nodes.world", "nodes.logger"):
+        src = inspect.getsource(importlib.import_module(f"formation_swarm.{mod}"))
+        ours |= set(re.findall(r'\.reject\("([^"]+)"\)', src))
     # The world judges a command in world.commands (its process, nodes.world*, rejects nothing itself).
     ours |= set(re.findall(r'\.reject\("([^"]+)"\)', inspect.getsource(importlib.import_module(WORLD_GATE))))
     ours |= set(

@@ -25,7 +25,7 @@ from formation_swarm.launch.launcher import Launch, RunResult, free_port
 from formation_swarm.protocol import trust
 from formation_swarm.protocol.batch import pack_batch
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.protocol.messages import Command, FormationCode, Observation, Status, Telemetry, Truth
+from formation_swarm.protocol.messages import WORLD_ID, Command, FormationCode, Observation, Status, Telemetry, Truth
 from formation_swarm.protocol.session import make_config
 from tests.helpers import ROOT
 
@@ -69,24 +69,73 @@ def attacks(k: Keys, tick: int) -> list[tuple[str, bytes]]:
     run, fake truth and telemetry far in the future."""
     fake_reading = ((1, 0.9, 0.0, 0.0),)  # the leader "0.9 m ahead"
     return [
-        (k.cmd(3), Command(3, HUGE_SEQ, tick, 1e308, 1e308, 0, False).to_bytes()),
-        (k.cmd(3), Command(3, HUGE_SEQ + 1, tick, 1.0, 2.0, 0, False).to_bytes()),
-        (k.cmd(1), Command(1, HUGE_SEQ, tick, 1.5, 1.5, 0, True).to_bytes()),
-        (k.codes, FormationCode(1, HUGE_SEQ, FAR_TICK, LINE).to_bytes()),
-        (k.obs(2), Observation(0, HUGE_SEQ, tick + 1, 0.0, (0.0, 0.0, 0.0), fake_reading, ()).to_bytes()),
-        (k.obs(3), Observation(0, HUGE_SEQ, tick + 1, 0.0, (0.0, 0.0, 0.0), ((2, 1e200, 0.0, 0.0),), ()).to_bytes()),
-        (k.status, Status(0, HUGE_SEQ, tick, 0.0, "done", 1).to_bytes()),
-        (k.truth, pack_batch([Truth(0, HUGE_SEQ, FAR_TICK, 0.0, ((1, 0.0, 0.0, 0.0, True),), ()).to_bytes()])),
+        (
+            k.cmd(3),
+            Command(
+                sender=3, seq=HUGE_SEQ, tick=tick, left_mps=1e308, right_mps=1e308, formation=0, done=False
+            ).to_bytes(),
+        ),
+        (
+            k.cmd(3),
+            Command(
+                sender=3, seq=HUGE_SEQ + 1, tick=tick, left_mps=1.0, right_mps=2.0, formation=0, done=False
+            ).to_bytes(),
+        ),
+        (
+            k.cmd(1),
+            Command(sender=1, seq=HUGE_SEQ, tick=tick, left_mps=1.5, right_mps=1.5, formation=0, done=True).to_bytes(),
+        ),
+        (k.codes, FormationCode(sender=1, seq=HUGE_SEQ, tick=FAR_TICK, code=LINE).to_bytes()),
+        (
+            k.obs(2),
+            Observation(
+                sender=WORLD_ID,
+                seq=HUGE_SEQ,
+                tick=tick + 1,
+                time_s=0.0,
+                pose=(0.0, 0.0, 0.0),
+                readings=fake_reading,
+                obstacles=(),
+            ).to_bytes(),
+        ),
+        (
+            k.obs(3),
+            Observation(
+                sender=WORLD_ID,
+                seq=HUGE_SEQ,
+                tick=tick + 1,
+                time_s=0.0,
+                pose=(0.0, 0.0, 0.0),
+                readings=((2, 1e200, 0.0, 0.0),),
+                obstacles=(),
+            ).to_bytes(),
+        ),
+        (k.status, Status(sender=0, seq=HUGE_SEQ, tick=tick, time_s=0.0, state="done", total_ticks=1).to_bytes()),
+        (
+            k.truth,
+            pack_batch(
+                [
+                    Truth(
+                        sender=0,
+                        seq=HUGE_SEQ,
+                        tick=FAR_TICK,
+                        time_s=0.0,
+                        robots=((1, 0.0, 0.0, 0.0, True),),
+                        targets=(),
+                    ).to_bytes()
+                ]
+            ),
+        ),
         (k.telemetry(2), pack_batch([_telemetry(FAR_TICK)])),
     ]
 
 
 def _telemetry(tick: int) -> bytes:
     return Telemetry(
-        2,
-        HUGE_SEQ,
-        tick,
-        0.0,
+        sender=2,
+        seq=HUGE_SEQ,
+        tick=tick,
+        time_s=0.0,
         reference=1,
         formation=0,
         measured=None,
@@ -181,9 +230,24 @@ def test_a_robots_own_credentials_cannot_send_what_could_not_be_true(
         put_all(
             sess,
             [
-                (k.cmd(3), Command(3, HUGE_SEQ, tick, 1e308, -1e308, 0, False).to_bytes()),
-                (k.cmd(3), Command(3, HUGE_SEQ, FAR_TICK, 1.0, 1.0, 0, False).to_bytes()),
-                (k.cmd(3), Command(3, HUGE_SEQ, tick, 1.0, 1.0, 200, False).to_bytes()),
+                (
+                    k.cmd(3),
+                    Command(
+                        sender=3, seq=HUGE_SEQ, tick=tick, left_mps=1e308, right_mps=-1e308, formation=0, done=False
+                    ).to_bytes(),
+                ),
+                (
+                    k.cmd(3),
+                    Command(
+                        sender=3, seq=HUGE_SEQ, tick=FAR_TICK, left_mps=1.0, right_mps=1.0, formation=0, done=False
+                    ).to_bytes(),
+                ),
+                (
+                    k.cmd(3),
+                    Command(
+                        sender=3, seq=HUGE_SEQ, tick=tick, left_mps=1.0, right_mps=1.0, formation=200, done=False
+                    ).to_bytes(),
+                ),
             ],
             rounds=5,
         )
@@ -213,15 +277,61 @@ def test_without_the_router_the_receivers_still_refuse_what_could_not_be_true(
         put_all(
             sess,
             [
-                (k.cmd(3), Command(3, HUGE_SEQ, tick, 1e308, 1e308, 0, False).to_bytes()),
-                (k.cmd(2), Command(2, HUGE_SEQ, FAR_TICK, 1.0, 1.0, 0, False).to_bytes()),
-                (k.codes, FormationCode(1, HUGE_SEQ, FAR_TICK, LINE).to_bytes()),  # to every follower
-                (k.obs(3), Observation(0, HUGE_SEQ, 0, 0.0, (0.0, 0.0, 0.0), (), ()).to_bytes()),  # a replay of tick 0
+                (
+                    k.cmd(3),
+                    Command(
+                        sender=3, seq=HUGE_SEQ, tick=tick, left_mps=1e308, right_mps=1e308, formation=0, done=False
+                    ).to_bytes(),
+                ),
+                (
+                    k.cmd(2),
+                    Command(
+                        sender=2, seq=HUGE_SEQ, tick=FAR_TICK, left_mps=1.0, right_mps=1.0, formation=0, done=False
+                    ).to_bytes(),
+                ),
+                (
+                    k.codes,
+                    FormationCode(sender=1, seq=HUGE_SEQ, tick=FAR_TICK, code=LINE).to_bytes(),
+                ),  # to every follower
+                (
+                    k.obs(3),
+                    Observation(
+                        sender=WORLD_ID,
+                        seq=HUGE_SEQ,
+                        tick=0,
+                        time_s=0.0,
+                        pose=(0.0, 0.0, 0.0),
+                        readings=(),
+                        obstacles=(),
+                    ).to_bytes(),
+                ),  # a replay of tick 0
                 (
                     k.obs(2),
-                    Observation(0, HUGE_SEQ, FAR_TICK, 0.0, (0.0, 0.0, 0.0), ((1, 1e200, 0, 0),), ()).to_bytes(),
+                    Observation(
+                        sender=WORLD_ID,
+                        seq=HUGE_SEQ,
+                        tick=FAR_TICK,
+                        time_s=0.0,
+                        pose=(0.0, 0.0, 0.0),
+                        readings=((1, 1e200, 0, 0),),
+                        obstacles=(),
+                    ).to_bytes(),
                 ),
-                (k.truth, pack_batch([Truth(0, HUGE_SEQ, FAR_TICK, 0.0, ((1, 0.0, 0.0, 0.0, True),), ()).to_bytes()])),
+                (
+                    k.truth,
+                    pack_batch(
+                        [
+                            Truth(
+                                sender=0,
+                                seq=HUGE_SEQ,
+                                tick=FAR_TICK,
+                                time_s=0.0,
+                                robots=((1, 0.0, 0.0, 0.0, True),),
+                                targets=(),
+                            ).to_bytes()
+                        ]
+                    ),
+                ),
                 (k.telemetry(2), pack_batch([_telemetry(FAR_TICK)])),
             ],
             rounds=4,

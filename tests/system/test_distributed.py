@@ -330,7 +330,9 @@ def test_random_bytes_on_every_key_kill_nothing(swarm_launch: Callable[..., Laun
     rng = np.random.default_rng(0)
     n = 20
     crafted = [
-        Command(2, 1, 1, math.inf, 1.0, 0, False).to_bytes(),  # NaN/inf
+        Command(
+            sender=2, seq=1, tick=1, left_mps=math.inf, right_mps=1.0, formation=0, done=False
+        ).to_bytes(),  # NaN/inf
         b"\x96\x02\x07\x02\x01\x01\xcb" + b"\x00" * 8,  # unknown version
         b"\xc1",  # invalid msgpack
         b"\x00" * (MAX_PAYLOAD_BYTES + 1),  # oversized: reaches the decoders, which count it

@@ -27,17 +27,18 @@ from collections.abc import Callable
 import pytest
 
 from formation_swarm.agents.follower import Follower
+from formation_swarm.agents.follower_role import FollowerRole
 from formation_swarm.agents.formation import sights
 from formation_swarm.launch.launcher import RunResult
-from formation_swarm.nodes.agent import Agent
+from formation_swarm.nodes.agent_setup import role_for
+from formation_swarm.nodes.agent_wire import Outbox
 from formation_swarm.protocol.codec import Rejections
-from formation_swarm.protocol.keys import Keys
-from formation_swarm.protocol.messages import FormationCode, Observation, Telemetry
+from formation_swarm.protocol.messages import FormationCode, Telemetry
 from formation_swarm.spec import scenario as sm
 from formation_swarm.world.engine import WorldEngine
 from formation_swarm.world.kinematics import Pose
 from tests.helpers import SCENARIOS
-from tests.helpers.fakes import FakePub, FakeRole
+from tests.helpers.fakes import FakePub, answer, observation
 
 TURN = SCENARIOS / "fig7_turn_vn_dynamic.toml"
 
@@ -65,28 +66,23 @@ def test_a_follower_given_a_new_reference_restarts_its_filter_on_it() -> None:
     reading instead of pulling robot 2's estimate toward it."""
     sc = sm.load(SCENARIOS / "fig11_obstacles.toml", overrides={"run.robots": 5})
     assert (sc.formations["triangle"].slots[4].reference, sc.formations["line"].slots[4].reference) == (2, 3)
-    keys = Keys("new-reference-test")
-    agent = Agent(None, sc, 4, keys.run_id, sc.seed, FakeRole())  # type: ignore[arg-type]  # no session needed
-    agent.cmd_pub, agent.tel_pub = FakePub(), FakePub()
+    role = role_for(sc, 4, sc.seed)
+    assert isinstance(role, FollowerRole)
     r2, r3 = (2, 2.2, 0.0, -0.7), (3, 4.1, 0.0, 0.4)  # (robot, rho_m, phi_rad, beta_rad)
 
     def observe(tick: int) -> None:
-        obs = Observation(0, tick + 1, tick, tick * sc.dt_s, (0.0, 0.0, 1.57), (r2, r3), ())
-        taken = agent._on_message(keys.obs(4), obs.to_bytes())
-        assert taken is not None
-        agent._on_observation(*taken)
+        answer(role, observation(tick, (r2, r3), dt_s=sc.dt_s))
 
     observe(0)
-    assert agent.reference == 2
-    code = FormationCode(1, 100, 0, sc.code_of("line"))
-    agent._on_message(keys.codes, code.to_bytes())
+    assert role.slot.reference == 2
+    role.take_code(FormationCode(sender=1, seq=100, tick=0, code=sc.code_of("line")))
     observe(1)
-    assert agent.reference == 3
+    assert role.slot.reference == 3
     # Its filter is that of a follower that has only ever seen robot 3 (read, then predicted for tick 2).
     fresh = Follower(sc.followers[4], sc.formations["line"].slots[4].offset)
     fresh.step(r3[1:])
     fresh.prepare()
-    assert agent.follower.ekf.state.tolist() == fresh.ekf.state.tolist()
+    assert role.controller.ekf.state.tolist() == fresh.law.ekf.state.tolist()  # type: ignore[attr-defined]
 
 
 def _overrides(shape: str) -> dict[str, object]:
@@ -111,20 +107,16 @@ def test_beyond_25_robots_telemetry_leaves_every_fifth_tick_each_tick_in_it(robo
     sends on the ticks where tick + 7 is a multiple of 5, and every tick's
     telemetry is in one of its batches, in order (the end of the run flushes the rest)."""
     sc = sm.load(SCENARIOS / "fig11_obstacles.toml", overrides={"run.robots": robots, "leader.formation": "line"})
-    keys = Keys("telemetry-batch-test")
-    agent = Agent(None, sc, 7, keys.run_id, sc.seed, FakeRole())  # type: ignore[arg-type]  # no session needed
+    role = role_for(sc, 7, sc.seed)
     pub = FakePub()
-    agent.cmd_pub, agent.tel_pub = FakePub(), agent.telemetry_publisher(pub)
-    agent.tel_pub.clock = itertools.count().__next__  # a second of wall time between two puts
+    outbox = Outbox(7, len(sc.robots), FakePub(), pub)
+    outbox.tel.clock = itertools.count().__next__  # a second of wall time between two puts
     sent_at = []
     for tick in range(12):
-        obs = Observation(0, tick + 1, tick, tick * sc.dt_s, (0.0, 0.0, 1.57), ((6, 1.5, 0.0, 0.0),), ())
-        taken = agent._on_message(keys.obs(7), obs.to_bytes())
-        assert taken is not None
         before = len(pub.payloads)
-        agent._on_observation(*taken)
+        outbox.send(answer(role, observation(tick, ((6, 1.5, 0.0, 0.0),), dt_s=sc.dt_s)))
         sent_at += [tick] * (len(pub.payloads) - before)
-    agent.tel_pub.close()
+    outbox.close()
     assert sent_at == puts
     batches = [Rejections().decode_batch(Telemetry, p, sender=7) for p in pub.payloads]
     assert [t.tick for b in batches for t in b or []] == list(range(12))
@@ -220,21 +212,17 @@ def test_an_agent_that_skipped_observations_tells_its_follower_how_many_ticks_pa
     time on a busy machine): the follower steps with 1, 1 and 3 ticks, as a
     follower stepped so by hand, and its EKF predicted over the gap."""
     sc = sm.load(SCENARIOS / "fig11_obstacles.toml")
-    keys = Keys("skipped-ticks-test")
-    agent = Agent(None, sc, 2, keys.run_id, sc.seed, FakeRole())  # type: ignore[arg-type]  # no session needed
-    agent.cmd_pub, agent.tel_pub = FakePub(), FakePub()
+    role = role_for(sc, 2, sc.seed)
+    assert isinstance(role, FollowerRole)
     by_hand = Follower(sc.followers[2], sc.formations["triangle"].slots[2].offset)
     r1 = (1, 2.1, 0.0, -0.8)  # (robot, rho_m, phi_rad, beta_rad)
     for seq, (tick, ticks) in enumerate(((0, 1), (1, 1), (4, 3)), start=1):
-        obs = Observation(0, seq, tick, tick * sc.dt_s, (0.0, 0.0, 1.57), (r1,), ())
-        taken = agent._on_message(keys.obs(2), obs.to_bytes())
-        assert taken is not None
-        agent._on_observation(*taken)
+        answer(role, observation(tick, (r1,), dt_s=sc.dt_s, seq=seq))
         by_hand.step(r1[1:], ticks)
         by_hand.prepare()
-        assert agent.follower.ekf.state.tolist() == by_hand.ekf.state.tolist(), tick
+        assert role.controller.ekf.state.tolist() == by_hand.law.ekf.state.tolist(), tick  # type: ignore[attr-defined]
     once = Follower(sc.followers[2], sc.formations["triangle"].slots[2].offset)
     for _ in range(3):
         once.step(r1[1:])
         once.prepare()
-    assert once.ekf.state.tolist() != by_hand.ekf.state.tolist()  # the gap made a difference
+    assert once.law.ekf.state.tolist() != by_hand.law.ekf.state.tolist()  # the gap made a difference

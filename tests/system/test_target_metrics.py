@@ -114,28 +114,28 @@ def test_the_target_error_is_against_the_formation_the_follower_flew() -> None:
     flown_target = from_body_frame(poses[new.reference], *new.offset)
     assert math.dist(world_target, flown_target) > 3.0
     robots = tuple((rid, p.x_m, p.y_m, p.theta_rad, True) for rid, p in poses.items())
-    recorder.add_truths([Truth(0, 1, 7, 0.35, robots, ((3, *world_target),))])
+    recorder.add_truths([Truth(sender=0, seq=1, tick=7, time_s=0.35, robots=robots, targets=((3, *world_target),))])
     seen = to_body_frame(poses[3], *flown_target)  # a perfect reading of the line slot's target
     tel = Telemetry(
-        3,
-        1,
-        7,
-        0.35,
-        new.reference,
-        line,
-        seen,
-        seen,
-        (0.01, 0.0, 0.01),
-        1.5,
-        0.0,
-        1.5,
-        1.5,
-        1.5,
-        new.reference,
-        True,
-        0,
-        0,
-        0,
+        sender=3,
+        seq=1,
+        tick=7,
+        time_s=0.35,
+        reference=new.reference,
+        formation=line,
+        measured=seen,
+        estimate=seen,
+        target_cov=(0.01, 0.0, 0.01),
+        rho_m=1.5,
+        alpha_rad=0.0,
+        vn=1.5,
+        left_mps=1.5,
+        right_mps=1.5,
+        steering_to=new.reference,
+        changing=True,
+        obs_dropped=0,
+        formation_dropped=0,
+        rejected=0,
     )
     recorder.add_telemetry([tel])
     recorder.send(final=True)
@@ -145,11 +145,29 @@ def test_the_target_error_is_against_the_formation_the_follower_flew() -> None:
     # A code it does not know falls back to the world's target.
     assert (triangle, line) == (0, 1)
     unknown = Recorder(rec, sc)
-    unknown.add_truths([Truth(0, 1, 7, 0.35, robots, ((3, *world_target),))])
+    unknown.add_truths([Truth(sender=0, seq=1, tick=7, time_s=0.35, robots=robots, targets=((3, *world_target),))])
     unknown.add_telemetry(
         [
             Telemetry(
-                3, 1, 7, 0.35, new.reference, 9, seen, seen, None, 1.5, 0.0, 1.5, 1.5, 1.5, new.reference, True, 0, 0, 0
+                sender=3,
+                seq=1,
+                tick=7,
+                time_s=0.35,
+                reference=new.reference,
+                formation=9,
+                measured=seen,
+                estimate=seen,
+                target_cov=None,
+                rho_m=1.5,
+                alpha_rad=0.0,
+                vn=1.5,
+                left_mps=1.5,
+                right_mps=1.5,
+                steering_to=new.reference,
+                changing=True,
+                obs_dropped=0,
+                formation_dropped=0,
+                rejected=0,
             )
         ]
     )

@@ -46,7 +46,7 @@ def test_prepare_ahead_of_the_reading_gives_the_same_decisions() -> None:
             ahead.set_offset(Point(0.0, -2.0))
         a, b = plain.step(reading), ahead.step(reading)
         assert (a.left_mps, a.right_mps, a.estimate) == (b.left_mps, b.right_mps, b.estimate), k
-        assert np.array_equal(plain.ekf.covariance, ahead.ekf.covariance), k
+        assert np.array_equal(plain.law.ekf.covariance, ahead.law.ekf.covariance), k
         ahead.prepare()
 
 

@@ -128,15 +128,15 @@ def test_a_reading_far_outside_the_model_resets_the_filter_instead_of_raising(rh
     for _ in range(20):
         f.step((2.0, 0.0, 0.1))
     d = f.step((rho_m, 0.0, 0.1))
-    assert f.ekf.resets == 1
+    assert f.law.ekf.resets == 1
     assert (d.left_mps, d.right_mps) == (0.0, 0.0)  # no estimate this tick: it stops
     fresh = Follower(FollowerParams(), Point(-1.5, 0.0))
     for _ in range(40):
         d = f.step((2.0, 0.0, 0.1))
         fresh.step((2.0, 0.0, 0.1))
-    assert f.ekf.initialized
-    np.testing.assert_allclose(f.ekf.state, fresh.ekf.state, atol=1e-9)
-    assert f.ekf.resets == 1
+    assert f.law.ekf.initialized
+    np.testing.assert_allclose(f.law.ekf.state, fresh.law.ekf.state, atol=1e-9)
+    assert f.law.ekf.resets == 1
 
 
 def test_a_plausible_far_reading_does_not_reset_the_filter() -> None:
@@ -144,7 +144,7 @@ def test_a_plausible_far_reading_does_not_reset_the_filter() -> None:
     for _ in range(20):
         f.step((2.0, 0.0, 0.1))
     f.step((50.0, 0.0, 0.1))
-    assert f.ekf.resets == 0
+    assert f.law.ekf.resets == 0
 
 
 @pytest.mark.parametrize(

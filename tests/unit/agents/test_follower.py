@@ -15,7 +15,7 @@ import pytest
 
 from formation_swarm.agents import fuzzy as fz
 from formation_swarm.agents.avoidance import Choice
-from formation_swarm.agents.follower import Decision, Follower, FollowerParams, change_over
+from formation_swarm.agents.follower import Decision, Follower, FollowerParams, FuzzyController, change_over
 from formation_swarm.agents.geometry import Point, errors, leader_point, target_from_reading, target_point
 from formation_swarm.agents.lpsi import control as lpsi_control
 from formation_swarm.spec import scenario as scenario_mod
@@ -44,7 +44,7 @@ def test_it_stops_once_it_has_had_no_reading_for_lost_after_s() -> None:
     # 0.05 s and 0.10 s without a reading: still flying on the EKF; past 0.1 s: stopped.
     assert [d.left_mps != 0.0 for d in kept] == [True, True, False]
     assert (kept[2].left_mps, kept[2].right_mps) == (0.0, 0.0)
-    assert f._last_cmd == (0.0, 0.0)  # the EKF's next prediction: the robot stood still
+    assert f.law._last_cmd == (0.0, 0.0)  # the EKF's next prediction: the robot stood still
     assert f.step(READING).left_mps != 0.0  # a reading again: flying again
 
 
@@ -72,7 +72,8 @@ def test_lpsi_without_the_ekf_assumes_a_still_reference() -> None:
     p = FollowerParams(use_ekf=False, law="lpsi")
     d = Follower(p, OFFSET).step(READING)
     rho_r, phi, beta = READING
-    want = lpsi_control(leader_point(rho_r, phi, beta, p.marker_offset_m), phi, 0.0, 0.0, OFFSET, p.width_m, p.lpsi)
+    leader = leader_point(rho_r, phi, beta, p.marker_offset_m)
+    want = lpsi_control(leader, phi, 0.0, 0.0, offset=OFFSET, width_m=p.width_m, p=p.lpsi)
     assert (d.left_mps, d.right_mps) == pytest.approx(want, abs=1e-12)
     assert math.isnan(d.vn)
 
@@ -82,19 +83,19 @@ def test_lpsi_has_no_avoidance_manoeuvre() -> None:
     f.step(READING)
     f.set_offset(Point(1.5, -1.0))
     d = f.step(READING)
-    assert (d.steering_to, d.changing, f.changing) == (Choice.T0, False, False)
+    assert (d.steering_to, d.changing, f.law.changing) == (Choice.T0, False, False)
 
 
 def test_a_new_slot_starts_a_change_and_the_same_slot_does_not() -> None:
     f = Follower(FollowerParams(), OFFSET)
-    assert f.offset == OFFSET
+    assert f.law.offset == OFFSET
     f.set_offset(Point(-1.5, -1.0))
-    assert not f.changing
+    assert not f.law.changing
     for new in (Point(-2.0, -1.0), Point(1.0, -1.0), Point(-1.5, -3.0), Point(-1.5, 0.5)):
         g = Follower(FollowerParams(), OFFSET)
         g.set_offset(new)
-        assert g.changing, new
-        assert g.offset == new
+        assert g.law.changing, new
+        assert g.law.offset == new
 
 
 def test_a_follower_starts_on_its_slot_not_on_an_avoidance_target() -> None:
@@ -115,18 +116,18 @@ def test_drho_restarts_when_the_target_switches(tmp_path: Path) -> None:
     """Eq. 6 across a change of target (T1, T3, T0): drho is 0 on the tick the
     target switches, rho_t - rho_(t-1) otherwise."""
     decisions = []
-    original = Follower.step
+    original = FuzzyController.decide
 
-    def spy(self: Follower, reading: tuple | None) -> object:
-        d = original(self, reading)
+    def spy(self: FuzzyController, reading: tuple | None, ticks: int = 1) -> Decision:
+        d = original(self, reading, ticks)
         decisions.append(d)
         return d
 
-    Follower.step = spy  # type: ignore[method-assign]
+    FuzzyController.decide = spy  # type: ignore[method-assign]
     try:
         fly_the_change(tmp_path, seed=0, avoidance=True)
     finally:
-        Follower.step = original  # type: ignore[method-assign]
+        FuzzyController.decide = original  # type: ignore[method-assign]
     switches = 0
     for prev, d in zip(decisions, decisions[1:], strict=False):
         if math.isnan(prev.rho_m):
@@ -289,11 +290,11 @@ def test_the_hold_needs_a_full_window_after_the_filter_starts() -> None:
         out = []
         for _ in range(7):
             f.step(READING)
-            out.append(math.isinf(f.reference_speed()))
+            out.append(math.isinf(f.law.reference_speed()))
         return out
 
     assert unknown() == [True] * 5 + [False] * 2  # tick 0 starts the filter, ticks 1-5 fill the window
-    f.ekf.reset()  # as after a divergence
+    f.law.ekf.reset()  # as after a divergence
     assert unknown() == [True] * 5 + [False] * 2
 
 
@@ -350,12 +351,12 @@ def test_a_formation_change_ends_within_d1_of_t3(from_t3_m: float, over: bool) -
     p = FollowerParams(use_ekf=False)
     f = Follower(p, Point(1.5, -1.5))
     f.set_offset(Point(1.5, -4.0))
-    assert f.changing
+    assert f.law.changing
     centre_y = from_t3_m + p.clearance_m
     d = f.step((centre_y - p.marker_offset_m, 0.0, 0.0))
     assert d.steering_to is Choice.T3
     assert d.rho_m == pytest.approx(from_t3_m)
-    assert f.changing is not over
+    assert f.law.changing is not over
     assert change_over(Choice.T3, from_t3_m, p.fuzzy) is over
     assert change_over(Choice.T3, -from_t3_m, p.fuzzy) is over  # past T3 the same
     assert change_over(Choice.T0, from_t3_m + 5.0, p.fuzzy)
@@ -405,7 +406,7 @@ def _every(nth: int, told: bool, ticks: int = 400) -> tuple[float, float]:
             cmd = (d.left_mps, d.right_mps)
             f.prepare()
             if k >= ticks // 2:
-                speeds.append(f.ekf.speed_mps)
+                speeds.append(f.law.ekf.speed_mps)
         tx, ty = from_body_frame(ref, SLOT.x_m, SLOT.y_m)
         dist.append(math.hypot(tx - pose.x_m, ty - pose.y_m))
         ref = kinematics.step(ref, 1.5, 1.5, p.width_m, p.dt_s)
@@ -434,15 +435,15 @@ def test_a_gap_longer_than_lost_after_s_restarts_the_filter() -> None:
     for k in range(40):  # a reference pulling away at 1 m/s, straight ahead
         f.step((2.0 + 0.05 * k, 0.0, 0.0))
         f.prepare()
-    assert f.ekf.speed_mps > 0.5
+    assert f.law.ekf.speed_mps > 0.5
     reading = (4.5, 0.0, 0.0)
     f.step(reading, ticks=21)  # 1.05 s > lost_after_s: the filter starts from this reading
     fresh = Follower(FollowerParams(), SLOT)
     fresh.step(reading)
-    assert f.ekf.state.tolist() == fresh.ekf.state.tolist()
+    assert f.law.ekf.state.tolist() == fresh.law.ekf.state.tolist()
     f.prepare()
     f.step(reading, ticks=20)  # 1.0 s: predicted over, not restarted
-    assert f.ekf.state.tolist() != fresh.ekf.state.tolist()
+    assert f.law.ekf.state.tolist() != fresh.law.ekf.state.tolist()
     with pytest.raises(ValueError, match="ticks must be an integer >= 1, got 0"):
         f.step(None, ticks=0)
 

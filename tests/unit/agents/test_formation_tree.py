@@ -405,14 +405,14 @@ def test_a_new_reference_restarts_the_filter() -> None:
     f = Follower(FollowerParams(), Point(0.0, -1.5))
     for _ in range(5):
         d = f.step((1.4, 0.0, 0.0))
-    assert f.ekf.initialized
+    assert f.law.ekf.initialized
     assert d.rho_m == pytest.approx(0.0, abs=0.05)
     f.new_reference()
-    assert not f.ekf.initialized
+    assert not f.law.ekf.initialized
     stopped = f.step(None)  # nothing of the new reference yet: stop, not steer on the old one's estimate
     assert (stopped.left_mps, stopped.right_mps) == (0.0, 0.0)
     d = f.step((4.4, 0.0, 0.0))  # the new one, 3 m farther: the filter starts on it
-    assert f.ekf.initialized
+    assert f.law.ekf.initialized
     assert d.rho_m == pytest.approx(3.0, abs=1e-9)
 
 

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from formation_swarm.agents.inbox import ANGLE_LIMIT_RAD, InboxChecks
-from formation_swarm.protocol.messages import FormationCode, Observation
+from formation_swarm.protocol.messages import WORLD_ID, FormationCode, Observation
 
 RANGE_M, SIGMA_M, SENSING_M, DT_S = 10.0, 0.05, 6.0, 0.05
 
@@ -17,7 +17,15 @@ def checks() -> InboxChecks:
 
 
 def obs(tick: int, readings: tuple = ((1, 2.0, 0.1, 0.2),), obstacles: tuple = ()) -> Observation:
-    return Observation(0, tick + 1, tick, tick * DT_S, (0.0, 0.0, 0.0), readings, obstacles)
+    return Observation(
+        sender=WORLD_ID,
+        seq=tick + 1,
+        tick=tick,
+        time_s=tick * DT_S,
+        pose=(0.0, 0.0, 0.0),
+        readings=readings,
+        obstacles=obstacles,
+    )
 
 
 def test_observations_must_be_newer_than_the_last_taken() -> None:
@@ -73,26 +81,34 @@ def test_an_obstacle_the_leader_cannot_sense_is_refused(obstacle: tuple, why: st
 
 def test_the_leaders_first_code_is_taken_and_a_coarse_tick_still_allows_two_ahead() -> None:
     c = checks()
-    assert c.code(FormationCode(1, 1, 0, 1)) is None  # a leader's first message has seq 1
+    assert c.code(FormationCode(sender=1, seq=1, tick=0, code=1)) is None  # a leader's first message has seq 1
     slow = InboxChecks((1, 2), RANGE_M, SIGMA_M, SENSING_M, dt_s=10.0)  # 5 s is half a tick
     assert slow.code_ahead_ticks == 2  # the leader may be up to two ticks ahead of a follower's clock
-    assert slow.code(FormationCode(1, 1, 1, 1)) is None  # no observation yet (tick -1): tick 1 is two ahead
-    assert slow.code(FormationCode(1, 2, 2, 1)) == "tick ahead of the world"
+    assert (
+        slow.code(FormationCode(sender=1, seq=1, tick=1, code=1)) is None
+    )  # no observation yet (tick -1): tick 1 is two ahead
+    assert slow.code(FormationCode(sender=1, seq=2, tick=2, code=1)) == "tick ahead of the world"
 
 
 def test_codes_must_be_newer_by_tick_then_seq_and_not_far_ahead_of_the_agents_clock() -> None:
     c = checks()
     ahead = math.ceil(5.0 / DT_S)  # CODE_AHEAD_S of ticks
-    assert c.code(FormationCode(1, 10, 3, 1)) is None
-    assert c.code(FormationCode(1, 10, 3, 1)) == "replayed or reordered"  # the same code again
-    assert c.code(FormationCode(1, 9, 3, 1)) == "replayed or reordered"  # the same tick, an older seq
-    assert c.code(FormationCode(1, 50, 2, 1)) == "replayed or reordered"  # an older tick, whatever its seq
-    assert c.code(FormationCode(1, 11, 3, 0)) is None  # the same tick, a newer seq
-    assert c.code(FormationCode(1, 1, 4, 1)) is None  # a restarted leader: seq 1 again, at a later tick
+    assert c.code(FormationCode(sender=1, seq=10, tick=3, code=1)) is None
+    assert c.code(FormationCode(sender=1, seq=10, tick=3, code=1)) == "replayed or reordered"  # the same code again
+    assert (
+        c.code(FormationCode(sender=1, seq=9, tick=3, code=1)) == "replayed or reordered"
+    )  # the same tick, an older seq
+    assert (
+        c.code(FormationCode(sender=1, seq=50, tick=2, code=1)) == "replayed or reordered"
+    )  # an older tick, whatever its seq
+    assert c.code(FormationCode(sender=1, seq=11, tick=3, code=0)) is None  # the same tick, a newer seq
+    assert (
+        c.code(FormationCode(sender=1, seq=1, tick=4, code=1)) is None
+    )  # a restarted leader: seq 1 again, at a later tick
     assert c.observation(obs(20)) is None
-    assert c.code(FormationCode(1, 2, 20 + ahead, 1)) is None
-    assert c.code(FormationCode(1, 3, 20 + ahead + 1, 1)) == "tick ahead of the world"
-    assert c.code(FormationCode(1, 4, 2**53, 1)) == "tick ahead of the world"
+    assert c.code(FormationCode(sender=1, seq=2, tick=20 + ahead, code=1)) is None
+    assert c.code(FormationCode(sender=1, seq=3, tick=20 + ahead + 1, code=1)) == "tick ahead of the world"
+    assert c.code(FormationCode(sender=1, seq=4, tick=2**53, code=1)) == "tick ahead of the world"
     assert c.last_code == (20 + ahead, 2)  # refused codes move nothing
 
 
@@ -108,9 +124,9 @@ def test_what_the_link_layer_hands_over_must_be_newer_than_what_it_handed_over_b
     assert c.reading(obs(7)) is None
     assert c.reading(obs(6)) == "replayed or reordered"  # held behind 7 by a reorder
     assert (c.last_tick, c.last_reading_tick) == (7, 7)
-    assert c.code(FormationCode(1, 3, 0, 1)) is None
-    assert c.code(FormationCode(1, 4, 0, 1)) is None
-    assert c.handed_code(FormationCode(1, 4, 0, 1)) is None
-    assert c.handed_code(FormationCode(1, 3, 0, 1)) == "replayed or reordered"
-    assert c.handed_code(FormationCode(1, 4, 0, 1)) == "replayed or reordered"
+    assert c.code(FormationCode(sender=1, seq=3, tick=0, code=1)) is None
+    assert c.code(FormationCode(sender=1, seq=4, tick=0, code=1)) is None
+    assert c.handed_code(FormationCode(sender=1, seq=4, tick=0, code=1)) is None
+    assert c.handed_code(FormationCode(sender=1, seq=3, tick=0, code=1)) == "replayed or reordered"
+    assert c.handed_code(FormationCode(sender=1, seq=4, tick=0, code=1)) == "replayed or reordered"
     assert c.last_handed_code == (0, 4)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from enum import IntEnum
 
 import msgpack
@@ -20,6 +21,7 @@ from formation_swarm.protocol.codec import (
 )
 from formation_swarm.protocol.keys import MAX_ROBOT_ID
 from formation_swarm.protocol.messages import (
+    WORLD_ID,
     Command,
     FaultCall,
     FormationCode,
@@ -31,17 +33,72 @@ from formation_swarm.protocol.messages import (
 from formation_swarm.spec.keys import MAX_OBSTACLES, MAX_ROBOTS
 
 EXAMPLES = [
-    Observation(0, 7, 3, 0.15, (1.0, -2.0, 0.5), ((1, 2.0, 0.1, -0.2),), ()),
-    Observation(0, 8, 3, 0.15, (0.0, 0.0, 0.0), (), ((5.5, 0.3, 1.0),)),
-    Command(2, 9, 3, 0.4, -0.1, 1, False),
-    FormationCode(1, 10, 3, 2),
-    Telemetry(2, 11, 3, 0.15, 1, 0, (0.1, 1.2), None, None, None, 0.2, 1.5, 0.5, 0.6, 0, True, 4, 1, 0),
-    Telemetry(
-        2, 12, 3, 0.15, 1, 0, (0.1, 1.2), (0.1, 1.1), (0.01, 0.0, 0.02), 1.1, 0.2, None, 0.5, 0.6, 2, False, 0, 0, 0
+    Observation(
+        sender=WORLD_ID,
+        seq=7,
+        tick=3,
+        time_s=0.15,
+        pose=(1.0, -2.0, 0.5),
+        readings=((1, 2.0, 0.1, -0.2),),
+        obstacles=(),
     ),
-    Truth(0, 13, 3, 0.15, ((1, 0.0, 0.0, 1.57, True), (2, -1.5, -1.5, 1.57, False)), ((2, -1.5, -1.4),)),
-    FaultCall(0, 15, 3, 0.15, "freeze", "agent-2", 1),
-    Status(0, 14, 3, 0.15, "running", 1120),
+    Observation(
+        sender=WORLD_ID, seq=8, tick=3, time_s=0.15, pose=(0.0, 0.0, 0.0), readings=(), obstacles=((5.5, 0.3, 1.0),)
+    ),
+    Command(sender=2, seq=9, tick=3, left_mps=0.4, right_mps=-0.1, formation=1, done=False),
+    FormationCode(sender=1, seq=10, tick=3, code=2),
+    Telemetry(
+        sender=2,
+        seq=11,
+        tick=3,
+        time_s=0.15,
+        reference=1,
+        formation=0,
+        measured=(0.1, 1.2),
+        estimate=None,
+        target_cov=None,
+        rho_m=None,
+        alpha_rad=0.2,
+        vn=1.5,
+        left_mps=0.5,
+        right_mps=0.6,
+        steering_to=0,
+        changing=True,
+        obs_dropped=4,
+        formation_dropped=1,
+        rejected=0,
+    ),
+    Telemetry(
+        sender=2,
+        seq=12,
+        tick=3,
+        time_s=0.15,
+        reference=1,
+        formation=0,
+        measured=(0.1, 1.2),
+        estimate=(0.1, 1.1),
+        target_cov=(0.01, 0.0, 0.02),
+        rho_m=1.1,
+        alpha_rad=0.2,
+        vn=None,
+        left_mps=0.5,
+        right_mps=0.6,
+        steering_to=2,
+        changing=False,
+        obs_dropped=0,
+        formation_dropped=0,
+        rejected=0,
+    ),
+    Truth(
+        sender=0,
+        seq=13,
+        tick=3,
+        time_s=0.15,
+        robots=((1, 0.0, 0.0, 1.57, True), (2, -1.5, -1.5, 1.57, False)),
+        targets=((2, -1.5, -1.4),),
+    ),
+    FaultCall(sender=0, seq=15, tick=3, time_s=0.15, action="freeze", process="agent-2", index=1),
+    Status(sender=0, seq=14, tick=3, time_s=0.15, state="running", total_ticks=1120),
 ]
 
 
@@ -54,7 +111,7 @@ def _raw(msg: object) -> list:
     return msgpack.unpackb(msg.to_bytes())
 
 
-CMD = Command(2, 9, 3, 0.4, -0.1, 1, False)
+CMD = Command(sender=2, seq=9, tick=3, left_mps=0.4, right_mps=-0.1, formation=1, done=False)
 
 
 @pytest.mark.parametrize(
@@ -63,12 +120,18 @@ CMD = Command(2, 9, 3, 0.4, -0.1, 1, False)
         (b"\xc1", "not msgpack"),
         (msgpack.packb({"a": 1}), "wrong type"),
         (msgpack.packb([2, VERSION, 2]), "wrong type"),  # too short for a header
-        (FormationCode(1, 1, 1, 0).to_bytes(), "wrong message type"),
+        (FormationCode(sender=1, seq=1, tick=1, code=0).to_bytes(), "wrong message type"),
         (msgpack.packb([2, VERSION + 1, *_raw(CMD)[2:]]), "unknown version"),
         (msgpack.packb(_raw(CMD)[:-1]), "wrong length"),  # a field missing
         (msgpack.packb([*_raw(CMD), 1]), "wrong length"),  # one too many
-        (Command(2, 9, 3, math.nan, 0.0, 1, False).to_bytes(), "not finite"),
-        (Command(2, 9, 3, 0.0, -math.inf, 1, False).to_bytes(), "not finite"),
+        (
+            Command(sender=2, seq=9, tick=3, left_mps=math.nan, right_mps=0.0, formation=1, done=False).to_bytes(),
+            "not finite",
+        ),
+        (
+            Command(sender=2, seq=9, tick=3, left_mps=0.0, right_mps=-math.inf, formation=1, done=False).to_bytes(),
+            "not finite",
+        ),
         (msgpack.packb([2, VERSION, 2, 9, 3, "fast", 0.0, 1, False]), "wrong type"),
         (msgpack.packb([2, VERSION, 2, 9, 3, 0.0, 0.0, 1, 1]), "wrong type"),  # done must be a boolean
         (msgpack.packb([2, VERSION, MAX_ROBOT_ID + 1, 9, 3, 0.0, 0.0, 1, False]), "out of range"),
@@ -107,7 +170,7 @@ def test_a_sender_other_than_the_key_says_is_rejected() -> None:
     assert rej.decode(Command, CMD.to_bytes(), sender=2) == CMD
     assert rej.by_reason == {"sender mismatch": 1}
     # The world is the only sender of observations.
-    assert rej.decode(Observation, Observation(5, 1, 1, 0.0, (0.0, 0.0, 0.0), (), ()).to_bytes()) is None
+    assert rej.decode(Observation, replace(EXAMPLES[0], sender=5).to_bytes()) is None
     assert rej.by_reason["out of range"] == 1
 
 
@@ -122,11 +185,17 @@ def test_the_largest_messages_a_scenario_allows_fit() -> None:
     big = 2**53
     f = _awkward
     robots = tuple((r, f(r), f(r + 1), f(r + 2), True) for r in ids)
-    truth = Truth(0, big, big, f(0), robots, tuple((r, f(r), f(r + 3)) for r in ids))
+    truth = Truth(
+        sender=0, seq=big, tick=big, time_s=f(0), robots=robots, targets=tuple((r, f(r), f(r + 3)) for r in ids)
+    )
     readings = tuple((r, f(r), f(r + 1), f(r + 2)) for r in ids[1:])
-    seen = Observation(0, big, big, f(0), (f(1), f(2), f(3)), readings, ())
+    seen = Observation(
+        sender=WORLD_ID, seq=big, tick=big, time_s=f(0), pose=(f(1), f(2), f(3)), readings=readings, obstacles=()
+    )
     obstacles = tuple((f(i), f(i + 1), f(i + 2)) for i in range(MAX_OBSTACLES))
-    sensed = Observation(0, big, big, f(0), (f(1), f(2), f(3)), (), obstacles)
+    sensed = Observation(
+        sender=WORLD_ID, seq=big, tick=big, time_s=f(0), pose=(f(1), f(2), f(3)), readings=(), obstacles=obstacles
+    )
     for msg in (truth, seen, sensed):
         payload = msg.to_bytes()
         assert len(payload) <= MAX_PAYLOAD_BYTES, (type(msg).__name__, len(payload))
@@ -165,8 +234,10 @@ def test_header_bounds_are_inclusive() -> None:
     from formation_swarm.protocol.messages import MAX_TICK
 
     for seq, tick in ((0, 0), (MAX_TICK, MAX_TICK)):
-        assert Command.from_bytes(Command(MAX_ROBOT_ID, seq, tick, 0.0, 0.0, 255, False).to_bytes()).tick == tick
-        assert Command.from_bytes(Command(1, seq, tick, 0.0, 0.0, 0, False).to_bytes()).seq == seq
+        last = replace(CMD, sender=MAX_ROBOT_ID, seq=seq, tick=tick, formation=255)
+        assert Command.from_bytes(last.to_bytes()).tick == tick
+        first = replace(CMD, sender=1, seq=seq, tick=tick, formation=0)
+        assert Command.from_bytes(first.to_bytes()).seq == seq
     for i, bad in ((3, -1), (3, MAX_TICK + 1), (4, -1), (4, MAX_TICK + 1), (2, 0), (2, MAX_ROBOT_ID + 1)):
         raw = _raw(CMD)
         raw[i] = bad
@@ -179,13 +250,33 @@ def test_header_bounds_are_inclusive() -> None:
             Command.from_bytes(msgpack.packb(raw))
     assert Observation.from_bytes(EXAMPLES[0].to_bytes()).sender == 0  # the world is 0, and only the world
     with pytest.raises(DecodeError, match="sender=1 not in"):
-        Observation.from_bytes(Observation(1, 1, 1, 0.0, (0.0, 0.0, 0.0), (), ()).to_bytes())
+        Observation.from_bytes(replace(EXAMPLES[0], sender=1).to_bytes())
     with pytest.raises(DecodeError, match="sender=0 not in"):
-        FormationCode.from_bytes(FormationCode(0, 1, 1, 0).to_bytes())
+        FormationCode.from_bytes(FormationCode(sender=0, seq=1, tick=1, code=0).to_bytes())
 
 
 def test_field_ranges_are_inclusive_and_named() -> None:
-    ok = Telemetry(2, 1, 1, 0.0, 1, 0, None, None, None, None, None, None, 0.0, 0.0, 3, False, 0, 0, 0)
+    ok = Telemetry(
+        sender=2,
+        seq=1,
+        tick=1,
+        time_s=0.0,
+        reference=1,
+        formation=0,
+        measured=None,
+        estimate=None,
+        target_cov=None,
+        rho_m=None,
+        alpha_rad=None,
+        vn=None,
+        left_mps=0.0,
+        right_mps=0.0,
+        steering_to=3,
+        changing=False,
+        obs_dropped=0,
+        formation_dropped=0,
+        rejected=0,
+    )
     assert Telemetry.from_bytes(ok.to_bytes()).steering_to == 3
     raw = _raw(ok)
     for bad in (4, -1):
@@ -220,6 +311,12 @@ def test_messages_carry_no_instance_dict() -> None:
         assert not hasattr(msg, "__dict__"), type(msg).__name__
 
 
+def test_messages_are_built_by_keyword_and_keep_their_wire_order() -> None:
+    with pytest.raises(TypeError):
+        Command(2, 9, 3, 0.4, -0.1, 1, False)  # type: ignore[misc]  # a swapped pair would pass silently
+    assert _raw(CMD) == [2, VERSION, 2, 9, 3, 0.4, -0.1, 1, False]  # header, then the fields as declared
+
+
 def test_a_list_of_only_non_finite_numbers_is_rejected() -> None:
     with pytest.raises(DecodeError, match="not finite"):
         Observation.from_bytes(msgpack.packb([1, 1, 0, 1, 1, 0.0, [math.inf, math.nan, math.inf], [], []]))
@@ -229,10 +326,30 @@ def test_a_list_of_only_non_finite_numbers_is_rejected() -> None:
 
 def test_the_payload_limit_and_who_sends_telemetry() -> None:
     assert MAX_PAYLOAD_BYTES == 32 * 1024  # under the routed size filter of protocol.session (~40 KiB)
-    tel = Telemetry(1, 1, 1, 0.0, 2, 0, None, None, None, None, None, None, 0.0, 0.0, 0, False, 0, 0, 0)
+    tel = Telemetry(
+        sender=1,
+        seq=1,
+        tick=1,
+        time_s=0.0,
+        reference=2,
+        formation=0,
+        measured=None,
+        estimate=None,
+        target_cov=None,
+        rho_m=None,
+        alpha_rad=None,
+        vn=None,
+        left_mps=0.0,
+        right_mps=0.0,
+        steering_to=0,
+        changing=False,
+        obs_dropped=0,
+        formation_dropped=0,
+        rejected=0,
+    )
     assert Telemetry.from_bytes(tel.to_bytes()).sender == 1  # robot 1 may follow (when another robot leads)
     with pytest.raises(DecodeError, match="sender=0 not in"):  # the world flies no robot
-        Telemetry.from_bytes(Telemetry(0, *_raw(tel)[3:]).to_bytes())
+        Telemetry.from_bytes(replace(tel, sender=0).to_bytes())
 
 
 @pytest.mark.parametrize(
@@ -338,28 +455,32 @@ def test_an_int_subclass_is_taken_up_to_both_bounds() -> None:
 
 @pytest.mark.parametrize("process", ["logger", "agent-1", f"agent-{MAX_ROBOT_ID}"])
 def test_a_fault_call_hits_the_logger_or_an_agent(process: str) -> None:
-    call = FaultCall(0, 1, 1, 0.05, "kill", process, 0)
+    call = FaultCall(sender=0, seq=1, tick=1, time_s=0.05, action="kill", process=process, index=0)
     assert FaultCall.from_bytes(call.to_bytes()).process == process
 
 
 @pytest.mark.parametrize("process", ["world", "router", "zzz", "agent-0", f"agent-{MAX_ROBOT_ID + 1}", "logger2"])
 def test_a_fault_call_for_any_other_process_is_refused(process: str) -> None:
     with pytest.raises(DecodeError, match="is neither logger nor agent"):
-        FaultCall.from_bytes(FaultCall(0, 1, 1, 0.05, "kill", process, 0).to_bytes())
+        FaultCall.from_bytes(
+            FaultCall(sender=0, seq=1, tick=1, time_s=0.05, action="kill", process=process, index=0).to_bytes()
+        )
 
 
 def test_a_refused_process_name_is_quoted_to_40_characters() -> None:
     with pytest.raises(DecodeError) as info:
-        FaultCall.from_bytes(FaultCall(0, 1, 1, 0.05, "kill", "x" * 39 + "yz", 0).to_bytes())
+        FaultCall.from_bytes(
+            FaultCall(sender=0, seq=1, tick=1, time_s=0.05, action="kill", process="x" * 39 + "yz", index=0).to_bytes()
+        )
     assert str(info.value).endswith(f"process={'x' * 39 + 'y'!r} is neither logger nor agent-<robot id>")
 
 
 def test_a_formation_code_is_a_byte() -> None:
     for code in (0, 255):
-        assert FormationCode.from_bytes(FormationCode(1, 1, 1, code).to_bytes()).code == code
+        assert FormationCode.from_bytes(FormationCode(sender=1, seq=1, tick=1, code=code).to_bytes()).code == code
     for code in (-1, 256):
         with pytest.raises(DecodeError, match=f"code={code} not in \\[0, 255\\]"):
-            FormationCode.from_bytes(FormationCode(1, 1, 1, code).to_bytes())
+            FormationCode.from_bytes(FormationCode(sender=1, seq=1, tick=1, code=code).to_bytes())
 
 
 def test_a_header_without_fields_has_the_wrong_length() -> None:

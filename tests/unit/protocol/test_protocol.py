@@ -30,7 +30,7 @@ class FakeClock:
 
 
 def _codes(n: int, start: int = 0) -> list[bytes]:
-    return [FormationCode(1, start + i + 1, start + i, i % 3).to_bytes() for i in range(n)]
+    return [FormationCode(sender=1, seq=start + i + 1, tick=start + i, code=i % 3).to_bytes() for i in range(n)]
 
 
 def test_batch_round_trip_keeps_order() -> None:
@@ -86,12 +86,24 @@ def test_full_batches_leave_early() -> None:
 def test_bad_batches_are_counted_once_and_bad_items_each() -> None:
     rej = Rejections()
     assert rej.decode_batch(FormationCode, b"\xc1") is None
-    assert rej.decode_batch(FormationCode, Command(2, 1, 1, 0.0, 0.0, 0, False).to_bytes()) is None
+    assert (
+        rej.decode_batch(
+            FormationCode,
+            Command(sender=2, seq=1, tick=1, left_mps=0.0, right_mps=0.0, formation=0, done=False).to_bytes(),
+        )
+        is None
+    )
     assert rej.decode_batch(FormationCode, msgpack.packb([100, 99, []])) is None  # unknown version
     assert rej.decode_batch(FormationCode, msgpack.packb([100, 1, [1, 2]])) is None  # items not bytes
     assert rej.decode_batch(FormationCode, b"\x00" * 70_000) is None
     assert rej.total == 5
-    mixed = pack_batch([*_codes(2), b"junk", Command(2, 1, 1, 0.0, 0.0, 0, False).to_bytes()])
+    mixed = pack_batch(
+        [
+            *_codes(2),
+            b"junk",
+            Command(sender=2, seq=1, tick=1, left_mps=0.0, right_mps=0.0, formation=0, done=False).to_bytes(),
+        ]
+    )
     assert len(rej.decode_batch(FormationCode, mixed, sender=1)) == 2
     assert rej.total == 7
     assert len(rej.decode_batch(FormationCode, pack_batch(_codes(2)), sender=2)) == 0  # wrong sender

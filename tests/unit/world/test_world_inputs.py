@@ -29,13 +29,17 @@ def test_lockstep_world_takes_an_answer_only_for_the_tick_it_published() -> None
     for _ in range(5):
         eng.step(eng.time_s)
     assert eng.tick == 5
-    world.command(Command(2, 1, 4, 1.0, 1.0, 0, False))  # the answer to tick 4, late
-    world.command(Command(2, 2, 6, 1.0, 1.0, 0, False))  # to a tick not published yet: refused
+    world.command(
+        Command(sender=2, seq=1, tick=4, left_mps=1.0, right_mps=1.0, formation=0, done=False)
+    )  # the answer to tick 4, late
+    world.command(
+        Command(sender=2, seq=2, tick=6, left_mps=1.0, right_mps=1.0, formation=0, done=False)
+    )  # to a tick not published yet: refused
     assert not eng.robots[2].answered
     assert eng.robots[2].command == (0.0, 0.0)
     assert world.late_answers == 1
     assert world.rejected() == {"tick ahead of the world": 1}
-    world.command(Command(2, 3, 5, 1.0, 1.2, 0, False))
+    world.command(Command(sender=2, seq=3, tick=5, left_mps=1.0, right_mps=1.2, formation=0, done=False))
     assert eng.robots[2].answered
     assert eng.robots[2].command == (1.0, 1.2)
     assert world.late_answers == 1
@@ -51,16 +55,28 @@ def test_a_command_with_a_huge_seq_costs_the_real_agent_that_tick_only() -> None
     eng = world.engine
     for _ in range(5):
         eng.step(eng.time_s)
-    world.command(Command(2, 9, 5, 1.0, 1.0, 0, False))  # the real agent, tick 5
-    world.command(Command(2, 2**53 - 10**6, 5, 2.0, 2.0, 0, False))  # the forgery, same tick
+    world.command(
+        Command(sender=2, seq=9, tick=5, left_mps=1.0, right_mps=1.0, formation=0, done=False)
+    )  # the real agent, tick 5
+    world.command(
+        Command(sender=2, seq=2**53 - 10**6, tick=5, left_mps=2.0, right_mps=2.0, formation=0, done=False)
+    )  # the forgery, same tick
     assert eng.robots[2].command == (2.0, 2.0)
-    world.command(Command(2, 10, 5, 1.0, 1.0, 0, False))  # the real one's retry of tick 5: older
+    world.command(
+        Command(sender=2, seq=10, tick=5, left_mps=1.0, right_mps=1.0, formation=0, done=False)
+    )  # the real one's retry of tick 5: older
     assert world.rejected() == {"replayed or reordered": 1}
     eng.step(eng.time_s)
-    world.command(Command(2, 11, 6, 1.1, 1.1, 0, False))  # tick 6: taken
+    world.command(
+        Command(sender=2, seq=11, tick=6, left_mps=1.1, right_mps=1.1, formation=0, done=False)
+    )  # tick 6: taken
     assert eng.robots[2].command == (1.1, 1.1)
-    world.command(Command(2, 11, 6, 1.1, 1.1, 0, False))  # its replay: refused
-    world.command(Command(2, 2**53 - 10**6, 9, 2.0, 2.0, 0, False))  # a tick to come: refused
+    world.command(
+        Command(sender=2, seq=11, tick=6, left_mps=1.1, right_mps=1.1, formation=0, done=False)
+    )  # its replay: refused
+    world.command(
+        Command(sender=2, seq=2**53 - 10**6, tick=9, left_mps=2.0, right_mps=2.0, formation=0, done=False)
+    )  # a tick to come: refused
     assert world.rejected() == {"replayed or reordered": 2, "tick ahead of the world": 1}
     assert eng.robots[2].command == (1.1, 1.1)
 
@@ -69,12 +85,16 @@ def test_the_world_rejects_and_counts_a_command_for_an_unknown_formation() -> No
     world = _world()
     eng = world.engine
     n = len(FIG11.formation_names)
-    world.command(Command(2, 1, 0, 1.0, 1.0, n, False))  # one past the last code
-    world.command(Command(3, 1, 0, 1.0, 1.0, 255, False))
+    world.command(
+        Command(sender=2, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=n, done=False)
+    )  # one past the last code
+    world.command(Command(sender=3, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=255, done=False))
     assert world.rejected() == {"unknown formation": 2}
     assert [eng.robots[r].answered for r in (2, 3)] == [False, False]
     assert eng.robots[2].command == eng.robots[3].command == (0.0, 0.0)
-    world.command(Command(2, 2, 0, 1.0, 1.0, n - 1, False))  # the last code: taken
+    world.command(
+        Command(sender=2, seq=2, tick=0, left_mps=1.0, right_mps=1.0, formation=n - 1, done=False)
+    )  # the last code: taken
     assert eng.robots[2].command == (1.0, 1.0)
     assert eng.robots[2].formation == n - 1
     assert world.rejected() == {"unknown formation": 2}
@@ -84,28 +104,30 @@ def test_realtime_world_takes_the_latest_command_whatever_its_tick() -> None:
     world = _world("realtime")
     for _ in range(5):
         world.engine.step(world.engine.time_s)
-    world.command(Command(3, 1, 4, 0.5, 0.7, 0, False))
+    world.command(Command(sender=3, seq=1, tick=4, left_mps=0.5, right_mps=0.7, formation=0, done=False))
     assert world.engine.robots[3].command == (0.5, 0.7)
     assert world.late_answers == 0
 
 
 def test_only_the_leader_ends_the_run() -> None:
     world = _world()
-    world.command(Command(2, 1, 0, 0.0, 0.0, 0, True))
+    world.command(Command(sender=2, seq=1, tick=0, left_mps=0.0, right_mps=0.0, formation=0, done=True))
     assert not world.leader_done
     assert world.running
-    world.command(Command(1, 2, 0, 0.0, 0.0, 0, True))
+    world.command(Command(sender=1, seq=2, tick=0, left_mps=0.0, right_mps=0.0, formation=0, done=True))
     assert world.leader_done
     assert not world.running
 
 
 def test_a_payload_is_judged_by_the_key_it_came_on_and_by_the_codec() -> None:
     world = _world()
-    good = Command(2, 1, 0, 1.0, 1.0, 0, False).to_bytes()
+    good = Command(sender=2, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=0, done=False).to_bytes()
     world.receive(None, good)  # a key that names no robot
     world.receive(9, good)  # a robot the run does not have
     world.receive(3, good)  # robot 2's command on robot 3's key
-    world.receive(2, Command(2, 2, 0, math.nan, 1.0, 0, False).to_bytes())
+    world.receive(
+        2, Command(sender=2, seq=2, tick=0, left_mps=math.nan, right_mps=1.0, formation=0, done=False).to_bytes()
+    )
     world.receive(2, b"\xc1")
     assert world.rejected() == {"unknown robot": 2, "sender mismatch": 1, "not finite": 1, "not msgpack": 1}
     assert world.counts["cmd_received"] == 0  # none decoded
@@ -118,16 +140,20 @@ def test_a_payload_is_judged_by_the_key_it_came_on_and_by_the_codec() -> None:
 def test_wheel_speeds_beyond_the_motors_are_rejected_and_rounding_beyond_them_is_clamped() -> None:
     world = _world()
     eng, lim = world.engine, FIG11.max_wheel_mps
-    world.command(Command(2, 1, 0, 1e308, 1e308, 0, False))  # schema-valid, physically absurd
-    world.command(Command(2, 2, 0, 1.0, -lim * 1.001, 0, False))
+    world.command(
+        Command(sender=2, seq=1, tick=0, left_mps=1e308, right_mps=1e308, formation=0, done=False)
+    )  # schema-valid, physically absurd
+    world.command(Command(sender=2, seq=2, tick=0, left_mps=1.0, right_mps=-lim * 1.001, formation=0, done=False))
     assert world.rejected() == {"wheel speed out of bounds": 2}
     assert eng.robots[2].command == (0.0, 0.0)
     for seq, cmd in enumerate(((lim, -lim), (-lim, lim), (0.0, -lim), (-lim, 0.0)), start=3):
-        world.command(Command(2, seq, 0, *cmd, 0, False))
+        world.command(Command(sender=2, seq=seq, tick=0, left_mps=cmd[0], right_mps=cmd[1], formation=0, done=False))
         assert eng.robots[2].command == cmd  # at the limit: as sent
     assert world.summary()["clamped_commands"] == 0
-    world.command(Command(2, 7, 0, lim * (1 + 5e-10), 0.0, 0, False))  # rounding: run at the limit
-    world.command(Command(3, 1, 0, 0.0, -lim * (1 + 5e-10), 0, False))
+    world.command(
+        Command(sender=2, seq=7, tick=0, left_mps=lim * (1 + 5e-10), right_mps=0.0, formation=0, done=False)
+    )  # rounding: run at the limit
+    world.command(Command(sender=3, seq=1, tick=0, left_mps=0.0, right_mps=-lim * (1 + 5e-10), formation=0, done=False))
     assert (eng.robots[2].command, eng.robots[3].command) == ((lim, 0.0), (0.0, -lim))
     summary = world.summary()
     assert summary["clamped_commands"] == 2

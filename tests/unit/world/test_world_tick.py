@@ -31,13 +31,15 @@ def test_a_lockstep_tick_advances_once_every_live_robot_answered() -> None:
     assert {o.tick for o in sent.values()} == {0}
     assert [o.seq for o in sent.values()] == [1, 1, 1]  # one stream per robot
     assert world.waiting() == [1, 2, 3]
-    world.command(Command(2, 1, 0, 0.5, 0.5, 0, False))
-    world.command(Command(1, 1, 0, 1.0, 1.0, 0, False))
+    world.command(Command(sender=2, seq=1, tick=0, left_mps=0.5, right_mps=0.5, formation=0, done=False))
+    world.command(Command(sender=1, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=0, done=False))
     assert world.waiting() == [3]
-    world.command(Command(3, 1, 1, 0.5, 0.5, 0, False))  # for a tick not published: not an answer
+    world.command(
+        Command(sender=3, seq=1, tick=1, left_mps=0.5, right_mps=0.5, formation=0, done=False)
+    )  # for a tick not published: not an answer
     assert world.waiting() == [3]
     assert world.rejected() == {"tick ahead of the world": 1}
-    world.command(Command(3, 2, 0, 0.7, 0.7, 0, False))
+    world.command(Command(sender=3, seq=2, tick=0, left_mps=0.7, right_mps=0.7, formation=0, done=False))
     assert world.waiting() == []
     world.close()
     world.step()
@@ -55,16 +57,20 @@ def test_a_lockstep_answer_for_a_past_tick_is_late_and_counted_not_taken() -> No
     world = _tick()
     _publish(world)
     for rid in (1, 2, 3):
-        world.command(Command(rid, 1, 0, 0.5, 0.5, 0, False))
+        world.command(Command(sender=rid, seq=1, tick=0, left_mps=0.5, right_mps=0.5, formation=0, done=False))
     world.close()
     world.step()
     _publish(world)
-    world.command(Command(2, 2, 0, 2.0, 2.0, 0, False))  # tick 0 again, a newer seq: late
+    world.command(
+        Command(sender=2, seq=2, tick=0, left_mps=2.0, right_mps=2.0, formation=0, done=False)
+    )  # tick 0 again, a newer seq: late
     assert world.late_answers == 1
     assert world.rejected() == {}
     assert world.engine.robots[2].command == (0.5, 0.5)
     assert world.waiting() == [1, 2, 3]
-    world.command(Command(2, 2, 0, 2.0, 2.0, 0, False))  # the same again: a replay now
+    world.command(
+        Command(sender=2, seq=2, tick=0, left_mps=2.0, right_mps=2.0, formation=0, done=False)
+    )  # the same again: a replay now
     assert world.rejected() == {"replayed or reordered": 1}
     assert world.late_answers == 1
 
@@ -72,8 +78,8 @@ def test_a_lockstep_answer_for_a_past_tick_is_late_and_counted_not_taken() -> No
 def test_a_robot_that_misses_the_deadline_is_counted_and_stopped_for_the_step() -> None:
     world = _tick()
     _publish(world)
-    world.command(Command(1, 1, 0, 1.0, 1.0, 0, False))
-    world.command(Command(3, 1, 0, 1.0, 1.0, 0, False))
+    world.command(Command(sender=1, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=0, done=False))
+    world.command(Command(sender=3, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=0, done=False))
     world.engine.robots[2].command = (1.0, 1.0)  # its last tick's command
     before, other = world.engine.robots[2].pose, world.engine.robots[3].pose
     waiting = world.waiting()
@@ -91,7 +97,7 @@ def test_a_realtime_command_goes_stale_after_stale_after_s_of_wall_time_and_stop
     world = _tick(lockstep=False)
     dt, stale = FIG11.dt_s, FIG11.stale_after_s
     world.start(0.0)
-    world.command(Command(2, 1, 0, 1.0, 1.0, 0, False))
+    world.command(Command(sender=2, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=0, done=False))
     assert world.engine.robots[2].command_time_s == 0.0  # stamped with the tick's wall time
     poses = []
     k = 0
@@ -112,11 +118,11 @@ def test_a_realtime_command_goes_stale_after_stale_after_s_of_wall_time_and_stop
 def test_a_realtime_world_stamps_commands_with_the_wall_time_its_tick_started() -> None:
     world = _tick(lockstep=False)
     world.start(3.25)
-    world.command(Command(3, 1, 0, 0.2, 0.3, 0, False))
+    world.command(Command(sender=3, seq=1, tick=0, left_mps=0.2, right_mps=0.3, formation=0, done=False))
     assert world.engine.robots[3].command_time_s == 3.25
     lock = _tick()
     lock.start(3.25)  # lockstep: sim time, whatever the wall clock says
-    lock.command(Command(3, 1, 0, 0.2, 0.3, 0, False))
+    lock.command(Command(sender=3, seq=1, tick=0, left_mps=0.2, right_mps=0.3, formation=0, done=False))
     assert lock.engine.robots[3].command_time_s == 0.0
 
 
@@ -128,12 +134,16 @@ def test_a_lost_agent_stops_its_robot_and_a_fresh_one_is_readmitted_when_heard()
     assert lost == "robot 3 lost its agent at t=0.00 s; stopped until it returns"
     assert 3 not in dict(world.observations())
     assert world.waiting() == [1, 2]
-    world.command(Command(3, 5, 0, 1.0, 1.0, 0, False))  # its last command, arriving late
+    world.command(
+        Command(sender=3, seq=5, tick=0, left_mps=1.0, right_mps=1.0, formation=0, done=False)
+    )  # its last command, arriving late
     assert world.engine.robots[3].command == (0.0, 0.0)  # a dead robot does not move
     world.agent_token(3, True)  # a fresh agent
     assert world.readmit(hears=lambda rid: False) == []  # lockstep: its observations would be lost
     assert world.readmit(hears=lambda rid: True) == [3]
-    world.command(Command(3, 1, 0, 0.4, 0.4, 0, False))  # it counts from 1 again: taken
+    world.command(
+        Command(sender=3, seq=1, tick=0, left_mps=0.4, right_mps=0.4, formation=0, done=False)
+    )  # it counts from 1 again: taken
     assert world.engine.robots[3].command == (0.4, 0.4)
     assert world.rejected() == {}
     assert [d["cause"] for d in world.faults.deaths] == ["lost"]

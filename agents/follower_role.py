@@ -1,0 +1,247 @@
+"""A follower's role: observations and formation codes in, command and telemetry out.
+
+Each answered tick it finds its reference's marker in the observation's
+readings, hands its controller (agents.controller's API, made by
+agents.follower.make_controller) what the robot has, and turns what the
+controller returns into a command for the world and telemetry for the
+logger. It owns the formation codes: checked as they arrive, passed through
+the receiving end of the leader -> follower link, kept until their tick.
+
+The leader answers tick k with its code for k; that code can reach the
+follower before or after its own observation k (the world publishes them
+one by one), so it is flown from tick k + 1 on: never earlier, and in
+lockstep never later, since the world publishes k + 1 only after the
+leader's answer to k. Codes are taken in the order of their ticks, so one
+stamped far ahead cannot hold back the others. A code the link held back
+counts from the tick of its release (so it too takes effect on the tick
+after).
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from formation_swarm.agents.controller import FollowerController, FollowerInput, FollowerOutput, MarkerReading
+from formation_swarm.agents.formation import Slot
+from formation_swarm.agents.geometry import Point
+from formation_swarm.agents.role_base import Answer, RoleBase, RoleSetup
+from formation_swarm.protocol.links import Link
+from formation_swarm.protocol.messages import Command, FormationCode, Observation, Telemetry
+
+PENDING_CODES = 64  # formation codes waiting for their tick
+MAX_HOLDS = 100  # holds listed in the stats (all are counted in held_ticks)
+
+
+class FollowerRole(RoleBase):
+    NAME = "follower"
+    TAKES_CODES = True
+    SENDS_TELEMETRY = True
+
+    def __init__(self, setup: RoleSetup, formation_link: Link[FormationCode], controller: FollowerController) -> None:
+        super().__init__(setup)
+        self.leader_id = setup.leader_id
+        self.dt_s = setup.dt_s
+        self.formation_link = formation_link
+        self.controller = controller
+        self._prepare = getattr(controller, "prepare", None)  # optional (agents.controller)
+        self.slot = _slot(self.formations[self.code].slots[self.robot_id])
+        self._moved = self._new_reference = False  # since the last step
+        # Codes taken, each with the tick it is stamped with or, if the link held it, released at.
+        self.pending: collections.deque[tuple[int, FormationCode]] = collections.deque(maxlen=PENDING_CODES)
+        self.answered_tick: int | None = None
+        self.formation_changes: list[dict[str, Any]] = []
+        self.stops = Stops()
+        self.ekf_resets = 0
+
+    @property
+    def links(self) -> tuple[Link[Any], ...]:
+        return (self.inbox.link, self.formation_link)
+
+    def describe(self) -> str:
+        return f"follower of robot {self.slot.reference}"
+
+    # -- what arrives --------------------------------------------------------------
+
+    def take_observation(self, obs: Observation) -> None:
+        if self.inbox.take(obs):
+            self._take_codes(self.formation_link.due(obs.tick), obs.tick)  # those the link held until now
+
+    def take_code(self, fc: FormationCode) -> None:
+        """A formation code that arrived (from the leader only)."""
+        if fc.sender != self.leader_id:
+            self.rejections.reject("sender mismatch")
+        elif (why := self.inbox.checks.code(fc)) is not None:
+            self.rejections.reject(why)
+        else:
+            self._take_codes(self.formation_link.deliver(fc.seq, fc.tick, fc), fc.tick)
+
+    def _take_codes(self, codes: list[FormationCode], release_tick: int) -> None:
+        """Codes the formation link handed over at ``release_tick``: one it held
+        takes effect as if stamped with the tick of its release."""
+        for fc in codes:
+            if (why := self.inbox.checks.handed_code(fc)) is not None:
+                self.rejections.reject(why)
+            elif fc.code >= len(self.formations):
+                self.rejections.reject("unknown formation")
+            elif self.robot_id not in self.formations[fc.code].slots:
+                self.rejections.reject("no slot in formation")
+            else:
+                self.pending.append((max(fc.tick, release_tick), fc))
+
+    # -- the answer ----------------------------------------------------------------
+
+    def answer(self) -> Answer | None:
+        got = self.inbox.pop()
+        if got is None:
+            return None
+        obs, reading = got
+        self._fly_due_codes(obs.tick)
+        out = self.controller.step(self._input(obs, reading))
+        command = Command(
+            sender=self.robot_id,
+            seq=self._next_seq(),
+            tick=obs.tick,
+            left_mps=out.left_mps,
+            right_mps=out.right_mps,
+            formation=self.code,
+            done=False,
+        )
+        self._count(obs.tick, out.telemetry)
+        telemetry = self._telemetry(obs, out)
+        self._answered(obs.tick)
+        return Answer(command=command, telemetry=telemetry)
+
+    def prepare(self) -> None:
+        if self._prepare is not None:
+            self._prepare()  # the next tick's EKF prediction, before its observation comes
+
+    def _fly_due_codes(self, tick: int) -> None:
+        """The codes stamped before ``tick``, in the order of their ticks (then seqs)."""
+        if not self.pending or min(t for t, _ in self.pending) >= tick:
+            return
+        due = sorted((p for p in self.pending if p[0] < tick), key=lambda p: (p[0], p[1].seq))
+        self.pending = collections.deque((p for p in self.pending if p[0] >= tick), maxlen=PENDING_CODES)
+        for _, fc in due:
+            self._fly(fc)
+
+    def _fly(self, fc: FormationCode) -> None:
+        if fc.code == self.code:
+            return
+        new = _slot(self.formations[fc.code].slots[self.robot_id])
+        self.code = fc.code
+        self._new_reference |= new.reference != self.slot.reference
+        self._moved |= new.offset != self.slot.offset
+        self.slot = new
+        self.formation_changes.append({"tick": fc.tick, "code": fc.code, "name": self.formations[fc.code].name})
+
+    def _input(self, obs: Observation, reading_obs: Observation | None) -> FollowerInput:
+        """What the controller gets for ``obs``, read off ``reading_obs``: this
+        tick's, or an older one the link held back (stale, as delays are)."""
+        reading = None
+        if reading_obs is not None:
+            for rid, rho, phi, beta in reading_obs.readings:
+                if rid == self.slot.reference:
+                    reading = MarkerReading(rho_m=rho, phi_rad=phi, beta_rad=beta)
+                    break
+        # The ticks since the last one answered: more than one where observations
+        # were skipped (real time, a busy machine) or the agent was frozen.
+        ticks = 1 if self.answered_tick is None else max(1, obs.tick - self.answered_tick)
+        self.answered_tick = obs.tick
+        inp = FollowerInput(
+            reading=reading,
+            slot=self.slot,
+            slot_moved=self._moved,
+            new_reference=self._new_reference,
+            ticks=ticks,
+            dt_s=ticks * self.dt_s,
+        )
+        self._moved = self._new_reference = False
+        return inp
+
+    def _count(self, tick: int, values: Mapping[str, float]) -> None:
+        """The counters the controller's named values feed (agents.controller.ROLE_COUNTED)."""
+        self.stops.count(tick, holding=_flag(values, "holding"), waiting=_flag(values, "waiting"))
+        resets = values.get("ekf_resets")
+        if resets is not None and math.isfinite(resets):
+            self.ekf_resets = int(resets)
+
+    def _telemetry(self, obs: Observation, out: FollowerOutput) -> Telemetry:
+        t = out.telemetry
+        return Telemetry(
+            sender=self.robot_id,
+            seq=self._next_seq(),
+            tick=obs.tick,
+            time_s=obs.time_s,
+            reference=self.slot.reference,
+            formation=self.code,
+            measured=_values(t, "measured_x_m", "measured_y_m"),
+            estimate=_values(t, "estimate_x_m", "estimate_y_m"),
+            target_cov=_values(t, "estimate_cov_xx_m2", "estimate_cov_xy_m2", "estimate_cov_yy_m2"),
+            rho_m=_value(t, "rho_m"),
+            alpha_rad=_value(t, "alpha_rad"),
+            vn=_value(t, "vn_mps"),
+            left_mps=out.left_mps,
+            right_mps=out.right_mps,
+            steering_to=int(_value(t, "steering_to") or 0),
+            changing=_flag(t, "changing"),
+            obs_dropped=self.inbox.link.lost,
+            formation_dropped=self.formation_link.lost,
+            rejected=self.rejections.total,
+        )
+
+    def stats(self) -> dict[str, Any]:
+        return {
+            **super().stats(),
+            "ekf_resets": self.ekf_resets,
+            "held_ticks": self.stops.held_ticks,
+            "holds": self.stops.holds,
+            "waited_ticks": self.stops.waited_ticks,
+            "formation_changes": self.formation_changes,
+        }
+
+
+class Stops:
+    """A follower's stops, for its stats: the ticks it held at a standing
+    reference, [first, last] tick of each hold (the first MAX_HOLDS), and the
+    ticks it waited ahead of its target (controller.wait_ahead)."""
+
+    def __init__(self) -> None:
+        self.held_ticks = 0
+        self.holds: list[list[int]] = []
+        self._span: list[int] | None = None  # the hold under way, if it is recorded
+        self.waited_ticks = 0
+
+    def count(self, tick: int, *, holding: bool, waiting: bool) -> None:
+        self.waited_ticks += waiting
+        if not holding:
+            self._span = None
+            return
+        self.held_ticks += 1
+        if self._span is not None:
+            self._span[1] = tick
+        elif len(self.holds) < MAX_HOLDS:
+            self._span = [tick, tick]
+            self.holds.append(self._span)
+
+
+def _slot(slot: Slot) -> Slot:
+    return Slot(reference=slot.reference, offset=Point(float(slot.offset[0]), float(slot.offset[1])))
+
+
+def _value(values: Mapping[str, float], name: str) -> float | None:
+    """A named value; None where it is absent or NaN (the wire carries no NaN)."""
+    v = values.get(name)
+    return None if v is None or v != v else v
+
+
+def _values(values: Mapping[str, float], *names: str) -> tuple[float, ...] | None:
+    """Named values together; None unless every one is there."""
+    got = tuple(_value(values, n) for n in names)
+    return None if None in got else got  # type: ignore[return-value]
+
+
+def _flag(values: Mapping[str, float], name: str) -> bool:
+    return (_value(values, name) or 0.0) > 0.0
