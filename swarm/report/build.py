@@ -20,8 +20,10 @@ from __future__ import annotations
 
 import contextlib
 import sys
+import tempfile
+import traceback
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -39,19 +41,31 @@ NO_FIGURES = "no-figures.txt"  # in RUN_DIR/report/ when it could draw none: why
 FORMATS = ("png", "svg", "pdf")
 DEFAULT_DPI = 150
 MAX_SNAPSHOTS = 100
+TRACEBACK_LOG = "report-error.log"  # in RUN_DIR/report/ when swarm report failed: its traceback
+EXIT_FAILED = 1  # the report could not be made (not a usage error): one line, the traceback in a log
+
+
+class UsageError(ValueError):
+    """An argument or a run folder that swarm report cannot use (exit code 2)."""
 
 
 def make_report(run_dir: str | Path, snapshots: int = 6, fmt: str = "png", dpi: int = DEFAULT_DPI) -> Path:
     """Writes RUN_DIR/report/ and returns it (a folder without recording.rrd:
-    report.md alone, saying why). Raises ValueError for a folder it cannot use
-    (not a run folder, a recording with no robot in it: a run that ended
-    before its first tick) and OSError when it cannot write the report."""
+    report.md alone, saying why). Raises UsageError for an argument or a
+    folder it cannot use (not a run folder, a summary or recording it cannot
+    read) and OSError when it cannot write the report; any other error is
+    its own, with a note saying what it was writing."""
     run_dir = Path(run_dir)
     if not 0 <= snapshots <= MAX_SNAPSHOTS:
-        raise ValueError(f"snapshots must be in [0, {MAX_SNAPSHOTS}], got {snapshots!r}")
+        raise UsageError(f"snapshots must be in [0, {MAX_SNAPSHOTS}], got {snapshots!r}")
     if fmt not in FORMATS:
-        raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
-    run_dir, summary, data = read_folder(run_dir, need_recording=False)
+        raise UsageError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
+    try:
+        run_dir, summary, data = read_folder(run_dir, need_recording=False)
+    except ValueError as exc:  # the folder's own problem, said by the reader
+        raise UsageError(str(exc)) from None
+    except OSError as exc:  # a file of it this user may not read, say
+        raise UsageError(f"cannot read {run_dir}: {exc}") from None
     rrd = run_dir / "recording.rrd"
     robots = robots_in(data)
     if not robots:  # no recording, or one with nothing in it: the summary's tables alone
@@ -76,13 +90,22 @@ def make_report(run_dir: str | Path, snapshots: int = 6, fmt: str = "png", dpi: 
     out = run_dir / "report"
     out.mkdir(exist_ok=True)
     ctx = _context(run_dir, summary, data, robots, followers)
-    name = {stem: out / f"{stem}.{fmt}" for stem in FIGURES}
-    figures.trajectories(name["trajectories"], data, ctx, snapshots, dpi)
     rms = {r: ((summary.get("followers") or {}).get(str(r)) or {}).get("rms_m") for r in followers}
-    figures.formation_error(name["formation_error"], data, ctx, rms, dpi)
-    figures.vn(name["vn"], data, ctx, dpi)
     errs = ((summary.get("parts") or {}).get("logger") or {}).get("target_errors") or {}
-    figures.targets(name["targets"], data, ctx, {r: errs.get(str(r)) or {} for r in followers}, dpi=dpi, rms=rms)
+    errors = {r: errs.get(str(r)) or {} for r in followers}
+    draw: dict[str, Callable[[Path], None]] = {
+        "trajectories": lambda path: figures.trajectories(path, data, ctx, snapshots, dpi),
+        "formation_error": lambda path: figures.formation_error(path, data, ctx, rms, dpi),
+        "vn": lambda path: figures.vn(path, data, ctx, dpi),
+        "targets": lambda path: figures.targets(path, data, ctx, errors, dpi=dpi, rms=rms),
+    }
+    for stem in FIGURES:
+        path = out / f"{stem}.{fmt}"
+        try:
+            draw[stem](path)
+        except Exception as exc:
+            exc.add_note(f"drawing {path.name}")
+            raise
     (out / "report.md").write_text(report_markdown(summary, followers, fmt, ctx))
     return out
 
@@ -123,12 +146,43 @@ def _context(
     return ctx
 
 
+def _one_line(exc: BaseException, run_dir: str) -> str:
+    """What failed, on one line: what it was doing (its notes) and the error."""
+    if isinstance(exc, OSError) and not getattr(exc, "__notes__", None):
+        doing = f"cannot write the report into {run_dir}"
+    else:
+        doing = "; ".join(getattr(exc, "__notes__", None) or ["failed"])
+    said = " ".join(str(exc).split()) or "(no message)"
+    return f"{doing}: {type(exc).__name__}: {said}"
+
+
+def _log_traceback(exc: BaseException, folder: Path) -> Path:
+    """The traceback of ``exc`` written to folder/TRACEBACK_LOG, or to a file
+    of the system's temporary folder where that cannot be written; its path."""
+    text = "".join(traceback.format_exception(exc))
+    try:
+        folder.mkdir(exist_ok=True)
+        path = folder / TRACEBACK_LOG
+        path.write_text(text)
+    except OSError:
+        with tempfile.NamedTemporaryFile("w", prefix="swarm-report-", suffix=".log", delete=False) as f:
+            f.write(text)
+            path = Path(f.name)
+    return path
+
+
+EPILOG = """\
+exit codes: 0 the report was written; 1 it could not be (one line on stderr,
+the traceback in RUN_DIR/report/report-error.log); 2 a bad command line or a
+folder that is not a run folder, or whose summary or recording cannot be read.
+
+example:
+  swarm run fig11_obstacles --out runs/fig11
+  swarm report runs/fig11"""
+
+
 def build_parser() -> Parser:
-    ap = Parser(
-        prog="swarm report",
-        description=__doc__,
-        epilog="example:\n  swarm run fig11_obstacles --out runs/fig11\n  swarm report runs/fig11",
-    )
+    ap = Parser(prog="swarm report", description=__doc__, epilog=EPILOG)
     ap.add_argument("run_dir", metavar="RUN_DIR", help="a run's folder, as swarm run printed it (runs/<run id>)")
     ap.add_argument(
         "--snapshots",
@@ -154,12 +208,15 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         out = make_report(args.run_dir, args.snapshots, args.format, args.dpi)
-    except ValueError as exc:
+    except UsageError as exc:
         print(f"swarm report: {exc}", file=sys.stderr)
         return USAGE_ERROR
-    except OSError as exc:
-        print(f"swarm report: cannot write the report into {args.run_dir}: {exc}", file=sys.stderr)
-        return USAGE_ERROR
+    except Exception as exc:  # its own error, or the system's: one line here, the traceback in a log
+        log = _log_traceback(exc, Path(args.run_dir) / "report")
+        print(f"swarm report: {_one_line(exc, args.run_dir)} (traceback in {log})", file=sys.stderr)
+        return EXIT_FAILED
+    with contextlib.suppress(FileNotFoundError):  # a failure's, before this success
+        (out / TRACEBACK_LOG).unlink()
     if not (out / NO_FIGURES).is_file():
         print(f"[report] {out}: {', '.join(f'{stem}.{args.format}' for stem in FIGURES)}, report.md")
     else:

@@ -65,7 +65,12 @@ def moving_average(t: np.ndarray, v: np.ndarray, window_s: float, dt_s: float) -
     kernel = np.ones(n)
     for sl in stretches(t, dt_s):
         part = v[sl]
-        out[sl] = np.convolve(part, kernel, mode="same") / np.convolve(np.ones_like(part), kernel, mode="same")
+        if len(part) >= n:
+            out[sl] = np.convolve(part, kernel, mode="same") / np.convolve(np.ones_like(part), kernel, mode="same")
+        else:  # "same" gives the window's length then: take the part's own, centred as above
+            lo = (n - 1) // 2
+            kept = slice(lo, lo + len(part))
+            out[sl] = np.convolve(part, kernel)[kept] / np.convolve(np.ones_like(part), kernel)[kept]
     return out
 
 
