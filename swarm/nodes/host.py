@@ -191,7 +191,7 @@ def _configure(ap: cliargs.Parser, args: Any) -> tuple[str, tuple[int, ...] | No
                 f"--connect {plain[0]}: this login ({args.auth}) names a CA, for TLS: connect with "
                 "tls/ROUTER:PORT, or the agents' passwords would cross the network in clear"
             )
-        conf = session.make_config("client", args.connect, (), args.config, settings=settings)
+        conf = session.make_config("client", args.connect, config_file=args.config, settings=settings)
         # The router may come and go (a run's world is one): keep trying, in the background.
         conf.insert_json5("connect/exit_on_failure", "false")
         conf.insert_json5("connect/timeout_ms", "-1")
