@@ -21,11 +21,13 @@ agents run on other machines (launch.hosts).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import shutil
+import signal
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -36,7 +38,7 @@ from formation_swarm.launch.console import print_result
 from formation_swarm.launch.faults import FaultExecutor
 from formation_swarm.launch.hosts import HostOptions, Hosts
 from formation_swarm.launch.plan import SECRETS, KillAt, Plan, RunOptions
-from formation_swarm.launch.processes import Processes
+from formation_swarm.launch.processes import Processes, wait_for_fork_server
 from formation_swarm.launch.record import Journal, StatusFeed
 from formation_swarm.launch.result import Ending, RunResult, end_reason, processes_part
 from formation_swarm.nodes import viewer
@@ -44,7 +46,6 @@ from formation_swarm.protocol import trust
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Status
 from formation_swarm.protocol.session import make_config
-from formation_swarm.runtime import proc
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.runtime.children import Child, free_port
 
@@ -158,6 +159,8 @@ class Launch:
 
     def _start(self) -> None:
         plan, remote_agents = self.plan, bool(self.hosts.names)
+        if plan.options.fork:
+            wait_for_fork_server()
         plan.make_folder()
         self.port = free_port()
         secrets = plan.write_logins(
@@ -203,6 +206,11 @@ class Launch:
         argv = self.plan.restart_argv(self.children[process].argv, name)
         return self.procs.start(Child(name, argv, self.plan.log_path(name), fork=self.plan.options.fork))
 
+    @property
+    def interrupted(self) -> bool:
+        """A Ctrl-C (SIGINT or SIGTERM, on the main thread) or :meth:`interrupt` came."""
+        return self._interrupt.is_set()
+
     def interrupt(self) -> None:
         """Stop the run as a Ctrl-C would, from any thread: :meth:`wait` stops
         every process and ends with exit code 130, the summary ``interrupted``."""
@@ -240,11 +248,19 @@ class Launch:
     def wait(self, timeout_s: float | None = None) -> RunResult:
         """Run to the end (or timeout/Ctrl-C), stop everything, write the summary."""
         ending, shown = self._follow(timeout_s)
+        # From here a Ctrl-C cuts nothing short: it is noted, and the run ends interrupted.
+        with _stop_signals_noted(self.interrupt):
+            return self._finish(ending, shown)
+
+    def _finish(self, ending: Ending, shown: int | None) -> RunResult:
         self._watch()
         last = self.status.last
         if last is not None and last.tick != shown and not ending.interrupted:
             self._show_progress()  # where it ended: a run shorter than a line's 2 s showed only its start
         self.stop(graceful_first=not ending.abrupt)
+        if self.interrupted and not ending.interrupted:  # while the processes left
+            self.journal.say("[swarm] interrupted: every process stopped")
+            ending = dataclasses.replace(ending, interrupted=True)
         self.procs.note_unreported_codes()
         world = self.children["world"]
         code = ending.exit_code(world.proc.returncode if world.proc is not None else None)
@@ -300,10 +316,11 @@ class Launch:
 
     def stop(self, graceful_first: bool = True) -> None:
         """End of run: give everyone END_GRACE_S to leave on the world's "done",
-        then SIGTERM, then SIGKILL after STOP_GRACE_S. Always reaps; a second
-        Ctrl-C meanwhile does not interrupt the reaping."""
-        with proc.sigint_ignored():
-            self.procs.stop(graceful_first)
+        then SIGTERM, then SIGKILL after STOP_GRACE_S. Always reaps: a Ctrl-C
+        meanwhile does not interrupt the reaping, it ends the grace (and the
+        run is :attr:`interrupted`)."""
+        with _stop_signals_noted(self.interrupt):
+            self.procs.stop(graceful_first, cut_short=self._interrupt.is_set)
             self.hosts.stop()
             if self.session is not None:
                 self.session.close()
@@ -337,3 +354,26 @@ class Launch:
         self.hosts.add_to_summary(summary)
         summary_mod.write(self.run_dir, summary)
         return summary
+
+
+@contextlib.contextmanager
+def _stop_signals_noted(note: Callable[[], None]) -> Iterator[None]:
+    """Inside, on the main thread, a SIGINT or SIGTERM that would raise (a
+    Python handler) only calls ``note``: what runs inside is not cut short,
+    and the signal is not lost either. A SIGINT left to the system's default
+    is ignored inside; one the process ignores stays ignored."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    for sig, handler in previous.items():
+        if callable(handler):
+            signal.signal(sig, lambda _sig, _frame: note())
+        elif sig == signal.SIGINT and handler == signal.SIG_DFL:
+            signal.signal(sig, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            if handler is not None:  # None: not set from Python, and left alone here
+                signal.signal(sig, handler)
