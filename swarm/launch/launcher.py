@@ -753,8 +753,7 @@ class Launch:
                 )
         world_code = world.proc.returncode if world.proc is not None else None
         code = 130 if interrupted else (124 if timed_out else (0 if world_code == 0 and not start_failed else 1))
-        world_stats = summary_mod.read_parts(self.run_dir / "stats").get("world", {})
-        if code == 0 and (lost := summary_mod.robots_lost(world_stats, self.sc)):
+        if code == 0 and (lost := summary_mod.run_failed(summary_mod.read_parts(self.run_dir / "stats"), self.sc)):
             self.progress(f"[swarm] the run failed: {lost}")
             code = 1  # it ran to its end, but not as a formation: not a success
         if code in (0, 1) and self.lost_hosts:
