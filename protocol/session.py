@@ -142,6 +142,7 @@ def listen_problem(ep: str) -> str | None:
 def make_config(
     mode: str = "client",
     connect: Sequence[str] = (),
+    *,
     listen: Sequence[str] = (),
     config_file: str | None = None,
     connect_timeout_s: float = 30.0,
@@ -186,4 +187,11 @@ def make_config(
 
 def config_from_args(args: argparse.Namespace, connect_timeout_s: float = 30.0) -> zenoh.Config:
     settings = trust.read_settings(args.auth) if args.auth else None
-    return make_config(args.zenoh_mode, args.connect, args.listen, args.config, connect_timeout_s, settings=settings)
+    return make_config(
+        args.zenoh_mode,
+        args.connect,
+        listen=args.listen,
+        config_file=args.config,
+        connect_timeout_s=connect_timeout_s,
+        settings=settings,
+    )

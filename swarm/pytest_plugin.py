@@ -30,18 +30,19 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from formation_swarm.launch.launcher import Launch, RunResult
+if TYPE_CHECKING:  # imported by the fixtures when used: the launcher brings Zenoh, numpy and scipy
+    from formation_swarm.launch.launcher import Launch, RunResult
 
 INTERRUPTED = 130  # Launch.wait's exit codes
 TIMED_OUT = 124
 
 
 # The runs a test started, kept on its item: a failed test's report names their folders.
-LAUNCHES = pytest.StashKey[list[Launch]]()
+LAUNCHES = pytest.StashKey[list["Launch"]]()
 
 
 @pytest.hookimpl(hookwrapper=True)  # the old-style wrapper: pytest 7 too
@@ -64,6 +65,8 @@ def _run_line(launch: Launch) -> str:
 @pytest.fixture
 def swarm_launch(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[Callable[..., Launch]]:
     """Start runs (``Launch`` objects) that are stopped and reaped at teardown."""
+    from formation_swarm.launch.launcher import Launch
+
     launches: list[Launch] = []
     request.node.stash[LAUNCHES] = launches
 

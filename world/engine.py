@@ -233,7 +233,7 @@ class WorldEngine:
                 vl = vr = 0.0
             vl, vr = self.wheels[rid].turn(self.tick, vl, vr)
             x, y, th = r.pose
-            r.pose = _step_unchecked(x, y, th, vl, vr, width, dt)
+            r.pose = _step_unchecked(x, y, th, vl, vr, width=width, dt=dt)
         self.tick += 1
 
     def record(self) -> None:

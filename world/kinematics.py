@@ -43,10 +43,10 @@ def step(pose: Pose, v_left_mps: float, v_right_mps: float, width_m: float, dt_s
     vr = finite("v_right_mps", v_right_mps)
     width = positive("width_m", width_m)
     dt = positive("dt_s", dt_s)
-    return _step_unchecked(x, y, th, vl, vr, width, dt)
+    return _step_unchecked(x, y, th, vl, vr, width=width, dt=dt)
 
 
-def _step_unchecked(x: float, y: float, th: float, vl: float, vr: float, width: float, dt: float) -> Pose:
+def _step_unchecked(x: float, y: float, th: float, vl: float, vr: float, *, width: float, dt: float) -> Pose:
     v, w = body_twist(vl, vr, width)
     dth = w * dt
     if abs(dth) < 1e-9:

@@ -306,44 +306,68 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
     if not ticks:
         w("  no metrics: the run ended before its first tick\n")
     else:
-        followers = sorted((s.get("followers") or {}).items(), key=lambda kv: (len(str(kv[0])), str(kv[0])))
-        kills: dict[str, tuple[Any, ...]] = {}  # agent-N -> the sim times of its first kill and of its restart
-        for ev in s.get("events") or []:
-            if isinstance(ev, Mapping) and ev.get("event") == "killed":
-                kills.setdefault(str(ev.get("process")).split(".")[0], (ev.get("sim_time_s"), None))
-            elif isinstance(ev, Mapping) and ev.get("event") == "started":  # a fresh agent: agent-N.2
-                name = str(ev.get("process")).split(".")[0]
-                if name in kills and kills[name][1] is None:
-                    kills[name] = (kills[name][0], ev.get("sim_time_s"))
-        for d in s.get("deaths") or []:  # lost otherwise (a crash, its host gone): its error until then too
-            if isinstance(d, Mapping) and f"agent-{d.get('robot')}" not in kills:
-                kills[f"agent-{d.get('robot')}"] = (d.get("time_s"), None, "lost")
-        listed = followers  # JSON keys: robot ids as text, listed by number
-        if len(followers) > LIST_FOLLOWERS_UP_TO:
-            listed = _many_followers(w, followers, kills)
-        for rid, m in listed:
-            w(_follower_line(rid, m, kills))
-        w(
-            f"  min distance {_num(s.get('min_distance_m'))} m (diameter {_num(s.get('robot_diameter_m'), 'g')} m), "
-            f"collisions {s.get('collisions')}, obstacle collisions {s.get('obstacle_collisions')}\n"
-        )
-        if contacts := contacts_line(s.get("contacts") or [], s.get("collisions"), s.get("obstacle_collisions")):
-            w(f"  {contacts}\n")
-        changes = _changes(s.get("formation_events") or [], grouped=len(followers) > LIST_FOLLOWERS_UP_TO)
-        w(f"  formation changes: {changes or 'none'}\n")
-        if s.get("mode") == "realtime":
-            late_ms = _num(1e3 * s["max_tick_lateness_s"] if s.get("max_tick_lateness_s") is not None else None, ".1f")
-            sched = s.get("world_scheduling") or ""
-            # A world the machine kept out of the real-time class: its ticks may start late under load.
-            note = f" (world scheduling {sched})" if sched.startswith("normal (") else ""
-            w(f"  late ticks {s.get('late_ticks')} (worst {late_ms} ms){note}{_skipped(s.get('parts'))}, {losses(s)}, ")
+        _metrics(w, s)
+    _faults_and_events(w, s)
+    w(f"run folder: {res.run_dir}\n  summary: {res.run_dir / 'summary.json'}\n")
+    if s.get("recording") and res.recording.is_file():
+        if not s.get("ticks"):  # stopped before its first tick: the file holds nothing to watch
+            w(f"  recording: {res.recording} (empty: the run ended before its first tick)\n")
         else:
-            w(f"  lockstep misses {s.get('lockstep_misses')}, {losses(s)}, ")
-        w(f"rejected {s.get('rejected_total')}{rejected_why(s)}\n")
-        if s.get("recording_gap"):
-            w(f"  RECORDING INCOMPLETE: {s['recording_gap']}\n")
-        if s.get("recording_cut"):
-            w(f"  RECORDING CUT SHORT: {s['recording_cut']}\n")
+            viewer = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
+            w(f"  recording: {res.recording}\n  open it:   {viewer} {res.recording}\n")
+
+
+def _kills(s: Mapping[str, Any]) -> dict[str, tuple[Any, ...]]:
+    """agent-N -> the sim times of its first kill and of its restart (None:
+    none), or of its loss and "lost" for one lost otherwise (a crash, its host gone)."""
+    kills: dict[str, tuple[Any, ...]] = {}
+    for ev in s.get("events") or []:
+        if isinstance(ev, Mapping) and ev.get("event") == "killed":
+            kills.setdefault(str(ev.get("process")).split(".")[0], (ev.get("sim_time_s"), None))
+        elif isinstance(ev, Mapping) and ev.get("event") == "started":  # a fresh agent: agent-N.2
+            name = str(ev.get("process")).split(".")[0]
+            if name in kills and kills[name][1] is None:
+                kills[name] = (kills[name][0], ev.get("sim_time_s"))
+    for d in s.get("deaths") or []:  # lost otherwise (a crash, its host gone): its error until then too
+        if isinstance(d, Mapping) and f"agent-{d.get('robot')}" not in kills:
+            kills[f"agent-{d.get('robot')}"] = (d.get("time_s"), None, "lost")
+    return kills
+
+
+def _metrics(w: Any, s: Mapping[str, Any]) -> None:
+    """The metrics of a run that had ticks: the followers' errors, distances, formation changes, losses."""
+    followers = sorted((s.get("followers") or {}).items(), key=lambda kv: (len(str(kv[0])), str(kv[0])))
+    kills = _kills(s)
+    listed = followers  # JSON keys: robot ids as text, listed by number
+    if len(followers) > LIST_FOLLOWERS_UP_TO:
+        listed = _many_followers(w, followers, kills)
+    for rid, m in listed:
+        w(_follower_line(rid, m, kills))
+    w(
+        f"  min distance {_num(s.get('min_distance_m'))} m (diameter {_num(s.get('robot_diameter_m'), 'g')} m), "
+        f"collisions {s.get('collisions')}, obstacle collisions {s.get('obstacle_collisions')}\n"
+    )
+    if contacts := contacts_line(s.get("contacts") or [], s.get("collisions"), s.get("obstacle_collisions")):
+        w(f"  {contacts}\n")
+    changes = _changes(s.get("formation_events") or [], grouped=len(followers) > LIST_FOLLOWERS_UP_TO)
+    w(f"  formation changes: {changes or 'none'}\n")
+    if s.get("mode") == "realtime":
+        late_ms = _num(1e3 * s["max_tick_lateness_s"] if s.get("max_tick_lateness_s") is not None else None, ".1f")
+        sched = s.get("world_scheduling") or ""
+        # A world the machine kept out of the real-time class: its ticks may start late under load.
+        note = f" (world scheduling {sched})" if sched.startswith("normal (") else ""
+        w(f"  late ticks {s.get('late_ticks')} (worst {late_ms} ms){note}{_skipped(s.get('parts'))}, {losses(s)}, ")
+    else:
+        w(f"  lockstep misses {s.get('lockstep_misses')}, {losses(s)}, ")
+    w(f"rejected {s.get('rejected_total')}{rejected_why(s)}\n")
+    if s.get("recording_gap"):
+        w(f"  RECORDING INCOMPLETE: {s['recording_gap']}\n")
+    if s.get("recording_cut"):
+        w(f"  RECORDING CUT SHORT: {s['recording_cut']}\n")
+
+
+def _faults_and_events(w: Any, s: Mapping[str, Any]) -> None:
+    """Each fault with what it did, then the events no fault's line said."""
     for f in s.get("faults") or []:
         w(f"  fault: {describe_fault(f, s.get('ticks'))}\n")
     events = s.get("events") or []
@@ -353,10 +377,3 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
             continue  # carried out for a fault: its line above says it
         if not (ev.get("event") == "exited" and ev.get("process") in killed):  # the kill said it
             w(f"  event: {describe_event(ev)}\n")
-    w(f"run folder: {res.run_dir}\n  summary: {res.run_dir / 'summary.json'}\n")
-    if s.get("recording") and res.recording.is_file():
-        if not s.get("ticks"):  # stopped before its first tick: the file holds nothing to watch
-            w(f"  recording: {res.recording} (empty: the run ended before its first tick)\n")
-        else:
-            viewer = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
-            w(f"  recording: {res.recording}\n  open it:   {viewer} {res.recording}\n")

@@ -151,37 +151,8 @@ def _check(sess: zenoh.Session, hosts: list[str], robots: tuple[int, ...] | None
                 flush=True,
             )
             problems.append(f"host {h} not heard")
-            continue
-        best, reply, offset = float("inf"), None, 0.0
-        for _ in range(3):
-            t0, w0 = time.monotonic(), time.time()
-            try:
-                r = c.ask(HostRequest("info", __version__, sent_unix=w0), timeout_s=5.0)
-            except remote.HostError as exc:
-                print(f"  host {h}: heard, but {exc}", flush=True)
-                problems.append(f"host {h}: {exc}")
-                reply = None
-                break
-            rtt = time.monotonic() - t0
-            if rtt < best:
-                best, reply, offset = rtt, r, r.time_unix - (w0 + rtt / 2)
-        if reply is None:
-            continue
-        infos[h] = reply
-        robots_text = "any robot" if reply.robots is None else "robots " + ",".join(map(str, reply.robots))
-        flags = []
-        if reply.version != __version__:
-            flags.append(f"VERSION {reply.version} != {__version__}")
-            problems.append(f"host {h} runs formation_swarm {reply.version}, here {__version__}")
-        if abs(offset) > CLOCK_WARN_S:
-            flags.append(f"clock off by {offset:+.2f} s (fine for lockstep; sync with NTP for readable logs)")
-        print(
-            f"  host {h}: heard; round trip {best * 1000:.1f} ms; clock {offset * 1000:+.0f} ms; version "
-            f"{reply.version}; {reply.hostname}, {reply.cores} cores, {reply.free_mem_mb} MB free, "
-            f"{reply.running} agents running; may run {robots_text}"
-            f"{'; ' + '; '.join(flags) if flags else ''}",
-            flush=True,
-        )
+        elif (reply := _examine(h, c, problems)) is not None:
+            infos[h] = reply
     for c in clients.values():
         c.close()
     if robots is not None and infos and len(infos) == len(hosts):
@@ -195,6 +166,40 @@ def _check(sess: zenoh.Session, hosts: list[str], robots: tuple[int, ...] | None
         return 1
     print(f"verdict: OK: a run on hosts {', '.join(hosts)} would start", flush=True)
     return 0
+
+
+def _examine(h: str, c: remote.HostClient, problems: list[str]) -> HostReply | None:
+    """Ask a host that is there about itself (three times: the quickest answer
+    gives the round trip and the clock offset) and print what it says; its
+    answer, or None (said, and added to ``problems``)."""
+    best, reply, offset = float("inf"), None, 0.0
+    for _ in range(3):
+        t0, w0 = time.monotonic(), time.time()
+        try:
+            r = c.ask(HostRequest("info", __version__, sent_unix=w0), timeout_s=5.0)
+        except remote.HostError as exc:
+            print(f"  host {h}: heard, but {exc}", flush=True)
+            problems.append(f"host {h}: {exc}")
+            return None
+        rtt = time.monotonic() - t0
+        if rtt < best:
+            best, reply, offset = rtt, r, r.time_unix - (w0 + rtt / 2)
+    assert reply is not None  # three answers
+    robots_text = "any robot" if reply.robots is None else "robots " + ",".join(map(str, reply.robots))
+    flags = []
+    if reply.version != __version__:
+        flags.append(f"VERSION {reply.version} != {__version__}")
+        problems.append(f"host {h} runs formation_swarm {reply.version}, here {__version__}")
+    if abs(offset) > CLOCK_WARN_S:
+        flags.append(f"clock off by {offset:+.2f} s (fine for lockstep; sync with NTP for readable logs)")
+    print(
+        f"  host {h}: heard; round trip {best * 1000:.1f} ms; clock {offset * 1000:+.0f} ms; version "
+        f"{reply.version}; {reply.hostname}, {reply.cores} cores, {reply.free_mem_mb} MB free, "
+        f"{reply.running} agents running; may run {robots_text}"
+        f"{'; ' + '; '.join(flags) if flags else ''}",
+        flush=True,
+    )
+    return reply
 
 
 if __name__ == "__main__":

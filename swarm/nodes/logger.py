@@ -1,4 +1,4 @@
-"""The logger process: the run's key space streamed to Rerun (formation_swarm.nodes.recording).
+"""The logger process: the run's key space streamed to Rerun (formation_swarm.nodes.recorder).
 
     swarm logger --scenario S.toml --run RUN --out recording.rrd [--live URL] [--serve-web]
                  [--stats FILE] [--peers-timeout S] --connect ENDPOINT
@@ -35,7 +35,9 @@ from typing import Any
 
 import zenoh
 
-from formation_swarm.nodes.recording import Recorder, open_recording
+from formation_swarm.nodes.ledger import LoopCpu, Peers, TickLedger
+from formation_swarm.nodes.recorder import Recorder
+from formation_swarm.nodes.recording import open_recording
 from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import pack_batch
 from formation_swarm.protocol.codec import WORLD_ID, Rejections
@@ -65,7 +67,6 @@ END_WAIT_S = 10.0
 # the logger had taken (lockstep fig9, 91 of 880 ticks of a follower refused).
 TICKS_PAST_END = 2
 END_OF_STREAM = pack_batch([])  # what protocol.batch.BatchPublisher.close sends
-GAPS_KEPT = 8
 
 
 class Logger:
@@ -80,6 +81,7 @@ class Logger:
         run_id: str,
         recorder: Recorder,
         role: role_mod.Role,
+        *,
         where: str = "",
     ) -> None:
         self.session = sess
@@ -93,26 +95,13 @@ class Logger:
         self.stop.add_waker(self.wake.set)
         self.inbox: queue.SimpleQueue[tuple[str, bytes]] = queue.SimpleQueue()
         self.rejections = Rejections()
-        self.ended: set[int] = set()  # followers whose telemetry stream has ended
-        self.agents_present: set[int] = set()  # robots whose agent's token is alive
+        self.peers = Peers()
         self.counts = {"truth": 0, "telemetry": 0, "fault_calls": 0, "other": 0}
-        self.world_seen = False
-        self.world_gone = False
         self.started = False  # the run's first status or truth has been handled
         self.done = False
-        self.last_tick: dict[int, int] = {}  # per sender (WORLD_ID: truth), the last tick taken
-        self.taken: dict[int, bytearray] = {}  # per sender, 1 at each tick taken
-        # Per sender, the first GAPS_KEPT runs of ticks missing between two taken
-        # ([first, last] missing) and how many ticks were missing in all. Real time
-        # drops by design; in lockstep every tick is sent, so a gap is a loss.
-        self.gaps: dict[int, list[list[int]]] = {}
-        self.first_tick: dict[int, int] = {}
-        self.missing: dict[int, int] = {}
-        self.last_run_tick = sc.ticks + TICKS_PAST_END
+        self.ticks = TickLedger(sc.ticks + TICKS_PAST_END)  # per sender (WORLD_ID: truth), the ticks taken
         self.end_note = "not started"  # why the loop ended, for the last report line
-        self.loop_cpu_s = 0.0
-        self.drain_cpu_s = 0.0
-        self.send_cpu_s = 0.0
+        self.cpu = LoopCpu()
         self.send_period_s = max(SEND_PERIOD_S, SEND_S_PER_ROBOT * len(sc.robots))
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
@@ -124,14 +113,11 @@ class Logger:
     def _on_agent_alive(self, sample: zenoh.Sample) -> None:
         rid = str(sample.key_expr).rpartition("/")[2]
         if rid.isdigit():
-            (self.agents_present.add if sample.kind == zenoh.SampleKind.PUT else self.agents_present.discard)(int(rid))
+            self.peers.agent(int(rid), present=sample.kind == zenoh.SampleKind.PUT)
             self.wake.set()  # a follower gone sends no more telemetry: the end may be here
 
     def _on_world_alive(self, sample: zenoh.Sample) -> None:
-        if sample.kind == zenoh.SampleKind.PUT:
-            self.world_seen = True
-        elif self.world_seen:
-            self.world_gone = True
+        self.peers.world(present=sample.kind == zenoh.SampleKind.PUT)
         self.wake.set()
 
     def run(self) -> int:
@@ -159,10 +145,10 @@ class Logger:
             followers, end_by = set(self.sc.follower_ids), math.inf
             while (
                 not self.stop.is_set()
-                and not self.world_gone
-                and not (self.done and (self._all_ended(followers) or time.monotonic() > end_by))
+                and not self.peers.world_gone
+                and not (self.done and (self.peers.all_ended(followers) or time.monotonic() > end_by))
             ):
-                if not self.world_seen and self.role.left_s() <= 0:
+                if not self.peers.world_seen and self.role.left_s() <= 0:
                     self.end_note = "gave up waiting for the world"
                     return self.role.gave_up(
                         f"no world of run {self.keys.run_id!r} ({self.where}); check --run and --connect"
@@ -171,14 +157,14 @@ class Logger:
                 self.wake.clear()
                 t0 = time.thread_time()
                 self._drain()
-                self.drain_cpu_s += time.thread_time() - t0
+                self.cpu.drain_s += time.thread_time() - t0
                 now = time.monotonic()
                 if self.done and end_by == math.inf:
                     end_by = now + END_WAIT_S
                 if now - last_send >= self.send_period_s:
                     t0 = time.thread_time()
                     self.recorder.send()
-                    self.send_cpu_s += time.thread_time() - t0
+                    self.cpu.send_s += time.thread_time() - t0
                     last_send = now
                 if now - last_flush >= FLUSH_PERIOD_S:
                     self.recorder.flush(timeout_s=0.2)
@@ -188,13 +174,9 @@ class Logger:
             self.recorder.send(final=True)
             self.recorder.flush(timeout_s=1.0)
         finally:
-            self.loop_cpu_s = time.process_time() - cpu0
+            self.cpu.loop_s = time.process_time() - cpu0
             token.undeclare()
         return self._exit_code()
-
-    def _all_ended(self, followers: set[int]) -> bool:
-        """Every follower's telemetry has ended: its end-of-stream mark taken, or its agent gone."""
-        return followers <= self.ended | (followers - self.agents_present)
 
     def _exit_code(self) -> int:
         code, self.end_note = self.role.follower_end(self.keys.run_id, self.done, self.started)
@@ -217,7 +199,7 @@ class Logger:
         elif rk is not None and rk.kind == "telemetry":
             tels = self.rejections.decode_batch(Telemetry, payload, sender=rk.robot_id)
             if tels == []:
-                self.ended.add(rk.robot_id)
+                self.peers.ended.add(rk.robot_id)
             elif tels is not None:
                 tels = [t for t in tels if self._fresh(t)]
                 self.counts["telemetry"] += len(tels)
@@ -229,7 +211,7 @@ class Logger:
                 self.done = self.done or st.state == "done"
         elif key == self.keys.codes:
             code = self.rejections.decode(FormationCode, payload, sender=self.sc.leader.robot_id)
-            if code is not None and code.tick <= self.last_run_tick:
+            if code is not None and not self.ticks.past_end(code.tick):
                 self.recorder.add_leader_code(code)
         elif key == self.keys.faults:
             call = self.rejections.decode(FaultCall, payload, sender=WORLD_ID)
@@ -240,40 +222,14 @@ class Logger:
             self.counts["other"] += 1
 
     def _fresh(self, msg: Truth | Telemetry) -> bool:
-        """A tick of the run the sender has not given yet, in any order; counts
-        what is refused. Each tick is taken once: a message with a tick far
-        ahead (a stolen login's, say) costs the real one of that tick alone,
-        where keeping only the newest tick made every later real one look
-        replayed."""
-        tick, sender = msg.tick, msg.sender
-        if tick > self.last_run_tick:
+        """A tick of the run the sender has not given yet, in any order
+        (formation_swarm.nodes.ledger.TickLedger); counts what is refused."""
+        if self.ticks.past_end(msg.tick):
             self.rejections.reject("tick past the run's end")
             return False
-        taken = self.taken.get(sender)
-        if taken is None:
-            taken = self.taken[sender] = bytearray(self.last_run_tick + 1)
-        if taken[tick]:
+        if not self.ticks.take(msg.sender, msg.tick):
             self.rejections.reject("replayed or reordered")
             return False
-        taken[tick] = 1
-        first, last = self.first_tick.get(sender), self.last_tick.get(sender)
-        kept = self.gaps.setdefault(sender, [])
-        if first is None or last is None:
-            self.first_tick[sender] = self.last_tick[sender] = tick
-        elif tick > last:
-            if tick > last + 1:
-                self.missing[sender] = self.missing.get(sender, 0) + tick - last - 1
-                kept.append([last + 1, tick - 1])
-            self.last_tick[sender] = tick
-        elif tick < first:  # late, before the first: the ticks between are missing now
-            if tick < first - 1:
-                self.missing[sender] = self.missing.get(sender, 0) + first - tick - 1
-                kept.insert(0, [tick + 1, first - 1])
-            self.first_tick[sender] = tick
-        else:  # late, inside a gap: fills it
-            self.missing[sender] -= 1
-            _fill(kept, tick)
-        del kept[GAPS_KEPT:]
         return True
 
     def _start(self) -> None:
@@ -282,18 +238,8 @@ class Logger:
             self.role.say(f"run {self.keys.run_id} started")
 
     def tick_stats(self) -> dict[str, dict[str, Any]]:
-        """Per sender ("0": the world's truth, else a follower's telemetry): the
-        first and last tick taken, how many were missing between and where
-        (swarm.summary.recording_gap says it in words)."""
-        return {
-            str(sender): {
-                "first": self.first_tick.get(sender),
-                "last": last,
-                "missing": self.missing.get(sender, 0),
-                "gaps": self.gaps.get(sender, []),
-            }
-            for sender, last in sorted(self.last_tick.items())
-        }
+        """Per sender: the first and last tick taken, how many were missing between and where."""
+        return self.ticks.stats()
 
     def stats(self) -> dict[str, Any]:
         recorded = self.recorder.stats()
@@ -304,10 +250,10 @@ class Logger:
             "rejected": dict(self.rejections.by_reason),
             "ticks": self.tick_stats(),
             "cpu_s": time.process_time(),  # the process's CPU time so far (user + system, all threads)
-            "loop_cpu_s": self.loop_cpu_s,  # of it, over the loop
+            "loop_cpu_s": self.cpu.loop_s,  # of it, over the loop
             # Of the loop thread's CPU: taking messages apart and checking them; sending them to Rerun.
-            "drain_cpu_s": self.drain_cpu_s,
-            "send_cpu_s": self.send_cpu_s,
+            "drain_cpu_s": self.cpu.drain_s,
+            "send_cpu_s": self.cpu.send_s,
         }
 
 
@@ -367,14 +313,6 @@ def build_parser() -> cliargs.Parser:
     return ap
 
 
-def _fill(gaps: list[list[int]], tick: int) -> None:
-    """Take ``tick`` out of the [first, last] runs of missing ticks it falls in."""
-    for i, (a, b) in enumerate(gaps):
-        if a <= tick <= b:
-            gaps[i : i + 1] = [g for g in ([a, tick - 1], [tick + 1, b]) if g[0] <= g[1]]
-            return
-
-
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     role = role_mod.Role("logger", args.peers_timeout)
@@ -405,7 +343,7 @@ def main(argv: list[str] | None = None) -> int:
         role.say(
             f"{where}; run {args.run}: recording to {args.out}; waiting up to {role.peers_timeout_s:g} s for the world"
         )
-        logger = Logger(sess, sc, args.run, Recorder(rec, sc), role, where)
+        logger = Logger(sess, sc, args.run, Recorder(rec, sc), role, where=where)
         code = logger.run()
         write_json(args.stats, logger.stats())
     delivered = rec.close()

@@ -102,7 +102,7 @@ def test_a_host_login_answers_on_its_own_key_only_and_hears_nothing_of_the_run(t
         conf = make_config(
             mode,
             [] if mode == "router" else [endpoint],
-            [endpoint] if mode == "router" else [],
+            listen=[endpoint] if mode == "router" else [],
             connect_timeout_s=3.0,
             settings=settings,
         )

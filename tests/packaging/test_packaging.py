@@ -57,6 +57,10 @@ def test_the_wheel_installs_one_top_level_package(wheel: Path) -> None:
     assert declared in ([], ["formation_swarm"])
     assert "formation_swarm/scenarios/fig11_obstacles.toml" in names
     assert "formation_swarm/py.typed" in names
+    # Every module of the source, subpackages too (pyproject.toml lists the packages by name).
+    source = {f"formation_swarm/{p.relative_to(ROOT / 'swarm').as_posix()}" for p in (ROOT / "swarm").rglob("*.py")}
+    assert source - set(names) == set()
+    assert "formation_swarm/cli/__main__.py" in names  # python -m formation_swarm.cli
 
 
 def test_a_project_with_its_own_agents_package_uses_the_fixture(wheel: Path, tmp_path: Path) -> None:

@@ -23,7 +23,7 @@ from formation_swarm import __version__, cli
 from formation_swarm.launch.console import print_result
 from formation_swarm.launch.launcher import Launch, RunResult, free_port
 from formation_swarm.report import build as report
-from formation_swarm.report import compare, export
+from formation_swarm.report import compare, export, markdown
 from formation_swarm.runtime import cliargs
 from formation_swarm.studies import results, sweep
 
@@ -401,7 +401,7 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     print_result(RunResult(tmp_path, ticked, 1), out)
     assert "follower R2: formation error RMS - m, max - m" in out.getvalue()
     assert "formation changes: R2 None at - s" in out.getvalue()
-    md = report._markdown({**ticked, "parts": None}, [2])
+    md = markdown.report_markdown({**ticked, "parts": None}, [2])
     assert "| R2 | - | - |" in md
     out = io.StringIO()
     many = {**ticked, "followers": {str(r): {"rms_m": 0.1} for r in (100, 10, 2, 11)}}  # JSON's keys are text
@@ -448,8 +448,8 @@ def test_print_result_and_the_report_text_take_a_run_that_ended_early(tmp_path: 
     gap = "the logger recorded 715 of the 880 ticks the world sent (missing: truth ticks 100-264)"
     print_result(RunResult(tmp_path, {**ticked, "mode": "lockstep", "recording_gap": gap}, 0), out)
     assert f"  RECORDING INCOMPLETE: {gap}\n" in out.getvalue()
-    assert f"**The recording is incomplete:** {gap};" in report._markdown({**ticked, "recording_gap": gap}, [2])
-    assert "incomplete" not in report._markdown(ticked, [2]) + text
+    assert f"**The recording is incomplete:** {gap};" in markdown.report_markdown({**ticked, "recording_gap": gap}, [2])
+    assert "incomplete" not in markdown.report_markdown(ticked, [2]) + text
 
 
 def test_version() -> None:

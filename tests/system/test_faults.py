@@ -262,12 +262,12 @@ def test_kill(process_runs: list[dict[str, Any]]) -> None:
 
 
 def test_the_report_marks_every_fault(process_runs: list[dict[str, Any]], tmp_path: Path) -> None:
-    from formation_swarm.report.build import _faults_markdown, fault_marks
+    from formation_swarm.report.faults import fault_marks, faults_markdown
 
     marks = fault_marks(process_runs[0])
     assert [label for _, _, label in marks] == ["restart agent-3", "freeze agent-2", "kill logger", "kill agent-3"]
     assert marks[1][:2] == (6.0, 7.0)
-    text = "\n".join(_faults_markdown(process_runs[0]))
+    text = "\n".join(faults_markdown(process_runs[0]))
     assert "| `kill agent-3@12s` | from 240 | killed R3 at tick 240 (12.00 s) | - |" in text
 
 

@@ -137,7 +137,7 @@ FAULTED = {
 
 
 def test_faults_are_marked_on_the_time_axes_and_listed() -> None:
-    from formation_swarm.report.build import _faults_markdown, fault_marks
+    from formation_swarm.report.faults import fault_marks, faults_markdown
 
     marks = fault_marks(FAULTED)
     # A kill is an instant; a windowed fault its window; an open-ended one runs to the end;
@@ -148,7 +148,7 @@ def test_faults_are_marked_on_the_time_axes_and_listed() -> None:
         (0.0, math.inf, "wheel_noise *"),
         (31.5, None, "logger exited"),
     ]
-    text = "\n".join(_faults_markdown(FAULTED))
+    text = "\n".join(faults_markdown(FAULTED))
     assert (
         "| `kill agent-3@20s` | from 400 | killed R3 at tick 400 (20.00 s); R2 below 0.5 m 1.25 s after the return "
         "at t=20.00 s, never settled (below it for 1 s in a row) by the end; largest error in the 5 s after: "
@@ -220,7 +220,7 @@ def test_snapshots_of_a_long_column_are_drawn_apart() -> None:
 
 
 def test_cf_paper_only_for_a_shipped_scenario_as_shipped(tmp_path: Path) -> None:
-    from formation_swarm.report.build import paper_figures
+    from formation_swarm.report.paper import paper_figures
     from formation_swarm.spec.files import shipped
 
     text = shipped()["fig7_turn_vn_dynamic"].read_text()
@@ -270,7 +270,7 @@ def test_formats_dpi_and_the_events_listed(swarm_run: Callable[..., RunResult]) 
 
 
 def test_a_changed_paper_scenario_is_named_with_what_changed(tmp_path: Path) -> None:
-    from formation_swarm.report.build import paper_changes, paper_figures
+    from formation_swarm.report.paper import paper_changes, paper_figures
     from formation_swarm.spec.files import dumps
 
     raw = tomllib.loads((SCENARIOS / "fig11_obstacles.toml").read_text())
@@ -311,9 +311,10 @@ def test_a_swarm_figure_draws_the_median_and_names_the_worst(monkeypatch: pytest
     matplotlib.use("Agg")
     from formation_swarm.report import figures
     from formation_swarm.report.data import Series
+    from formation_swarm.report.figures import drawing
 
     saved = []
-    monkeypatch.setattr(figures, "_save", lambda fig, path, dpi: saved.append(fig))
+    monkeypatch.setattr(drawing, "save", lambda fig, path, dpi: saved.append(fig))
     followers = list(range(2, 14))
     t = np.arange(100) * 0.05
     data = {}
@@ -333,7 +334,7 @@ def test_a_swarm_figure_draws_the_median_and_names_the_worst(monkeypatch: pytest
     figures.vn("unused", data, ctx, 50)
     labels = [x.get_text() for x in saved[-1].legends[0].get_texts()]  # under the figure
     assert labels == ["each follower's 1 s moving average (12), faint", "median over the 12 followers' averages"]
-    figures.targets("unused", data, ctx, {}, 50, rms)
+    figures.targets("unused", data, ctx, {}, dpi=50, rms=rms)
     rows = [a.get_title() for a in saved[-1].axes if a.get_title().endswith("whole run")]
     assert rows == [f"R{r}: virtual target, whole run" for r in (13, 12, 11, 10)]  # the worst first
     assert "the 4 of the 12 followers with the largest formation error" in saved[-1]._suptitle.get_text()
@@ -345,7 +346,7 @@ def test_a_swarm_figure_draws_the_median_and_names_the_worst(monkeypatch: pytest
 
 
 def test_the_report_names_the_first_contacts_and_the_scenario_warnings() -> None:
-    from formation_swarm.report.build import _markdown
+    from formation_swarm.report.markdown import report_markdown
 
     summary = {
         "run_id": "r1",
@@ -357,10 +358,10 @@ def test_the_report_names_the_first_contacts_and_the_scenario_warnings() -> None
         ],
         "scenario_warnings": ["formation 'two': robots 10-30 sit up to 22.5 m to the side"],
     }
-    md = _markdown(summary, [])
+    md = report_markdown(summary, [])
     assert "First contacts: R3 and R15 at 24.45 s, R7 and R11 at 24.50 s.\n" in md
     assert "## Scenario warnings\n\n- formation 'two': robots 10-30 sit up to 22.5 m" in md
-    quiet = _markdown({"run_id": "r1", "collisions": 0, "obstacle_collisions": 0}, [])
+    quiet = report_markdown({"run_id": "r1", "collisions": 0, "obstacle_collisions": 0}, [])
     assert "contact" not in quiet.lower().replace("collisions 0", "")
     assert "Scenario warnings" not in quiet
 
@@ -373,9 +374,10 @@ def test_faults_get_a_lane_under_the_time_axis_with_their_labels(monkeypatch: py
     matplotlib.use("Agg")
     from formation_swarm.report import figures
     from formation_swarm.report.data import Series
+    from formation_swarm.report.figures import drawing
 
     saved = []
-    monkeypatch.setattr(figures, "_save", lambda fig, path, dpi: saved.append(fig))
+    monkeypatch.setattr(drawing, "save", lambda fig, path, dpi: saved.append(fig))
     t = np.arange(400) * 0.05
     data = {f"/robots/r{r}/error/formation": Series(t, np.full(400, r / 10)) for r in (2, 3)}
     ctx = figures.Context(scenario="s", seed=1, robots=[1, 2, 3], followers=[2, 3], t_end=20.0)

@@ -252,7 +252,7 @@ def test_a_fault_cut_by_the_runs_end_lists_its_ticks_in_the_run_and_events_of_on
 
 
 def test_report_md_says_partition_losses_rejection_reasons_and_a_killed_followers_error_until_then() -> None:
-    from formation_swarm.report.build import _markdown
+    from formation_swarm.report.markdown import report_markdown
 
     summary = {
         "ticks": 400,
@@ -264,7 +264,7 @@ def test_report_md_says_partition_losses_rejection_reasons_and_a_killed_follower
         "rejected": {"world": {"replayed or reordered": 1}},
         "followers": {"3": {"rms_m": 22.75, "until_stopped": {"time_s": 20.0, "rms_m": 0.8, "max_m": 1.5}}},
     }
-    text = _markdown(summary, [3])
+    text = report_markdown(summary, [3])
     assert (
         "Link layer: messages dropped 0, lost to partitions 40; lockstep misses 0; rejected payloads 1 "
         "(replayed or reordered 1)."
@@ -278,9 +278,8 @@ def test_report_md_says_partition_losses_rejection_reasons_and_a_killed_follower
         {"event": "killed", "process": "agent-3", "sim_time_s": 20.0},
         {"event": "started", "process": "agent-3.2", "sim_time_s": 21.0},
     ]
-    assert "R3 stopped at t=20.00 s (its agent killed or lost, a fresh agent started at t=21.00 s): " in _markdown(
-        summary, [3]
-    )
+    text = report_markdown(summary, [3])
+    assert "R3 stopped at t=20.00 s (its agent killed or lost, a fresh agent started at t=21.00 s): " in text
 
 
 def test_the_results_line_says_why_messages_were_rejected() -> None:
@@ -510,7 +509,7 @@ def test_one_fault_given_alone_is_one_fault(tmp_path: Path) -> None:
 
 
 def test_report_md_marks_the_counts_a_killed_agent_left_partial_or_unwritten() -> None:
-    from formation_swarm.report.build import _faults_markdown
+    from formation_swarm.report.faults import faults_markdown
 
     fault = {
         "fault": "partition 2@5s for=2s",
@@ -520,13 +519,13 @@ def test_report_md_marks_the_counts_a_killed_agent_left_partial_or_unwritten() -
         "counts": {"partitioned": 12},
         "counts_partial_for": [2],
     }
-    rows = [line for line in _faults_markdown({"faults": [fault]}) if line.startswith("| `")]
+    rows = [line for line in faults_markdown({"faults": [fault]}) if line.startswith("| `")]
     assert rows == [
         "| `partition 2@5s for=2s` | 100-139 | - | at least 12 messages lost to the partition "
         "(killed agents' counts end at their last stats write) |"
     ]
     fault["counts"] = {}
-    rows = [line for line in _faults_markdown({"faults": [fault]}) if line.startswith("| `")]
+    rows = [line for line in faults_markdown({"faults": [fault]}) if line.startswith("| `")]
     assert rows == ["| `partition 2@5s for=2s` | 100-139 | - | not counted: R2's agent killed before it wrote them |"]
 
 
@@ -547,8 +546,8 @@ def test_a_killed_agents_counts_are_partial_only_if_it_lived_in_the_fault_and_wr
 
 def test_report_md_says_a_fault_the_run_never_reached_never_started() -> None:
     """As the console does; its table row gave the ticks as if it had run."""
-    from formation_swarm.report.build import _faults_markdown
+    from formation_swarm.report.faults import faults_markdown
 
     fault = {"fault": "freeze agent-2@54s for=1s", "start_tick": 1080, "end_tick": 1100, "events": [], "counts": {}}
-    rows = [line for line in _faults_markdown({"ticks": 1061, "faults": [fault]}) if line.startswith("| `")]
+    rows = [line for line in faults_markdown({"ticks": 1061, "faults": [fault]}) if line.startswith("| `")]
     assert rows == ["| `freeze agent-2@54s for=1s` | 1080- | never started: the run ended at tick 1061 | - |"]

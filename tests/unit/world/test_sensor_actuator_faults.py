@@ -189,7 +189,7 @@ def _one_tick(faults: Sequence[str], command: tuple[float, float], rid: int = 2)
 
 def _kinematics(pose: Pose, left: float, right: float) -> Pose:
     sc = sm.load(FIG11)
-    return _step_unchecked(*pose, left, right, sc.width_m, sc.dt_s)
+    return _step_unchecked(*pose, left, right, width=sc.width_m, dt=sc.dt_s)
 
 
 def test_a_stuck_wheel_turns_the_robot_on_the_other_wheel_alone() -> None:

@@ -1,0 +1,68 @@
+"""swarm: an emulator of vision-based leader-follower formation control, where
+every robot is its own process and every exchange crosses Eclipse Zenoh.
+
+The robots fly the controller of "Modeling of vision based robot formation
+control using fuzzy logic controller and extended Kalman filter" (IJFIS 12(3),
+2012): a camera sees the marker of the robot ahead, an EKF smooths what it
+sees, and a two-stage fuzzy controller (FIS-2 sets the normal speed V_N, FIS-1
+the wheel speeds) drives a differential-drive robot.
+
+Start with:
+  swarm scenarios                   the shipped scenarios
+  swarm run fig11_obstacles         one run: world, logger and one process per robot
+  swarm report runs/<run id>        figures and a summary of that run
+  swarm COMMAND --help              what a command does, its flags, units and defaults
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+
+from formation_swarm.cli.delegated import DELEGATED
+from formation_swarm.cli.delegated import run as run_delegated
+from formation_swarm.cli.run import add_run
+from formation_swarm.cli.scenarios import add_scenarios
+from formation_swarm.cli.sim import add_sim
+from formation_swarm.common.version import __version__
+from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser
+
+
+def build_parser() -> Parser:
+    parser = Parser(prog="swarm", description=__doc__)
+    parser.add_argument(
+        "--version", action="version", version=f"formation-swarm {__version__}", help="print the version and exit"
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", title="commands")
+    add_scenarios(sub)
+    add_run(sub)
+    for name in ("report", "export", "compare", "sweep", "results"):
+        sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
+    add_sim(sub)
+    for name in ("world", "agent", "logger", "router", "secure", "host", "doctor"):
+        sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in DELEGATED:
+        return run_delegated(argv)
+    parser = build_parser()
+    if not argv:
+        parser.print_help()
+        return USAGE_ERROR
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:  # said by the command's parser, which knows its flags, rather than by swarm's
+        args.parser.error(f"unrecognized arguments: {' '.join(unknown)}")
+    from formation_swarm.runtime.proc import OutlivesItsReader
+
+    # A reader that leaves early (swarm run ... | head) must not cut a run short.
+    stdout, sys.stdout = sys.stdout, OutlivesItsReader(sys.stdout)
+    try:
+        return int(args.func(args))
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    finally:
+        sys.stdout = stdout

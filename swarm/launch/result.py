@@ -1,0 +1,91 @@
+"""How a run ended: its exit code, why it ended, and what the summary says
+of its processes."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from formation_swarm.launch import remote
+from formation_swarm.protocol.messages import Status
+from formation_swarm.runtime import summary as summary_mod
+from formation_swarm.runtime.children import Child
+
+INTERRUPTED, TIMED_OUT = 130, 124  # exit codes, as a shell reports Ctrl-C and timeout(1)
+
+
+@dataclass
+class RunResult:
+    run_dir: Path
+    summary: dict[str, Any] = field(repr=False)  # several kB: print res.summary to see it
+    exit_code: int
+    pids: dict[str, int] = field(default_factory=dict, repr=False)
+
+    @property
+    def recording(self) -> Path:
+        return self.run_dir / "recording.rrd"
+
+
+@dataclass
+class Ending:
+    """What ended the launcher's wait, besides the world's own end."""
+
+    interrupted: bool = False  # Ctrl-C, SIGTERM or interrupt()
+    timed_out: bool = False
+    start_failed: bool = False  # a process ended with an error before tick 0
+    limit_s: float | None = None  # the wall-clock limit that ended it, if one did
+
+    @property
+    def abrupt(self) -> bool:
+        """Stopped without waiting for the processes to leave on their own."""
+        return self.interrupted or self.timed_out or self.start_failed
+
+    def exit_code(self, world_code: int | None) -> int:
+        """130 interrupted, 124 timed out, 0 a world that ended well, else 1."""
+        if self.interrupted:
+            return INTERRUPTED
+        if self.timed_out:
+            return TIMED_OUT
+        return 0 if world_code == 0 and not self.start_failed else 1
+
+
+def end_reason(
+    world: Mapping[str, Any],
+    world_code: int | None,
+    last: Status | None,
+    events: Sequence[Mapping[str, Any]],
+    ending: Ending,
+) -> tuple[str, float | None]:
+    """Why the run ended (summary.END_REASONS) and the sim time it reached;
+    ``world``: the world's stats, ``world_code``: its exit code."""
+    reached = world.get("sim_time_s")
+    if reached is None and last is not None:
+        reached = last.time_s
+    if ending.interrupted:
+        return summary_mod.INTERRUPTED, reached
+    if any(e.get("event") == "start failed" for e in events):
+        return summary_mod.START_FAILED, reached
+    if ending.timed_out:
+        return summary_mod.TIMED_OUT, reached
+    if world_code == 0 and world.get("end_reason"):
+        return world["end_reason"], world.get("ended_at_s")
+    return summary_mod.ROLE_FAILED, reached
+
+
+def processes_part(children: Mapping[str, Child], lost_hosts: Sequence[str]) -> dict[str, dict[str, Any]]:
+    """Each process's pid, exit code and how long it took to leave once told to."""
+    procs: dict[str, dict[str, Any]] = {}
+    for name, c in children.items():
+        exit_after_stop = None
+        if c.stop_sent_at is not None and c.exited_at is not None:
+            exit_after_stop = max(0.0, c.exited_at - c.stop_sent_at)
+        procs[name] = {
+            "pid": c.pid,
+            "exit_code": None if c.proc is None else c.proc.returncode,
+            "exit_after_stop_s": exit_after_stop,
+        }
+        if isinstance(c, remote.RemoteChild) and c.host in lost_hosts:
+            procs[name].update(exit_code=None, lost_with_host=c.host)
+    return procs

@@ -1,0 +1,165 @@
+"""How the viewer shows a run: its layout (``blueprint``) and the static
+data logged once at the start: the map's flip to y up, the obstacles, the
+leader's path, the formations and how each robot's entities are drawn
+(colour: formation_swarm.common.palette, size, series names). Every entity
+path here is one formation_swarm.nodes.recorder writes.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import rerun as rr
+import rerun.blueprint as rrb
+
+from formation_swarm.common.palette import OBSTACLE, PATH, lighter, robot_colour
+
+if TYPE_CHECKING:
+    from formation_swarm.spec.scenario import Scenario
+
+TIMELINE = "sim_time"
+TRAIL_S = 10.0  # the map's trails: this much of the past, s
+LINK_SERIES = ("links/obs_dropped", "links/formation_dropped")
+FLIP = rr.Transform3D(scale=(1.0, -1.0, 1.0))  # the 2D view draws y down; the paper's figures y up
+
+
+def blueprint(sc: Scenario) -> rrb.Blueprint:
+    """The viewer's layout for ``sc``: the formation map, then the follower
+    series over time and the run's events. Every entity is named by its full
+    path: the viewer matches no wildcard in the middle of a path."""
+    followers = sc.follower_ids
+
+    def series(name: str, leaves: tuple[str, ...]) -> rrb.TimeSeriesView:
+        paths = [f"+ /robots/r{r}/{leaf}" for r in followers for leaf in leaves]
+        return rrb.TimeSeriesView(name=name, origin="/", contents=paths, plot_legend=rrb.PlotLegend(corner="LeftTop"))
+
+    events = ["+ /events"]
+    if sc.faults:
+        events.append("+ /events/faults")
+    if any(f.process is not None for f in sc.faults):
+        events.append("+ /events/fault_calls")
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            _map_view(sc),
+            rrb.Vertical(
+                series("formation error, m (Fig. 6b, 7b)", ("error/formation",)),
+                series("V_N, m/s (Fig. 8)", ("fis/v_n",)),
+                series("target error: raw (light) vs EKF, m (Fig. 9-10)", ("error/measured", "error/ekf")),
+            ),
+            rrb.Vertical(
+                series("wheel speeds: left, right (light), m/s", ("wheels/left", "wheels/right")),
+                series("link drops: observations, formation codes (light)", LINK_SERIES),
+                rrb.TextLogView(
+                    name="events: formation changes, faults",
+                    origin="/",
+                    contents=events,
+                    columns=rrb.TextLogColumns(
+                        timeline_columns=[rrb.encodings.TimelineColumn(TIMELINE)],
+                        text_log_columns=[
+                            rrb.encodings.TextLogColumn("LogLevel"),
+                            rrb.encodings.TextLogColumn("Body"),
+                            rrb.encodings.TextLogColumn("EntityPath", visible=False),
+                        ],
+                    ),
+                ),
+            ),
+            column_shares=[1.5, 1.75, 1.75],
+        ),
+        rrb.TimePanel(state="collapsed", timeline=TIMELINE, play_state="following"),
+        collapse_panels=True,
+    )
+
+
+def _map_view(sc: Scenario) -> rrb.Spatial2DView:
+    """The formation map, y up (the world and the robots are drawn through a
+    flip, FLIP), the whole path in view; trails over the last TRAIL_S only."""
+    robots = [f"/robots/r{r}" for r in sc.robots]
+    contents = ["+ /world/obstacles", "+ /world/path"] if sc.obstacles else ["+ /world/path"]
+    contents += [f"+ {base}/{leaf}" for base in robots for leaf in ("trajectory", "pose", "heading")]
+    contents += [f"+ /robots/r{r}/{leaf}" for r in sc.follower_ids for leaf in ("target/true", "ekf/target", "ekf/cov")]
+    trail = rrb.VisibleTimeRanges(
+        rrb.VisibleTimeRange(
+            TIMELINE,
+            start=rrb.TimeRangeBoundary.cursor_relative(seconds=-TRAIL_S),
+            end=rrb.TimeRangeBoundary.cursor_relative(),
+        )
+    )
+    xs = [x for x, _ in sc.leader.waypoints] + [o.x_m + s * o.radius_m for o in sc.obstacles for s in (-1, 1)]
+    ys = [y for _, y in sc.leader.waypoints] + [o.y_m + s * o.radius_m for o in sc.obstacles for s in (-1, 1)]
+    reach = max((math.hypot(*slot.offset) for f in sc.formations.values() for slot in f.slots.values()), default=0.0)
+    margin = 1.0 + reach * max(1, len(sc.follower_ids))  # the formation around the path
+    return rrb.Spatial2DView(
+        name="formation map, m, y up (Fig. 6a, 7a, 9-11)",
+        origin="/",
+        contents=contents,
+        visual_bounds=rrb.VisualBounds2D(
+            x_range=(min(xs) - margin, max(xs) + margin), y_range=(-max(ys) - margin, -min(ys) + margin)
+        ),
+        overrides={f"{base}/trajectory": trail for base in robots},
+    )
+
+
+def static_entities(sc: Scenario) -> list[tuple[str, Any]]:
+    """The static data of a run of ``sc``, (entity path, what to log), in
+    the order logged: the flip of y, the obstacles, the leader's path, the
+    formations as text and how each robot is drawn."""
+    out: list[tuple[str, Any]] = [(top, FLIP) for top in ("world", "robots")]  # y up, as in the paper's figures
+    if sc.obstacles:
+        circles = rr.Ellipses2D(
+            centers=[(o.x_m, o.y_m) for o in sc.obstacles],
+            half_sizes=[(o.radius_m, o.radius_m) for o in sc.obstacles],
+            colors=[OBSTACLE],
+            line_radii=[rr.Radius.ui_points(2.0)],
+        )
+        out.append(("world/obstacles", circles))
+    out.append(
+        ("world/path", rr.LineStrips2D([list(sc.leader.waypoints)], colors=[PATH], radii=[rr.Radius.ui_points(1.0)]))
+    )
+    lines = [
+        f"{name} (code {i}): "
+        + ", ".join(
+            f"R{r} <- R{s.reference} at ({s.offset.x_m:+.2f}, {s.offset.y_m:+.2f}) m"
+            for r, s in sorted(f.slots.items())
+        )
+        for i, (name, f) in enumerate(sc.formations.items())
+    ]
+    out.append(("world/formations", rr.TextDocument("\n".join(lines))))
+    for rid in sc.robots:
+        out += [(f"robots/r{rid}/{entity}", style) for entity, style in robot_styles(sc, rid).items()]
+    return out
+
+
+def robot_styles(sc: Scenario, rid: int) -> dict[str, Any]:
+    """How robot ``rid``'s entities are drawn (static: colours, sizes, names),
+    by path under robots/r<id>: its body at true scale, labelled, its heading,
+    its trail; a follower's targets, EKF ellipse and series."""
+    colour, light = robot_colour(rid), lighter(robot_colour(rid))
+    leader = rid == sc.leader.robot_id
+    name = f"R{rid}"
+    styles: dict[str, Any] = {
+        "pose": rr.Points2D.from_fields(
+            radii=[sc.diameter_m / 2],
+            colors=[colour],
+            labels=[f"{name} leader" if leader else name],
+            show_labels=True,
+            draw_order=40.0,  # over the trails and the targets
+        ),
+        "heading": rr.Arrows2D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(1.5)]),
+        "trajectory": rr.Points2D.from_fields(colors=[light], radii=[rr.Radius.ui_points(1.5)], draw_order=25.0),
+    }
+    if leader:
+        return styles
+    return styles | {
+        "target/true": rr.Points2D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(3.0)]),
+        "ekf/target": rr.Points2D.from_fields(colors=[light], radii=[rr.Radius.ui_points(3.0)]),
+        "ekf/cov": rr.LineStrips2D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(1.0)]),
+        "error/formation": rr.SeriesLines(colors=[colour], names=[name]),
+        "fis/v_n": rr.SeriesLines(colors=[colour], names=[name]),
+        "error/ekf": rr.SeriesLines(colors=[colour], names=[f"{name} EKF"]),
+        "error/measured": rr.SeriesLines(colors=[light], names=[f"{name} raw"], widths=[0.75]),
+        "wheels/left": rr.SeriesLines(colors=[colour], names=[f"{name} left"]),
+        "wheels/right": rr.SeriesLines(colors=[light], names=[f"{name} right"]),
+        "links/obs_dropped": rr.SeriesLines(colors=[colour], names=[f"{name} observations"]),
+        "links/formation_dropped": rr.SeriesLines(colors=[light], names=[f"{name} formation codes"]),
+    }

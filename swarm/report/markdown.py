@@ -1,0 +1,183 @@
+"""report.md of one run: how it ran and ended, the followers' metrics, the
+collisions and links, the scenario's warnings, the formation events, the
+faults and processes, and the figures (or why there are none)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from formation_swarm.report.faults import faults_markdown
+from formation_swarm.report.figures import FIGURES, Context
+from formation_swarm.runtime import summary as summary_mod
+
+
+def report_markdown(
+    summary: Mapping[str, Any],
+    followers: list[int],
+    fmt: str = "png",
+    ctx: Context | None = None,
+    without: str | None = None,
+) -> str:
+    """report.md; ``without``: why there are no figures (no recording), said in their place."""
+    lines = [
+        *_header(summary, ctx),
+        *_metrics_table(summary, followers),
+        "",
+        *_run_notes(summary, followers),
+        "",
+        *_warnings_markdown(summary),
+        *_events_markdown(summary),
+        *faults_markdown(summary),
+        *(
+            [f"No figures and no measured or EKF target errors (the last two columns): {without}."]
+            if without
+            else [f"![{stem}]({stem}.{fmt})" for stem in FIGURES]
+        ),
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def _header(summary: Mapping[str, Any], ctx: Context | None) -> list[str]:
+    """The title, how the run went and ended, and what it reproduces of the paper."""
+    from formation_swarm.runtime.summary import describe_end
+
+    paper = "; ".join(f"{stem} cf. paper {fig}" for stem, fig in (ctx.paper if ctx else {}).items())
+    why_not = (ctx.changes if ctx else None) or "not a shipped scenario of the paper"
+    return [
+        f"# Run {summary.get('run_id')}: {summary.get('scenario')}",
+        "",
+        f"Mode {summary.get('mode')}, seed {summary.get('seed')}, {summary.get('ticks') or 'no'} ticks "
+        f"({_num(summary.get('sim_time_s'), '.1f')} s simulated), exit code {summary.get('exit_code')}. "
+        f"Ended: {summary.get('ended') or describe_end(summary.get('end_reason'), summary.get('ended_at_s'))}.",
+        "",
+        f"Reproduces: {paper}." if paper else f"Reproduces no figure of the paper as it is ({why_not}).",
+        "",
+    ]
+
+
+def _metrics_table(summary: Mapping[str, Any], followers: list[int]) -> list[str]:
+    """Each follower's errors, or why there are none."""
+    f = _num
+    if not followers:
+        return [
+            "No follower metrics: "
+            + ("the run ended before its first tick." if not summary.get("ticks") else "the run has no follower.")
+        ]
+    lines = [
+        "| follower | RMS error, m | max, m | RMS in turns, m | RMS on straights, m | mean lag in turns, m "
+        "| max ahead of target, m | measured target RMS, m | EKF target RMS, m |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    errs = ((summary.get("parts") or {}).get("logger") or {}).get("target_errors") or {}
+    for r in followers:
+        m = (summary.get("followers") or {}).get(str(r)) or {}
+        e = errs.get(str(r)) or {}
+        if m.get("acquired") is False:
+            lines.append(f"| R{r} | never acquired its reference: no metrics |" + " - |" * 7)
+            continue
+        lines.append(
+            f"| R{r} | {f(m.get('rms_m'))} | {f(m.get('max_m'))} | {f(m.get('turn_rms_m'))} | "
+            f"{f(m.get('straight_rms_m'))} | {f(m.get('turn_mean_lag_m'))} | {f(m.get('max_ahead_m'))} | "
+            f"{f(e.get('measured_rms_m'))} | {f(e.get('ekf_rms_m'))} |"
+        )
+    return lines
+
+
+def _run_notes(summary: Mapping[str, Any], followers: list[int]) -> list[str]:
+    """Distances and collisions, the link layer, robots stopped, a recording incomplete or cut."""
+    from formation_swarm.launch.console import losses, rejected_why
+
+    f = _num
+    lines = [
+        f"Minimum distance between robots {f(summary.get('min_distance_m'))} m "
+        f"(diameter {f(summary.get('robot_diameter_m'))} m); collisions {_v(summary.get('collisions'))}, "
+        f"with obstacles {_v(summary.get('obstacle_collisions'))}.",
+        *_contacts_markdown(summary),
+        f"Link layer: {losses(summary)}; lockstep misses {_v(summary.get('lockstep_misses'))}; rejected payloads "
+        f"{_v(summary.get('rejected_total'))}{rejected_why(summary)}.",
+        *_stopped_markdown(summary, followers),
+    ]
+    if summary.get("recording_gap"):
+        lines.append(
+            f"**The recording is incomplete:** {summary['recording_gap']}; the target errors measured "
+            "from it (the last two columns) miss those ticks."
+        )
+    if cut := summary_mod.recording_cut(summary):
+        lines.append(f"**The recording is cut short:** {cut}.")
+    return lines
+
+
+def _stopped_markdown(summary: Mapping[str, Any], followers: list[int]) -> list[str]:
+    """A follower whose agent was killed or lost: its figures above include
+    the robot standing after that; its error until then."""
+    out = []
+    events = [e for e in summary.get("events") or [] if isinstance(e, Mapping)]
+    for r in followers:
+        until = ((summary.get("followers") or {}).get(str(r)) or {}).get("until_stopped")
+        if isinstance(until, Mapping):
+            fresh = [
+                e.get("sim_time_s")
+                for e in events
+                if e.get("event") == "started" and str(e.get("process", "")).split(".")[0] == f"agent-{r}"
+            ]
+            back = f", a fresh agent started at t={_num(fresh[0], '.2f')} s" if fresh else ""
+            out.append(
+                f"R{r} stopped at t={_num(until.get('time_s'), '.2f')} s (its agent killed or lost{back}): its "
+                f"figures above include the robot after that; until then RMS {_num(until.get('rms_m'))} m, "
+                f"max {_num(until.get('max_m'))} m."
+            )
+    return out
+
+
+def _contacts_markdown(summary: Mapping[str, Any]) -> list[str]:
+    """The first contacts, who and when (the world lists the first 50)."""
+    from formation_swarm.launch.console import contacts_line
+
+    said = contacts_line(summary.get("contacts") or [], summary.get("collisions"), summary.get("obstacle_collisions"))
+    return [said[0].upper() + said[1:] + "."] if said else []
+
+
+def _warnings_markdown(summary: Mapping[str, Any]) -> list[str]:
+    """The scenario loader's warnings for the run, as the console gave them."""
+    said = [w for w in summary.get("scenario_warnings") or [] if isinstance(w, str)]
+    return ["## Scenario warnings", "", *[f"- {w}" for w in said], ""] if said else []
+
+
+def _events_markdown(summary: Mapping[str, Any]) -> list[str]:
+    """The formation events: each robot's formation code change, by tick."""
+    events = [e for e in summary.get("formation_events") or [] if isinstance(e, Mapping)]
+    if not events:
+        return ["## Formation events", "", "None: the formation never changed.", ""]
+    out = ["## Formation events", "", "| tick | time, s | robot | its formation from then |", "|---|---|---|---|"]
+    out += [
+        f"| {e.get('tick')} | {_num(e.get('time_s'), '.2f')} | R{e.get('robot')} | {e.get('formation')} |"
+        for e in events
+    ]
+    return [*out, ""]
+
+
+def no_recording(summary: Mapping[str, Any]) -> str:
+    """Why a run folder has no recording.rrd, for a report made without it."""
+    if summary.get("recording") is None:
+        return "the run had no logger (--no-logger), so it has no recording"
+    return "its recording.rrd is missing from the folder"
+
+
+def ended_early(summary: Mapping[str, Any]) -> str:
+    """Why a run has nothing to draw, from its summary."""
+    if not summary.get("ticks"):
+        return f"the run ended before its first tick (exit code {summary.get('exit_code')}); see its logs/"
+    if cut := summary_mod.recording_cut(summary):
+        return cut
+    return "the logger recorded none (see logs/logger.log)"
+
+
+def _v(x: Any) -> str:
+    """A count as written, or "-" where the run has none (it ended before its first tick)."""
+    return "-" if x is None else str(x)
+
+
+def _num(x: Any, fmt: str = ".3f") -> str:
+    return "-" if not isinstance(x, (int, float)) or isinstance(x, bool) else format(x, fmt)
