@@ -1,8 +1,9 @@
 """The follower controller API: what a follower's control law gets and gives.
 
 A controller is a class built from one :class:`ControllerSetup`: its robot
-id, its parameters and the slot it starts in. The role calls its ``step``
-once for every tick it answers, with what the robot itself has
+id, the run's follower parameters, its own parameters (``law_params``), the
+slot it starts in and the wheels' limit. The role calls its ``step`` once
+for every tick it answers, with what the robot itself has
 (:class:`FollowerInput`):
 
 - ``reading``: its camera's reading of its reference's marker
@@ -22,11 +23,17 @@ telemetry values (name -> float). A controller may keep state between
 steps; it does no I/O. Everything else is the role's
 (agents.follower_role): links, inbox checks, formation codes, messages.
 
-The role sends the names of ``WIRE_TELEMETRY`` to the logger
-(protocol.messages.Telemetry); NaN or absent means "none this tick". It
-counts the ticks with ``holding`` or ``waiting`` above 0 and reports
-``ekf_resets`` in its stats (``ROLE_COUNTED``). Other names are the
-controller's own and go nowhere yet.
+The role sends the names of ``WIRE_TELEMETRY`` to the logger in the
+Telemetry message's fields (protocol.messages.Telemetry); NaN or absent
+means "none this tick". It counts the ticks with ``holding`` or
+``waiting`` above 0 and reports ``ekf_resets`` in its stats
+(``ROLE_COUNTED``). Any other name is the controller's own: it travels in
+the message's ``extras`` (at most protocol.messages.MAX_EXTRAS names, each
+a protocol.messages.EXTRA_NAME) and the logger records it under the robot.
+
+A controller that raises, or returns a speed that is not a finite number,
+has failed: the role stops its robot for the rest of the run and never
+calls it again (docs/controllers.md).
 
 A controller may also define ``prepare()``: the role calls it once the
 tick's command is sent, while the robot waits for its next observation, so
@@ -35,14 +42,15 @@ that work such as the EKF's prediction leaves the tick's critical path.
 The implementations: agents.fuzzy_controller.FuzzyController (the paper's
 EKF, FIS-2, FIS-1 and eq. 11-13) and agents.lpsi_controller.LpsiController
 (the l-psi baseline). agents.follower.make_controller picks one by the
-scenario's ``controller.law``.
+scenario's ``controller.law``, or a user's class (agents.laws).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 from formation_swarm.agents.formation import Slot
 from formation_swarm.agents.params import FollowerParams
@@ -90,8 +98,11 @@ class ControllerSetup:
     """What a controller is built from."""
 
     robot_id: int
-    params: FollowerParams
+    params: FollowerParams  # the run's: dt_s, width_m, marker_offset_m, lost_after_s; the built-in laws' own
     slot: Slot  # the slot of the formation the run starts in
+    # The law's own parameters: its class's PARAMS with the scenario's [controller.params] over them.
+    law_params: Mapping[str, Any] = field(default_factory=dict)
+    max_wheel_mps: float = math.inf  # robot.max_wheel_mps: the world refuses a faster wheel command
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)

@@ -15,24 +15,40 @@ leader's answer to k. Codes are taken in the order of their ticks, so one
 stamped far ahead cannot hold back the others. A code the link held back
 counts from the tick of its release (so it too takes effect on the tick
 after).
+
+A controller that raises (in ``step`` or ``prepare``) or returns a wheel
+speed that is not a finite number has failed: from that tick on the robot
+answers every tick with zero speeds and telemetry without values, the
+controller is not called again, the failure is in the stats
+(``controller_failure``: tick, error, law) and its traceback in ``notes``
+for the process's log.
 """
 
 from __future__ import annotations
 
 import collections
 import math
+import traceback
 from collections.abc import Mapping
 from typing import Any
 
-from formation_swarm.agents.controller import FollowerController, FollowerInput, FollowerOutput, MarkerReading
+from formation_swarm.agents.controller import (
+    ROLE_COUNTED,
+    WIRE_TELEMETRY,
+    FollowerController,
+    FollowerInput,
+    MarkerReading,
+)
 from formation_swarm.agents.formation import Slot
 from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.role_base import Answer, RoleBase, RoleSetup
 from formation_swarm.protocol.links import Link
-from formation_swarm.protocol.messages import Command, FormationCode, Observation, Telemetry
+from formation_swarm.protocol.messages import EXTRA_NAME, MAX_EXTRAS, Command, FormationCode, Observation, Telemetry
 
 PENDING_CODES = 64  # formation codes waiting for their tick
 MAX_HOLDS = 100  # holds listed in the stats (all are counted in held_ticks)
+KNOWN_NAMES = frozenset(WIRE_TELEMETRY + ROLE_COUNTED)  # any other telemetry name is an extra
+MAX_UNSENT_NOTES = 16  # telemetry names that cannot be sent, each said once in the log
 
 
 class FollowerRole(RoleBase):
@@ -40,7 +56,13 @@ class FollowerRole(RoleBase):
     TAKES_CODES = True
     SENDS_TELEMETRY = True
 
-    def __init__(self, setup: RoleSetup, formation_link: Link[FormationCode], controller: FollowerController) -> None:
+    def __init__(
+        self,
+        setup: RoleSetup,
+        formation_link: Link[FormationCode],
+        controller: FollowerController,
+        law: str | None = None,
+    ) -> None:
         super().__init__(setup)
         self.leader_id = setup.leader_id
         self.dt_s = setup.dt_s
@@ -55,6 +77,10 @@ class FollowerRole(RoleBase):
         self.formation_changes: list[dict[str, Any]] = []
         self.stops = Stops()
         self.ekf_resets = 0
+        cls = type(controller)
+        self.law = law or f"{cls.__module__}:{cls.__qualname__}"  # for the failure's report
+        self.failure: dict[str, Any] | None = None  # the controller's failure: tick, error, law
+        self._unsent: set[str] = set()  # telemetry names said not to fit the wire
 
     @property
     def links(self) -> tuple[Link[Any], ...]:
@@ -99,24 +125,56 @@ class FollowerRole(RoleBase):
             return None
         obs, reading = got
         self._fly_due_codes(obs.tick)
-        out = self.controller.step(self._input(obs, reading))
-        command = Command(
+        inp = self._input(obs, reading)
+        answer = self._controlled(obs, inp) if self.failure is None else None
+        if answer is None:  # failed, now or before: stopped
+            command = self._command(obs.tick, 0.0, 0.0)
+            answer = Answer(command=command, telemetry=self._telemetry(obs, command, {}))
+        self._answered(obs.tick)
+        return answer
+
+    def _controlled(self, obs: Observation, inp: FollowerInput) -> Answer | None:
+        """The controller's answer to ``inp``; None when it fails (recorded)."""
+        try:
+            out = self.controller.step(inp)
+            left, right = out.left_mps, out.right_mps
+            if not (math.isfinite(left) and math.isfinite(right)):
+                raise ValueError(f"wheel speeds must be finite numbers, got left_mps={left!r}, right_mps={right!r}")
+            command = self._command(obs.tick, float(left), float(right))
+            self._count(obs.tick, out.telemetry)
+            telemetry = self._telemetry(obs, command, out.telemetry)
+        except Exception as exc:  # noqa: BLE001 - whatever the controller does wrong stops this robot only
+            self._fail(obs.tick, exc)
+            return None
+        return Answer(command=command, telemetry=telemetry)
+
+    def _command(self, tick: int, left_mps: float, right_mps: float) -> Command:
+        return Command(
             sender=self.robot_id,
             seq=self._next_seq(),
-            tick=obs.tick,
-            left_mps=out.left_mps,
-            right_mps=out.right_mps,
+            tick=tick,
+            left_mps=left_mps,
+            right_mps=right_mps,
             formation=self.code,
             done=False,
         )
-        self._count(obs.tick, out.telemetry)
-        telemetry = self._telemetry(obs, out)
-        self._answered(obs.tick)
-        return Answer(command=command, telemetry=telemetry)
 
     def prepare(self) -> None:
-        if self._prepare is not None:
-            self._prepare()  # the next tick's EKF prediction, before its observation comes
+        if self._prepare is not None and self.failure is None:
+            try:
+                self._prepare()  # the next tick's EKF prediction, before its observation comes
+            except Exception as exc:  # noqa: BLE001 - as in step: this robot stops
+                self._fail(self.last_tick or 0, exc)
+
+    def _fail(self, tick: int, exc: Exception) -> None:
+        """The controller failed at ``tick``: the robot stops for the rest of the run."""
+        error = " ".join(f"{type(exc).__name__}: {exc}".split())[:300]
+        self.failure = {"tick": tick, "error": error, "law": self.law}
+        trace = "".join(traceback.format_exception(exc)).rstrip()
+        self.notes.append(
+            f"controller {self.law} failed at tick {tick}: {error}; robot {self.robot_id} stops for the rest of the "
+            f"run\n{trace}"
+        )
 
     def _fly_due_codes(self, tick: int) -> None:
         """The codes stamped before ``tick``, in the order of their ticks (then seqs)."""
@@ -168,8 +226,8 @@ class FollowerRole(RoleBase):
         if resets is not None and math.isfinite(resets):
             self.ekf_resets = int(resets)
 
-    def _telemetry(self, obs: Observation, out: FollowerOutput) -> Telemetry:
-        t = out.telemetry
+    def _telemetry(self, obs: Observation, command: Command, t: Mapping[str, float]) -> Telemetry:
+        steering_to = int(_value(t, "steering_to") or 0)
         return Telemetry(
             sender=self.robot_id,
             seq=self._next_seq(),
@@ -183,13 +241,37 @@ class FollowerRole(RoleBase):
             rho_m=_value(t, "rho_m"),
             alpha_rad=_value(t, "alpha_rad"),
             vn=_value(t, "vn_mps"),
-            left_mps=out.left_mps,
-            right_mps=out.right_mps,
-            steering_to=int(_value(t, "steering_to") or 0),
+            left_mps=command.left_mps,
+            right_mps=command.right_mps,
+            steering_to=steering_to if 0 <= steering_to <= 3 else 0,
             changing=_flag(t, "changing"),
             obs_dropped=self.inbox.link.lost,
             formation_dropped=self.formation_link.lost,
             rejected=self.rejections.total,
+            extras=() if t.keys() <= KNOWN_NAMES else self._extras(t),
+        )
+
+    def _extras(self, values: Mapping[str, float]) -> tuple[tuple[str, float], ...]:
+        """The controller's own named values that fit the wire (MAX_EXTRAS,
+        EXTRA_NAME); NaN or infinite ones are left out this tick."""
+        out = []
+        for name in values:
+            if name in KNOWN_NAMES:
+                continue
+            if len(out) == MAX_EXTRAS or not isinstance(name, str) or EXTRA_NAME.fullmatch(name) is None:
+                self._cannot_send(name)
+                continue
+            if (x := _value(values, name)) is not None:
+                out.append((name, x))
+        return tuple(out)
+
+    def _cannot_send(self, name: object) -> None:
+        if name in self._unsent or len(self._unsent) >= MAX_UNSENT_NOTES:
+            return
+        self._unsent.add(str(name))
+        self.notes.append(
+            f"telemetry value {str(name)[:40]!r} is not sent: at most {MAX_EXTRAS} values of its own per tick, each"
+            f" named by {EXTRA_NAME.pattern}"
         )
 
     def stats(self) -> dict[str, Any]:
@@ -200,6 +282,7 @@ class FollowerRole(RoleBase):
             "holds": self.stops.holds,
             "waited_ticks": self.stops.waited_ticks,
             "formation_changes": self.formation_changes,
+            "controller_failure": self.failure,
         }
 
 
@@ -232,9 +315,14 @@ def _slot(slot: Slot) -> Slot:
 
 
 def _value(values: Mapping[str, float], name: str) -> float | None:
-    """A named value; None where it is absent or NaN (the wire carries no NaN)."""
+    """A named value; None where it is absent, NaN or infinite (the wire carries
+    neither). A value that is no number raises (the controller's failure)."""
     v = values.get(name)
-    return None if v is None or v != v else v
+    if v is None:
+        return None
+    if not isinstance(v, float):  # a float (numpy's too) as it is: no new object per value and tick
+        v = float(v)
+    return v if math.isfinite(v) else None
 
 
 def _values(values: Mapping[str, float], *names: str) -> tuple[float, ...] | None:

@@ -51,5 +51,12 @@ class LeaderRole(RoleBase):
 
     def stats(self) -> dict[str, Any]:
         # A follower's counters, none of which the leader has.
-        follower = {"ekf_resets": 0, "held_ticks": 0, "holds": [], "waited_ticks": 0, "formation_changes": []}
+        follower = {
+            "ekf_resets": 0,
+            "held_ticks": 0,
+            "holds": [],
+            "waited_ticks": 0,
+            "formation_changes": [],
+            "controller_failure": None,
+        }
         return {**super().stats(), **follower}

@@ -2,7 +2,9 @@
 
 Both control laws read them (agents.fuzzy_controller, agents.lpsi_controller):
 the EKF, the hold at a standing reference and the lost reading are shared;
-``law`` names the law a follower flies (agents.follower.make_controller).
+``law`` names the law a follower flies (agents.follower.make_controller):
+one of ``LAWS``, or a law of the user's (agents.laws) with its own
+parameters in ``law_params``.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from formation_swarm.agents.ekf import EkfParams
 from formation_swarm.agents.lpsi import LpsiParams
 from formation_swarm.common.checks import finite, non_negative, positive
 
-LAWS = ("fuzzy", "lpsi")
+LAWS = ("fuzzy", "lpsi")  # the built-in laws
 # Eq. 6 where the signed rho of eq. 5 changes sign (docs/paper.md, eq. 5): "signed", as printed, takes the
 # jump of 2 |rho|; "distance" takes the change of |rho| there, which is what the follower moved.
 DRHO_AT_SIGN_CHANGE = ("signed", "distance")
@@ -32,7 +34,9 @@ class FollowerParams:
     speed: fz.SpeedMode = field(default_factory=fz.SpeedMode)
     ekf: EkfParams = field(default_factory=EkfParams)
     use_ekf: bool = True
-    law: str = "fuzzy"  # or "lpsi", the baseline
+    law: str = "fuzzy"  # or "lpsi", the baseline, or a law of the user's (agents.laws)
+    # A user's law's parameters ([controller.params], checked against its class), as (name, value) pairs.
+    law_params: tuple[tuple[str, bool | int | float | str], ...] = ()
     drho_at_sign_change: str = "signed"  # or "distance" (DRHO_AT_SIGN_CHANGE)
     lpsi: LpsiParams = field(default_factory=LpsiParams)
     # The hold at a standing reference (not the paper's; docs/paper.md): the
@@ -51,8 +55,8 @@ class FollowerParams:
     lookahead_m: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.law not in LAWS:
-            raise ValueError(f"law must be one of {', '.join(map(repr, LAWS))}, got {self.law!r}")
+        if not isinstance(self.law, str) or not self.law:
+            raise ValueError(f"law must be one of {', '.join(map(repr, LAWS))} or a law's name, got {self.law!r}")
         if self.drho_at_sign_change not in DRHO_AT_SIGN_CHANGE:
             raise ValueError(
                 f"drho_at_sign_change must be one of {', '.join(map(repr, DRHO_AT_SIGN_CHANGE))}, "

@@ -62,6 +62,7 @@ class RoleBase:
         self.seq = 0  # the robot's one counter: commands, codes, telemetry
         self.answered = 0
         self.last_tick: int | None = None  # of the newest observation answered
+        self.notes: list[str] = []  # lines for the process's log, taken by it (a role does no I/O)
 
     @property
     def links(self) -> tuple[Link[Any], ...]:

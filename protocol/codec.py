@@ -158,6 +158,35 @@ def one_of(*allowed: str) -> Callable[[str, Any], str]:
     return check
 
 
+def named_numbers(max_items: int, name: re.Pattern[str]) -> Callable[[str, Any], tuple[tuple[str, float], ...]]:
+    """An array of at most ``max_items`` [name, float] pairs, each name matching
+    ``name`` and given once (a Telemetry's extras)."""
+    pair = records(text(name), number)
+
+    def check(field: str, v: Any) -> tuple[tuple[str, float], ...]:
+        if isinstance(v, (list, tuple)) and len(v) > max_items:
+            raise DecodeError("too many items", f"{field} has {len(v)} > {max_items}")
+        out = pair(field, v)
+        if len({n for n, _ in out}) != len(out):
+            raise DecodeError("out of range", f"{field} names a value twice")
+        return out
+
+    return check
+
+
+def text(pattern: re.Pattern[str]) -> Callable[[str, Any], str]:
+    """A string that ``pattern`` matches whole."""
+
+    def check(name: str, v: Any) -> str:
+        if type(v) is not str:
+            raise DecodeError("wrong type", f"{name} must be a string, got {type(v).__name__}")
+        if pattern.fullmatch(v) is None:
+            raise DecodeError("out of range", f"{name}={v[:40]!r} does not match {pattern.pattern}")
+        return v
+
+    return check
+
+
 _AGENT = re.compile(r"agent-[1-9][0-9]{0,4}")
 
 
@@ -180,7 +209,12 @@ T = TypeVar("T", bound="Message")
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Message:
     """The header every message starts with; a subclass adds its fields, its
-    ``TAG``, one checker per field in ``CHECKS`` and the ``SENDERS`` range."""
+    ``TAG``, one checker per field in ``CHECKS`` and the ``SENDERS`` range.
+
+    ``OPTIONAL``: how many of the last fields a sender may leave out (each an
+    array; left out, it is empty). A field added this way keeps the version:
+    a peer that does not know it neither sends it nor is sent it empty.
+    """
 
     sender: int
     seq: int
@@ -189,9 +223,16 @@ class Message:
     TAG: ClassVar[int] = -1
     CHECKS: ClassVar[tuple[Callable[[str, Any], Any], ...]] = ()
     SENDERS: ClassVar[tuple[int, int]] = (0, MAX_ROBOT_ID)
+    OPTIONAL: ClassVar[int] = 0
 
     def to_bytes(self) -> bytes:
-        return msgpack.packb([self.TAG, VERSION, *[getattr(self, n) for n in self._names()]], use_bin_type=True)
+        values = [self.TAG, VERSION, *[getattr(self, n) for n in self._names()]]
+        if self.OPTIONAL:
+            for _ in range(self.OPTIONAL):  # empty optional fields at the end are left out
+                if values[-1]:
+                    break
+                values.pop()
+        return msgpack.packb(values, use_bin_type=True)
 
     @classmethod
     def from_bytes(cls: type[T], payload: bytes) -> T:
@@ -209,7 +250,9 @@ class Message:
             raise DecodeError("unknown version", f"{raw[1]!r}, expected {VERSION}")
         names = cls._names()
         if len(raw) != 2 + len(names):
-            raise DecodeError("wrong length", f"{cls.__name__} has {len(names)} fields, got {len(raw) - 2}")
+            if not 0 < 2 + len(names) - len(raw) <= cls.OPTIONAL:
+                raise DecodeError("wrong length", f"{cls.__name__} has {len(names)} fields, got {len(raw) - 2}")
+            raw += [[]] * (2 + len(names) - len(raw))  # the optional fields left out: empty
         sender, seq, tick = raw[2], raw[3], raw[4]
         lo, hi = cls.SENDERS
         if type(sender) is not int or not lo <= sender <= hi:

@@ -16,6 +16,7 @@ agents in other languages (tests/packaging/test_protocol_doc.py keeps it true).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -35,6 +36,7 @@ from formation_swarm.protocol.codec import (
     count,
     formation_code,
     int_in,
+    named_numbers,
     number,
     numbers,
     one_of,
@@ -47,7 +49,9 @@ from formation_swarm.protocol.keys import MAX_ROBOT_ID
 
 __all__ = [
     "BATCH_TAG",
+    "EXTRA_NAME",
     "MAX_BATCH_ITEMS",
+    "MAX_EXTRAS",
     "MAX_ITEMS",
     "MAX_PAYLOAD_BYTES",
     "MAX_TICK",
@@ -117,6 +121,11 @@ class FormationCode(Message):
     CHECKS = (formation_code,)
 
 
+# A Telemetry's extras: a controller's own named values (agents.controller).
+MAX_EXTRAS = 16
+EXTRA_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,31}")
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class Telemetry(Message):
     """Agent -> logger: a follower's estimator and controller state at tick k.
@@ -124,6 +133,9 @@ class Telemetry(Message):
     Points are in the follower's frame (x right, y ahead), m. None where the
     quantity does not exist this tick (no reading, filter not started).
     target_cov: (xx, xy, yy) of the EKF target estimate, m^2.
+    extras: the controller's own values, (name, value) each (at most
+    MAX_EXTRAS, names EXTRA_NAME, each once); left off the wire when empty
+    (``OPTIONAL``), so the paper's telemetry is what it was before the field.
     """
 
     time_s: float
@@ -142,9 +154,11 @@ class Telemetry(Message):
     obs_dropped: int
     formation_dropped: int
     rejected: int
+    extras: tuple[tuple[str, float], ...] = ()
 
     TAG: ClassVar[int] = 4
     SENDERS: ClassVar[tuple[int, int]] = (1, MAX_ROBOT_ID)
+    OPTIONAL: ClassVar[int] = 1
     CHECKS = (
         number,
         robot_id,
@@ -162,6 +176,7 @@ class Telemetry(Message):
         count,
         count,
         count,
+        named_numbers(MAX_EXTRAS, EXTRA_NAME),
     )
 
 

@@ -264,8 +264,7 @@ class Launch:
         self.procs.note_unreported_codes()
         world = self.children["world"]
         code = ending.exit_code(world.proc.returncode if world.proc is not None else None)
-        world_stats = summary_mod.read_parts(self.run_dir / "stats").get("world", {})
-        if code == 0 and (lost := summary_mod.robots_lost(world_stats, self.sc)):
+        if code == 0 and (lost := summary_mod.run_failed(summary_mod.read_parts(self.run_dir / "stats"), self.sc)):
             self.journal.say(f"[swarm] the run failed: {lost}")
             code = 1  # it ran to its end, but not as a formation: not a success
         if code in (0, 1) and self.hosts.lost:

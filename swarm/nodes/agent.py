@@ -270,8 +270,17 @@ class Agent:
             if answer is not None:
                 outbox.send(answer)
                 brain.prepare()
+            noted = bool(brain.notes) and self._say_notes()
             self.busy_s += time.perf_counter() - t0
-            self.stats_file.after(None if answer is None else answer.command.tick, self.stats)
+            self.stats_file.after(None if answer is None else answer.command.tick, self.stats, now=noted)
+
+    def _say_notes(self) -> bool:
+        """Print what the role noted (a controller's failure and its traceback,
+        telemetry it cannot send) in this process's log; True."""
+        for note in self.brain.notes:
+            self.role.complain(note)
+        self.brain.notes.clear()
+        return True  # the stats file is written now: a failure is in it even if this process is killed next
 
     def _exit_code(self) -> int:
         code, self.end_note = self.role.follower_end(self.keys.run_id, self.done, self.started)

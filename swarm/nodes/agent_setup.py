@@ -4,14 +4,18 @@ The roles (agents.leader_role, agents.follower_role) know nothing of the
 scenario file; this hands them its facts, the receiving ends of the robot's
 links with the faults the run's schedule puts on them, the leader's policy
 and a follower's controller (agents.follower.make_controller, by
-``controller.law``). No Zenoh here: a test builds a role the same way.
+``controller.law``). A controller that cannot be built (its class raises,
+or cannot be imported on this machine) fails at the first tick, as one
+that raises there does: the robot stops, the run goes on. No Zenoh here: a
+test builds a role the same way.
 """
 
 from __future__ import annotations
 
-from formation_swarm.agents.controller import ControllerSetup, FollowerController
+from formation_swarm.agents.controller import ControllerSetup, FollowerController, FollowerInput, FollowerOutput
 from formation_swarm.agents.follower import make_controller
 from formation_swarm.agents.follower_role import FollowerRole
+from formation_swarm.agents.formation import Slot
 from formation_swarm.agents.inbox import InboxChecks
 from formation_swarm.agents.leader import CodeRepeats, FormationSwitch
 from formation_swarm.agents.leader_policy import PathLeader
@@ -41,11 +45,31 @@ def role_for(
     )
     if rid == sc.leader.robot_id:
         return LeaderRole(setup, _path_leader(sc))
+    law = sc.followers[rid].law
     if controller is None:
-        slot = sc.formation_by_code(setup.code).slots[rid]
-        controller = make_controller(ControllerSetup(robot_id=rid, params=sc.followers[rid], slot=slot))
+        controller = _controller(sc, rid, sc.formation_by_code(setup.code).slots[rid])
     formation_link: Link[FormationCode] = _link(sc, "formation", sc.leader.robot_id, rid, seed)
-    return FollowerRole(setup, formation_link, controller)
+    return FollowerRole(setup, formation_link, controller, law=law)
+
+
+def _controller(sc: Scenario, rid: int, slot: Slot) -> FollowerController:
+    """Follower ``rid``'s controller, or one that fails at once when it cannot be built."""
+    setup = ControllerSetup(robot_id=rid, params=sc.followers[rid], slot=slot, max_wheel_mps=sc.max_wheel_mps)
+    try:
+        return make_controller(setup)
+    except Exception as exc:  # noqa: BLE001 - a user's class: its failure stops its robot, not the run
+        return Unbuilt(exc)
+
+
+class Unbuilt:
+    """In the place of a controller whose class raised when built: its step
+    raises that error again, so the role reports it (with its traceback)."""
+
+    def __init__(self, error: Exception) -> None:
+        self.error = error
+
+    def step(self, inp: FollowerInput) -> FollowerOutput:
+        raise self.error
 
 
 def _link(sc: Scenario, kind: str, src: int, rid: int, seed: int) -> Link[Observation] | Link[FormationCode]:

@@ -39,6 +39,7 @@ KEYS = (
     "loop_cpu_s",
     "formation",
     "formation_changes",
+    "controller_failure",
     "world_back_after_s",
     "links",
     "rejected",
@@ -55,14 +56,14 @@ class StatsFile:
         # are written then, so an agent a later fault kills leaves them whole.
         self.at_ticks = collections.deque(sorted({end + COUNTS_FINAL_AFTER_TICKS for end in fault_ends}))
 
-    def after(self, tick: int | None, stats: Callable[[], dict[str, Any]]) -> None:
+    def after(self, tick: int | None, stats: Callable[[], dict[str, Any]], now: bool = False) -> None:
         """After a pass of the loop that answered ``tick`` (None: none): write
-        ``stats()`` if it is time."""
+        ``stats()`` if it is time, or ``now``."""
         fault_over = False
         while tick is not None and self.at_ticks and self.at_ticks[0] <= tick:
             self.at_ticks.popleft()
             fault_over = True
-        if self.path and (fault_over or time.monotonic() - self.written_at >= self.period_s):
+        if self.path and (now or fault_over or time.monotonic() - self.written_at >= self.period_s):
             self.writer.offer(stats())
             self.written_at = time.monotonic()
 

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 import rerun as rr
 import rerun.blueprint as rrb
 
+from formation_swarm.agents.params import LAWS
 from formation_swarm.common.palette import OBSTACLE, PATH, lighter, robot_colour
 
 if TYPE_CHECKING:
@@ -50,6 +51,7 @@ def blueprint(sc: Scenario) -> rrb.Blueprint:
             rrb.Vertical(
                 series("wheel speeds: left, right (light), m/s", ("wheels/left", "wheels/right")),
                 series("link drops: observations, formation codes (light)", LINK_SERIES),
+                *_controller_series(sc),
                 rrb.TextLogView(
                     name="events: formation changes, faults",
                     origin="/",
@@ -69,6 +71,17 @@ def blueprint(sc: Scenario) -> rrb.Blueprint:
         rrb.TimePanel(state="collapsed", timeline=TIMELINE, play_state="following"),
         collapse_panels=True,
     )
+
+
+def _controller_series(sc: Scenario) -> list[rrb.TimeSeriesView]:
+    """The values of the followers' own controllers (robots/r<id>/controller/<name>),
+    when one flies a law that is not built in: the paper's send none."""
+    own = [rid for rid, fp in sc.followers.items() if fp.law not in LAWS]
+    if not own:
+        return []
+    contents = [f"+ /robots/r{rid}/controller/**" for rid in own]
+    legend = rrb.PlotLegend(corner="LeftTop")
+    return [rrb.TimeSeriesView(name="controllers' own values", origin="/", contents=contents, plot_legend=legend)]
 
 
 def _map_view(sc: Scenario) -> rrb.Spatial2DView:

@@ -14,6 +14,7 @@ Entity paths mirror the key space::
     robots/r<id>/error/ekf, /error/measured   |estimate or reading - true target|, m (the target
                                          of the formation the follower's telemetry says it flew)
     robots/r<id>/fis/rho, /fis/alpha, /fis/v_n, robots/r<id>/wheels/left, /wheels/right
+    robots/r<id>/controller/<name>       a controller's own values (Telemetry.extras, docs/controllers.md)
     robots/r<id>/formation               formation code flown
     events                               the run's start and each follower's formation changes, as text
     robots/r<id>/links/obs_dropped, /links/formation_dropped
@@ -278,6 +279,19 @@ class Recorder:
         ok = ~np.isnan(estimate[:, 0]) & ~np.isnan(cov[:, 0])
         if ok.any():
             self._columns(f"{base}/ekf/cov", "strip", t[ok], _ellipses(pose[ok], estimate[ok], cov[ok]))
+        self._send_extras(base, rows)
+
+    def _send_extras(self, base: str, rows: list[tuple[Telemetry, Pose, tuple[float, float] | None]]) -> None:
+        """The controller's own values, each a series under ``base``/controller/
+        (a name absent from a tick has no row there)."""
+        series: dict[str, tuple[list[float], list[float]]] = {}
+        for tel, _pose, _target in rows:
+            for name, value in tel.extras:
+                times, values = series.setdefault(name, ([], []))
+                times.append(tel.time_s)
+                values.append(value)
+        for name, (times, values) in series.items():
+            self._columns(f"{base}/controller/{name}", "scalar", np.array(times), np.array(values))
 
     def _event(self, t: float, text: str) -> None:
         self.guard(self.rec.set_time, TIMELINE, duration=t)

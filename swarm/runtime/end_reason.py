@@ -1,6 +1,7 @@
 """Why a run ended (``end_reason``: one of ``END_REASONS``) and, in words,
 why it ended or why a run that ended still failed: a process that exited on
-its own, a host lost, a leader or every follower without its agent.
+its own, a host lost, a leader or every follower without its agent, a
+follower's controller that failed.
 """
 
 from __future__ import annotations
@@ -76,3 +77,26 @@ def robots_lost(world: Mapping[str, Any], sc: Scenario) -> str | None:
     if sc.follower_ids and all(rid in deaths for rid in sc.follower_ids):
         return f"every follower ({', '.join(map(str, sc.follower_ids))}) lost its agent"
     return None
+
+
+def controller_failures(parts: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Every follower controller that failed (agents.follower_role), from the
+    agents' stats (``parts``: process name -> stats): robot, tick, error, law,
+    by tick. An agent restarted after its controller failed may fail again."""
+    out = []
+    for name, part in parts.items():
+        failure = part.get("controller_failure") if name.startswith("agent-") and isinstance(part, Mapping) else None
+        if isinstance(failure, Mapping):
+            out.append({"robot": part.get("robot"), **failure})
+    return sorted(out, key=lambda f: (f.get("tick") or 0, f.get("robot") or 0))
+
+
+def describe_controller_failures(failures: list[Mapping[str, Any]]) -> str | None:
+    """The failed controllers in words (None: none): the run failed."""
+    if not failures:
+        return None
+    said = [
+        f"robot {f.get('robot')}'s controller ({f.get('law')}) at tick {f.get('tick')}: {f.get('error')}"
+        for f in failures
+    ]
+    return "a controller failed, its robot stopped: " + "; ".join(said)

@@ -21,6 +21,9 @@ Besides the metrics it says which code made the run and why the run ended:
 ``error_windows``
     per follower, its mean and largest formation error in each window
     (``window_s``, 1 s) of the run: how long a formation took to recover.
+``controller_failures``
+    every follower controller that raised or gave a speed that is no finite
+    number: robot, tick, error, law (docs/controllers.md); any fails the run.
 
 Its parts are made beside it: why the run ended (``end_reason``), the links'
 counts (``link_counts``), what each fault did (``fault_effects``) and what the
@@ -46,6 +49,8 @@ from formation_swarm.runtime.end_reason import (
     ROLE_FAILED,
     START_FAILED,
     TIMED_OUT,
+    controller_failures,
+    describe_controller_failures,
     describe_end,
     describe_host_lost,
     robots_lost,
@@ -70,6 +75,7 @@ __all__ = [
     "TIMED_OUT",
     "Ending",
     "build",
+    "controller_failures",
     "describe_end",
     "describe_host_lost",
     "fault_effects",
@@ -79,6 +85,7 @@ __all__ = [
     "recording_cut",
     "recording_gap",
     "robots_lost",
+    "run_failed",
     "write",
 ]
 
@@ -120,7 +127,8 @@ def build(
         "seed": sc.seed,
         "version": __version__,
         "git_commit": git_commit(),
-        **_ending(ending, world, sc, events),
+        **_ending(ending, parts, sc, events),
+        **_controllers(parts),
         **_world_metrics(world, sc),
         "faults": fault_effects(sc, parts, events, link_faults),
         "messages": world.get("messages", {}),
@@ -144,11 +152,14 @@ def build(
     return out
 
 
-def _ending(ending: Ending, world: Mapping[str, Any], sc: Scenario, events: list[dict[str, Any]]) -> dict[str, Any]:
+def _ending(ending: Ending, parts: Mapping[str, Any], sc: Scenario, events: list[dict[str, Any]]) -> dict[str, Any]:
     """The summary's fields of how the run ended, and why it failed if it did."""
     reason, at = ending["end_reason"], ending["ended_at_s"]
+    world = parts.get("world", {})
     hosts_lost = [describe_host_lost(e) for e in events if e.get("event") == "host lost"]
     failure = "; ".join(hosts_lost) or robots_lost(world, sc)  # a lost host fails the run, its robots with it
+    if failed := describe_controller_failures(controller_failures(parts)):
+        failure = f"{failure}; {failed}" if failure else failed
     if reason == START_FAILED:
         failure = describe_end(reason, None, events)
     return {
@@ -160,6 +171,19 @@ def _ending(ending: Ending, world: Mapping[str, Any], sc: Scenario, events: list
         "interrupted": ending["interrupted"],
         "timed_out": ending["timed_out"],
     }
+
+
+def _controllers(parts: Mapping[str, Any]) -> dict[str, Any]:
+    """The controllers that failed, and the run's failure with them in words."""
+    return {"controller_failures": controller_failures(parts)}
+
+
+def run_failed(parts: Mapping[str, Any], sc: Scenario) -> str | None:
+    """Why a run that ran to its end still failed (None: it did not): its
+    leader or every follower lost its agent, or a controller failed."""
+    lost = robots_lost(parts.get("world", {}), sc)
+    failed = describe_controller_failures(controller_failures(parts))
+    return "; ".join(w for w in (lost, failed) if w) or None
 
 
 def _world_metrics(world: Mapping[str, Any], sc: Scenario) -> dict[str, Any]:

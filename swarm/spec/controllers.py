@@ -1,6 +1,7 @@
 """The followers' controllers: the ``[controller]`` table every follower
-takes, ``[followers.ID]`` overrides of it, and every controller's fastest
-wheel command within what the robots' wheels can do.
+takes, ``[followers.ID]`` overrides of it, the law each flies with its
+``params`` checked against the law's class (agents.laws), and every
+controller's fastest wheel command within what the robots' wheels can do.
 """
 
 from __future__ import annotations
@@ -10,11 +11,12 @@ from collections.abc import Mapping
 from typing import Any
 
 from formation_swarm.agents.ekf import EkfParams
-from formation_swarm.agents.follower import FollowerParams
+from formation_swarm.agents.follower import LAWS, FollowerParams, law_class
 from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode
+from formation_swarm.agents.laws import LawError, declared_params
 from formation_swarm.agents.lpsi import LpsiParams
 from formation_swarm.spec.checking import check_table, wrapped
-from formation_swarm.spec.keys import CONTROLLER_KEYS, EKF_KEYS, ScenarioError
+from formation_swarm.spec.keys import CONTROLLER_KEYS, EKF_KEYS, NUM, Key, ScenarioError
 
 
 def parse_followers(
@@ -33,14 +35,13 @@ def parse_followers(
     out: dict[int, FollowerParams] = {}
     shared: FollowerParams | None = None  # the [controller] table's, made once for every follower without its own
     for rid in followers:
-        merged = dict(raw.get("controller") or {})
         override = per.get(str(rid), {})
         if not isinstance(override, dict):
             raise ScenarioError(f"followers.{rid} must be a table")
         if not override and shared is not None:
             out[rid] = shared  # frozen: one object serves them all
             continue
-        merged.update(override)
+        merged = with_override(raw.get("controller") or {}, override)
         where = f"followers.{rid}" if override else "controller"
         out[rid] = follower_params(where, check_table(merged, where, CONTROLLER_KEYS), robot, dt)
         if not override:
@@ -82,7 +83,7 @@ def follower_params(where: str, t: Mapping[str, Any], robot: Mapping[str, Any], 
         speed=mode,
         ekf=ekf,
         use_ekf=t["use_ekf"],
-        law=t["law"],
+        **law_and_params(where, t),
         drho_at_sign_change=t["drho_at_sign_change"],
         lpsi=wrapped(
             where,
@@ -107,9 +108,56 @@ def check_wheel_limit(
             f" above robot.max_wheel_mps = {max_wheel:g}"
         )
     for rid, fp in followers.items():
+        if fp.law not in LAWS:
+            continue  # a user's law keeps within the limit itself (ControllerSetup.max_wheel_mps)
         vn = fp.speed.static_vn if fp.speed.static_vn is not None else fp.fuzzy.vn_max
         if vn + fp.fuzzy.a_mps > max_wheel:
             raise ScenarioError(
                 f"follower {rid}'s fuzzy controller commands up to {vn + fp.fuzzy.a_mps:g} m/s (V_N + a_mps),"
                 f" above robot.max_wheel_mps = {max_wheel:g}"
             )
+
+
+# -- the law each follower flies, and its own parameters (docs/controllers.md) --------
+
+
+def with_override(base: Mapping[str, Any], override: Mapping[str, Any]) -> dict[str, Any]:
+    """``[controller]`` with a ``[followers.ID]`` table over it. Its ``params``
+    go over those of [controller] name by name while it flies the same law;
+    a follower that flies another law takes only its own."""
+    if not isinstance(base, Mapping):
+        return dict(override)  # check_table says what is wrong with [controller]
+    merged = {**base, **override}
+    default_law = CONTROLLER_KEYS["law"].default
+    if override.get("law", base.get("law", default_law)) != base.get("law", default_law):
+        merged["params"] = override.get("params", {})
+    elif isinstance(base.get("params"), dict) and isinstance(override.get("params"), dict):
+        merged["params"] = {**base["params"], **override["params"]}
+    return merged
+
+
+def law_and_params(where: str, t: Mapping[str, Any]) -> dict[str, Any]:
+    """``law`` and ``params`` of a checked controller table, as FollowerParams
+    takes them: the law's class found (imported) and its params checked against
+    what it declares, each filled with its default, before any process starts."""
+    law = t["law"]
+    try:
+        declared = declared_params(law_class(law), law)
+    except LawError as exc:
+        raise ScenarioError(f"{where}.law: {exc}") from None
+    given = t["params"]
+    if given and not declared:
+        own = " (its parameters are the keys of [controller])" if law in LAWS else ""
+        raise ScenarioError(f"unknown key {where}.params.{next(iter(given))}: law {law!r} takes no params{own}")
+    schema = {name: _param_key(default) for name, default in declared.items()}
+    checked = check_table(given, f"{where}.params", schema)
+    # A float parameter given as an integer (gain = 2, --set ...=1,2,3) is the float.
+    values = tuple((k, float(v) if isinstance(declared[k], float) else v) for k, v in checked.items())
+    return {"law": law, "law_params": values}
+
+
+def _param_key(default: bool | int | float | str) -> Key:
+    """The key a declared parameter is checked with: its default's type (an
+    integer is a number where the default is a float)."""
+    kind = NUM if isinstance(default, float) else type(default)
+    return Key(kind, default, "")

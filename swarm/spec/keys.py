@@ -274,7 +274,13 @@ CONTROLLER_KEYS = {
         "FIS-2: |drho|/dt at which Positive and Negative saturate", _FZ.drho_rate_tol_mps, "m/s"
     ),
     "ekf": Key(dict, {}, "the EKF's noise model: a table of the [controller.ekf] keys below"),
-    "law": Key(str, "fuzzy", "'fuzzy' (the paper's controller) or 'lpsi' (the l-psi baseline of Desai et al.)"),
+    "law": Key(
+        str,
+        "fuzzy",
+        "'fuzzy' (the paper's controller), 'lpsi' (the l-psi baseline of Desai et al.), or a controller of your"
+        " own: 'package.module:Class' or the name of an entry point of the group formation_swarm.controllers"
+        " (docs/controllers.md)",
+    ),
     "drho_at_sign_change": Key(
         str,
         "signed",
@@ -285,6 +291,14 @@ CONTROLLER_KEYS = {
     "lpsi_psi_gain": positive("l-psi: bearing gain a2", 1.0, "1/s"),
     "lpsi_d_m": positive("l-psi: the controlled point, ahead of the axle", 0.25, "m"),
 }
+# A law's own parameters: checked against what its class declares (spec.controllers), not here.
+CONTROLLER_KEYS["params"] = Key(
+    dict,
+    {},
+    "the law's own parameters, a table of name = value: those its class declares in PARAMS"
+    " (docs/controllers.md); the built-in laws take none. A [followers.ID] table's params go over these"
+    " name by name, unless it names another law",
+)
 OBSTACLE_KEYS = {
     "x_m": Key(NUM, REQUIRED, "centre x", "m"),
     "y_m": Key(NUM, REQUIRED, "centre y", "m"),

@@ -205,6 +205,18 @@ def spec(t: str) -> Spec:
                 (None, "wrong type"),
             ],
         )
+    if t == "name":  # Telemetry's extras: messages.EXTRA_NAME
+        return Spec(
+            ["speed_mps", "a" * 32, "Kp2"],
+            [
+                ("", "out of range"),
+                ("a" * 33, "out of range"),
+                ("2a", "out of range"),
+                ("a-b", "out of range"),
+                (3, "wrong type"),
+                (None, "wrong type"),
+            ],
+        )
     if t == "bool":
         return Spec([True, False], [(1, "wrong type"), (0, "wrong type"), (None, "wrong type")])
     if m := re.fullmatch(r"str (.*)", t):

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from formation_swarm.agents.follower import FollowerParams
+from formation_swarm.agents.follower import FollowerParams, law_class
 from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.lpsi import LpsiParams, control
 from formation_swarm.studies.sim import paper_turning_setup, run
@@ -62,7 +62,9 @@ def test_bad_parameters_name_themselves(kwargs: dict, name: str) -> None:
 
 def test_bad_law_and_bad_input() -> None:
     with pytest.raises(ValueError, match="law"):
-        FollowerParams(law="pid")
+        FollowerParams(law="")
+    with pytest.raises(ValueError, match="no law named 'pid'"):  # nor an entry point of that name
+        law_class("pid")
     with pytest.raises(ValueError, match="v_ref_mps"):
         control(Point(0.0, 2.0), 0.0, math.nan, 0.0, offset=Point(0.0, -1.5), width_m=0.5, p=P)
 

@@ -149,6 +149,7 @@ def test_a_controller_gets_its_reading_slot_and_ticks_and_its_values_reach_the_t
         3,
         LINE,
     )
+    assert tel.extras == (("its_own", 7.0),)  # a name of its own: an extra (holding is the role's, not sent)
     assert (answers[-1].command.left_mps, answers[-1].command.right_mps) == (0.5, 0.6)
     stats = role.stats()
     assert (stats["held_ticks"], stats["holds"], stats["waited_ticks"]) == (4, [[0, 5]], 0)
