@@ -294,3 +294,18 @@ def test_serve_web_on_a_taken_port_is_refused_before_anything_starts(tmp_path: P
     assert len(proc.stderr.splitlines()) == 1
     assert not (tmp_path / "a").exists()  # nothing started, nothing made
     assert not (tmp_path / "b").exists()
+
+
+def test_the_layout_follows_the_leader_and_draws_many_followers_means_alone() -> None:
+    from formation_swarm.nodes.blueprint import LEADER_FRAME, formation_reach_m
+
+    sc = scenario_mod.load(FIG11)
+    bp = blueprint(sc)
+    follow = bp.root_container.contents[0].contents[0]  # the first column's first view
+    assert follow.origin == f"/{LEADER_FRAME}"
+    assert 2.0 < formation_reach_m(sc) < 8.0  # a few metres (the line: R3 behind R2), not the 80 m path
+    named = _named_paths(bp)
+    assert {"/robots/r2/fis/v_n", "/robots/r2/fis/v_n_1s", "/robots/r3/wheels/right_1s"} <= named
+    many = _named_paths(blueprint(scenario_mod.load(FIG11, {"run.robots": 30, "leader.formation": "line"})))
+    assert "/robots/r30/fis/v_n_1s" in many
+    assert "/robots/r30/fis/v_n" not in many  # 29 followers' per-tick values: a blur
