@@ -36,8 +36,8 @@ FLIP = rr.Transform3D(scale=(1.0, -1.0, 1.0))  # the 2D view draws y down; the p
 
 
 def blueprint(sc: Scenario) -> rrb.Blueprint:
-    """The viewer's layout for ``sc``: the formation map, then the follower
-    series over time and the run's events. Every entity is named by its full
+    """The viewer's layout for ``sc``: the formation followed over the whole
+    path, then the follower series over time and the run's events. Every entity is named by its full
     path: the viewer matches no wildcard in the middle of a path."""
     followers = sc.follower_ids
     many = len(followers) > MANY_FOLLOWERS
