@@ -49,28 +49,32 @@ def describe_event(ev: Mapping[str, Any]) -> str:
 
 
 def describe_recoveries(f: Mapping[str, Any]) -> list[str]:
-    """How the formation came back after a process fault, in words: when the
-    watched follower's error first went below the bound after the robot's
-    return, whether it then stayed below it for the hold time (settled), and
-    its largest error in the window after the return. Below the bound at once
-    but never settled is a follower whose error only passed through it."""
+    """How the formation came back after a fault, in words: when the watched
+    follower's error first went below the bound after the robot's return,
+    whether it then stayed below it for the hold time (settled), and its
+    largest error in the window after the return. Below the bound at once but
+    never settled is a follower whose error only passed through it. After a
+    fault that ends (a link, partition, sensor or actuator fault), the same
+    from the end, to the second (runtime.window_recovery)."""
     out = []
     for rec in f.get("recoveries") or []:
         who = ", ".join(f"R{r}" for r in rec.get("watched") or [])
         since = rec.get("since_s")
-        at = f" the return at t={since:.2f} s" if isinstance(since, (int, float)) else " the return"
+        windowed = isinstance(rec.get("resolution_s"), (int, float))  # a fault's end, from 1 s windows
+        what = " the fault's end" if windowed else " the return"
+        at = f"{what} at t={since:.2f} s" if isinstance(since, (int, float)) else what
         after = rec.get("first_below_after_s")
         bound = rec.get("bound_m", 0.5)
+        below = f"below {bound:g} m" + (f" ({rec['resolution_s']:g} s mean)" if windowed else "")
         if not isinstance(after, (int, float)):
-            out.append(f"{who} not back below {bound:g} m by the end")
+            out.append(f"{who} not back {below} by the end")
             continue
-        said = f"{who} below {bound:g} m {after:.2f} s after{at}"
+        said = f"{who} {below} {'within ' if windowed else ''}{after:.2f} s after{at}"
         settled = rec.get("settled_after_s")
-        said += (
-            f", settled (below it for {HOLD_S:g} s) {settled:.2f} s after"
-            if isinstance(settled, (int, float))
-            else f", never settled (below it for {HOLD_S:g} s in a row) by the end"
-        )
+        if isinstance(settled, (int, float)):
+            said += f", settled (below it for {HOLD_S:g} s) {settled:.2f} s after"
+        elif not windowed:  # a window's mean below the bound is a second below it on average: no settling said
+            said += f", never settled (below it for {HOLD_S:g} s in a row) by the end"
         if isinstance(peak := rec.get("max_in_window_m"), (int, float)):
             said += f"; largest error in the {rec.get('window_s', 5):g} s after: {peak:.2f} m"
         out.append(said)
@@ -366,9 +370,15 @@ def _metrics(w: Any, s: Mapping[str, Any]) -> None:
         w(f"  RECORDING CUT SHORT: {s['recording_cut']}\n")
 
 
+def _start_tick(f: Mapping[str, Any]) -> float:
+    start = f.get("start_tick")
+    return float(start) if isinstance(start, (int, float)) else float("inf")
+
+
 def _faults_and_events(w: Any, s: Mapping[str, Any]) -> None:
-    """Each fault with what it did, then the events no fault's line said."""
-    for f in s.get("faults") or []:
+    """Each fault with what it did, by its start, then the events no fault's line said."""
+    faults = [f for f in s.get("faults") or [] if isinstance(f, Mapping)]
+    for f in sorted(faults, key=_start_tick):
         w(f"  fault: {describe_fault(f, s.get('ticks'))}\n")
     events = s.get("events") or []
     killed = {ev.get("process") for ev in events if ev.get("event") == "killed"}

@@ -110,6 +110,8 @@ class Hosts:
                 "and the run's data crosses the network, unencrypted (deploy/README.md: TLS)"
             )
         self.logins: dict[str, trust.Credential] | None = None
+        # Where swarm secure --hosts wrote each host's login: beside --host-logins.
+        self.logins_dir = Path(options.host_logins).parent if options.host_logins is not None else None
         if self.names and plan.options.auth:
             if options.host_logins is None:
                 raise ValueError(
@@ -162,10 +164,11 @@ class Hosts:
             )
         for h, client in self.clients.items():
             if not client.present.wait(max(0.0, deadline - time.monotonic())):
+                login = self.logins_dir / f"host-{h}.json" if self.logins_dir is not None else f"host-{h}.json"
                 raise remote.HostError(
                     f"host {h} did not connect to {self.listen} within {self.timeout_s:g} s: start "
-                    f"'swarm host --connect <this address> --name {h} --auth host-{h}.json' there, and check "
-                    "its --connect, its login and the network"
+                    f"'swarm host --connect <this address> --name {h} --auth {login}' there (that file copied "
+                    "to its machine), and check its --connect, its login and the network"
                 )
             client.info = self.infos[h] = client.ask(HostRequest("info", __version__))
 

@@ -246,7 +246,7 @@ def test_bad_input_is_one_line_exit_2_and_nothing_made(rejected: dict[str, Outco
     assert proc.stderr.startswith(f"swarm {command}: " if command else "swarm: ")
     assert "Traceback" not in proc.stdout + proc.stderr
     assert res.after == res.before  # no run folder, no runs/, no sweeps/
-    assert res.elapsed_s < 20.0  # refused up front, not after a run
+    assert res.elapsed_s < 60.0  # refused up front, not after a run: a few s quiet, 20 s on a loaded machine
 
 
 def test_a_role_that_crashes_is_named_with_its_code_and_its_log(tmp_path: Path) -> None:
@@ -273,7 +273,7 @@ def test_a_role_that_crashes_is_named_with_its_code_and_its_log(tmp_path: Path) 
     print_result(res, text)
     out = "\n".join(lines) + "\n" + text.getvalue()
     assert res.exit_code == 1, out
-    assert elapsed < 30.0  # not the world's 60 s wait for a logger that is gone
+    assert elapsed < 50.0  # not the world's 60 s wait for a logger that is gone (about 10 s, loaded 20)
     log = tmp_path / "run" / "logs" / "logger.log"
     assert f"logger exited with code 1 before the run started; the end of {log}:" in out
     quoted = [line for line in out.splitlines() if line.startswith("  | ")]

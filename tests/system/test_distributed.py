@@ -531,7 +531,7 @@ def test_ctrl_c_on_swarm_run_leaves_no_process(tmp_path: Path, when: str) -> Non
     proc.wait(timeout=30)
     reader.join(timeout=5)
     assert proc.returncode == 130
-    assert time.monotonic() - t0 < 5.0
+    assert time.monotonic() - t0 < 10.0  # about 2 s (the processes' stop), 3x on a loaded machine
     assert mine() == []
     summary = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert summary["interrupted"] is True
