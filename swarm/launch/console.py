@@ -366,10 +366,27 @@ def _metrics(w: Any, s: Mapping[str, Any]) -> None:
         w(f"  RECORDING CUT SHORT: {s['recording_cut']}\n")
 
 
+STALL_WORDS = {
+    "stalled": "stalled (its deadlines missed in a row; no longer waited for)",
+    "answering again": "answering again",
+    "lost while stalled": "lost after its stall: the clock held for it",
+    "not back in time": "not back in time: the run went on without it",
+}
+
+
+def describe_stall(e: Mapping[str, Any]) -> str:
+    """One event of a robot that fell silent in lockstep (world.stalls) as a sentence."""
+    what = STALL_WORDS.get(str(e.get("event")), str(e.get("event")))
+    return f"robot {e.get('robot')} {what} at tick {e.get('tick')}, sim t={_num(e.get('time_s'), '.2f')} s"
+
+
 def _faults_and_events(w: Any, s: Mapping[str, Any]) -> None:
-    """Each fault with what it did, then the events no fault's line said."""
+    """Each fault with what it did, then the robots that fell silent, then the events no fault's line said."""
     for f in s.get("faults") or []:
         w(f"  fault: {describe_fault(f, s.get('ticks'))}\n")
+    for e in s.get("stalls") or []:
+        if isinstance(e, Mapping):
+            w(f"  stall: {describe_stall(e)}\n")
     events = s.get("events") or []
     killed = {ev.get("process") for ev in events if ev.get("event") == "killed"}
     for ev in events:

@@ -132,6 +132,7 @@ def build(
         "rejected": rejected,
         "rejected_total": sum(sum(r.values()) for r in rejected.values()),
         "trajectory_digest": world.get("trajectory_digest"),
+        "robot_digests": world.get("robot_digests"),  # each robot's own, by id
         "events": events,
         "processes": dict(processes),
         "recording": recording,
@@ -186,6 +187,8 @@ def _world_metrics(world: Mapping[str, Any], sc: Scenario) -> dict[str, Any]:
         "sensor_faults": world.get("sensor_faults", {}),
         "actuator_faults": world.get("actuator_faults", {}),
         "deaths": world.get("deaths", []),
+        "stalls": world.get("stalls", []),  # lockstep: robots silent with their token there (world.stalls)
+        "held_for_lost_s": world.get("held_for_lost_s"),
     }
 
 
