@@ -90,6 +90,7 @@ class Launch:
         self.token: zenoh.LivelinessToken | None = None  # held: a dropped token is undeclared
         self._interrupt = threading.Event()  # interrupt(): another thread's Ctrl-C (a sweep's runs)
         self.said_web = False  # the web viewer's address is on the console
+        self.logins: dict[str, dict[str, Any]] = {}  # user -> settings, every login of the run
 
     # -- what the run is ------------------------------------------------------------
     @property
@@ -128,6 +129,13 @@ class Launch:
     def pids(self) -> dict[str, int]:
         return self.procs.pids()
 
+    def login(self, user: str) -> dict[str, Any] | None:
+        """The Zenoh settings of ``user``'s login in this run (world, logger,
+        launcher, agent-N; None without auth), from the launcher's memory: the
+        files are gone once their process has read them."""
+        found = self.logins.get(user)
+        return None if found is None else dict(found)
+
     def sim_time(self) -> float:
         """The sim time the world last said, in s; -1 before its first status."""
         return self.status.sim_time()
@@ -163,14 +171,20 @@ class Launch:
         secrets = plan.write_logins(
             world_is_router=not remote_agents, host_logins=self.hosts.logins, tls=self.hosts.tls
         )
+        # Every login in memory: a process deletes its own file once read (--auth-once),
+        # and a restarted agent (or a host's) gets its login from here.
+        self.logins = {user: trust.read_settings(path) for user, path in secrets.items()}
         if remote_agents:
             self.session = self.hosts.open_router(self.endpoint, secrets)
         lines = plan.command_lines(self.endpoint, secrets, remote_agents=remote_agents, live=self._live())
+        for path in secrets.values():  # the logins no process here reads (the hosts' agents', ours)
+            if not any(str(path) in argv for argv in lines.values()):
+                path.unlink(missing_ok=True)
         self.journal.started_at = time.monotonic()
         for name, argv in lines.items():
             self.procs.start(Child(name, argv, plan.log_path(name), fork=plan.options.fork))
         if self.session is None:
-            settings = trust.read_settings(secrets["launcher"]) if secrets else None
+            settings = self.logins.get("launcher")
             self.session = zenoh.open(make_config("client", [self.endpoint], connect_timeout_s=30.0, settings=settings))
         keys = Keys(self.run_id)
         self.session.declare_subscriber(keys.status, lambda s: self.status.put(s.payload.to_bytes()))
@@ -178,7 +192,7 @@ class Launch:
         # After the subscriber: with process faults the world waits for this token before tick 0.
         self.token = self.session.liveliness().declare_token(keys.alive("launcher", 0))
         if remote_agents:
-            self.hosts.start(self.session, secrets)
+            self.hosts.start(self.session, self.logins)
 
     def _live(self) -> str | None:
         """The viewer the logger also streams to: ``live`` if one answers there."""
@@ -201,6 +215,8 @@ class Launch:
         if isinstance(old, remote.RemoteChild):
             return self.hosts.restart(old, name)
         argv = self.plan.restart_argv(self.children[process].argv, name)
+        if "--auth" in argv:  # the first one deleted its login once read: a fresh file, deleted the same way
+            trust.write_settings(Path(argv[argv.index("--auth") + 1]), self.logins[process])
         return self.procs.start(Child(name, argv, self.plan.log_path(name), fork=self.plan.options.fork))
 
     def interrupt(self) -> None:
