@@ -38,7 +38,7 @@ from formation_swarm.launch.hosts import HostOptions, Hosts
 from formation_swarm.launch.plan import SECRETS, KillAt, Plan, RunOptions
 from formation_swarm.launch.processes import Processes
 from formation_swarm.launch.record import Journal, StatusFeed
-from formation_swarm.launch.result import Ending, RunResult, end_reason, processes_part
+from formation_swarm.launch.result import Ending, RunResult, end_reason, place_exits, processes_part
 from formation_swarm.nodes import viewer
 from formation_swarm.protocol import trust
 from formation_swarm.protocol.keys import Keys
@@ -91,6 +91,7 @@ class Launch:
         self._interrupt = threading.Event()  # interrupt(): another thread's Ctrl-C (a sweep's runs)
         self.said_web = False  # the web viewer's address is on the console
         self.logins: dict[str, dict[str, Any]] = {}  # user -> settings, every login of the run
+        self.folder_id: tuple[int, int] | None = None  # the run folder's (device, inode)
 
     # -- what the run is ------------------------------------------------------------
     @property
@@ -167,6 +168,8 @@ class Launch:
     def _start(self) -> None:
         plan, remote_agents = self.plan, bool(self.hosts.names)
         plan.make_folder()
+        st = self.run_dir.stat()
+        self.folder_id = (st.st_dev, st.st_ino)  # a folder deleted and made again is not the run's
         self.port = free_port()
         secrets = plan.write_logins(
             world_is_router=not remote_agents, host_logins=self.hosts.logins, tls=self.hosts.tls
@@ -265,13 +268,19 @@ class Launch:
         world = self.children["world"]
         code = ending.exit_code(world.proc.returncode if world.proc is not None else None)
         world_stats = summary_mod.read_parts(self.run_dir / "stats").get("world", {})
-        if code == 0 and (lost := summary_mod.robots_lost(world_stats, self.sc)):
+        place_exits(self.journal.events, world_stats)
+        events = self.journal.events
+        lost = summary_mod.robots_lost(world_stats, self.sc) or summary_mod.logger_lost(world_stats, events)
+        if code == 0 and lost:
             self.journal.say(f"[swarm] the run failed: {lost}")
-            code = 1  # it ran to its end, but not as a formation: not a success
+            code = 1  # it ran to its end, but not as a formation, or not recorded whole: not a success
         if code in (0, 1) and self.hosts.lost:
             self.hosts.say_lost()
             code = 1
         summary = self._summary(code, ending)
+        if unkept := summary.get("unkept"):  # the folder deleted, or the disk full: said in one line
+            self.journal.say(f"[swarm] the run failed: {unkept}")
+            summary["exit_code"] = code = 1
         return RunResult(self.run_dir, summary, code, self.pids())
 
     def _follow(self, timeout_s: float | None) -> tuple[Ending, int | None]:
@@ -351,5 +360,23 @@ class Launch:
             recording="recording.rrd" if self.plan.options.logger else None,
         )
         self.hosts.add_to_summary(summary)
-        summary_mod.write(self.run_dir, summary)
+        summary["ticks_seen"] = None if self.status.last is None else self.status.last.tick
+        if (gone := self._folder_gone()) is not None:
+            summary["unkept"] = gone
+            return summary
+        try:
+            summary_mod.write(self.run_dir, summary)
+        except OSError as exc:
+            summary["unkept"] = f"cannot write {exc.filename or self.run_dir / 'summary.json'}: {exc.strerror or exc}"
         return summary
+
+    def _folder_gone(self) -> str | None:
+        """Why the run folder holds none of the run (deleted while it ran, even if
+        a process made it again since), or None."""
+        try:
+            st = self.run_dir.stat()
+        except OSError:
+            st = None
+        if st is None or (self.folder_id is not None and (st.st_dev, st.st_ino) != self.folder_id):
+            return f"its folder {self.run_dir} was deleted during the run: its recording, logs and stats are lost"
+        return None

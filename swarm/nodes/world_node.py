@@ -47,6 +47,8 @@ class Peers:
     logger_seen: bool = False
     executor_seen: bool = False
     present: set[str] = field(default_factory=set)  # alive keys of the agents and the logger
+    # When the logger's token went before "done": the tick its recording is cut at.
+    logger_lost: dict[str, Any] | None = None
 
 
 @dataclass
@@ -234,6 +236,9 @@ class World:
             (peers.present.add if present else peers.present.discard)(key)
         if role == "logger":
             peers.logger_seen = peers.logger_seen or present
+            if not present and peers.logger_lost is None and not self.tick.finished:
+                eng = self.tick.engine
+                peers.logger_lost = {"tick": eng.tick, "time_s": eng.time_s, "wall_s": self._wall_s()}
         elif role == "launcher":
             peers.executor_seen = peers.executor_seen or present
         elif role == "agent" and ident.isdigit() and int(ident) in self.tick.engine.robots:
@@ -341,6 +346,7 @@ class World:
                 "loop_cpu_s": self.loop_cpu_s,
                 **tick.faults.stats(),  # deaths, fault_log, rejoins, recoveries
                 "robot_digests": tick.robot_digests(),
+                "logger_lost": self.peers.logger_lost,
                 "stalls": tick.stalls.events,
                 "held_for_lost_s": tick.stalls.held_s,
                 "leader_done": tick.leader_done,
