@@ -101,7 +101,9 @@ class Processes:
             return
         tail = log_tail(child.log_path)
         self.journal.add("exited", process=child.name, code=code, sim_time_s=t, log_tail=tail)
-        when = f"at sim t={t:.2f} s" if started else "before the run started"
+        # Seen now; the world's last status lags (by seconds of sim time in lockstep):
+        # the summary places it at the tick the world saw it go (result.place_exits).
+        when = f"during the run (the world's last status: sim t={t:.2f} s)" if started else "before the run started"
         self.journal.say(f"[swarm] {child.name} {describe_exit(code)} {when}; the end of {child.log_path}:")
         for line in tail or ["(the log is empty)"]:
             self.journal.say(f"  | {line}")
