@@ -222,6 +222,7 @@ def write_run_secrets(
     run_id: str,
     robots: Sequence[int],
     leader_id: int,
+    *,
     world_is_router: bool = True,
     tls: Tls | None = None,
     host_logins: dict[str, Credential] | None = None,
