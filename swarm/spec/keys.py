@@ -285,6 +285,13 @@ CONTROLLER_KEYS = {
     "lpsi_psi_gain": positive("l-psi: bearing gain a2", 1.0, "1/s"),
     "lpsi_d_m": positive("l-psi: the controlled point, ahead of the axle", 0.25, "m"),
 }
+# The partition-zone avoidance's switch, a block of its own: the law's keys are above.
+CONTROLLER_KEYS["avoidance"] = Key(
+    bool,
+    _FOLLOWER.avoidance,
+    "the partition-zone collision avoidance during a formation change (eq. 11-13, the paper's): false, a"
+    " fuzzy follower goes straight to its new slot (eq. 13 skipped; the ablation of docs/results.md, claim d)",
+)
 OBSTACLE_KEYS = {
     "x_m": Key(NUM, REQUIRED, "centre x", "m"),
     "y_m": Key(NUM, REQUIRED, "centre y", "m"),
