@@ -99,12 +99,14 @@ def test_the_target_error_is_against_the_formation_the_follower_flew() -> None:
     import rerun as rr
 
     from formation_swarm.nodes.recorder import Recorder
+    from formation_swarm.nodes.recording import Recording
     from formation_swarm.protocol.messages import Telemetry, Truth
     from formation_swarm.world.kinematics import Pose, from_body_frame, to_body_frame
 
     sc = scenario_mod.load("fig11_obstacles")
-    rec = rr.RecordingStream("formation-swarm-test", recording_id="flown-target")
-    rec.memory_recording()
+    stream = rr.RecordingStream("formation-swarm-test", recording_id="flown-target")
+    stream.memory_recording()
+    rec = Recording(file=stream)
     recorder = Recorder(rec, sc)
     poses = {1: Pose(0.0, 0.0, math.pi / 2), 2: Pose(-1.5, -1.5, math.pi / 2), 3: Pose(1.5, -1.5, math.pi / 2)}
     line, triangle = sc.code_of("line"), sc.code_of("triangle")

@@ -60,7 +60,7 @@ def test_without_the_ekf_it_acts_on_the_reading_itself() -> None:
     rho_r, phi, beta = READING
     goal = target_point(leader_point(rho_r, phi, beta, p.marker_offset_m), phi, OFFSET)
     err = errors(goal, None, phi)
-    vn, wheels = fz.control(err.alpha_rad, err.rho_m, 0.0, p.dt_s, p.fuzzy, p.speed)
+    vn, wheels = fz.control(err.alpha_rad, err.rho_m, 0.0, p.dt_s, p=p.fuzzy, mode=p.speed)
     assert d.estimate == pytest.approx(goal, abs=1e-12)
     assert (d.left_mps, d.right_mps, d.vn) == pytest.approx((wheels.left_mps, wheels.right_mps, vn), abs=1e-12)
     assert d.estimate_cov is None

@@ -289,7 +289,7 @@ def test_the_speeds_a_follower_holds_are_read_off_the_rule_tables() -> None:
     assert fz.fis1(0.0, 5.0, p.vm, p) == pytest.approx((2.2, 2.2))
     # The slowest and fastest commands over any inputs: vn_min - a and vn_max + a.
     speeds = [
-        sum(fz.control(a, r, d, 0.05, p, fz.SpeedMode())[1]) / 2
+        sum(fz.control(a, r, d, 0.05, p=p, mode=fz.SpeedMode())[1]) / 2
         for a in (-1.0, 0.0, 0.1, 1.0)
         for r in (-2.0, 0.05, 0.3, 0.7, 1.5, 5.0)
         for d in (-0.1, -0.01, 0.0, 0.01, 0.1)

@@ -228,8 +228,8 @@ def test_the_signed_rho_jumps_where_a_follower_is_level_with_its_target_to_its_s
     assert ahead.rho_m == pytest.approx(0.5, abs=1e-5)
     assert behind.rho_m == pytest.approx(-0.5, abs=1e-5)
     assert behind.drho_m / 0.05 == pytest.approx(-20.0, abs=1e-3)  # FIS-2's input, m/s
-    vn_ahead, wheels_ahead = fz.control(ahead.alpha_rad, ahead.rho_m, 0.0, 0.05, p, fz.SpeedMode())
-    vn_behind, wheels_behind = fz.control(behind.alpha_rad, behind.rho_m, behind.drho_m, 0.05, p, fz.SpeedMode())
+    vn_ahead, wheels_ahead = fz.control(ahead.alpha_rad, ahead.rho_m, 0.0, 0.05, p=p, mode=fz.SpeedMode())
+    vn_behind, wheels_behind = fz.control(behind.alpha_rad, behind.rho_m, behind.drho_m, 0.05, p=p, mode=fz.SpeedMode())
     assert vn_ahead == pytest.approx(1.7)  # Middle
     assert (wheels_ahead.left_mps, wheels_ahead.right_mps) == pytest.approx((1.7, 1.2))  # turns right, to it
     assert vn_behind == pytest.approx(1.5)  # the -20 m/s forces Low
@@ -241,10 +241,12 @@ def test_the_signed_rho_jumps_where_a_follower_is_level_with_its_target_to_its_s
 def test_an_alpha_beyond_pi_is_wrapped_not_saturated() -> None:
     # atan2 keeps eq. 4's alpha in [-pi, pi]; an input beyond it is the same direction, wrapped.
     p = fz.FuzzyParams()
-    beyond = fz.control(math.pi + 0.3, 1.5, 0.0, 0.05, p, fz.SpeedMode(1.5))
-    assert beyond == fz.control(-math.pi + 0.3, 1.5, 0.0, 0.05, p, fz.SpeedMode(1.5))
+    beyond = fz.control(math.pi + 0.3, 1.5, 0.0, 0.05, p=p, mode=fz.SpeedMode(1.5))
+    assert beyond == fz.control(-math.pi + 0.3, 1.5, 0.0, 0.05, p=p, mode=fz.SpeedMode(1.5))
     assert beyond[1].left_mps < beyond[1].right_mps  # the target is behind-left: turn left
-    assert fz.control(math.pi, 1.5, 0.0, 0.05, p, fz.SpeedMode(1.5))[1].left_mps > 1.5  # pi itself unchanged: Left
+    assert (
+        fz.control(math.pi, 1.5, 0.0, 0.05, p=p, mode=fz.SpeedMode(1.5))[1].left_mps > 1.5
+    )  # pi itself unchanged: Left
 
 
 def test_the_lookahead_bearing_aims_past_the_target_along_the_references_heading() -> None:
