@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test lint browser bench results docs mutate clean
+.PHONY: run test test-stress lint browser bench results docs mutate clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,6 +25,12 @@ lint: $(STAMP)
 
 test: lint browser
 	$(BIN)/python -m pytest
+
+# The suite beside two CPU hogs (tools/stress.sh): its retries and time bounds
+# must hold on a busy machine. PYTEST_ARGS="tests/system" runs a part of it.
+PYTEST_ARGS ?=
+test-stress: lint browser
+	sh tools/stress.sh $(BIN)/python $(PYTEST_ARGS)
 
 # The web viewer's test (tests/system/test_web_view.py) loads it in a headless Chromium:
 # installed here when missing and this is root on apt; otherwise the test skips, saying why.

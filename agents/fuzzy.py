@@ -176,7 +176,7 @@ class SpeedMode:
 
 
 def control(
-    alpha_rad: float, rho_m: float, drho_m: float, dt_s: float, p: FuzzyParams, mode: SpeedMode
+    alpha_rad: float, rho_m: float, drho_m: float, dt_s: float, *, p: FuzzyParams, mode: SpeedMode
 ) -> tuple[float, Wheels]:
     """One robot's fuzzy step: V_N (FIS-2 or static), then FIS-1 for both wheels.
 

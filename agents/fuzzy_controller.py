@@ -98,7 +98,7 @@ class FuzzyController(TrackingController):
     def _drive(self, err: TargetErrors, sight: Sight, measured: Point | None, choice: Choice, ticks: int) -> Decision:
         """FIS-2 (V_N) then FIS-1 (wheel speeds), paper section 4."""
         p = self.p
-        vn, wheels = fz.control(err.alpha_rad, err.rho_m, err.drho_m, p.dt_s * ticks, p.fuzzy, p.speed)
+        vn, wheels = fz.control(err.alpha_rad, err.rho_m, err.drho_m, p.dt_s * ticks, p=p.fuzzy, mode=p.speed)
         self._last_cmd = (wheels.left_mps, wheels.right_mps)
         return Decision(
             left_mps=wheels.left_mps,

@@ -51,7 +51,7 @@ def main() -> None:
 
     def fuzzy_steps(count: int) -> None:
         for i in range(count):
-            fuzzy.control(alphas[i], rhos[i], drhos[i], 0.05, p, mode)
+            fuzzy.control(alphas[i], rhos[i], drhos[i], 0.05, p=p, mode=mode)
 
     ekf = TargetEKF(EkfParams(), 0.1, 0.5)
     ekf.update((2.0, 0.1, 0.05))

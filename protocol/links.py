@@ -255,32 +255,38 @@ class Link(Generic[T]):
         elif (dropper := self._dropper(seq, rules, burst_loss)) is not None:
             self._count(DROPPED, dropper)
         else:
-            copies = [item]
-            dup = next((r for r in rules if r.kind == "duplicate" and self._draw(r, seq) < r.p), None)
-            if dup is not None:
-                self._count(DUPLICATED, dup)
-                copies = [item, item]
-            delay = 0
-            for r in rules:
-                if r.kind == "delay" and (d := r.delay + self._jitter(r, seq)) > 0:
-                    self.by_fault[r.index][DELAYED] += 1
-                    delay += d
-            reorder = next((r for r in rules if r.kind == "reorder" and self._draw(r, seq) < r.p), None)
-            if delay > 0:
-                self.delayed += 1
-                self._order += 1
-                heapq.heappush(self._delayed, (tick + delay, self._order, copies))
-            elif reorder is not None:
-                self._count(REORDERED, reorder)
-                self._reorder_held = copies
-            else:
-                out += copies
+            out += self._pass(seq, tick, item, rules)
         if held is not None:
             if cut is not None:
                 self._count(PARTITIONED, cut)
             else:
                 out += held
         return out
+
+    def _pass(self, seq: int, tick: int, item: T, rules: list[Any]) -> list[T]:
+        """A message no rule drops: duplicated, delayed or held for reordering
+        as its rules draw (in this order, at every message); what goes out now."""
+        copies = [item]
+        dup = next((r for r in rules if r.kind == "duplicate" and self._draw(r, seq) < r.p), None)
+        if dup is not None:
+            self._count(DUPLICATED, dup)
+            copies = [item, item]
+        delay = 0
+        for r in rules:
+            if r.kind == "delay" and (d := r.delay + self._jitter(r, seq)) > 0:
+                self.by_fault[r.index][DELAYED] += 1
+                delay += d
+        reorder = next((r for r in rules if r.kind == "reorder" and self._draw(r, seq) < r.p), None)
+        if delay > 0:
+            self.delayed += 1
+            self._order += 1
+            heapq.heappush(self._delayed, (tick + delay, self._order, copies))
+            return []
+        if reorder is not None:
+            self._count(REORDERED, reorder)
+            self._reorder_held = copies
+            return []
+        return copies
 
     def due(self, tick: int) -> list[T]:
         """The delayed messages whose release tick is ``tick`` or earlier, in

@@ -85,6 +85,12 @@ def add_arguments(parser: argparse.ArgumentParser, default_mode: str = "client")
         "writes them for several machines (default: no authentication)",
     )
     group.add_argument(
+        "--auth-once",
+        action="store_true",
+        help="delete the --auth file once the session is open (a router's: its password list and TLS key "
+        "too): for one-run logins, as swarm run gives its processes",
+    )
+    group.add_argument(
         "--config",
         metavar="FILE",
         help="a Zenoh JSON5 configuration file; it replaces this program's defaults "

@@ -222,6 +222,7 @@ def write_run_secrets(
     run_id: str,
     robots: Sequence[int],
     leader_id: int,
+    *,
     world_is_router: bool = True,
     tls: Tls | None = None,
     host_logins: dict[str, Credential] | None = None,
@@ -266,6 +267,40 @@ def forget_router_secrets(folder: Path) -> None:
     for name in (PASSWORDS, PRIVATE_KEY):
         with contextlib.suppress(FileNotFoundError):
             (folder / name).unlink()
+
+
+def write_settings(path: Path, settings: Mapping[str, Any]) -> Path:
+    """A login (settings as :func:`read_settings` gives them) written to ``path``,
+    0600: a fresh file for a process started again with a login it read before."""
+    _write_private(path, json.dumps(dict(settings), indent=1))
+    return path
+
+
+# A router's settings that name files with secrets in them: gone with the settings once read.
+_SECRET_FILES = ("dictionary_file", "listen_private_key")
+
+
+def forget_login(path: str | Path) -> None:
+    """Delete a process's login once its session is open (``--auth-once``: a
+    run's one-run logins, which nothing needs again): the file, and for a
+    router's the password list and TLS key it names (Zenoh read them when the
+    session opened). A stolen copy of the run folder then holds no password."""
+    p = Path(path)
+    named: list[Path] = []
+    with contextlib.suppress(ValueError):
+        named = [Path(v) for k, v in _flat(read_settings(p)) if k in _SECRET_FILES and isinstance(v, str)]
+    for f in (*named, p):
+        with contextlib.suppress(FileNotFoundError):
+            f.unlink()
+
+
+def _flat(data: Any) -> list[tuple[str, Any]]:
+    """(last path segment, value) of every setting, nested objects included."""
+    out: list[tuple[str, Any]] = []
+    if isinstance(data, dict):
+        for key, value in data.items():
+            out += _flat(value) if isinstance(value, dict) else [(str(key).rsplit("/", 1)[-1], value)]
+    return out
 
 
 HOST_LOGINS = "hosts.txt"  # swarm secure --hosts: the hosts' logins, user:password a line, for swarm run

@@ -8,6 +8,9 @@ few need any of it):
   for its ``RunResult``.
 - the pytest fixtures ``swarm_run`` and ``swarm_launch`` (the ``pytest11``
   entry point ``formation_swarm.pytest_plugin``).
+- the follower controller API: ``FollowerController`` and what it takes and
+  gives (``ControllerSetup``, ``FollowerInput``, ``MarkerReading``,
+  ``FollowerOutput``), docs/controllers.md.
 
 Everything else (``formation_swarm.spec``, ``.runtime``, ``.nodes``, ...) is
 internal: docs/architecture.md draws the layers.
@@ -21,6 +24,13 @@ from typing import TYPE_CHECKING, Any
 from formation_swarm.common.version import __version__
 
 if TYPE_CHECKING:
+    from formation_swarm.agents.controller import (
+        ControllerSetup,
+        FollowerController,
+        FollowerInput,
+        FollowerOutput,
+        MarkerReading,
+    )
     from formation_swarm.launch.launcher import Launch, RunResult
     from formation_swarm.report.data import RunData, load_run
 
@@ -29,9 +39,24 @@ _PUBLIC = {
     "RunData": "formation_swarm.report.data",
     "Launch": "formation_swarm.launch.launcher",
     "RunResult": "formation_swarm.launch.launcher",
+    **{
+        name: "formation_swarm.agents.controller"
+        for name in ("ControllerSetup", "FollowerController", "FollowerInput", "FollowerOutput", "MarkerReading")
+    },
 }
 
-__all__ = ["Launch", "RunData", "RunResult", "__version__", "load_run"]
+__all__ = [
+    "ControllerSetup",
+    "FollowerController",
+    "FollowerInput",
+    "FollowerOutput",
+    "Launch",
+    "MarkerReading",
+    "RunData",
+    "RunResult",
+    "__version__",
+    "load_run",
+]
 
 
 def __getattr__(name: str) -> Any:

@@ -28,8 +28,8 @@ def attributes(cls: ast.ClassDef) -> set[str]:
     return names
 
 
-def breaches(path: Path) -> Iterator[str]:
-    rel = path.resolve().relative_to(ROOT)
+def breaches(path: Path, root: Path = ROOT) -> Iterator[str]:
+    rel = path.resolve().relative_to(root.resolve())
     text = path.read_text()
     lines = text.count("\n")
     is_test = rel.parts[0] == "tests"

@@ -49,6 +49,9 @@ class Leader(Protocol):
     def waypoints(self) -> Sequence[tuple[float, float]]: ...
 
     @property
+    def lookahead_m(self) -> float: ...
+
+    @property
     def formation(self) -> str: ...
 
     @property

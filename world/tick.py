@@ -21,6 +21,8 @@ until :meth:`waiting` is empty or the deadline's :meth:`miss`), then
 from __future__ import annotations
 
 import collections
+import hashlib
+import struct
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -31,6 +33,7 @@ from formation_swarm.world.engine import WorldEngine
 from formation_swarm.world.kinematics import Pose
 from formation_swarm.world.process_faults import START, Call, ProcessFaults
 from formation_swarm.world.setup import WorldSetup
+from formation_swarm.world.stalls import LOST_WAIT_S, STALL_AFTER_MISSES, Stalls
 
 # The state ground truth is made of, taken once tick k's commands are in: (tick,
 # time_s, robots, poses, each follower's formation code).
@@ -52,6 +55,7 @@ class WorldTick:
         # Kills, restarts, freezes and agents that come and go (world.process_faults).
         self.faults = ProcessFaults(self.engine, tuple(setup.faults), lockstep)
         self.gate = CommandGate(setup)
+        self.stalls = Stalls()  # lockstep: robots silent while their token stays (world.stalls)
         # The receiving ends of the command links, with the faults the run's schedule puts on them.
         self.cmd_links: dict[int, Link[Command]] = {
             rid: Link(
@@ -74,6 +78,9 @@ class WorldTick:
         self.leader_done = False
         self.finished = False  # "done" sent: agents leaving now are not deaths
         self.truth_due: TruthState | None = None  # ground truth not yet sent (take_truth)
+        # Each robot's own trajectory digest (the engine's covers them all): what a
+        # fault or a forgery left untouched shows as an equal digest.
+        self.robot_hashes = {rid: hashlib.sha256() for rid in setup.robots}
 
     @property
     def running(self) -> bool:
@@ -104,8 +111,11 @@ class WorldTick:
         """A decoded command, from the robot its key names."""
         eng = self.engine
         self.counts["cmd_received"] += 1
+        if msg.done and not self.gate.done(msg, eng.robots[self.setup.leader.robot_id].pose):
+            return
         if not self.gate.admit(msg, eng.tick):
             return
+        self._heard(msg.sender)
         if self.lockstep and msg.tick != eng.tick:
             self.late_answers += 1
             return
@@ -115,7 +125,7 @@ class WorldTick:
         r.answered = True
         if r.alive:
             self.faults.answered(msg.sender, self.wall_s())
-        if msg.done and msg.sender == self.setup.leader.robot_id:
+        if msg.done:  # the leader's, at its last waypoint (CommandGate.done)
             self.leader_done = True
         for handed in self.cmd_links[msg.sender].deliver(msg.seq, msg.tick, msg):
             self._apply(handed)
@@ -131,7 +141,10 @@ class WorldTick:
     def agent_token(self, rid: int, present: bool) -> str | None:
         """Robot ``rid``'s agent token came or went; a line to print when that
         means the robot is lost."""
-        return self.faults.token(rid, present, self.wall_s(), self.finished)
+        lost = self.faults.token(rid, present, self.wall_s(), self.finished)
+        if lost is not None and self._lost_after_stall(rid):
+            lost += f"; it had stalled: awaited up to {LOST_WAIT_S:g} s (the clock holds)"
+        return lost
 
     def calls_due(self) -> list[Call]:
         """The process fault calls of this tick, in schedule order."""
@@ -180,6 +193,7 @@ class WorldTick:
             # still held would be taken for newer than all of them.
             self.gate.forget(rid)
             self.cmd_links[rid].forget_held()
+            self.stalls.back(rid)
             back.append(rid)
         return back
 
@@ -218,6 +232,11 @@ class WorldTick:
         poses = {rid: r.pose for rid, r in eng.robots.items()}
         formations = {rid: eng.robots[rid].formation for rid in self.setup.follower_ids}
         self.truth_due = (eng.tick, eng.time_s, robots, poses, formations)
+        self._digest_poses(poses)
+
+    def _digest_poses(self, poses: dict[int, Pose]) -> None:
+        for rid, pose in poses.items():
+            self.robot_hashes[rid].update(struct.pack("<3d", *pose))
 
     def truth(self) -> Truth | None:
         """The ground truth taken last, if not yet sent: each follower's true
@@ -251,13 +270,14 @@ class WorldTick:
 
     def waiting(self, among: list[int] | None = None) -> list[int]:
         """The robots of ``among`` (default: the live ones) this tick still waits
-        for: alive, observed, not answered."""
+        for: alive, observed, not answered, not stalled (world.stalls)."""
         robots = self.engine.robots
-        return [
+        waiting = [
             rid
             for rid in (self.engine.alive_ids if among is None else among)
             if not robots[rid].answered and robots[rid].alive and self.faults.observed(rid)
         ]
+        return self._not_stalled(waiting) if self.stalls.stalled else waiting
 
     def thawing(self, waiting: list[int]) -> bool:
         """Whether one of ``waiting`` was just thawed: its first answer may wait for its SIGCONT."""
@@ -294,6 +314,49 @@ class WorldTick:
         self.finished = True
         return status
 
+    # -- robots that fall silent (lockstep; world.stalls) ---------------------------------
+    def _heard(self, rid: int) -> None:
+        """A command of ``rid`` was taken (on time or late): a stall, if any, ends."""
+        eng = self.engine
+        if self.stalls.heard(rid, eng.tick, eng.time_s):
+            self.faults.log("answering again", rid, None, self.wall_s())
+
+    def _not_stalled(self, waiting: list[int]) -> list[int]:
+        observed = [rid for rid in self.engine.alive_ids if self.faults.observed(rid)]
+        return self.stalls.wait_for(waiting, observed)
+
+    def stall(self, missed: list[int]) -> list[str]:
+        """``missed`` missed this tick's deadline: lines to print for those now stalled."""
+        eng = self.engine
+        lines = []
+        for rid in self.stalls.missed(missed, eng.tick, eng.time_s):
+            self.faults.log("stalled", rid, None, self.wall_s())
+            lines.append(
+                f"robot {rid} stalled at t={eng.time_s:.2f} s: {STALL_AFTER_MISSES} deadlines missed in a row; "
+                "stopped and not waited for until it answers again"
+            )
+        return lines
+
+    def _lost_after_stall(self, rid: int) -> bool:
+        eng = self.engine
+        if not self.stalls.lost(rid, eng.tick, eng.time_s, self.wall_s()):
+            return False
+        self.faults.log("awaited", rid, None, self.wall_s())
+        return True
+
+    def awaited(self) -> list[int]:
+        """The robots lost after a stall the clock is held for."""
+        return sorted(self.stalls.awaited)
+
+    def overdue(self) -> list[str]:
+        """Lines to print for the awaited robots whose wait has ended: the run goes on without them."""
+        eng, wall = self.engine, self.wall_s()
+        lines = []
+        for rid in self.stalls.overdue(eng.tick, eng.time_s, wall):
+            self.faults.log("not back", rid, None, wall)
+            lines.append(f"robot {rid} not back within {LOST_WAIT_S:g} s of its loss; the run goes on without it")
+        return lines
+
     # -- figures ------------------------------------------------------------------------
     def summary(self) -> dict[str, Any]:
         """The engine's summary, with the commands the gate clamped beside its stale stops."""
@@ -303,6 +366,10 @@ class WorldTick:
             if key == "stale_stops":
                 out["clamped_commands"] = self.gate.clamped
         return out
+
+    def robot_digests(self) -> dict[str, str]:
+        """Each robot's trajectory digest, by robot id."""
+        return {str(rid): h.hexdigest() for rid, h in self.robot_hashes.items()}
 
     def link_stats(self) -> dict[str, Any]:
         return {lk.name: lk.stats() for lk in self.cmd_links.values()}

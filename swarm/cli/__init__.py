@@ -16,19 +16,28 @@ Start with:
 
 from __future__ import annotations
 
+import signal
 import sys
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
+from formation_swarm.cli import interrupts
 from formation_swarm.cli.delegated import DELEGATED
 from formation_swarm.cli.delegated import run as run_delegated
-from formation_swarm.cli.run import add_run
-from formation_swarm.cli.scenarios import add_scenarios
-from formation_swarm.cli.sim import add_sim
-from formation_swarm.common.version import __version__
-from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser
+
+if TYPE_CHECKING:
+    from formation_swarm.runtime.cliargs import Parser
 
 
 def build_parser() -> Parser:
+    # Imported here, not with this module: they bring numpy (formation_swarm.common.checks),
+    # which a Ctrl-C must not cut in the middle (see main).
+    from formation_swarm.cli.run import add_run
+    from formation_swarm.cli.scenarios import add_scenarios
+    from formation_swarm.cli.sim import add_sim
+    from formation_swarm.common.version import __version__
+    from formation_swarm.runtime.cliargs import Parser
+
     parser = Parser(prog="swarm", description=__doc__)
     parser.add_argument(
         "--version", action="version", version=f"formation-swarm {__version__}", help="print the version and exit"
@@ -45,9 +54,34 @@ def build_parser() -> Parser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The swarm command. With ``argv`` None it is this program's command line,
+    and its Ctrl-C is the command's to the end (formation_swarm.cli.interrupts);
+    otherwise the signal handlers are put back when it returns."""
+    program = argv is None
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] in DELEGATED:
         return run_delegated(argv)
+    handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    interrupts.hold()  # while the first modules load (interrupts)
+    try:
+        code = _command(argv)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        code = interrupts.INTERRUPTED
+    finally:
+        interrupts.release()
+        if not program:
+            for sig, handler in handlers.items():
+                if handler is not None:
+                    signal.signal(sig, handler)
+    if program:
+        interrupts.exit_at_once()
+    return code
+
+
+def _command(argv: list[str]) -> int:
+    from formation_swarm.runtime.cliargs import USAGE_ERROR
+
     parser = build_parser()
     if not argv:
         parser.print_help()
@@ -59,10 +93,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     # A reader that leaves early (swarm run ... | head) must not cut a run short.
     stdout, sys.stdout = sys.stdout, OutlivesItsReader(sys.stdout)
+    interrupts.release()  # from here a Ctrl-C is the command's (a KeyboardInterrupt, unless it says otherwise)
     try:
         return int(args.func(args))
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
     finally:
         sys.stdout = stdout

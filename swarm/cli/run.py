@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from formation_swarm.cli import interrupts
 from formation_swarm.runtime.cliargs import (
     USAGE_ERROR,
     Parser,
@@ -123,6 +124,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if conflict := _run_flag_conflicts(args):
         print(f"swarm run: {conflict} (see swarm run --help)", file=sys.stderr)
         return USAGE_ERROR
+    interrupts.exit_at_once()  # nothing runs yet
     from formation_swarm.launch.console import print_result
     from formation_swarm.runtime.proc import interrupt_on_stop_signals
     from formation_swarm.spec.scenario import ScenarioError
@@ -132,16 +134,21 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except (ScenarioError, ValueError) as exc:
         print(f"swarm run: {exc}", file=sys.stderr)
         return USAGE_ERROR
+    interrupt_on_stop_signals()  # from here Ctrl-C and SIGTERM stop the run cleanly
     print(
         f"[swarm] run {launch.run_id}: {launch.sc.name}, {len(launch.sc.robots)} robots, {args.mode}, "
         f"seed {launch.sc.seed}, folder {launch.run_dir}",
         flush=True,
     )
-    interrupt_on_stop_signals()  # Ctrl-C and SIGTERM stop the run cleanly
     if (code := _start(launch)) is not None:
         return code
     with launch:
         result = launch.wait(timeout_s=args.timeout)
+    if result.exit_code == interrupts.INTERRUPTED:
+        return result.exit_code  # said in one line: no result block after a Ctrl-C
+    if launch.interrupted:  # after the run's end was settled
+        print(f"[swarm] interrupted; every process stopped; folder {launch.run_dir}", flush=True)
+        return interrupts.INTERRUPTED
     print_result(result)
     return result.exit_code
 

@@ -70,6 +70,7 @@ class FaultExecutor:
             (procs.frozen.add if call.action == "freeze" else procs.frozen.discard)(name)
             procs.frozen_by[name] = str(fault)
         done = DONE[call.action]
+        self._say_windows_until(call.tick)  # the world is at the call's tick: what came before, first
         self.journal.add(
             done,
             process=name,
@@ -86,20 +87,25 @@ class FaultExecutor:
         a line when the run passes each one's start and end, as the process
         faults get when they are carried out (as soon as a status says the
         tick is passed: up to a status period late)."""
-        st = status.last
-        if st is None:
-            return
+        if status.last is not None:
+            self._say_windows_until(status.last.tick)
+
+    def _say_windows_until(self, tick: int) -> None:
+        """The window faults' starts and ends up to ``tick`` not said yet, in
+        tick order: a process fault's call at a later tick comes after them."""
         dt = self.sc.dt_s
+        due = []
         for i, f in enumerate(self.sc.faults):
             if f.process is not None:
                 continue
             start, end = f.start_tick(dt), f.end_tick(dt)
-            if st.tick >= start and ("on", i) not in self.said:
-                self.said.add(("on", i))
-                self.journal.say(f"[swarm] fault on from tick {start}, sim t={start * dt:.2f} s ('{f}')")
-            if end is not None and st.tick >= end and ("off", i) not in self.said:
-                self.said.add(("off", i))
-                self.journal.say(f"[swarm] fault off from tick {end}, sim t={end * dt:.2f} s ('{f}')")
+            if tick >= start and ("on", i) not in self.said:
+                due.append((start, i, "on", f))
+            if end is not None and tick >= end and ("off", i) not in self.said:
+                due.append((end, i, "off", f))
+        for at, i, what, f in sorted(due, key=lambda d: d[:2]):
+            self.said.add((what, i))
+            self.journal.say(f"[swarm] fault {what} from tick {at}, sim t={at * dt:.2f} s ('{f}')")
 
     def thaw_at_end(self, status: StatusFeed) -> None:
         """Once the world has said "done", a process still frozen by a fault that

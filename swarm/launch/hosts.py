@@ -110,6 +110,8 @@ class Hosts:
                 "and the run's data crosses the network, unencrypted (deploy/README.md: TLS)"
             )
         self.logins: dict[str, trust.Credential] | None = None
+        # Where swarm secure --hosts wrote each host's login: beside --host-logins.
+        self.logins_dir = Path(options.host_logins).parent if options.host_logins is not None else None
         if self.names and plan.options.auth:
             if options.host_logins is None:
                 raise ValueError(
@@ -124,6 +126,7 @@ class Hosts:
         self.placement: dict[int, str] = {}
         self.infos: dict[str, HostReply] = {}
         self.lost: list[str] = []
+        self.run_logins: Mapping[str, Mapping[str, Any]] = {}  # user -> settings: the agents' for their hosts
 
     def open_router(self, endpoint: str, secrets: Mapping[str, Path]) -> zenoh.Session:
         """The launcher's session, the run's router: on ``listen`` for the
@@ -134,8 +137,9 @@ class Hosts:
         trust.forget_router_secrets(self.plan.run_dir / SECRETS)  # read: the hosts' lasting logins leave the disk
         return session
 
-    def start(self, session: zenoh.Session, secrets: Mapping[str, Path]) -> None:
+    def start(self, session: zenoh.Session, logins: Mapping[str, Mapping[str, Any]]) -> None:
         """Wait for the hosts, check them, place the robots, start their agents."""
+        self.run_logins = logins  # kept: a restarted agent's login comes from here
         self.clients = {h: remote.HostClient(session, h) for h in self.names}
         self._wait_for_hosts()
         allowed = {h: info.robots for h, info in self.infos.items()}
@@ -148,7 +152,7 @@ class Hosts:
         scenario_text = (self.plan.run_dir / "scenario.toml").read_text()
         for rid, h in self.placement.items():
             self.journal.say(f"[swarm] agent-{rid} on host {h}")
-            self.start_agent(f"agent-{rid}", h, scenario_text, secrets)
+            self.start_agent(f"agent-{rid}", h, scenario_text, logins)
         self.poller = remote.Poller(list(self.clients.values()), self.plan.run_id)
 
     def _wait_for_hosts(self) -> None:
@@ -162,16 +166,17 @@ class Hosts:
             )
         for h, client in self.clients.items():
             if not client.present.wait(max(0.0, deadline - time.monotonic())):
+                login = self.logins_dir / f"host-{h}.json" if self.logins_dir is not None else f"host-{h}.json"
                 raise remote.HostError(
                     f"host {h} did not connect to {self.listen} within {self.timeout_s:g} s: start "
-                    f"'swarm host --connect <this address> --name {h} --auth host-{h}.json' there, and check "
-                    "its --connect, its login and the network"
+                    f"'swarm host --connect <this address> --name {h} --auth {login}' there (that file copied "
+                    "to its machine), and check its --connect, its login and the network"
                 )
             client.info = self.infos[h] = client.ask(HostRequest("info", __version__))
 
-    def start_agent(self, name: str, host: str, scenario_text: str, secrets: Mapping[str, Path]) -> str:
+    def start_agent(self, name: str, host: str, scenario_text: str, logins: Mapping[str, Mapping[str, Any]]) -> str:
         """Agent ``name`` (agent-3, or a fresh one: agent-3.2) started on ``host``; its name."""
-        req = self.plan.agent_request(name, scenario_text, secrets)
+        req = self.plan.agent_request(name, scenario_text, logins)
         child = remote.RemoteChild(
             name, [], self.plan.log_path(name), client=self.clients[host], run=self.plan.run_id, request=req
         )
@@ -180,7 +185,7 @@ class Hosts:
     def restart(self, old: remote.RemoteChild, name: str) -> str:
         """A fresh agent ``name`` on the host of ``old`` (killed and reaped by now)."""
         scenario_text = (self.plan.run_dir / "scenario.toml").read_text()
-        return self.start_agent(name, old.host, scenario_text, self.plan.secrets())
+        return self.start_agent(name, old.host, scenario_text, self.run_logins)
 
     def check_lost(self, t: float) -> None:
         """A host whose token went: an event and a line, once; its robots count dead."""

@@ -36,15 +36,15 @@ from formation_swarm.launch.console import print_result
 from formation_swarm.launch.faults import FaultExecutor
 from formation_swarm.launch.hosts import HostOptions, Hosts
 from formation_swarm.launch.plan import SECRETS, KillAt, Plan, RunOptions
-from formation_swarm.launch.processes import Processes
+from formation_swarm.launch.processes import Processes, wait_for_fork_server
 from formation_swarm.launch.record import Journal, StatusFeed
-from formation_swarm.launch.result import Ending, RunResult, end_reason, processes_part
+from formation_swarm.launch.result import Ending, RunResult, end_reason, place_exits, processes_part
+from formation_swarm.launch.signals import stop_signals_noted
 from formation_swarm.nodes import viewer
 from formation_swarm.protocol import trust
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Status
 from formation_swarm.protocol.session import make_config
-from formation_swarm.runtime import proc
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.runtime.children import Child, free_port
 
@@ -90,6 +90,8 @@ class Launch:
         self.token: zenoh.LivelinessToken | None = None  # held: a dropped token is undeclared
         self._interrupt = threading.Event()  # interrupt(): another thread's Ctrl-C (a sweep's runs)
         self.said_web = False  # the web viewer's address is on the console
+        self.logins: dict[str, dict[str, Any]] = {}  # user -> settings, every login of the run
+        self.folder_id: tuple[int, int] | None = None  # the run folder's (device, inode)
 
     # -- what the run is ------------------------------------------------------------
     @property
@@ -128,6 +130,13 @@ class Launch:
     def pids(self) -> dict[str, int]:
         return self.procs.pids()
 
+    def login(self, user: str) -> dict[str, Any] | None:
+        """The Zenoh settings of ``user``'s login in this run (world, logger,
+        launcher, agent-N; None without auth), from the launcher's memory: the
+        files are gone once their process has read them."""
+        found = self.logins.get(user)
+        return None if found is None else dict(found)
+
     def sim_time(self) -> float:
         """The sim time the world last said, in s; -1 before its first status."""
         return self.status.sim_time()
@@ -158,19 +167,29 @@ class Launch:
 
     def _start(self) -> None:
         plan, remote_agents = self.plan, bool(self.hosts.names)
+        if plan.options.fork:
+            wait_for_fork_server()
         plan.make_folder()
+        st = self.run_dir.stat()
+        self.folder_id = (st.st_dev, st.st_ino)  # a folder deleted and made again is not the run's
         self.port = free_port()
         secrets = plan.write_logins(
             world_is_router=not remote_agents, host_logins=self.hosts.logins, tls=self.hosts.tls
         )
+        # Every login in memory: a process deletes its own file once read (--auth-once),
+        # and a restarted agent (or a host's) gets its login from here.
+        self.logins = {user: trust.read_settings(path) for user, path in secrets.items()}
         if remote_agents:
             self.session = self.hosts.open_router(self.endpoint, secrets)
         lines = plan.command_lines(self.endpoint, secrets, remote_agents=remote_agents, live=self._live())
+        for path in secrets.values():  # the logins no process here reads (the hosts' agents', ours)
+            if not any(str(path) in argv for argv in lines.values()):
+                path.unlink(missing_ok=True)
         self.journal.started_at = time.monotonic()
         for name, argv in lines.items():
             self.procs.start(Child(name, argv, plan.log_path(name), fork=plan.options.fork))
         if self.session is None:
-            settings = trust.read_settings(secrets["launcher"]) if secrets else None
+            settings = self.logins.get("launcher")
             self.session = zenoh.open(make_config("client", [self.endpoint], connect_timeout_s=30.0, settings=settings))
         keys = Keys(self.run_id)
         self.session.declare_subscriber(keys.status, lambda s: self.status.put(s.payload.to_bytes()))
@@ -178,7 +197,7 @@ class Launch:
         # After the subscriber: with process faults the world waits for this token before tick 0.
         self.token = self.session.liveliness().declare_token(keys.alive("launcher", 0))
         if remote_agents:
-            self.hosts.start(self.session, secrets)
+            self.hosts.start(self.session, self.logins)
 
     def _live(self) -> str | None:
         """The viewer the logger also streams to: ``live`` if one answers there."""
@@ -201,7 +220,14 @@ class Launch:
         if isinstance(old, remote.RemoteChild):
             return self.hosts.restart(old, name)
         argv = self.plan.restart_argv(self.children[process].argv, name)
+        if "--auth" in argv:  # the first one deleted its login once read: a fresh file, deleted the same way
+            trust.write_settings(Path(argv[argv.index("--auth") + 1]), self.logins[process])
         return self.procs.start(Child(name, argv, self.plan.log_path(name), fork=self.plan.options.fork))
+
+    @property
+    def interrupted(self) -> bool:
+        """A Ctrl-C (SIGINT or SIGTERM, on the main thread) or :meth:`interrupt` came."""
+        return self._interrupt.is_set()
 
     def interrupt(self) -> None:
         """Stop the run as a Ctrl-C would, from any thread: :meth:`wait` stops
@@ -240,21 +266,37 @@ class Launch:
     def wait(self, timeout_s: float | None = None) -> RunResult:
         """Run to the end (or timeout/Ctrl-C), stop everything, write the summary."""
         ending, shown = self._follow(timeout_s)
+        # From here a Ctrl-C cuts nothing short: it is noted, and the run ends interrupted.
+        with stop_signals_noted(self.interrupt):
+            return self._finish(ending, shown)
+
+    def _finish(self, ending: Ending, shown: int | None) -> RunResult:
         self._watch()
         last = self.status.last
         if last is not None and last.tick != shown and not ending.interrupted:
             self._show_progress()  # where it ended: a run shorter than a line's 2 s showed only its start
         self.stop(graceful_first=not ending.abrupt)
+        if self.interrupted and not ending.interrupted:  # while the processes left
+            self.journal.say("[swarm] interrupted: every process stopped")
+            ending = dataclasses.replace(ending, interrupted=True)
         self.procs.note_unreported_codes()
         world = self.children["world"]
         code = ending.exit_code(world.proc.returncode if world.proc is not None else None)
-        if code == 0 and (lost := summary_mod.run_failed(summary_mod.read_parts(self.run_dir / "stats"), self.sc)):
+        parts = summary_mod.read_parts(self.run_dir / "stats")
+        world_stats = parts.get("world", {})
+        place_exits(self.journal.events, world_stats)
+        events = self.journal.events
+        lost = summary_mod.run_failed(parts, self.sc) or summary_mod.logger_lost(world_stats, events)
+        if code == 0 and lost:
             self.journal.say(f"[swarm] the run failed: {lost}")
-            code = 1  # it ran to its end, but not as a formation: not a success
+            code = 1  # it ran to its end, but not as a formation, or not recorded whole: not a success
         if code in (0, 1) and self.hosts.lost:
             self.hosts.say_lost()
             code = 1
         summary = self._summary(code, ending)
+        if unkept := summary.get("unkept"):  # the folder deleted, or the disk full: said in one line
+            self.journal.say(f"[swarm] the run failed: {unkept}")
+            summary["exit_code"] = code = 1
         return RunResult(self.run_dir, summary, code, self.pids())
 
     def _follow(self, timeout_s: float | None) -> tuple[Ending, int | None]:
@@ -299,10 +341,11 @@ class Launch:
 
     def stop(self, graceful_first: bool = True) -> None:
         """End of run: give everyone END_GRACE_S to leave on the world's "done",
-        then SIGTERM, then SIGKILL after STOP_GRACE_S. Always reaps; a second
-        Ctrl-C meanwhile does not interrupt the reaping."""
-        with proc.sigint_ignored():
-            self.procs.stop(graceful_first)
+        then SIGTERM, then SIGKILL after STOP_GRACE_S. Always reaps: a Ctrl-C
+        meanwhile does not interrupt the reaping, it ends the grace (and the
+        run is :attr:`interrupted`)."""
+        with stop_signals_noted(self.interrupt):
+            self.procs.stop(graceful_first, cut_short=self._interrupt.is_set)
             self.hosts.stop()
             if self.session is not None:
                 self.session.close()
@@ -334,5 +377,23 @@ class Launch:
             recording="recording.rrd" if self.plan.options.logger else None,
         )
         self.hosts.add_to_summary(summary)
-        summary_mod.write(self.run_dir, summary)
+        summary["ticks_seen"] = None if self.status.last is None else self.status.last.tick
+        if (gone := self._folder_gone()) is not None:
+            summary["unkept"] = gone
+            return summary
+        try:
+            summary_mod.write(self.run_dir, summary)
+        except OSError as exc:
+            summary["unkept"] = f"cannot write {exc.filename or self.run_dir / 'summary.json'}: {exc.strerror or exc}"
         return summary
+
+    def _folder_gone(self) -> str | None:
+        """Why the run folder holds none of the run (deleted while it ran, even if
+        a process made it again since), or None."""
+        try:
+            st = self.run_dir.stat()
+        except OSError:
+            st = None
+        if st is None or (self.folder_id is not None and (st.st_dev, st.st_ino) != self.folder_id):
+            return f"its folder {self.run_dir} was deleted during the run: its recording, logs and stats are lost"
+        return None

@@ -23,7 +23,9 @@ from formation_swarm.spec import files as scenario_files
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.spec.keys import ScenarioWarning
 
-SECRETS = "secrets"  # the run's credentials (folder 0700, files 0600), deleted when the run ends
+# The run's credentials (folder 0700, files 0600): each process deletes its own
+# once read (--auth-once), the folder goes when the run ends.
+SECRETS = "secrets"
 # How long an agent of a local run waits for the world's token to come back
 # after it went. The world is the run's router here, and nothing restarts it:
 # once gone it is gone. What does come back is a session the router dropped
@@ -189,11 +191,6 @@ class Plan:
             tls=tls,
         )
 
-    def secrets(self) -> dict[str, Path]:
-        """The credentials written for the run (user -> file), read back from its folder."""
-        folder = self.run_dir / SECRETS
-        return {p.stem: p for p in folder.glob("*.json")} if self.options.auth else {}
-
     def command_lines(
         self, endpoint: str, secrets: Mapping[str, Path], *, remote_agents: bool, live: str | None
     ) -> dict[str, list[str]]:
@@ -214,12 +211,13 @@ class Plan:
         out[out.index("--stats") + 1] = str(self.run_dir / "stats" / f"{name}.json")
         return out
 
-    def agent_request(self, name: str, scenario_text: str, secrets: Mapping[str, Path]) -> HostRequest:
-        """What a host is asked to start agent ``name`` (agent-3, agent-3.2) with, its login included."""
+    def agent_request(self, name: str, scenario_text: str, logins: Mapping[str, Mapping[str, Any]]) -> HostRequest:
+        """What a host is asked to start agent ``name`` (agent-3, agent-3.2) with,
+        its login included (``logins``: user -> settings, the launcher's copy)."""
         rid = int(name.split(".")[0].removeprefix("agent-"))
         user, password = trust.agent_user(rid), ""
-        if secrets:
-            password = trust.read_settings(secrets[user])["transport/auth/usrpwd"]["password"]
+        if logins:
+            password = logins[user]["transport/auth/usrpwd"]["password"]
         return HostRequest(
             "start",
             __version__,
@@ -298,4 +296,5 @@ class Plan:
 
 
 def _auth(secrets: Mapping[str, Path], user: str) -> list[str]:
-    return ["--auth", str(secrets[user])] if secrets else []
+    # Each process deletes its login once read: nothing of the run's passwords stays on disk.
+    return ["--auth", str(secrets[user]), "--auth-once"] if secrets else []

@@ -8,15 +8,30 @@ import contextlib
 import signal
 import subprocess
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from formation_swarm.launch.record import Journal
 from formation_swarm.launch.remote import RemoteChild
+from formation_swarm.runtime import spawner
 from formation_swarm.runtime.children import Child, describe_exit, log_tail
 
 END_GRACE_S = 3.0  # at the end, the processes' time to leave on the world's "done"
 STOP_GRACE_S = 2.0  # after SIGTERM, before SIGKILL (plus a second)
 REAP_WAIT_S = 5.0
+
+
+def wait_for_fork_server() -> None:
+    """Return once the fork server answers: it imports the roles' modules
+    first (seconds on a busy machine), and a role's start waits for it with
+    a Ctrl-C held back (a start cut in two would leave a process nobody
+    knows). Here the server forks a child that does nothing, and a Ctrl-C
+    may cut the wait: nothing is left half started."""
+    import multiprocessing
+
+    spawner.warm()
+    probe = multiprocessing.get_context("forkserver").Process(target=int, name="fork-server-probe", daemon=True)
+    probe.start()
+    probe.join()
 
 
 class Processes:
@@ -86,20 +101,22 @@ class Processes:
             return
         tail = log_tail(child.log_path)
         self.journal.add("exited", process=child.name, code=code, sim_time_s=t, log_tail=tail)
-        when = f"at sim t={t:.2f} s" if started else "before the run started"
+        # Seen now; the world's last status lags (by seconds of sim time in lockstep):
+        # the summary places it at the tick the world saw it go (result.place_exits).
+        when = f"during the run (the world's last status: sim t={t:.2f} s)" if started else "before the run started"
         self.journal.say(f"[swarm] {child.name} {describe_exit(code)} {when}; the end of {child.log_path}:")
         for line in tail or ["(the log is empty)"]:
             self.journal.say(f"  | {line}")
 
-    def stop(self, graceful_first: bool) -> None:
+    def stop(self, graceful_first: bool, cut_short: Callable[[], bool] = lambda: False) -> None:
         """Give everyone END_GRACE_S to leave on the world's "done" (with
-        ``graceful_first``), then SIGTERM, then SIGKILL after STOP_GRACE_S;
-        reap every child and close its log."""
+        ``graceful_first``, until ``cut_short`` says otherwise), then SIGTERM,
+        then SIGKILL after STOP_GRACE_S; reap every child and close its log."""
         for name in self.frozen:  # a stopped process hears no SIGTERM, nor the end of the run
             self.children[name].signal(signal.SIGCONT)
         self.frozen.clear()
         if graceful_first:
-            self._wait_exit(END_GRACE_S)
+            self._wait_exit(END_GRACE_S, cut_short)
         for c in self.children.values():
             c.signal(signal.SIGTERM)
         self._wait_exit(STOP_GRACE_S + 1.0)
@@ -121,7 +138,9 @@ class Processes:
                 code = child.proc.returncode  # type: ignore[union-attr]
                 self.journal.add("exit code not reported by the fork server", process=child.name, code=code)
 
-    def _wait_exit(self, seconds: float) -> None:
+    def _wait_exit(self, seconds: float, cut_short: Callable[[], bool] = lambda: False) -> None:
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline and any(c.poll() is None for c in self.children.values()):
+            if cut_short():
+                return
             time.sleep(0.02)

@@ -74,6 +74,26 @@ def end_reason(
     return summary_mod.ROLE_FAILED, reached
 
 
+def place_exits(events: Sequence[dict[str, Any]], world: Mapping[str, Any]) -> None:
+    """Each process that exited on its own placed at the tick the world saw
+    its token go (``logger_lost``, a death by loss in ``deaths``): the
+    launcher's own guess, the last status it had, lags by up to a status
+    period of wall time (in lockstep, seconds of sim time)."""
+    seen: dict[str, list[Mapping[str, Any]]] = {}
+    if isinstance(lost := world.get("logger_lost"), Mapping):
+        seen["logger"] = [lost]
+    for d in world.get("deaths") or []:
+        if isinstance(d, Mapping) and d.get("cause") == "lost":
+            seen.setdefault(f"agent-{d.get('robot')}", []).append(d)
+    for e in events:
+        if e.get("event") != "exited" or "code" not in e or e.get("tick") is not None:
+            continue  # not an exit, or one a kill placed already
+        place = seen.get(str(e.get("process")).split(".")[0])
+        if place:  # a restarted agent's exits, in order, with its losses in order
+            at = place.pop(0)
+            e.update(tick=at.get("tick"), sim_time_s=at.get("time_s"), placed_by="the world")
+
+
 def processes_part(children: Mapping[str, Child], lost_hosts: Sequence[str]) -> dict[str, dict[str, Any]]:
     """Each process's pid, exit code and how long it took to leave once told to."""
     procs: dict[str, dict[str, Any]] = {}

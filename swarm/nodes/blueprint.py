@@ -3,6 +3,12 @@ data logged once at the start: the map's flip to y up, the obstacles, the
 leader's path, the formations and how each robot's entities are drawn
 (colour: formation_swarm.common.palette, size, series names). Every entity
 path here is one formation_swarm.nodes.recorder writes.
+
+The layout: the formation followed (a view a few metres wide whose origin is
+the leader's position, LEADER_FRAME) over the whole path; then one view per
+quantity with every follower in it. V_N and the wheel speeds are drawn as
+their 1 s means over the per-tick values (faint); beyond MANY_FOLLOWERS,
+the means alone and no legend.
 """
 
 from __future__ import annotations
@@ -20,20 +26,31 @@ if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
 
 TIMELINE = "sim_time"
+LEADER_FRAME = "leader_frame"  # the leader's position, y up: the origin of the followed view
+MEAN_S = 1.0  # the window of the series' moving means, s (the report's)
+SMOOTHED = ("fis/v_n", "wheels/left", "wheels/right")  # series with a 1 s mean beside them: <name>_1s
+MANY_FOLLOWERS = 10  # beyond, the series views show the means alone, without a legend
+FOLLOW_MARGIN_M = 1.5  # the followed view: this much around the formation's farthest slot
 TRAIL_S = 10.0  # the map's trails: this much of the past, s
 LINK_SERIES = ("links/obs_dropped", "links/formation_dropped")
 FLIP = rr.Transform3D(scale=(1.0, -1.0, 1.0))  # the 2D view draws y down; the paper's figures y up
 
 
 def blueprint(sc: Scenario) -> rrb.Blueprint:
-    """The viewer's layout for ``sc``: the formation map, then the follower
-    series over time and the run's events. Every entity is named by its full
+    """The viewer's layout for ``sc``: the formation followed over the whole
+    path, then the follower series over time and the run's events. Every entity is named by its full
     path: the viewer matches no wildcard in the middle of a path."""
     followers = sc.follower_ids
+    many = len(followers) > MANY_FOLLOWERS
+    legend = rrb.PlotLegend(visible=False) if many else rrb.PlotLegend(corner="LeftTop")
 
     def series(name: str, leaves: tuple[str, ...]) -> rrb.TimeSeriesView:
+        if many:  # per-tick values of many robots are a blur: their means alone
+            leaves = tuple(f"{leaf}_1s" if leaf in SMOOTHED else leaf for leaf in leaves)
+        else:
+            leaves += tuple(f"{leaf}_1s" for leaf in leaves if leaf in SMOOTHED)
         paths = [f"+ /robots/r{r}/{leaf}" for r in followers for leaf in leaves]
-        return rrb.TimeSeriesView(name=name, origin="/", contents=paths, plot_legend=rrb.PlotLegend(corner="LeftTop"))
+        return rrb.TimeSeriesView(name=name, origin="/", contents=paths, plot_legend=legend)
 
     events = ["+ /events"]
     if sc.faults:
@@ -42,14 +59,16 @@ def blueprint(sc: Scenario) -> rrb.Blueprint:
         events.append("+ /events/fault_calls")
     return rrb.Blueprint(
         rrb.Horizontal(
-            _map_view(sc),
+            rrb.Vertical(_follow_view(sc), _map_view(sc), row_shares=[3, 2]),
             rrb.Vertical(
                 series("formation error, m (Fig. 6b, 7b)", ("error/formation",)),
-                series("V_N, m/s (Fig. 8)", ("fis/v_n",)),
+                series("V_N, m/s, 1 s mean (Fig. 8; per tick: faint)", ("fis/v_n",)),
                 series("target error: raw (light) vs EKF, m (Fig. 9-10)", ("error/measured", "error/ekf")),
             ),
             rrb.Vertical(
-                series("wheel speeds: left, right (light), m/s", ("wheels/left", "wheels/right")),
+                series(
+                    "wheel speeds, m/s, 1 s mean: left, right (light); per tick: faint", ("wheels/left", "wheels/right")
+                ),
                 series("link drops: observations, formation codes (light)", LINK_SERIES),
                 *_controller_series(sc),
                 rrb.TextLogView(
@@ -84,9 +103,9 @@ def _controller_series(sc: Scenario) -> list[rrb.TimeSeriesView]:
     return [rrb.TimeSeriesView(name="controllers' own values", origin="/", contents=contents, plot_legend=legend)]
 
 
-def _map_view(sc: Scenario) -> rrb.Spatial2DView:
-    """The formation map, y up (the world and the robots are drawn through a
-    flip, FLIP), the whole path in view; trails over the last TRAIL_S only."""
+def _map_contents(sc: Scenario) -> tuple[list[str], dict[str, Any]]:
+    """What a map draws: the obstacles, the path, the robots, their trails
+    (over the last TRAIL_S only), targets and EKF estimates; the trails' overrides."""
     robots = [f"/robots/r{r}" for r in sc.robots]
     contents = ["+ /world/obstacles", "+ /world/path"] if sc.obstacles else ["+ /world/path"]
     contents += [f"+ {base}/{leaf}" for base in robots for leaf in ("trajectory", "pose", "heading")]
@@ -98,18 +117,53 @@ def _map_view(sc: Scenario) -> rrb.Spatial2DView:
             end=rrb.TimeRangeBoundary.cursor_relative(),
         )
     )
+    return contents, {f"{base}/trajectory": trail for base in robots}
+
+
+def formation_reach_m(sc: Scenario) -> float:
+    """How far from the leader a follower's slot can be, over the formations:
+    each slot's offset added along its chain of references."""
+    reach = 0.0
+    for f in sc.formations.values():
+        far = {sc.leader.robot_id: 0.0}
+        for _ in f.slots:  # a chain is at most as long as the slots
+            for rid, slot in f.slots.items():
+                if slot.reference in far:
+                    far[rid] = far[slot.reference] + math.hypot(*slot.offset)
+        reach = max(reach, *far.values())
+    return reach
+
+
+def _follow_view(sc: Scenario) -> rrb.Spatial2DView:
+    """The formation followed: the map seen from LEADER_FRAME (the leader's
+    position, which the recorder logs each tick), a few metres around it."""
+    contents, overrides = _map_contents(sc)
+    half = formation_reach_m(sc) + sc.diameter_m + FOLLOW_MARGIN_M
+    return rrb.Spatial2DView(
+        name=f"formation, following the leader R{sc.leader.robot_id}, m, y up",
+        origin=f"/{LEADER_FRAME}",
+        contents=contents,
+        visual_bounds=rrb.VisualBounds2D(x_range=(-half, half), y_range=(-half, half)),
+        overrides=overrides,
+    )
+
+
+def _map_view(sc: Scenario) -> rrb.Spatial2DView:
+    """The whole path, y up (the world and the robots are drawn through a
+    flip, FLIP), with the formation around it."""
+    contents, overrides = _map_contents(sc)
     xs = [x for x, _ in sc.leader.waypoints] + [o.x_m + s * o.radius_m for o in sc.obstacles for s in (-1, 1)]
     ys = [y for _, y in sc.leader.waypoints] + [o.y_m + s * o.radius_m for o in sc.obstacles for s in (-1, 1)]
     reach = max((math.hypot(*slot.offset) for f in sc.formations.values() for slot in f.slots.values()), default=0.0)
     margin = 1.0 + reach * max(1, len(sc.follower_ids))  # the formation around the path
     return rrb.Spatial2DView(
-        name="formation map, m, y up (Fig. 6a, 7a, 9-11)",
+        name="whole path, m, y up (Fig. 6a, 7a, 9-11)",
         origin="/",
         contents=contents,
         visual_bounds=rrb.VisualBounds2D(
             x_range=(min(xs) - margin, max(xs) + margin), y_range=(-max(ys) - margin, -min(ys) + margin)
         ),
-        overrides={f"{base}/trajectory": trail for base in robots},
+        overrides=overrides,
     )
 
 
@@ -148,6 +202,7 @@ def robot_styles(sc: Scenario, rid: int) -> dict[str, Any]:
     by path under robots/r<id>: its body at true scale, labelled, its heading,
     its trail; a follower's targets, EKF ellipse and series."""
     colour, light = robot_colour(rid), lighter(robot_colour(rid))
+    faint = lighter(colour, 0.75)  # per-tick values under their means
     leader = rid == sc.leader.robot_id
     name = f"R{rid}"
     styles: dict[str, Any] = {
@@ -168,11 +223,14 @@ def robot_styles(sc: Scenario, rid: int) -> dict[str, Any]:
         "ekf/target": rr.Points2D.from_fields(colors=[light], radii=[rr.Radius.ui_points(3.0)]),
         "ekf/cov": rr.LineStrips2D.from_fields(colors=[colour], radii=[rr.Radius.ui_points(1.0)]),
         "error/formation": rr.SeriesLines(colors=[colour], names=[name]),
-        "fis/v_n": rr.SeriesLines(colors=[colour], names=[name]),
+        "fis/v_n": rr.SeriesLines(colors=[faint], names=[f"{name} per tick"], widths=[0.75]),
+        "fis/v_n_1s": rr.SeriesLines(colors=[colour], names=[f"{name} 1 s mean"], widths=[2.0]),
         "error/ekf": rr.SeriesLines(colors=[colour], names=[f"{name} EKF"]),
         "error/measured": rr.SeriesLines(colors=[light], names=[f"{name} raw"], widths=[0.75]),
-        "wheels/left": rr.SeriesLines(colors=[colour], names=[f"{name} left"]),
-        "wheels/right": rr.SeriesLines(colors=[light], names=[f"{name} right"]),
+        "wheels/left": rr.SeriesLines(colors=[faint], names=[f"{name} left per tick"], widths=[0.75]),
+        "wheels/right": rr.SeriesLines(colors=[faint], names=[f"{name} right per tick"], widths=[0.75]),
+        "wheels/left_1s": rr.SeriesLines(colors=[colour], names=[f"{name} left 1 s mean"], widths=[2.0]),
+        "wheels/right_1s": rr.SeriesLines(colors=[light], names=[f"{name} right 1 s mean"], widths=[2.0]),
         "links/obs_dropped": rr.SeriesLines(colors=[colour], names=[f"{name} observations"]),
         "links/formation_dropped": rr.SeriesLines(colors=[light], names=[f"{name} formation codes"]),
     }

@@ -2,7 +2,8 @@
 (protocol.hostmsg: info, start, signal, poll, collect, end) and starts,
 signals, watches and ends the agents of each run, forked from the spawner
 (formation_swarm.runtime.spawner) as ``swarm run`` forks them, each with the
-login the launcher sent for it. The process around it: formation_swarm.nodes.host.
+login the launcher sent for it. A start repeated while its agent runs (a
+retry) gets the first one's answer. The process around it: formation_swarm.nodes.host.
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ class HostRun:
     folder: Path
     started_at: float
     children: dict[str, Child] = field(default_factory=dict)
+    requests: dict[str, tuple[Any, ...]] = field(default_factory=dict)  # per child, the start that made it
     frozen: set[str] = field(default_factory=set)
     launcher: str = "unseen"  # unseen -> present -> gone (set by the liveliness callback)
     watcher: Any = None
@@ -174,6 +176,9 @@ class Host:
             run = self.open_run(req.run)
         old = run.children.get(req.process)
         if old is not None and old.poll() is None:
+            if run.requests.get(req.process) == _start_identity(req):
+                # The same start again: a launcher's retry whose first reply was late or lost.
+                return HostReply(**ok, pid=old.pid)
             return self.refuse(f"{req.process} of run {req.run} already runs here (pid {old.pid})")
         scenario = run.folder / "scenario.toml"
         scenario.write_text(req.scenario)
@@ -204,6 +209,7 @@ class Host:
         ]
         child = Child(req.process, argv, run.folder / "logs" / f"{req.process}.log")
         run.children[req.process] = child
+        run.requests[req.process] = _start_identity(req)
         child.start()
         self.say(f"run {req.run}: started {req.process} (pid {child.pid})")
         return HostReply(**ok, pid=child.pid)
@@ -290,6 +296,12 @@ class Host:
             else:
                 for c in run.children.values():
                     c.poll()
+
+
+def _start_identity(req: HostRequest) -> tuple[Any, ...]:
+    """What makes two start requests of one run's process the same start
+    (not its send time: a retry is sent later)."""
+    return (req.user, req.password, req.scenario, req.world_grace_s, req.lockstep)
 
 
 def _code(code: int | None) -> int | None:

@@ -16,8 +16,8 @@ within ``--peers-timeout`` and ends when the world says "done" or leaves.
 
 Data is buffered and sent as columns every 0.25 s of wall time (beyond 12
 robots every 0.02 s per robot: 2 s for 100) and the file is flushed every
-0.5 s, so a logger killed with SIGKILL loses at most about the last second
-(beyond 12 robots, the last send period and a half).
+0.5 s; the file takes the rows in batches of 2 s of sim time
+(formation_swarm.nodes.columns), which a logger killed with SIGKILL loses.
 """
 
 from __future__ import annotations

@@ -15,6 +15,10 @@ Entity paths mirror the key space::
                                          of the formation the follower's telemetry says it flew)
     robots/r<id>/fis/rho, /fis/alpha, /fis/v_n, robots/r<id>/wheels/left, /wheels/right
     robots/r<id>/controller/<name>       a controller's own values (Telemetry.extras, docs/controllers.md)
+    robots/r<id>/fis/v_n_1s, /wheels/left_1s, /wheels/right_1s   their 1 s centred moving means, as
+                                         the report's (formation_swarm.nodes.running_mean): given
+                                         half a second late
+    leader_frame                         the leader's position, y up: the formation view's origin
     robots/r<id>/formation               formation code flown
     events                               the run's start and each follower's formation changes, as text
     robots/r<id>/links/obs_dropped, /links/formation_dropped
@@ -26,7 +30,8 @@ these paths for the scenario's robots: formation_swarm.nodes.blueprint.
 
 Messages are kept as they arrive (cheap, per tick) and turned into Rerun
 columns with numpy when the process loop calls ``Recorder.send`` (per send,
-not per tick). Logging errors are counted, never fatal.
+not per tick); the file gets them in batches of sim time
+(formation_swarm.nodes.columns). Logging errors are counted, never fatal.
 """
 
 from __future__ import annotations
@@ -39,7 +44,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import rerun as rr
 
-from formation_swarm.nodes.blueprint import TIMELINE, static_entities
+from formation_swarm.nodes.blueprint import LEADER_FRAME, MEAN_S, SMOOTHED, TIMELINE, static_entities
+from formation_swarm.nodes.columns import ColumnSink
+from formation_swarm.nodes.running_mean import CentredMean
 from formation_swarm.world.kinematics import Pose, from_body_frame
 
 if TYPE_CHECKING:
@@ -70,6 +77,8 @@ class Recorder:
         self.counts = {"log_errors": 0, "rows": 0, "unjoined": 0}
         self.schedule: list[tuple[float, str, str]] = []  # fault schedule events still to come: time s, text, level
         self.last_time_s = -1.0
+        self.sink = ColumnSink(rec, TIMELINE)
+        self.means: dict[tuple[int, str], CentredMean] = {}  # (follower, series) -> its 1 s mean
 
     def add_truths(self, truths: list[Truth]) -> None:
         self.truths.extend(truths)
@@ -136,6 +145,9 @@ class Recorder:
     def send(self, final: bool = False) -> None:
         self.guard(self._send_truth)
         self.guard(self._send_telemetry, final)
+        if final:
+            self.guard(self._end_means)
+        self.guard(self.sink.write, final)
         events, self.pending_events = self.pending_events, []
         for t, text in events:
             self._event(t, text)
@@ -144,17 +156,7 @@ class Recorder:
         """One entity's rows since the last send, as Rerun columns."""
         if len(times) == 0:
             return
-        if kind == "scalar":
-            cols = rr.Scalars.columns(scalars=values)
-        elif kind == "point":
-            cols = rr.Points2D.columns(positions=values)
-        elif kind == "arrow":
-            cols = rr.Arrows2D.columns(origins=values[:, :2], vectors=values[:, 2:])
-        elif kind == "strip":  # n x points x 2: one strip per row (an array takes Rerun's numpy path)
-            cols = rr.LineStrips2D.columns(strips=values)
-        else:  # pragma: no cover - programming error
-            raise ValueError(f"unknown column kind {kind!r}")
-        self.rec.send_columns(entity, indexes=[rr.TimeColumn(TIMELINE, duration=times)], columns=cols)
+        self.sink.add(entity, kind, times, values)
         self.counts["rows"] += len(times)
 
     def _send_truth(self) -> None:
@@ -180,6 +182,8 @@ class Recorder:
             self._columns(f"{base}/trajectory", "point", t, xy)
             heading = self.sc.diameter_m * np.column_stack([np.cos(th), np.sin(th)])  # a diameter long
             self._columns(f"{base}/heading", "arrow", t, np.column_stack([xy, heading]))
+            if rid == self.sc.leader.robot_id:  # under the root, past the flip of y: (x, -y)
+                self._columns(LEADER_FRAME, "translation", t, np.column_stack([xy[:, 0], -xy[:, 1], np.zeros_like(t)]))
         for rid, rows in targets.items():
             a = np.array(rows)
             self._columns(f"robots/r{rid}/target/true", "point", a[:, 0], a[:, 1:3])
@@ -224,12 +228,7 @@ class Recorder:
     def _send_follower(self, rid: int, rows: list[tuple[Telemetry, Pose, tuple[float, float] | None]]) -> None:
         nan = math.nan
         base = f"robots/r{rid}"
-        for tel, _pose, _target in rows:
-            if self.formation.get(rid) != tel.formation:
-                self.formation[rid] = tel.formation
-                self._columns(f"{base}/formation", "scalar", np.array([tel.time_s]), np.array([float(tel.formation)]))
-                names = self.sc.formation_names
-                self._event(tel.time_s, f"R{rid} flies {names[tel.formation] if tel.formation < len(names) else '?'}")
+        self._send_formations(rid, rows)
         a = np.array(
             [
                 (
@@ -265,6 +264,8 @@ class Recorder:
         for col, name in enumerate(scalars, start=13):
             ok = ~np.isnan(a[:, col])
             self._columns(f"{base}/{name}", "scalar", t[ok], a[ok, col])
+            if name in SMOOTHED:
+                self._mean(rid, name, t[ok], a[ok, col])
         for name, pts in (("measured", measured), ("ekf", estimate)):
             ok = ~np.isnan(pts[:, 0])
             self._columns(
@@ -281,6 +282,16 @@ class Recorder:
             self._columns(f"{base}/ekf/cov", "strip", t[ok], _ellipses(pose[ok], estimate[ok], cov[ok]))
         self._send_extras(base, rows)
 
+    def _send_formations(self, rid: int, rows: list[tuple[Telemetry, Pose, tuple[float, float] | None]]) -> None:
+        """Each change of the formation a follower flies: a row and an event."""
+        for tel, _pose, _target in rows:
+            if self.formation.get(rid) != tel.formation:
+                self.formation[rid] = tel.formation
+                when, code = np.array([tel.time_s]), np.array([float(tel.formation)])
+                self._columns(f"robots/r{rid}/formation", "scalar", when, code)
+                names = self.sc.formation_names
+                self._event(tel.time_s, f"R{rid} flies {names[tel.formation] if tel.formation < len(names) else '?'}")
+
     def _send_extras(self, base: str, rows: list[tuple[Telemetry, Pose, tuple[float, float] | None]]) -> None:
         """The controller's own values, each a series under ``base``/controller/
         (a name absent from a tick has no row there)."""
@@ -292,6 +303,18 @@ class Recorder:
                 values.append(value)
         for name, (times, values) in series.items():
             self._columns(f"{base}/controller/{name}", "scalar", np.array(times), np.array(values))
+
+    def _mean(self, rid: int, name: str, t: np.ndarray, v: np.ndarray) -> None:
+        """Follower ``rid``'s series ``name`` into its 1 s mean; the means complete, as rows."""
+        mean = self.means.setdefault((rid, name), CentredMean(MEAN_S, self.sc.dt_s))
+        order = np.argsort(t, kind="stable")  # telemetry comes in any order
+        mt, mv = mean.add(t[order].tolist(), v[order].tolist())
+        self._columns(f"robots/r{rid}/{name}_1s", "scalar", np.array(mt), np.array(mv))
+
+    def _end_means(self) -> None:
+        for (rid, name), mean in self.means.items():
+            mt, mv = mean.end()
+            self._columns(f"robots/r{rid}/{name}_1s", "scalar", np.array(mt), np.array(mv))
 
     def _event(self, t: float, text: str) -> None:
         self.guard(self.rec.set_time, TIMELINE, duration=t)

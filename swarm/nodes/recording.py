@@ -85,10 +85,6 @@ class Recording:
         for stream in self.streams():
             stream.set_time(timeline, duration=duration)
 
-    def send_columns(self, entity: str, indexes: Any, columns: Any) -> None:
-        for stream in self.streams():
-            stream.send_columns(entity, indexes=indexes, columns=columns)
-
     def flush(self, timeout_sec: float) -> None:
         self.file.flush(timeout_sec=timeout_sec)
 

@@ -25,6 +25,7 @@ re-admitted.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import time
 from pathlib import Path
@@ -159,7 +160,12 @@ def main(argv: list[str] | None = None) -> int:
         stats = world.stats(time.monotonic() - started)
         stats["exit_code"] = code
         stats["scheduling"] = scheduling
-        written = _write(args, sc, world, stats)
+        try:
+            written = _write(args, sc, world, stats)
+        except OSError as exc:  # a full disk, a folder gone: one line (its log may be on that disk too)
+            with contextlib.suppress(OSError):
+                role.complain(f"cannot write {exc.filename or args.stats}: {exc.strerror or exc}")
+            return role_mod.EXIT_FAILED
         if code == role_mod.EXIT_NO_PEERS:
             return code  # the line that gave up was the last word
         role.say(

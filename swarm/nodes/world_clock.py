@@ -4,7 +4,9 @@ asks its clock; the tick (world.tick) decides the rest.
 
 Lockstep: tick k starts as soon as tick k - 1 is stepped; the clock waits
 until every live agent has answered tick k or ``lockstep_deadline_s``
-passes (the miss is counted, that robot is stopped for the step). Real
+passes (the miss is counted, that robot is stopped for the step; after
+world.stalls.STALL_AFTER_MISSES in a row it is stalled, no longer waited
+for until it answers again). Real
 time: tick k starts k * dt_s after the loop did; nobody is waited for; the
 tick stamps commands with that wall time and stops a robot whose command is
 older than ``stale_after_s``.
@@ -111,6 +113,8 @@ class LockstepClock(Clock):
                         f"of its thaw at t={tick.engine.time_s:.2f} s; a miss",
                         flush=True,
                     )
+                for line in tick.stall(waiting):
+                    print(f"world: {line}", flush=True)
                 break
             self.drain(until)
         self.wait_s += time.perf_counter() - t_wait

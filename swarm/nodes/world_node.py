@@ -47,6 +47,8 @@ class Peers:
     logger_seen: bool = False
     executor_seen: bool = False
     present: set[str] = field(default_factory=set)  # alive keys of the agents and the logger
+    # When the logger's token went before "done": the tick its recording is cut at.
+    logger_lost: dict[str, Any] | None = None
 
 
 @dataclass
@@ -234,6 +236,9 @@ class World:
             (peers.present.add if present else peers.present.discard)(key)
         if role == "logger":
             peers.logger_seen = peers.logger_seen or present
+            if not present and peers.logger_lost is None and not self.tick.finished:
+                eng = self.tick.engine
+                peers.logger_lost = {"tick": eng.tick, "time_s": eng.time_s, "wall_s": self._wall_s()}
         elif role == "launcher":
             peers.executor_seen = peers.executor_seen or present
         elif role == "agent" and ident.isdigit() and int(ident) in self.tick.engine.robots:
@@ -278,8 +283,29 @@ class World:
                 out.faults.put(tick.call_message(call).to_bytes())
             if (rid := tick.apply_call(call)) is not None:
                 self._await_fresh_agent(rid, call, out)
-        for rid in tick.readmit(out.hears):
-            print(f"world: robot {rid} is back at t={tick.engine.time_s:.2f} s", flush=True)
+        self._readmit(out)
+        if tick.awaited():
+            self._hold_for_lost(out)
+
+    def _readmit(self, out: Outbox) -> None:
+        for rid in self.tick.readmit(out.hears):
+            print(f"world: robot {rid} is back at t={self.tick.engine.time_s:.2f} s", flush=True)
+
+    def _hold_for_lost(self, out: Outbox) -> None:
+        """Lockstep: the clock holds at this tick's start while robots lost after
+        a stall are awaited (world.stalls): until each is re-admitted or its
+        wait (LOST_WAIT_S) ends."""
+        tick, started = self.tick, time.monotonic()
+        rids = ", ".join(map(str, tick.awaited()))
+        print(f"world: holding the clock at t={tick.engine.time_s:.2f} s for robots {rids} to come back", flush=True)
+        while tick.awaited() and not self.role.stop.is_set():
+            self._drain(until=0.0)
+            self._readmit(out)
+            for line in tick.overdue():
+                print(f"world: {line}", flush=True)
+            if tick.awaited():
+                self._drain(until=self.t0 + tick.stalls.until())
+        tick.stalls.held_s += time.monotonic() - started
 
     def _await_fresh_agent(self, rid: int, call: Call, out: Outbox) -> None:
         """Lockstep, at a restart's "start": wait until the fresh agent's token is
@@ -319,6 +345,10 @@ class World:
                 "cpu_s": time.process_time(),  # the process's CPU time so far (user + system, all threads)
                 "loop_cpu_s": self.loop_cpu_s,
                 **tick.faults.stats(),  # deaths, fault_log, rejoins, recoveries
+                "robot_digests": tick.robot_digests(),
+                "logger_lost": self.peers.logger_lost,
+                "stalls": tick.stalls.events,
+                "held_for_lost_s": tick.stalls.held_s,
                 "leader_done": tick.leader_done,
                 "end_reason": self.end_reason,
                 "ended_at_s": self.ended_at_s,

@@ -62,8 +62,7 @@ def _metrics_table(summary: Mapping[str, Any], followers: list[int]) -> list[str
     f = _num
     if not followers:
         return [
-            "No follower metrics: "
-            + ("the run ended before its first tick." if not summary.get("ticks") else "the run has no follower.")
+            "No follower metrics: " + ("the run has no follower." if summary.get("ticks") else f"{_no_ticks(summary)}.")
         ]
     lines = [
         "| follower | RMS error, m | max, m | RMS in turns, m | RMS on straights, m | mean lag in turns, m "
@@ -168,10 +167,18 @@ def no_recording(summary: Mapping[str, Any]) -> str:
 def ended_early(summary: Mapping[str, Any]) -> str:
     """Why a run has nothing to draw, from its summary."""
     if not summary.get("ticks"):
-        return f"the run ended before its first tick (exit code {summary.get('exit_code')}); see its logs/"
+        return f"{_no_ticks(summary)} (exit code {summary.get('exit_code')}); see its logs/"
     if cut := summary_mod.recording_cut(summary):
         return cut
     return "the logger recorded none (see logs/logger.log)"
+
+
+def _no_ticks(summary: Mapping[str, Any]) -> str:
+    """Why a summary has no ticks: the run never had one, or the world wrote no stats after it had."""
+    seen = summary.get("ticks_seen")
+    if isinstance(seen, int):
+        return f"the world wrote no metrics (the run had reached tick {seen})"
+    return "the run ended before its first tick"
 
 
 def _v(x: Any) -> str:

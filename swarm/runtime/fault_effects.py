@@ -1,13 +1,16 @@
 """Each scheduled fault of a run and what it did, for the summary's
 ``faults``: its ticks, the world's events for it, the counters the link
 layer, the cameras and the wheels kept for it and, for a process fault,
-what the launcher executed and how the robot came back.
+what the launcher executed and how the robot came back; for one that
+ends, how the formation came back.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
+
+from formation_swarm.runtime.window_recovery import window_recoveries
 
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
@@ -27,7 +30,8 @@ def fault_effects(
     executed (``executed``: its events for the fault, with wall times), each
     return of the robot (``rejoins``: ticks and wall seconds from the "start"
     call, or the loss, to the agent's first command) and how the formation
-    came back (``recoveries``, world.recovery)."""
+    came back (``recoveries``, world.recovery; for the other faults that end,
+    from the error's 1 s windows: runtime.window_recovery)."""
     world = parts.get("world", {})
     log = world.get("fault_log", []) or []
     launcher = [e for e in executed or [] if e.get("fault")]
@@ -58,6 +62,8 @@ def fault_effects(
             out[-1]["executed"] = [e for e in launcher if e.get("fault") == text]
             out[-1]["rejoins"] = [r for r in world.get("rejoins", []) or [] if r.get("fault") == text]
             out[-1]["recoveries"] = [r for r in world.get("recoveries", []) or [] if r.get("fault") == text]
+        else:  # a fault that ends: the formation's return, from the error's 1 s windows
+            out[-1]["recoveries"] = window_recoveries(f, sc, world.get("error_windows"))
     return out
 
 

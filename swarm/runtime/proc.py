@@ -222,14 +222,21 @@ def realtime_priority(priority: int) -> str:
 
 
 def write_json(path: str | None, data: dict[str, Any]) -> None:
-    """Write ``data`` atomically (a crash leaves the old file or none, never half)."""
+    """Write ``data`` atomically (a crash leaves the old file or none, never
+    half); a write that fails (a full disk) raises OSError and leaves no
+    temporary file behind."""
     if not path:
         return
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     tmp = p.with_suffix(p.suffix + ".tmp")
-    tmp.write_text(json.dumps(clean_json(data), indent=2, allow_nan=False))
-    tmp.replace(p)
+    text = json.dumps(clean_json(data), indent=2, allow_nan=False)
+    try:
+        tmp.write_text(text)
+        tmp.replace(p)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 class JsonWriter:

@@ -1,36 +1,65 @@
 """What a run's recording misses: by loss (``recording_gap``: a lockstep
 run's logger took less than was sent, so its recorded metrics are wrong and
-a sweep runs it again) or by a fault's design (``recording_cut``: a fault
-killed the logger).
+a sweep runs it again) or by the logger's end before the run's
+(``recording_cut``: a fault killed it, by design, or it was lost otherwise:
+``logger_lost``, a failed run).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
+from formation_swarm.runtime.children import describe_exit
 from formation_swarm.runtime.link_counts import robot_of
 
 
 def recording_cut(summary: Mapping[str, Any]) -> str | None:
-    """Where a fault killed the logger, what that did to the recording, in
-    words (None: no such kill). By the fault's design, not a loss to retry
-    (recording_gap): the recording ends there, minus what the logger had not
-    yet written."""
-    for e in summary.get("events") or []:
-        if isinstance(e, Mapping) and e.get("event") == "killed" and e.get("process") == "logger":
-            t = e.get("sim_time_s")
-            when = f" at sim t={t:.2f} s" if isinstance(t, (int, float)) else ""
-            fast = (
-                "; a lockstep run passes many ticks in a second, so it may hold none"
-                if summary.get("mode") == "lockstep"
-                else ""
-            )
-            return (
-                f"the logger was killed{when}: the recording ends before that, without what the logger had "
-                f"not yet written (up to its last second of wall time{fast})"
-            )
-    return None
+    """Where the logger was lost, what that did to the recording, in words
+    (None: it was not). Killed by a fault, by the fault's design, not a loss
+    to retry (recording_gap); lost otherwise (killed from outside, crashed,
+    cut off), at the tick the world saw its token go. Either way the
+    recording ends there, minus what the logger had not yet written."""
+    events = [e for e in summary.get("events") or [] if isinstance(e, Mapping) and e.get("process") == "logger"]
+    world = (summary.get("parts") or {}).get("world") or {}
+    fast = (
+        "; a lockstep run passes many ticks in a second, so it may hold none"
+        if summary.get("mode") == "lockstep"
+        else ""
+    )
+    unwritten = f"without what the logger had not yet written (up to its last second of wall time{fast})"
+    for e in events:
+        if e.get("event") == "killed":
+            return f"the logger was killed{_when(e.get('sim_time_s'))}: the recording ends before that, {unwritten}"
+    if (lost := logger_lost(world, events)) is None:
+        return None
+    return (
+        f"{lost}: the recording ends there, {unwritten}; its file has no end (rerun rrd verify fails on it, "
+        "what it holds still reads)"
+    )
+
+
+def logger_lost(world: Mapping[str, Any], events: Sequence[Mapping[str, Any]]) -> str | None:
+    """How the logger was lost outside the fault schedule, when (the world's
+    record of its token going, ``logger_lost`` in its stats, else the
+    launcher's of its exit), in words; None when it was not (or a fault
+    killed it)."""
+    mine = [e for e in events if isinstance(e, Mapping) and e.get("process") == "logger"]
+    if any(e.get("event") == "killed" for e in mine):
+        return None
+    exited = next((e for e in mine if e.get("event") == "exited" and isinstance(e.get("code"), int)), None)
+    seen = world.get("logger_lost")
+    if exited is None and not isinstance(seen, Mapping):
+        return None
+    how = f"the logger {describe_exit(exited['code'])}" if exited is not None else "the logger's token went"
+    if isinstance(seen, Mapping):
+        return f"{how}{_when(seen.get('time_s'), seen.get('tick'))}, outside the fault schedule"
+    return f"{how}{_when(exited.get('sim_time_s'), exited.get('tick'))}, outside the fault schedule"
+
+
+def _when(t: Any, tick: Any = None) -> str:
+    at = f" at sim t={t:.2f} s" if isinstance(t, (int, float)) and t >= 0 else ""
+    return at + (f" (tick {tick})" if isinstance(tick, int) and at else "")
 
 
 def recording_gap(summary: Mapping[str, Any]) -> str | None:

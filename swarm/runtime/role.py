@@ -177,6 +177,17 @@ class Role:
             return EXIT_NO_PEERS, "the world left before the run started"
         return EXIT_OK, "the world left"
 
+    def _open(self, args: argparse.Namespace, conf: zenoh.Config) -> zenoh.Session | None:
+        """:func:`open_session`; with ``--auth-once`` the login is deleted once
+        read, whether the session opened or not (it is of no use again)."""
+        from formation_swarm.protocol import trust
+
+        try:
+            return open_session(conf, self.stop, self.deadline)
+        finally:
+            if getattr(args, "auth_once", False) and args.auth:
+                trust.forget_login(args.auth)
+
     def left_s(self) -> float:
         return self.deadline - time.monotonic()
 
@@ -228,7 +239,7 @@ class Role:
             self.complain(str(exc))
             return EXIT_USAGE
         try:
-            sess = open_session(conf, self.stop, self.deadline)
+            sess = self._open(args, conf)
         except TimeoutError:
             where = ", ".join(args.connect) or f"the endpoints of {args.config}"
             return self.gave_up(

@@ -28,7 +28,8 @@ import signal
 import subprocess
 import sys
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from multiprocessing import resource_tracker
 from pathlib import Path
 from typing import Any
 
@@ -58,17 +59,32 @@ def _forkserver() -> Any:
             ctx = multiprocessing.get_context("forkserver")
             ctx.set_forkserver_preload([PRELOAD])
             _leave_main_alone()
-            # Started with SIGINT ignored, which the exec'd server inherits: a Ctrl-C
+            # Started with SIGINT blocked, which the exec'd server inherits: a Ctrl-C
             # meant for the launcher would otherwise end its imports with a traceback
-            # (the server only ignores it itself once they are done). The roles set
-            # their own handlers.
-            with proc.sigint_ignored():
+            # (the server ignores it itself once they are done, which drops one held
+            # back meanwhile). Blocked here, not ignored: ignoring it would drop a
+            # Ctrl-C meant for the launcher too; this one is raised once the server
+            # runs. The resource tracker starts first: starting it unblocks SIGINT.
+            # The roles lift the block (_child).
+            resource_tracker.ensure_running()
+            with proc.sigint_deferred(), _sigint_blocked():
                 multiprocessing.forkserver.ensure_running()
             import atexit
 
             atexit.register(_stop_server)
             _context = ctx
         return _context
+
+
+@contextlib.contextmanager
+def _sigint_blocked() -> Iterator[None]:
+    """SIGINT blocked in this thread inside: a program started here inherits the
+    block, and one that comes for this thread is held back until the end."""
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
 STOP_WAIT_S = 2.0  # the longest the launcher's exit waits for its fork server
@@ -191,6 +207,10 @@ def _child(  # pragma: no cover - child
     # it would keep the server, and so this process, alive after the launcher).
     os.closerange(3, os.sysconf("SC_OPEN_MAX"))
     os.setsid()
+    # The server started with SIGINT blocked (_forkserver): ignored, as it was, until the
+    # role sets its own handlers.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     with contextlib.suppress(OSError, AttributeError):
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     if os.getppid() == 1:  # the server died before the prctl: so did the launcher

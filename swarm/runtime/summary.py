@@ -58,7 +58,7 @@ from formation_swarm.runtime.end_reason import (
 from formation_swarm.runtime.fault_effects import fault_effects
 from formation_swarm.runtime.link_counts import killed_agents, link_sums, mark_partial_counts, partial_links
 from formation_swarm.runtime.proc import write_json
-from formation_swarm.runtime.recording_check import recording_cut, recording_gap
+from formation_swarm.runtime.recording_check import logger_lost, recording_cut, recording_gap
 
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
@@ -80,6 +80,7 @@ __all__ = [
     "describe_host_lost",
     "fault_effects",
     "git_commit",
+    "logger_lost",
     "partial_links",
     "read_parts",
     "recording_cut",
@@ -140,6 +141,7 @@ def build(
         "rejected": rejected,
         "rejected_total": sum(sum(r.values()) for r in rejected.values()),
         "trajectory_digest": world.get("trajectory_digest"),
+        "robot_digests": world.get("robot_digests"),  # each robot's own, by id
         "events": events,
         "processes": dict(processes),
         "recording": recording,
@@ -148,7 +150,9 @@ def build(
     mark_partial_counts(out["faults"], sc.faults, out["partial_links"], killed_agents(processes, parts, events))
     # Lockstep: what the recording misses of what was sent (None when whole).
     out["recording_gap"] = recording_gap(out)
-    out["recording_cut"] = recording_cut(out)  # a fault killed the logger
+    out["recording_cut"] = recording_cut(out)  # the logger was killed or lost before the run's end
+    if out["failure"] is None:  # lost outside the schedule: the run has no whole recording
+        out["failure"] = logger_lost(world, events)
     return out
 
 
@@ -210,6 +214,8 @@ def _world_metrics(world: Mapping[str, Any], sc: Scenario) -> dict[str, Any]:
         "sensor_faults": world.get("sensor_faults", {}),
         "actuator_faults": world.get("actuator_faults", {}),
         "deaths": world.get("deaths", []),
+        "stalls": world.get("stalls", []),  # lockstep: robots silent with their token there (world.stalls)
+        "held_for_lost_s": world.get("held_for_lost_s"),
     }
 
 

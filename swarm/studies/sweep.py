@@ -8,7 +8,8 @@ metrics per run and DIR/aggregate.csv, per combination, the mean, standard
 deviation and 95% confidence interval (Student t) of every metric, and
 DIR/aggregate.png the main ones (formation error RMS and maximum, EKF target
 error, least distance between robots) with their intervals against the swept
-value, one line per follower.
+value, one line per follower. The sweep ends with a table of the main
+metrics per combination on the console.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser, integer, make_folder, seed
 from formation_swarm.runtime.proc import interrupt_on_stop_signals
 from formation_swarm.studies.jobs import Job, grid, parse_set, slug
-from formation_swarm.studies.tables import aggregate, brief, metrics, write_csv
+from formation_swarm.studies.tables import aggregate, brief, metrics, summary_table, write_csv
 
 # The launcher and the scenario loader bring Zenoh, scipy and filterpy (1-2 s
 # of imports): they are imported where a sweep needs them, so that --help and
@@ -303,6 +304,8 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         return 130
     failed = [r["run"] for r in rows if r.get("exit_code") != 0]
+    if rows:
+        print(f"[sweep] mean ± 95% confidence half-width over the seeds of each combination:\n{summary_table(rows)}")
     print(
         f"[sweep] {len(rows)} runs; tables: {out / 'runs.csv'}, {out / 'aggregate.csv'}; "
         f"figure: {out / 'aggregate.png'}"

@@ -156,3 +156,60 @@ def brief(row: Mapping[str, Any]) -> str:
             f"{len(rms)} followers' RMS: median {statistics.median(values):.2f} m, worst {worst[1]:.2f} m (R{worst[0]})"
         )
     return ", ".join(f"r{rid}_rms {v:.2f} m" for rid, v in rms) or "no follower metrics"
+
+
+# The final table's columns beside the followers' RMS: (metric, heading, format).
+TABLE_METRICS = (
+    ("min_distance_m", "min distance m", ".2f"),
+    ("collisions", "collisions", ".1f"),
+    ("lockstep_misses", "lockstep misses", ".1f"),
+)
+
+
+def summary_table(rows: Sequence[Mapping[str, Any]]) -> str:
+    """The sweep's result at a glance, a line per combination: its runs and
+    the mean and 95% confidence half-width over its seeds of each follower's
+    formation error RMS (beyond BRIEF_FOLLOWERS, the followers' median and
+    worst mean) and of the least distance, collisions and lockstep misses.
+    Every metric: aggregate.csv."""
+    stats = {(a["combination"], a["metric"]): a for a in aggregate(rows)}
+    labels = list(dict.fromkeys(r["combination"] for r in rows))
+    followers = sorted(
+        {k[1:-6] for r in rows for k in r if k.endswith("_rms_m") and k.count("_") == 2},
+        key=lambda rid: (int(rid), rid) if rid.isdigit() else (1 << 62, rid),
+    )
+
+    def cell(label: str, metric: str, fmt: str = ".3f") -> str:
+        a = stats.get((label, metric))
+        if a is None:
+            return "-"
+        half = (a["ci95_high"] - a["ci95_low"]) / 2
+        return f"{a['mean']:{fmt}}" + (f" ± {half:{fmt}}" if math.isfinite(half) else "")
+
+    head = ["combination", "runs"]
+    if len(followers) <= BRIEF_FOLLOWERS:
+        head += [f"R{rid} RMS m" for rid in followers]
+    else:
+        head += [f"RMS m: median of {len(followers)}", "worst follower"]
+    head += [h for _, h, _ in TABLE_METRICS]
+    lines = [head]
+    for label in labels:
+        runs = sum(r["combination"] == label for r in rows)
+        line = [label or "as shipped", str(runs)]
+        if len(followers) <= BRIEF_FOLLOWERS:
+            line += [cell(label, f"r{rid}_rms_m") for rid in followers]
+        else:
+            line += _many_rms(stats, label, followers)
+        line += [cell(label, metric, fmt) for metric, _, fmt in TABLE_METRICS]
+        lines.append(line)
+    widths = [max(len(line[i]) for line in lines) for i in range(len(head))]
+    return "\n".join("  ".join(c.ljust(wd) for c, wd in zip(line, widths, strict=True)).rstrip() for line in lines)
+
+
+def _many_rms(stats: Mapping[tuple[str, str], Mapping[str, Any]], label: str, followers: list[str]) -> list[str]:
+    """The followers' mean RMS over the seeds: their median, and the worst one's."""
+    means = [(stats[(label, f"r{rid}_rms_m")]["mean"], rid) for rid in followers if (label, f"r{rid}_rms_m") in stats]
+    if not means:
+        return ["-", "-"]
+    worst = max(means)
+    return [f"{statistics.median(m for m, _ in means):.3f}", f"R{worst[1]} {worst[0]:.3f}"]

@@ -39,7 +39,7 @@ LINE = 1  # fig11's formation codes: triangle 0, line 1
 
 def rogue(launch: Launch, user: str | None) -> zenoh.Session:
     """A client on the run's endpoint, with a role's credentials (or none)."""
-    settings = trust.read_settings(launch.run_dir / "secrets" / f"{user}.json") if user else None
+    settings = launch.login(user) if user else None  # the files are gone once read: the launcher's copy
     return zenoh.open(make_config("client", [launch.endpoint], connect_timeout_s=3.0, settings=settings))
 
 
@@ -369,7 +369,7 @@ def test_a_second_agent_for_a_flying_robot_is_refused(swarm_launch: Callable[...
         "--connect",
         launch.endpoint,
         "--auth",
-        str(launch.run_dir / "secrets" / "agent-2.json"),
+        str(trust.write_settings(tmp_path / "agent-2.json", launch.login("agent-2") or {})),
         "--peers-timeout",
         "20",
     ]

@@ -468,8 +468,10 @@ def test_ctrl_c_from_a_terminal_while_swarm_run_starts_prints_no_traceback(tmp_p
 
     # Every process it had started stopped on the signal: none needed the kill after the grace
     # (a start cut in two had left a world the launcher did not know of, SIGKILLed 2 s later).
-    events = json.loads((tmp_path / "r" / "summary.json").read_text())["events"]
-    assert not [e for e in events if e.get("event") == "killed after stop timeout"], events
+    summary = tmp_path / "r" / "summary.json"
+    if summary.exists():  # none when the Ctrl-C came before any process started (tests/system/test_interrupt.py)
+        events = json.loads(summary.read_text())["events"]
+        assert not [e for e in events if e.get("event") == "killed after stop timeout"], events
 
     def mine() -> list[str]:  # this run's roles: their command lines name its folder
         return [c for p, c in our_processes() if p not in before and str(tmp_path) in c]
@@ -529,7 +531,7 @@ def test_ctrl_c_on_swarm_run_leaves_no_process(tmp_path: Path, when: str) -> Non
     proc.wait(timeout=30)
     reader.join(timeout=5)
     assert proc.returncode == 130
-    assert time.monotonic() - t0 < 5.0
+    assert time.monotonic() - t0 < 10.0  # about 2 s (the processes' stop), 3x on a loaded machine
     assert mine() == []
     summary = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert summary["interrupted"] is True

@@ -45,7 +45,12 @@ def test_a_blackout_of_robot_3_opens_its_error_and_it_recovers(swarm_run: Callab
     console = io.StringIO()
     print_result(dark, console)
     assert dark.summary["faults"][0]["counts"] == {"R3 ticks": 60, "R3 blacked_out": 120}
-    assert "  fault: blackout 3@5s for=3s: R3: on for 60 ticks, 120 readings blacked out\n" in console.getvalue()
+    (back,) = dark.summary["faults"][0]["recoveries"]  # from the 1 s windows after the end, at 8 s
+    assert back["watched"] == [3]
+    assert 0.0 < back["first_below_after_s"] <= 6.0  # below 0.5 m again by 14 s
+    said = console.getvalue()
+    assert "  fault: blackout 3@5s for=3s: R3 below 0.5 m (1 s mean) within " in said
+    assert "; R3: on for 60 ticks, 120 readings blacked out\n" in said
 
 
 def test_lockstep_runs_with_wheel_noise_and_outliers_are_reproducible(swarm_launch: Callable[..., Launch]) -> None:

@@ -200,13 +200,13 @@ def test_a_role_given_another_roles_login_is_refused_before_it_connects(
         "--auth",
         str(files[login]),
         "--peers-timeout",
-        "30",
+        "120",
     ]
     t0 = time.monotonic()
-    proc = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+    proc = subprocess.run(argv, capture_output=True, text=True, timeout=180, check=False)
     assert proc.returncode == 2, proc.stderr
     assert said.format(f=files[login]) in proc.stderr
-    assert time.monotonic() - t0 < 20  # at once: not after the 30 s of --peers-timeout
+    assert time.monotonic() - t0 < 60  # at once (a few s; loaded, 20): not after the 120 s of --peers-timeout
 
 
 def test_the_hosts_logins_file_refuses_a_login_file_and_names_a_bad_line(tmp_path: Path) -> None:

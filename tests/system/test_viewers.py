@@ -117,7 +117,8 @@ def test_served_web_viewer_answers_and_streams(tmp_path: Path, swarm_launch: Cal
         res = launch.wait(timeout_s=120)
         assert res.exit_code == 0
         ticks = res.summary["ticks"]
-        got = _wait_rows(web, "/robots/r1/trajectory", ticks, timeout_s=10)
+        # The saving viewer writes what it takes as it comes: wait for the last rows (seconds, loaded).
+        got = _wait_rows(web, "/robots/r3/ekf/target", ticks, timeout_s=60)
     # The server keeps what was logged before the viewer connected, and the
     # logger flushes its sinks before it exits.
     for entity in ("/robots/r1/trajectory", "/robots/r3/ekf/target"):
@@ -154,7 +155,7 @@ def test_an_absent_live_viewer_is_said_once_and_costs_nothing(swarm_run: Callabl
         "the run is recorded to recording.rrd only"
     ]
     # Rerun's own sink would hold the logger 5 s at its start and 5 s at its end.
-    assert with_absent_s < alone_s + 4.0, (with_absent_s, alone_s)
+    assert with_absent_s < alone_s + 7.0, (with_absent_s, alone_s)  # 10 s with the hold; two runs' load varies
     assert not [e for e in res.summary["events"] if e.get("event") == "killed after stop timeout"]
     _assert_complete(res)
 
@@ -164,7 +165,7 @@ def test_the_logger_alone_leaves_an_absent_viewer_out_at_once(tmp_path: Path) ->
     nobody = f"rerun+http://127.0.0.1:{free_port()}/proxy"
     start = time.monotonic()
     rec = open_recording("r", tmp_path / "r.rrd", sc, live=nobody)
-    assert time.monotonic() - start < 1.5
+    assert time.monotonic() - start < 3.0  # under 0.5 s quiet; Rerun's own sink would hold it 5 s
     assert rec.live is None
     assert rec.dropped == f"no Rerun viewer answers at {nobody} (Connection refused)"
     assert rec.close() is True
@@ -293,3 +294,18 @@ def test_serve_web_on_a_taken_port_is_refused_before_anything_starts(tmp_path: P
     assert len(proc.stderr.splitlines()) == 1
     assert not (tmp_path / "a").exists()  # nothing started, nothing made
     assert not (tmp_path / "b").exists()
+
+
+def test_the_layout_follows_the_leader_and_draws_many_followers_means_alone() -> None:
+    from formation_swarm.nodes.blueprint import LEADER_FRAME, formation_reach_m
+
+    sc = scenario_mod.load(FIG11)
+    bp = blueprint(sc)
+    follow = bp.root_container.contents[0].contents[0]  # the first column's first view
+    assert follow.origin == f"/{LEADER_FRAME}"
+    assert 2.0 < formation_reach_m(sc) < 8.0  # a few metres (the line: R3 behind R2), not the 80 m path
+    named = _named_paths(bp)
+    assert {"/robots/r2/fis/v_n", "/robots/r2/fis/v_n_1s", "/robots/r3/wheels/right_1s"} <= named
+    many = _named_paths(blueprint(scenario_mod.load(FIG11, {"run.robots": 30, "leader.formation": "line"})))
+    assert "/robots/r30/fis/v_n_1s" in many
+    assert "/robots/r30/fis/v_n" not in many  # 29 followers' per-tick values: a blur

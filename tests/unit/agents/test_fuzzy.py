@@ -182,10 +182,10 @@ def test_memberships_partition_unity() -> None:
 
 
 def test_static_mode_uses_fixed_vn_and_dynamic_uses_fis2() -> None:
-    vn, w = fuzzy.control(0.0, 5.0, 0.0, 0.05, P, SpeedMode(1.5))
+    vn, w = fuzzy.control(0.0, 5.0, 0.0, 0.05, p=P, mode=SpeedMode(1.5))
     assert vn == 1.5
     assert w == (2.0, 2.0)  # Far + Center: both wheels Fast = V_N + a
-    vn, _ = fuzzy.control(0.0, 5.0, 0.05, 0.05, P, SpeedMode())
+    vn, _ = fuzzy.control(0.0, 5.0, 0.05, 0.05, p=P, mode=SpeedMode())
     assert vn == pytest.approx(P.vn_max)  # Far and growing: High
 
 
@@ -220,12 +220,12 @@ def test_bad_parameters_name_the_field(kwargs: dict[str, float], name: str) -> N
 )
 def test_bad_inputs_name_the_parameter(args: tuple[float, ...], name: str) -> None:
     with pytest.raises(ValueError, match=name):
-        fuzzy.control(*args, P, SpeedMode())
+        fuzzy.control(*args, p=P, mode=SpeedMode())
 
 
 def test_non_number_input_is_a_type_error() -> None:
     with pytest.raises(TypeError, match="alpha_rad"):
-        fuzzy.control("0.1", 1.0, 0.0, 0.05, P, SpeedMode())  # type: ignore[arg-type]
+        fuzzy.control("0.1", 1.0, 0.0, 0.05, p=P, mode=SpeedMode())  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="static_vn"):
         SpeedMode(-1.0)
 
@@ -265,6 +265,6 @@ def test_a_rule_whose_strength_ties_its_other_input_still_fires_once() -> None:
 
 def test_dynamic_vn_takes_the_rate_of_change_of_rho() -> None:
     """FIS-2's input is drho / dt (m/s), not drho (m): 0.01 m in 0.02 s is 0.5 m/s."""
-    vn, _ = fuzzy.control(0.0, 1.0, 0.01, 0.02, P, SpeedMode())
+    vn, _ = fuzzy.control(0.0, 1.0, 0.01, 0.02, p=P, mode=SpeedMode())
     assert vn == pytest.approx(fuzzy.fis2(0.5, 1.0, P), abs=1e-12)
     assert vn == pytest.approx(P.vn_max, abs=1e-12)  # Positive (saturated) and Enough: High

@@ -159,3 +159,11 @@ def test_what_a_process_wrote_survives_its_exit_only_once_the_peer_took_it(wait:
         assert got == SENT
     else:
         assert got < SENT  # the reset threw the rest away
+
+
+def test_a_json_write_that_fails_leaves_no_temporary_file(tmp_path: Path) -> None:
+    target = tmp_path / "stats.json"
+    target.mkdir()  # the rename onto it fails, as a full disk fails the write
+    with pytest.raises(IsADirectoryError):
+        proc.write_json(str(target), {"a": 1})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["stats.json"]

@@ -11,6 +11,8 @@ import pytest
 
 from formation_swarm.protocol.messages import Command
 from formation_swarm.spec import scenario as scenario_mod
+from formation_swarm.world.commands import at_last_waypoint
+from formation_swarm.world.kinematics import Pose
 from formation_swarm.world.tick import WorldTick
 from tests.helpers import SCENARIOS
 from tests.helpers.fakes import FakeRole
@@ -109,14 +111,43 @@ def test_realtime_world_takes_the_latest_command_whatever_its_tick() -> None:
     assert world.late_answers == 0
 
 
-def test_only_the_leader_ends_the_run() -> None:
+def test_only_the_leader_at_its_last_waypoint_ends_the_run() -> None:
+    """The world takes the leader's "done" on its own truth: a follower's, or
+    the leader's before the world sees it at its last waypoint, is a command
+    that could not be true, rejected whole and counted."""
     world = _world()
     world.command(Command(sender=2, seq=1, tick=0, left_mps=0.0, right_mps=0.0, formation=0, done=True))
+    world.command(Command(sender=1, seq=2, tick=0, left_mps=0.0, right_mps=0.0, formation=0, done=True))
     assert not world.leader_done
     assert world.running
-    world.command(Command(sender=1, seq=2, tick=0, left_mps=0.0, right_mps=0.0, formation=0, done=True))
+    assert world.rejected() == {"done from a follower": 1, "done before the last waypoint": 1}
+    assert not world.engine.robots[1].answered  # its real answer still counts for the tick
+    world.command(Command(sender=1, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=0, done=False))
+    assert world.engine.robots[1].answered
+    world.engine.robots[1].pose = Pose(0.3, 79.6, 0.0)  # 0.5 m from (0, 80): within its 1 m look-ahead
+    world.command(Command(sender=1, seq=3, tick=0, left_mps=0.0, right_mps=0.0, formation=0, done=True))
     assert world.leader_done
     assert not world.running
+
+
+@pytest.mark.parametrize(
+    ("x", "y", "done"),
+    [
+        (0.0, 79.0, True),  # 1 m short: within the look-ahead
+        (0.0, 78.9, False),
+        (5.0, 80.1, True),  # past the end, 5 m to the side: a pilot turned wide ends there
+        (5.0, 79.9, False),  # not past it, and beyond the look-ahead
+        (0.0, -1.0, False),  # behind the start
+    ],
+)
+def test_the_leader_is_at_its_last_waypoint_within_its_look_ahead_or_past_it(x: float, y: float, done: bool) -> None:
+    assert at_last_waypoint(Pose(x, y, 0.0), [(0.0, 0.0), (0.0, 80.0)], within_m=1.0) is done
+
+
+def test_a_path_that_comes_back_on_itself_is_not_done_where_it_began() -> None:
+    path = [(0.0, 0.0), (0.0, 50.0), (0.0, 10.0)]  # the last leg points back over the start
+    assert not at_last_waypoint(Pose(0.0, 5.0, 0.0), path, within_m=1.0)  # nearest to the first leg
+    assert at_last_waypoint(Pose(0.0, 9.5, math.pi), path, within_m=1.0)
 
 
 def test_a_payload_is_judged_by_the_key_it_came_on_and_by_the_codec() -> None:

@@ -1,0 +1,154 @@
+"""What a run's summary says, in words: its events, each fault and what it
+did, how the formation came back, the robots that fell silent. The console
+(launch.console) and the report (report.faults) print these."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from formation_swarm.runtime import summary as summary_mod
+from formation_swarm.runtime.children import describe_exit
+from formation_swarm.world.recovery import HOLD_S
+
+
+def num(value: Any, fmt: str = ".3f") -> str:
+    """A number for the console, or "-" for a metric the run did not produce."""
+    return format(value, fmt) if isinstance(value, (int, float)) and not isinstance(value, bool) else "-"
+
+
+def describe_event(ev: Mapping[str, Any]) -> str:
+    """One event of the run (a kill, a process that exited, ...) as a sentence."""
+    t = ev.get("sim_time_s")
+    when = f"at sim t={t:.2f} s" if isinstance(t, (int, float)) and t >= 0 else "before the run started"
+    if ev.get("event") in ("killed", "started", "frozen", "thawed"):
+        tick = f" (tick {ev['tick']})" if isinstance(ev.get("tick"), int) else ""
+        why = f"'{ev['fault']}'" if ev.get("fault") else "fault injection"
+        return f"{ev['event']} {ev.get('process')} {when}{tick} ({why})"
+    if ev.get("event") == "host lost":
+        return summary_mod.describe_host_lost(ev)
+    if ev.get("event") == "exited" and ev.get("host_lost"):  # its exit code stayed on that host
+        return f"{ev.get('process')} lost with host {ev['host_lost']} {when}"
+    if ev.get("event") == "not fetched":  # a remote agent's log and stats, at the run's end
+        return f"{ev.get('process')}'s log and stats were not fetched: {ev.get('why')}"
+    if ev.get("event") == "exit code not reported by the fork server":
+        return f"{ev.get('process')}'s exit code {ev.get('code')} is its own record: the fork server did not report it"
+    if ev.get("event") == "exited" and isinstance(ev.get("code"), int):
+        tick = f" (tick {ev['tick']})" if isinstance(ev.get("tick"), int) else ""
+        return f"{ev.get('process')} {describe_exit(ev['code'])} {when}{tick}"
+    return ", ".join(f"{k} {v}" for k, v in ev.items() if k != "log_tail")
+
+
+def describe_recoveries(f: Mapping[str, Any]) -> list[str]:
+    """How the formation came back after a fault, in words: when the watched
+    follower's error first went below the bound after the robot's return,
+    whether it then stayed below it for the hold time (settled), and its
+    largest error in the window after the return. Below the bound at once but
+    never settled is a follower whose error only passed through it. After a
+    fault that ends (a link, partition, sensor or actuator fault), the same
+    from the end, to the second (runtime.window_recovery)."""
+    out = []
+    for rec in f.get("recoveries") or []:
+        who = ", ".join(f"R{r}" for r in rec.get("watched") or [])
+        since = rec.get("since_s")
+        windowed = isinstance(rec.get("resolution_s"), (int, float))  # a fault's end, from 1 s windows
+        what = " the fault's end" if windowed else " the return"
+        at = f"{what} at t={since:.2f} s" if isinstance(since, (int, float)) else what
+        after = rec.get("first_below_after_s")
+        bound = rec.get("bound_m", 0.5)
+        below = f"below {bound:g} m" + (f" ({rec['resolution_s']:g} s mean)" if windowed else "")
+        if not isinstance(after, (int, float)):
+            out.append(f"{who} not back {below} by the end")
+            continue
+        said = f"{who} {below} {'within ' if windowed else ''}{after:.2f} s after{at}"
+        settled = rec.get("settled_after_s")
+        if isinstance(settled, (int, float)):
+            said += f", settled (below it for {HOLD_S:g} s) {settled:.2f} s after"
+        elif not windowed:  # a window's mean below the bound is a second below it on average: no settling said
+            said += f", never settled (below it for {HOLD_S:g} s in a row) by the end"
+        if isinstance(peak := rec.get("max_in_window_m"), (int, float)):
+            said += f"; largest error in the {rec.get('window_s', 5):g} s after: {peak:.2f} m"
+        out.append(said)
+    return out
+
+
+# A fault's counts in words: what a link did to its messages, and what a
+# camera or wheel fault did on each robot (summary.json keeps the raw keys).
+LINK_EFFECT_WORDS = {
+    "dropped": "dropped",
+    "partitioned": "lost to the partition",
+    "delayed": "delayed",
+    "duplicated": "duplicated",
+    "reordered": "reordered",
+}
+ROBOT_EFFECT_WORDS = {
+    "blacked_out": "readings blacked out",
+    "cut": "readings cut by the range",
+    "replaced": "readings replaced by outliers",
+    "biased": "readings biased",
+    "moving_ticks": "of them with the robot told to move",
+}
+
+
+def describe_counts(counts: Mapping[str, Any]) -> str:
+    """``{"dropped": 12}`` -> "12 messages dropped"; ``{"R2 ticks": 40,
+    "R2 blacked_out": 38}`` -> "R2: on for 40 ticks, 38 readings blacked out";
+    a key it does not know is kept as it is."""
+    out, robots = [], {}
+    for key, n in counts.items():
+        robot, _, what = key.partition(" ")
+        if what and robot.startswith("R") and robot[1:].isdigit():
+            robots.setdefault(int(robot[1:]), {})[what] = n
+        elif key in LINK_EFFECT_WORDS:
+            out.append(f"{n} message{'s' if n != 1 else ''} {LINK_EFFECT_WORDS[key]}")
+        else:
+            out.append(f"{key} {n}")
+    for rid in sorted(robots):
+        said = robots[rid]
+        words = [f"on for {said.pop('ticks')} ticks"] if "ticks" in said else []
+        words += [f"{n} {ROBOT_EFFECT_WORDS.get(k, k)}" for k, n in said.items()]
+        out.append(f"R{rid}: {', '.join(words)}")
+    return "; ".join(out)
+
+
+def describe_fault(f: Mapping[str, Any], ticks: Any = None) -> str:
+    """One scheduled fault of the summary, with what it did, as a line; one
+    whose start the run never reached (it ended early: the leader's path was
+    done) says so."""
+    start = f.get("start_tick")
+    if isinstance(ticks, int) and isinstance(start, int) and start >= ticks:
+        return f"{f.get('fault')}: never started: the run ended at tick {ticks}, before its tick {start}"
+    parts = []
+    said: list[tuple[Any, Any, list[str]]] = []  # events of one robot at one tick: one phrase
+    for e in f.get("events") or []:
+        if said and said[-1][:2] == (e.get("robot"), e.get("tick")):
+            said[-1][2].append(str(e.get("event")))
+        else:
+            said.append((e.get("robot"), e.get("tick"), [str(e.get("event"))]))
+    for robot, tick, events in said:
+        what = events[0] if len(events) == 1 else f"{', '.join(events[:-1])} and {events[-1]}"
+        parts.append(f"{what}{f' R{robot}' if robot is not None else ''} at tick {tick}")
+    counts = describe_counts(f.get("counts") or {})
+    if cut := f.get("counts_partial_for"):
+        who = ", ".join(f"R{r}" for r in cut)
+        if counts:
+            counts += f" (at least: {who}'s agent was killed, and its counts end at its last stats write)"
+        else:
+            counts = f"not counted: {who}'s agent was killed before it wrote its counts of this fault"
+    parts += describe_recoveries(f)
+    said = "; ".join(x for x in ("; ".join(parts), counts) if x)
+    return f"{f.get('fault')}" + (f": {said}" if said else "")
+
+
+STALL_WORDS = {
+    "stalled": "stalled (its deadlines missed in a row; no longer waited for)",
+    "answering again": "answering again",
+    "lost while stalled": "lost after its stall: the clock held for it",
+    "not back in time": "not back in time: the run went on without it",
+}
+
+
+def describe_stall(e: Mapping[str, Any]) -> str:
+    """One event of a robot that fell silent in lockstep (world.stalls) as a sentence."""
+    what = STALL_WORDS.get(str(e.get("event")), str(e.get("event")))
+    return f"robot {e.get('robot')} {what} at tick {e.get('tick')}, sim t={num(e.get('time_s'), '.2f')} s"

@@ -1,0 +1,75 @@
+"""A run's rows as Rerun columns: to the live stream at each send, to the
+recording file in batches of FILE_BATCH_S of sim time.
+
+Every ``send_columns`` call makes one chunk of the file, and a chunk costs
+about 1.2 kB whatever its rows (measured with rerun-sdk 0.41). The logger
+sends every 0.25 s of wall time: a real-time run would get a chunk per
+entity every 0.25 s, 4-8 times those of the same run in lockstep (which
+passes more sim time per send), for the same rows. Batching by sim time
+makes a file's size the same in both modes. A logger killed with SIGKILL
+loses the rows of its last batch.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import rerun as rr
+
+if TYPE_CHECKING:
+    from formation_swarm.nodes.recording import Recording
+
+FILE_BATCH_S = 2.0  # sim time, s, of the rows in one chunk of the file
+
+
+def columns(kind: str, values: np.ndarray) -> Any:
+    """Rerun columns of ``values``, one row each, as ``kind``: scalar (n),
+    point (n x 2), arrow (n x 4: origin, vector), strip (n x points x 2:
+    one strip per row) or translation (n x 3)."""
+    if kind == "scalar":
+        return rr.Scalars.columns(scalars=values)
+    if kind == "point":
+        return rr.Points2D.columns(positions=values)
+    if kind == "arrow":
+        return rr.Arrows2D.columns(origins=values[:, :2], vectors=values[:, 2:])
+    if kind == "strip":  # an array takes Rerun's numpy path
+        return rr.LineStrips2D.columns(strips=values)
+    if kind == "translation":
+        return rr.Transform3D.columns(translation=values)
+    raise ValueError(f"unknown column kind {kind!r}")
+
+
+class ColumnSink:
+    """Rows of entities on one timeline: the live stream's at once, the file's held for a batch."""
+
+    def __init__(self, rec: Recording, timeline: str, batch_s: float = FILE_BATCH_S) -> None:
+        self.rec = rec
+        self.timeline = timeline
+        self.batch_s = batch_s
+        self.held: dict[tuple[str, str], list[tuple[np.ndarray, np.ndarray]]] = {}
+        self.span = (math.inf, -math.inf)  # the held rows' first and last sim time, s
+
+    def add(self, entity: str, kind: str, times: np.ndarray, values: np.ndarray) -> None:
+        if len(times) == 0:
+            return
+        self.held.setdefault((entity, kind), []).append((np.asarray(times), np.asarray(values)))
+        self.span = (min(self.span[0], float(np.min(times))), max(self.span[1], float(np.max(times))))
+        if self.rec.live is not None:
+            self._send(self.rec.live, (entity, kind), times, values)
+
+    def write(self, final: bool = False) -> None:
+        """The held rows to the file, once they span a batch (or at the end: ``final``)."""
+        if not self.held or (not final and self.span[1] - self.span[0] < self.batch_s):
+            return
+        held, self.held, self.span = self.held, {}, (math.inf, -math.inf)
+        for (entity, kind), parts in held.items():
+            times = np.concatenate([t for t, _ in parts])
+            values = np.concatenate([v for _, v in parts])
+            self._send(self.rec.file, (entity, kind), times, values)
+
+    def _send(self, stream: rr.RecordingStream, what: tuple[str, str], times: np.ndarray, values: Any) -> None:
+        entity, kind = what
+        indexes = [rr.TimeColumn(self.timeline, duration=times)]
+        stream.send_columns(entity, indexes=indexes, columns=columns(kind, values))

@@ -1,0 +1,162 @@
+"""What a stolen login achieves at worst, one role at a time.
+
+The router keeps each login to its role's keys (tests/system/test_attacks.py);
+these tests give the thief a role's own login and do what that role may do,
+plausibly: the run still completes all its ticks with the right end reason,
+and the robots the login does not own fly as in a clean run (their own
+trajectory digests, ``robot_digests``, are equal). And the logins themselves
+do not stay on disk: each process deletes its own once read.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from formation_swarm.launch.launcher import Launch
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.protocol.messages import Command
+from formation_swarm.world.stalls import STALL_AFTER_MISSES
+from tests.system.test_attacks import FIG11, HUGE_SEQ, assert_unharmed, attacks, put_all, rogue
+
+pytestmark = pytest.mark.slow
+
+SHORT = {"run.duration_s": 12.0}  # 240 ticks; the leader is 18 m along its 80 m path at the end
+
+
+def _clean(tmp: Path, **kwargs: Any) -> dict[str, Any]:
+    with Launch(FIG11, out=tmp / "run", logger=False, progress=lambda _l: None, **kwargs) as run:
+        res = run.wait(timeout_s=240)
+    assert res.exit_code == 0
+    return res.summary
+
+
+@pytest.fixture(scope="module")
+def clean(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """A clean lockstep fig11 run's summary: the digests a forgery must leave alone."""
+    return _clean(tmp_path_factory.mktemp("clean"))
+
+
+@pytest.fixture(scope="module")
+def clean_short(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    return _clean(tmp_path_factory.mktemp("clean-short"), overrides=SHORT)
+
+
+def _witnessed(sess: Any, key: str) -> None:
+    """Wait until the router has taken what this session declared so far: a
+    liveliness query sent after it is answered in order on the one link."""
+    assert list(sess.liveliness().get(key, timeout=10.0)), f"no answer for {key}"
+
+
+def test_a_leaked_leader_login_cannot_end_the_run(swarm_launch: Callable[..., Launch], clean: dict[str, Any]) -> None:
+    """The leader's login says "done" at tick ~40 of 1,061, five times. Before, the
+    world took the leader's word: the run ended at once, exit 0, "the leader reached
+    its last waypoint". Now the world sees the leader 3 m along an 80 m path: each
+    forgery is rejected whole, and the leader's own answers count."""
+    launch = swarm_launch(FIG11, logger=False)
+    assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
+    tick = int(round(launch.sim_time() / 0.05))
+    k = Keys(launch.run_id)
+    forged = Command(sender=1, seq=HUGE_SEQ, tick=tick, left_mps=0.0, right_mps=0.0, formation=0, done=True)
+    with rogue(launch, "agent-1") as sess:
+        put_all(sess, [(k.cmd(1), forged.to_bytes())], rounds=5)
+        res = launch.wait(timeout_s=240)
+    assert_unharmed(res)
+    s = res.summary
+    assert (s["ticks"], s["end_reason"], s["ended_at_s"]) == (1061, "leader_finished", clean["ended_at_s"])
+    assert s["rejected"]["world"] == {"done before the last waypoint": 5}
+    assert s["trajectory_digest"] == clean["trajectory_digest"]
+    assert s["robot_digests"] == clean["robot_digests"]
+
+
+def test_a_leaked_follower_login_holding_a_dead_agents_token_only_stalls_its_robot(
+    swarm_launch: Callable[..., Launch], clean_short: dict[str, Any]
+) -> None:
+    """Agent 2's login holds robot 2's token, then the real agent 2 dies (SIGKILL,
+    outside the schedule): its death is hidden from the world. Before, every
+    tick then waited its 2 s deadline for robot 2 (a 12 s run took minutes).
+    Now robot 2 is stalled after STALL_AFTER_MISSES misses and the run goes on
+    at the others' pace, to its end; the leader flies as in a clean run."""
+    launch = swarm_launch(FIG11, logger=False, overrides=SHORT)
+    assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
+    k = Keys(launch.run_id)
+    with rogue(launch, "agent-2") as sess:
+        token = sess.liveliness().declare_token(k.alive("agent", 2))
+        _witnessed(sess, k.alive("agent", 2))
+        os.kill(launch.pids()["agent-2"], signal.SIGKILL)
+        res = launch.wait(timeout_s=120)
+        token.undeclare()
+    s = res.summary
+    assert res.exit_code == 0, s["failure"]  # a follower stalled: the formation flew on
+    assert (s["ticks"], s["end_reason"]) == (240, "duration_reached")
+    assert s["deaths"] == []  # its token never went
+    assert s["lockstep_misses"] == STALL_AFTER_MISSES
+    assert [(e["robot"], e["event"], e["misses"]) for e in s["stalls"]] == [(2, "stalled", STALL_AFTER_MISSES)]
+    assert s["parts"]["world"]["loop_wall_time_s"] < STALL_AFTER_MISSES * 2.0 + 30.0
+    assert s["robot_digests"]["1"] == clean_short["robot_digests"]["1"]
+    assert s["rejected_total"] == 0
+
+
+def test_a_leaked_logger_login_can_listen_and_hold_the_loggers_token_only(
+    swarm_launch: Callable[..., Launch], clean: dict[str, Any]
+) -> None:
+    """The logger's login, beside the real logger: it holds the logger's token and
+    tries every forgery of the attacks. The router lets none through; at the end
+    the agents wait for a logger token that stays (bounded waits); the run
+    completes, bit-identical."""
+    launch = swarm_launch(FIG11)
+    assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
+    k = Keys(launch.run_id)
+    with rogue(launch, "logger") as sess:
+        token = sess.liveliness().declare_token(k.alive("logger", 0))
+        tick = int(launch.sim_time() / 0.05) + 1
+        put_all(sess, attacks(k, tick), rounds=5, witness=k.alive("world", 0))
+        res = launch.wait(timeout_s=240)
+        token.undeclare()
+    assert_unharmed(res)
+    s = res.summary
+    assert (s["ticks"], s["end_reason"]) == (1061, "leader_finished")
+    assert s["trajectory_digest"] == clean["trajectory_digest"]
+    assert s["rejected_total"] == 0
+    assert s["parts"]["logger"]["messages"]["truth"] == 1061  # the real logger recorded every tick
+
+
+def test_a_local_run_has_no_world_login_to_steal(swarm_launch: Callable[..., Launch]) -> None:
+    """The world of a local run is its router: it logs in as nobody."""
+    launch = swarm_launch(FIG11, logger=False, overrides=SHORT)
+    assert launch.login("world") is None
+    assert launch.login("agent-2") is not None
+    assert launch.wait(timeout_s=120).exit_code == 0
+
+
+def _files_holding(folder: Path, secrets: list[str]) -> list[str]:
+    found = []
+    for p in folder.rglob("*"):
+        if p.is_file() and any(pw.encode() in p.read_bytes() for pw in secrets):
+            found.append(str(p.relative_to(folder)))
+    return sorted(found)
+
+
+def test_no_password_stays_on_disk_and_a_restarted_agent_still_logs_in(swarm_launch: Callable[..., Launch]) -> None:
+    """Before, secrets/ held every process's login and passwords.txt (every
+    password of the run) for the whole local run. Now each process deletes its
+    own once read; the launcher keeps them in memory and writes a fresh one for
+    a restarted agent, which deletes it the same way."""
+    launch = swarm_launch(FIG11, logger=False, faults=["restart agent-3@2s after=1"], overrides=SHORT)
+    logins = [launch.login(user) or {} for user in ("logger", "launcher", "agent-1", "agent-2", "agent-3")]
+    passwords = [login["transport/auth/usrpwd"]["password"] for login in logins]
+    assert len(passwords) == 5  # logger, launcher, three agents (the world, the router, has none)
+    assert launch.wait_until(lambda: launch.sim_time() >= 1.0, timeout_s=60)
+    assert _files_holding(launch.run_dir, passwords) == []
+    assert launch.wait_until(lambda: launch.sim_time() >= 4.0, timeout_s=60)  # agent-3.2 has joined
+    assert _files_holding(launch.run_dir, passwords) == []
+    res = launch.wait(timeout_s=120)
+    assert res.exit_code == 0, res.summary["failure"]
+    (rejoin,) = res.summary["faults"][0]["rejoins"]
+    assert rejoin["ticks_to_rejoin"] == 0  # the fresh agent logged in and rejoined on its tick
+    assert res.summary["processes"]["agent-3.2"]["exit_code"] == 0

@@ -1,0 +1,48 @@
+"""The run's live fault lines come in tick order: a process fault's call,
+handled at once, after the window faults' starts and ends before its tick
+that the world's status had not yet reported."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any
+
+from formation_swarm.launch.faults import FaultExecutor
+from formation_swarm.protocol.messages import FaultCall
+from formation_swarm.spec import scenario as scenario_mod
+
+
+class _Journal:
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def say(self, line: str) -> None:
+        self.lines.append(line)
+
+    def add(self, *_args: Any, **_kwargs: Any) -> None:
+        pass
+
+    def wall_s(self) -> float:
+        return 0.0
+
+
+def test_window_faults_before_a_process_fault_s_tick_are_said_first_in_tick_order() -> None:
+    faults = ["blackout 3@5s for=2s", "drop obs:2@1s for=3s p=0.3", "kill agent-2@8s"]
+    sc = scenario_mod.load("fig11_obstacles", None, faults)
+    child = SimpleNamespace(pid=1, signal=lambda _sig: None)
+    procs = SimpleNamespace(current={"agent-2": "agent-2"}, children={"agent-2": child}, frozen=set(), frozen_by={})
+    journal = _Journal()
+    executor = FaultExecutor(sc, procs, journal, restart=lambda name: name)  # type: ignore[arg-type]
+    executor.say_windows(SimpleNamespace(last=SimpleNamespace(tick=30)))  # type: ignore[arg-type]
+    kill = next(i for i, f in enumerate(sc.faults) if f.kind == "kill")
+    call = FaultCall(sender=0, seq=1, tick=160, time_s=8.0, action="kill", process="agent-2", index=kill)
+    executor.put(call.to_bytes())
+    executor.execute_calls()
+    executor.say_windows(SimpleNamespace(last=SimpleNamespace(tick=150)))  # the status, late: nothing new
+    assert [line.split(" (")[0].split(", sim")[0] for line in journal.lines] == [
+        "[swarm] fault on from tick 20",
+        "[swarm] fault off from tick 80",
+        "[swarm] fault on from tick 100",
+        "[swarm] fault off from tick 140",
+        "[swarm] killed agent-2 at tick 160",
+    ]
