@@ -2,7 +2,8 @@
 
 This is the whole controller of paper Fig. 4 with the EKF of section 3 (in
 agents.tracking, shared with the l-psi baseline) and the collision
-avoidance of section 2.2 (eq. 11-13), with no I/O, so the same object runs
+avoidance of section 2.2 (eq. 11-13; ``avoidance`` off, a follower goes
+straight to its new slot), with no I/O, so the same object runs
 inside an agent's role, the one-process simulator and the benchmarks. It
 implements agents.controller's API.
 
@@ -47,6 +48,8 @@ class FuzzyController(TrackingController):
         self._prev_choice = Choice.T0
 
     def _act(self, sight: Sight, measured: Point | None, ticks: int) -> Decision:
+        if not self.p.avoidance:
+            self.changing = False  # straight to the new slot: eq. 11-13 skipped
         choice, goal = self._target(sight)
         err = self._errors(goal, choice, sight.phi_rad)
         if self.changing and change_over(choice, err.rho_m, self.p.fuzzy):

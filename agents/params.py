@@ -28,6 +28,9 @@ class FollowerParams:
     marker_offset_m: float = 0.1
     dt_s: float = 0.05
     clearance_m: float = 1.0
+    # The partition-zone avoidance during a formation change (eq. 11-13); off,
+    # a follower goes straight to its new slot (the ablation of docs/results.md).
+    avoidance: bool = True
     # Without a reading for this long the follower stops and waits.
     lost_after_s: float = 1.0
     fuzzy: fz.FuzzyParams = field(default_factory=fz.FuzzyParams)

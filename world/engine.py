@@ -267,5 +267,7 @@ class WorldEngine:
             "actuator_faults": counts_table({rid: w.effects for rid, w in self.wheels.items()}, "moving_ticks"),
             "trajectory_digest": self.digest(),
             "final_poses": {str(rid): list(r.pose) for rid, r in self.robots.items()},
+            # The leader's largest distance from its waypoints' polyline, and from the last one at the end.
+            "leader_path": m.leader.as_dict(self.robots[self.scenario.leader.robot_id].pose),
             "dead_robots": [rid for rid, r in self.robots.items() if not r.alive],
         }

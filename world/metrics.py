@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 from formation_swarm.world.contacts import Contacts
 from formation_swarm.world.kinematics import Pose, from_body_frame
+from formation_swarm.world.leader_track import LeaderTrack
 from formation_swarm.world.recovery import Recovery
 from formation_swarm.world.setup import WorldSetup
 
@@ -132,6 +133,7 @@ class RunMetrics:
     # Formation errors after a robot's return (world.recovery), fed by record().
     recoveries: list[Recovery] = field(init=False, default_factory=list)
     recorded: int = field(init=False, default=0)  # ticks recorded
+    leader: LeaderTrack = field(init=False)  # the leader's distance from its path
     _digest: hashlib._Hash = field(init=False)
 
     def __post_init__(self) -> None:
@@ -140,6 +142,7 @@ class RunMetrics:
         self.contacts = Contacts(sc.diameter_m, sc.obstacles, sc.dt_s)
         self.windows = {rid: [] for rid in sc.follower_ids}
         self.window_ticks = max(1, round(ERROR_WINDOW_S / sc.dt_s))
+        self.leader = LeaderTrack(sc.leader.waypoints)
         self._digest = hashlib.sha256()
 
     def record(self, snap: Snapshot, tick: int) -> None:
@@ -167,6 +170,8 @@ class RunMetrics:
         for rec in self.recoveries:
             rec.add(tick, errors)
         self.contacts.measure(poses, tick)
+        lead = poses[sc.leader.robot_id]
+        self.leader.add(lead.x_m, lead.y_m)
         h = self._digest
         for rid in sorted(snap):
             h.update(struct.pack("<3d", *snap[rid][0]))

@@ -299,6 +299,13 @@ CONTROLLER_KEYS["params"] = Key(
     " (docs/controllers.md); the built-in laws take none. A [followers.ID] table's params go over these"
     " name by name, unless it names another law",
 )
+# The partition-zone avoidance's switch, a block of its own: the law's keys are above.
+CONTROLLER_KEYS["avoidance"] = Key(
+    bool,
+    _FOLLOWER.avoidance,
+    "the partition-zone collision avoidance during a formation change (eq. 11-13, the paper's): false, a"
+    " fuzzy follower goes straight to its new slot (eq. 13 skipped; the ablation of docs/results.md, claim d)",
+)
 OBSTACLE_KEYS = {
     "x_m": Key(NUM, REQUIRED, "centre x", "m"),
     "y_m": Key(NUM, REQUIRED, "centre y", "m"),

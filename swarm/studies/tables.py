@@ -70,6 +70,10 @@ def metrics(summary: Mapping[str, Any]) -> dict[str, Any]:
         row[f"r{rid}_ekf_rms_m"] = e.get("ekf_rms_m")
         if e.get("measured_rms_m") and e.get("ekf_rms_m") is not None:
             row[f"r{rid}_ekf_ratio"] = e["ekf_rms_m"] / e["measured_rms_m"]
+    # The leader's largest distance from its path, and from its last waypoint at the end (world.leader_track).
+    path = summary.get("parts", {}).get("world", {}).get("leader_path") or {}
+    row["leader_off_path_m"] = path.get("max_off_path_m")
+    row["leader_end_m"] = path.get("end_from_last_waypoint_m")
     seq: dict[int, list[str]] = {}
     for ev in summary.get("formation_events", []):
         seq.setdefault(ev["robot"], []).append(ev["formation"])

@@ -4,11 +4,8 @@ takes the formation code as its agent would."""
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
-from formation_swarm.agents.controller import ControllerSetup, FollowerController, FollowerInput, FollowerOutput
-from formation_swarm.agents.follower import make_controller
 from formation_swarm.agents.follower_role import FollowerRole
 from formation_swarm.agents.pilot import PathPilot
 from formation_swarm.nodes.agent_setup import role_for
@@ -45,29 +42,17 @@ clearance_m = 1.0
 CHANGE_AT_S = 8.0
 
 
-class StraightToTheSlot:
-    """A controller told of no formation change: it flies straight to its new
-    slot (eq. 13 skipped)."""
-
-    def __init__(self, inner: FollowerController) -> None:
-        self.inner = inner
-
-    def step(self, inp: FollowerInput) -> FollowerOutput:
-        return self.inner.step(replace(inp, slot_moved=False))
-
-
 def fly_the_change(tmp_path: Path, seed: int, avoidance: bool) -> dict:
-    """The run's summary; the formation changes from "right" to "left" at CHANGE_AT_S."""
+    """The run's summary; the formation changes from "right" to "left" at CHANGE_AT_S.
+    Without ``avoidance`` (``controller.avoidance = false``) the follower goes
+    straight to its new slot (eq. 13 skipped)."""
     path = tmp_path / "swap_sides.toml"
     path.write_text(SWAP_SIDES)
-    sc = scenario_mod.load(path)
+    sc = scenario_mod.load(path, {"controller.avoidance": avoidance})
     eng = WorldEngine(sc, seed)
     ld = sc.leader
     pilot = PathPilot(ld.waypoints, ld.speed_mps, sc.width_m, ld.lookahead_m, ld.turn_rate_rps)
-    controller = make_controller(
-        ControllerSetup(robot_id=2, params=sc.followers[2], slot=sc.formations["right"].slots[2])
-    )
-    follower = role_for(sc, 2, seed, controller if avoidance else StraightToTheSlot(controller))
+    follower = role_for(sc, 2, seed)
     assert isinstance(follower, FollowerRole)
     code = sc.code_of("right")
     while eng.tick < sc.ticks:

@@ -129,3 +129,27 @@ def test_the_ekf_is_told_the_cameras_noise() -> None:
         cam.sigma_phi_rad,
         cam.sigma_beta_rad,
     )
+
+
+def test_the_look_ahead_row_of_paper_md_for_fig11_is_what_the_code_computes() -> None:
+    """docs/paper.md, "The steering look-ahead": `fig11_obstacles` seed 1 without
+    and with `controller.lookahead_m = 1`, at the doc's precision. The run changes
+    formation twice, so the look-ahead steers at eq. 13's avoidance targets too:
+    aimed at the slot's target instead during a change, the row would move."""
+    doc = (ROOT / "docs" / "paper.md").read_text()
+    row = re.search(
+        r"\| `fig11_obstacles` \(the paper's three robots\) \| (\d+) -> (\d+) \| (\d+\.\d+) -> (\d+\.\d+) "
+        r"\| R2 (\d+\.\d+) -> (\d+\.\d+), R3 (\d+\.\d+) -> (\d+\.\d+) \|",
+        doc,
+    )
+    assert row, "the look-ahead table of docs/paper.md has no fig11_obstacles row"
+    contacts, closest, r2, r3 = row.groups()[0:2], row.groups()[2:4], row.groups()[4:6], row.groups()[6:8]
+    for k, lookahead_m in enumerate((0.0, 1.0)):
+        s = replay(
+            ROOT / "scenarios" / "fig11_obstacles.toml", seed=1, overrides={"controller.lookahead_m": lookahead_m}
+        )
+        assert [e["formation"] for e in s["formation_events"] if e["robot"] == 3] == ["line", "triangle"]
+        assert str(s["collisions"]) == contacts[k]
+        assert f"{s['min_distance_m']:.2f}" == closest[k], lookahead_m
+        assert f"{s['followers']['2']['rms_m']:.3f}" == r2[k], lookahead_m
+        assert f"{s['followers']['3']['rms_m']:.3f}" == r3[k], lookahead_m
