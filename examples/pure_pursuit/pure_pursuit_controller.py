@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 
-from formation_swarm.agents.controller import ControllerSetup, FollowerInput, FollowerOutput
+from formation_swarm import ControllerSetup, FollowerInput, FollowerOutput
 
 __all__ = ["PurePursuit"]
 

@@ -8,9 +8,12 @@ import math
 
 from pure_pursuit_controller import PurePursuit
 
-from formation_swarm.agents.controller import ControllerSetup, FollowerInput, MarkerReading, Slot
-from formation_swarm.agents.follower import FollowerParams
+from formation_swarm import ControllerSetup, FollowerInput, MarkerReading
+
+# A setup built by hand, without a scenario, takes these (formation_swarm's internal types).
+from formation_swarm.agents.formation import Slot
 from formation_swarm.agents.geometry import Point
+from formation_swarm.agents.params import FollowerParams
 
 LAW = "pure_pursuit_controller:PurePursuit"
 FAULT = "restart agent-3@20s after=1"
