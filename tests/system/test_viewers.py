@@ -96,6 +96,7 @@ def test_live_stream_carries_what_the_recording_has(tmp_path: Path, swarm_run: C
         assert got.get(entity, 0) == ticks, (entity, got.get(entity, 0), ticks)
 
 
+@pytest.mark.slow
 def test_served_web_viewer_answers_and_streams(tmp_path: Path, swarm_launch: Callable[..., Launch]) -> None:
     grpc_port, web_port, viewer_port = free_port(), free_port(), free_port()
     said: list[str] = []
@@ -147,6 +148,7 @@ def _assert_complete(res: RunResult) -> None:
     assert (make_report(res.run_dir) / "report.md").is_file()
 
 
+@pytest.mark.slow
 def test_an_absent_live_viewer_is_said_once_and_costs_nothing(swarm_run: Callable[..., RunResult]) -> None:
     said: list[str] = []
     short = {"run.duration_s": 4.0}
