@@ -127,6 +127,7 @@ def test_the_fixture_refuses_wrong_arguments_in_a_sentence(pytester: pytest.Pyte
     result.assert_outcomes(passed=1)
 
 
+@pytest.mark.slow
 def test_the_docs_fixture_examples_pass_as_written(pytester: pytest.Pytester) -> None:
     """Every ```python block of tests in README's "In your own test suite" and
     in docs/testing.md, run together as a user's test file."""

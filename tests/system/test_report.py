@@ -248,6 +248,7 @@ def test_cf_paper_only_for_a_shipped_scenario_as_shipped(tmp_path: Path) -> None
     assert cut.changes == f"the run did not end as the scenario does: {ended}"
 
 
+@pytest.mark.slow
 def test_formats_dpi_and_the_events_listed(swarm_run: Callable[..., RunResult]) -> None:
     import matplotlib.image
 

@@ -129,7 +129,7 @@ def test_mismatched_run_ids_give_up_at_the_deadline_with_one_line(tmp_path: Path
         assert endpoint in line, line
 
 
-def _first_lines(*procs: Proc, timeout_s: float = 60.0) -> dict[str, float]:
+def _first_lines(*procs: Proc, timeout_s: float = 180.0) -> dict[str, float]:  # imports: 60 s seen at load 17
     """When each process printed its first line (``time.monotonic()``)."""
     seen: dict[str, float] = {}
     deadline = time.monotonic() + timeout_s
@@ -184,7 +184,7 @@ def test_stop_signal_while_connecting_to_an_absent_router(
     code = p.wait(timeout_s=30)
     took = time.monotonic() - sent
     assert code == 128 + sig, (code, p.lines("err"))
-    assert took <= 1.0 * HEADROOM, took
+    assert took <= 2.0 * HEADROOM, took  # under 0.5 s quiet; 3.4 s seen at a load of 17
     (line,) = p.lines("out")
     assert f"stopped by {sig.name} while connecting to {absent}" in line, line
 
