@@ -57,12 +57,14 @@ from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Status
 from formation_swarm.runtime import cliargs
 from formation_swarm.runtime import role as role_mod
+from formation_swarm.runtime.memory import FloodRelief
 from formation_swarm.runtime.proc import SEND_DRAIN_S, exit_after_main, wait_for, wait_sent
 from formation_swarm.spec import scenario as scenario_mod
 
 # Lockstep holds at most a tick's observation and a few codes here; when full,
-# Zenoh waits for the loop (back-pressure) rather than dropping.
-INBOX_CAPACITY = 1024
+# Zenoh waits for the loop (back-pressure) rather than dropping. It bounds what
+# a flood can make the agent hold: 256 messages of at most 40 KiB (the size filter).
+INBOX_CAPACITY = 256
 # After "done", a follower's longest wait for the logger to leave (its own
 # wait for the followers' last telemetry, logger.END_WAIT_S, ends first).
 LOGGER_WAIT_S = 12.0
@@ -95,6 +97,7 @@ class Agent:
         self.peers = Peers(role.say, opts.world_grace_s, self._close_inbox)
         self.stats_file = StatsFile(opts.stats_path, len(sc.robots), (e for lk in brain.links for e in lk.fault_ends))
         self.status_rejections = Rejections()  # counted on the status callback's thread
+        self.relief = FloodRelief()
         self.inbox: zenoh.Subscriber | None = None
         self._inbox_lock = threading.RLock()  # a stop signal may arrive while a callback closes it
         self.started = False  # a message of the run has arrived
@@ -272,6 +275,7 @@ class Agent:
                 brain.prepare()
             self.busy_s += time.perf_counter() - t0
             self.stats_file.after(None if answer is None else answer.command.tick, self.stats)
+            self.relief.check(brain.rejections.total)  # a flood's memory, given back once it ends
 
     def _exit_code(self) -> int:
         code, self.end_note = self.role.follower_end(self.keys.run_id, self.done, self.started)
@@ -287,6 +291,7 @@ class Agent:
             "loop_cpu_s": self.loop_cpu_s,
             "world_back_after_s": self.peers.world_back_after_s,  # per loss of the world's token mid-run (None: never)
             "rejected": dict(self.brain.rejections.by_reason + self.status_rejections.by_reason),
+            "memory_given_back": self.relief.given_back,
         }
         both = {**self.brain.stats(), **own}
         return {key: both[key] for key in STATS_KEYS}
