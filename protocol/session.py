@@ -22,8 +22,11 @@ off and the world would take its robot for dead. So every node drops, on the
 way in, any message above ``ROUTED_LIMIT_BYTES`` (a Zenoh low-pass filter),
 and no message of ours comes near it (protocol.codec.MAX_PAYLOAD_BYTES).
 
-A configuration file replaces all three defaults (scouting, transport,
-filter): deploy/router.json5 sets them for a standalone router.
+Shared memory is off: a peer's large messages would otherwise arrive in its
+16 MB pool, which the receiver maps and keeps for good (swarm.runtime.memory).
+
+A configuration file replaces these defaults (scouting, transport, filter,
+shared memory): deploy/router.json5 sets them for a standalone router.
 """
 
 from __future__ import annotations
@@ -176,6 +179,10 @@ def make_config(
             conf.insert_json5("transport/unicast/lowlatency", "true")
             conf.insert_json5("transport/unicast/qos/enabled", "false")
         conf.insert_json5("low_pass_filter", json.dumps([SIZE_FILTER]))
+        # No shared memory: a message above 3 kB from a peer on this machine would
+        # come in its 16 MB pool, which this process then maps and keeps (a flood
+        # made every receiver hold that much more, for good); over TCP it is copied.
+        conf.insert_json5("transport/shared_memory/enabled", "false")
     if connect:
         conf.insert_json5("connect/endpoints", json.dumps(list(connect)))
         # The router may start after us: retry for a while instead of failing at once.

@@ -3,7 +3,8 @@ robots lost after such a silence.
 
 A robot that misses ``STALL_AFTER_MISSES`` lockstep deadlines in a row is
 **stalled**: it stays stopped and the world no longer waits for it, until a
-command of its is taken again (on time or late). What keeps a token while
+command of its is taken again (on time or late); it gets an observation
+only every ``STALLED_OBS_PERIOD_S`` of wall time meanwhile. What keeps a token while
 nothing answers: a process hung or cut off before its session's lease ends
 (10 s), or a stolen login holding the token of a robot whose agent died.
 While every robot a tick would wait for is stalled, the world waits for them
@@ -29,6 +30,10 @@ from typing import Any
 
 STALL_AFTER_MISSES = 3  # lockstep deadlines missed in a row: 6 s at the default 2 s deadline
 LOST_WAIT_S = 30.0  # wall seconds the world holds its clock for an awaited robot
+# A stalled robot gets an observation at most this often (wall s), enough to
+# answer again: one every tick of a world no longer waiting for it would fill
+# the buffers of a hung agent's link, and the world's puts (BLOCK) would wait.
+STALLED_OBS_PERIOD_S = 0.5
 
 
 @dataclass
@@ -40,6 +45,7 @@ class Stalls:
     awaited: dict[int, float] = field(default_factory=dict)  # robot -> the wall time its wait ends
     events: list[dict[str, Any]] = field(default_factory=list)  # {robot, tick, time_s, event, ...}
     held_s: float = 0.0  # wall time the clock was held for awaited robots
+    last_obs: dict[int, float] = field(default_factory=dict)  # stalled robot -> wall time of its last observation
 
     def _event(self, event: str, rid: int, tick: int, time_s: float, **extra: Any) -> None:
         self.events.append({"robot": rid, "tick": tick, "time_s": time_s, "event": event, **extra})
@@ -61,6 +67,7 @@ class Stalls:
         if rid not in self.stalled:
             return False
         self.stalled.discard(rid)
+        self.last_obs.pop(rid, None)
         self._event("answering again", rid, tick, time_s)
         return True
 
@@ -70,6 +77,21 @@ class Stalls:
         if not self.stalled or all(rid in self.stalled for rid in observed):
             return waiting
         return [rid for rid in waiting if rid not in self.stalled]
+
+    def observe(self, observed: list[int], wall_s: float) -> list[int]:
+        """Of the robots a tick would observe, those it does: a stalled one every
+        STALLED_OBS_PERIOD_S, unless every one is stalled (then each tick waits
+        for them all, and observes them all)."""
+        if not self.stalled or all(rid in self.stalled for rid in observed):
+            return observed
+        out = []
+        for rid in observed:
+            if rid in self.stalled:
+                if wall_s < self.last_obs.get(rid, -math.inf) + STALLED_OBS_PERIOD_S:
+                    continue
+                self.last_obs[rid] = wall_s
+            out.append(rid)
+        return out
 
     def lost(self, rid: int, tick: int, time_s: float, wall_s: float) -> bool:
         """``rid``'s token went (no kill called); whether it is awaited (it was stalled)."""

@@ -205,6 +205,8 @@ class WorldTick:
         eng = self.engine
         tick, t = eng.tick, eng.time_s
         observed = [rid for rid in eng.alive_ids if self.faults.observed(rid)]  # frozen (lockstep): not waited for
+        if self.stalls.stalled:  # a stalled robot: now and then (world.stalls)
+            observed = self.stalls.observe(observed, self.wall_s())
         observed.sort(key=self.setup.leader.robot_id.__eq__)
         for rid, (pose, readings, obstacles) in eng.each_observation(observed):
             eng.robots[rid].answered = False

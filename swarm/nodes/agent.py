@@ -20,17 +20,15 @@ Before it announces itself (its liveliness token) it waits, up to
 match (the leader: also its code publisher, a follower's inbox), each such
 change waking the wait. It exits when the world says the run is done, when
 the world's token has been gone for ``--world-grace`` seconds (default: the
-peers timeout) once the run started, or on SIGINT/SIGTERM. A session the
-router dropped (the agent frozen beyond the Zenoh lease, a network cut, a
-router restart) comes back by itself: the Zenoh client reconnects and
-declares the agent's subscribers and token again (measured with Zenoh 1.10),
-the world's token returns, and the world re-admits the robot.
+peers timeout) once the run started, or on SIGINT/SIGTERM. A dropped session
+(a freeze beyond the Zenoh lease, a cut, a router restart) comes back by
+itself: the client reconnects, declares the agent's subscribers and token
+again, and the world re-admits the robot.
 
 Observations and formation codes reach the loop through a Zenoh FIFO
-channel, received on the loop's own thread: no Python callback thread and no
-second queue between the network and the controller (measured on the bare
-exchange: ~25% more ticks/s than callback + queue). What would end the loop
-(the run's end, the world's departure, a stop signal) closes that channel.
+channel read on the loop's own thread: no callback thread, no second queue
+(~25% more ticks/s on the bare exchange). What would end the loop (the run's
+end, the world's departure, a stop signal) closes that channel.
 """
 
 from __future__ import annotations
@@ -57,12 +55,14 @@ from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Status
 from formation_swarm.runtime import cliargs
 from formation_swarm.runtime import role as role_mod
+from formation_swarm.runtime.memory import FloodRelief
 from formation_swarm.runtime.proc import SEND_DRAIN_S, exit_after_main, wait_for, wait_sent
 from formation_swarm.spec import scenario as scenario_mod
 
 # Lockstep holds at most a tick's observation and a few codes here; when full,
-# Zenoh waits for the loop (back-pressure) rather than dropping.
-INBOX_CAPACITY = 1024
+# Zenoh waits for the loop (back-pressure) rather than dropping. It bounds what
+# a flood can make the agent hold: 256 messages of at most 40 KiB (the size filter).
+INBOX_CAPACITY = 256
 # After "done", a follower's longest wait for the logger to leave (its own
 # wait for the followers' last telemetry, logger.END_WAIT_S, ends first).
 LOGGER_WAIT_S = 12.0
@@ -95,6 +95,7 @@ class Agent:
         self.peers = Peers(role.say, opts.world_grace_s, self._close_inbox)
         self.stats_file = StatsFile(opts.stats_path, len(sc.robots), (e for lk in brain.links for e in lk.fault_ends))
         self.status_rejections = Rejections()  # counted on the status callback's thread
+        self.relief = FloodRelief()
         self.inbox: zenoh.Subscriber | None = None
         self._inbox_lock = threading.RLock()  # a stop signal may arrive while a callback closes it
         self.started = False  # a message of the run has arrived
@@ -273,6 +274,7 @@ class Agent:
             noted = bool(brain.notes) and self._say_notes()
             self.busy_s += time.perf_counter() - t0
             self.stats_file.after(None if answer is None else answer.command.tick, self.stats, now=noted)
+            self.relief.check(brain.rejections.total)  # a flood's memory, given back once it ends
 
     def _say_notes(self) -> bool:
         """Print what the role noted (a controller's failure and its traceback,
@@ -296,6 +298,7 @@ class Agent:
             "loop_cpu_s": self.loop_cpu_s,
             "world_back_after_s": self.peers.world_back_after_s,  # per loss of the world's token mid-run (None: never)
             "rejected": dict(self.brain.rejections.by_reason + self.status_rejections.by_reason),
+            "memory_given_back": self.relief.given_back,
         }
         both = {**self.brain.stats(), **own}
         return {key: both[key] for key in STATS_KEYS}

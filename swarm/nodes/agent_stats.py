@@ -22,7 +22,7 @@ STATS_PERIOD_S = 1.0
 STATS_S_PER_ROBOT = 0.04
 # The file's keys, in order (formation_swarm.runtime.summary reads them): the
 # process's (robot, role, lockstep, busy_s, cpu_s, loop_cpu_s,
-# world_back_after_s, rejected) and its role's (agents.role_base.RoleBase.stats).
+# world_back_after_s, rejected, memory_given_back) and its role's (agents.role_base.RoleBase.stats).
 KEYS = (
     "robot",
     "role",
@@ -43,6 +43,7 @@ KEYS = (
     "world_back_after_s",
     "links",
     "rejected",
+    "memory_given_back",
 )
 
 

@@ -28,6 +28,7 @@ from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.runtime import role as role_mod
 from formation_swarm.runtime import summary as summary_mod
+from formation_swarm.runtime.memory import FloodRelief
 from formation_swarm.world.process_faults import Call
 from formation_swarm.world.setup import WorldSetup
 from formation_swarm.world.tick import WorldTick
@@ -114,6 +115,7 @@ class World:
         self.ended_at_s: float | None = None  # sim time when the run ended; None if it never started
         self.loop_wall_s = 0.0
         self.loop_cpu_s = 0.0  # CPU time of this process over the loop (all its threads)
+        self.relief = FloodRelief()
 
     def _wall_s(self) -> float:
         """Wall seconds since the loop started (before: since the world started)."""
@@ -272,6 +274,7 @@ class World:
             tick.close()
             clock.before_step(self._send_truth)
             tick.step()
+            self.relief.check(tick.gate.rejections.total)  # a flood's memory, given back once it ends
         return 0
 
     def _process_faults(self, out: Outbox) -> None:
@@ -347,6 +350,7 @@ class World:
                 **tick.faults.stats(),  # deaths, fault_log, rejoins, recoveries
                 "robot_digests": tick.robot_digests(),
                 "logger_lost": self.peers.logger_lost,
+                "memory_given_back": self.relief.given_back,
                 "stalls": tick.stalls.events,
                 "held_for_lost_s": tick.stalls.held_s,
                 "leader_done": tick.leader_done,

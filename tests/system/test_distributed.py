@@ -402,7 +402,13 @@ def test_every_process_exits_within_2s_of_sigterm(swarm_launch: Callable[..., La
         assert child.proc.returncode in (0, 128 + signal.SIGTERM), (name, child.proc.returncode)
 
 
-def test_a_frozen_agent_is_stalled_after_three_misses_and_the_run_goes_on(swarm_launch: Callable[..., Launch]) -> None:
+def test_lockstep_deadline_counts_a_frozen_agent_then_stalls_it_and_goes_on(
+    swarm_launch: Callable[..., Launch],
+) -> None:
+    """Agent 3 frozen (SIGSTOP: its token stays, it answers nothing): each tick
+    waits out the deadline for it, STALL_AFTER_MISSES times in a row; then it is
+    stalled and the run goes on at the others' pace. Resumed, it answers again
+    and is waited for again."""
     deadline_s = 0.05
     launch = swarm_launch(
         FIG11,
@@ -417,13 +423,11 @@ def test_a_frozen_agent_is_stalled_after_three_misses_and_the_run_goes_on(swarm_
     pid = launch.pids()["agent-3"]
     os.kill(pid, signal.SIGSTOP)  # alive (its token stays) but answers nothing
     try:
-        # Status comes every 0.25 s of wall time: the second one from now was sent
-        # after the freeze (at most 5 ticks after it, each tick now lasting 50 ms).
+        # Status comes every 0.25 s of wall time: the second one from now was sent after the freeze.
         for _ in range(2):
             seen = launch.sim_time()
             assert launch.wait_until(lambda seen=seen: launch.sim_time() > seen, timeout_s=60)
         frozen_at = launch.sim_time()
-        # Three ticks wait out the deadline; then robot 3 is stalled and the clock runs on without it.
         assert launch.wait_until(lambda: launch.sim_time() >= frozen_at + 1.0, timeout_s=60)
     finally:
         os.kill(pid, signal.SIGCONT)
@@ -431,15 +435,11 @@ def test_a_frozen_agent_is_stalled_after_three_misses_and_the_run_goes_on(swarm_
     s = res.summary
     assert res.exit_code == 0
     assert s["ticks"] == 2400  # the whole 120 s ran
-    # Misses are agent 3's only: the others answered every tick. More than three when a thawed
-    # agent on a loaded machine misses a 50 ms deadline again (measured: 3 and 8).
     assert s["lockstep_misses"] >= STALL_AFTER_MISSES
-    stalled, back = s["stalls"][0], s["stalls"][1]
-    assert (stalled["robot"], stalled["event"], stalled["misses"]) == (3, "stalled", STALL_AFTER_MISSES)
-    assert (back["robot"], back["event"]) == (3, "answering again")
-    assert back["tick"] - stalled["tick"] >= 20  # frozen for at least the second of sim time waited for
-    # Resumed, it skipped the observations queued meanwhile and answered only the newest one.
-    assert s["parts"]["agent-3"]["superseded"] >= 20 - 1
+    # (On a loaded machine a thawed agent, or another, can miss a 50 ms deadline again.)
+    robot_3 = [e for e in s["stalls"] if e["robot"] == 3]
+    assert [e["event"] for e in robot_3[:2]] == ["stalled", "answering again"]
+    assert robot_3[0]["misses"] == STALL_AFTER_MISSES
     assert s["processes"]["agent-3"]["exit_code"] == 0
 
 

@@ -18,7 +18,10 @@ import pytest
 
 from formation_swarm.launch.console import print_result
 from formation_swarm.launch.launcher import Launch, RunResult
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.runtime.memory import FLOOD_CHECK_S
 from formation_swarm.world.stalls import LOST_WAIT_S, STALL_AFTER_MISSES
+from tests.system.test_attacks import put_all, rogue
 
 pytestmark = pytest.mark.slow
 
@@ -190,3 +193,44 @@ def test_a_full_disk_fails_the_run_naming_the_path_and_leaves_nothing_half_writt
     assert sorted(p.name for p in out.rglob("*.tmp")) == []
     printed = _printed(res)
     assert "before its first tick" not in printed, printed
+
+
+def _rss_mb(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    raise AssertionError(f"no VmRSS for {pid}")
+
+
+def test_memory_a_flood_takes_is_bounded_and_given_back(swarm_launch: Callable[..., Launch]) -> None:
+    """Robot 2's login floods its command and telemetry keys with 20,000 payloads
+    of 30 kB each (rejected by the world and by agent 2). Before, the world held
+    about 60 MB more and agent 2 40 MB more for the rest of the run (Zenoh's
+    shared memory of the sender, mapped by each receiver, and the allocator's
+    free pages). Now both are within a few MB of where they were once the
+    flood has been over for a check period or two."""
+    launch = swarm_launch(
+        FIG11, logger=False, overrides={"run.duration_s": 600.0, "leader.waypoints": [[0.0, 0.0], [0.0, 2000.0]]}
+    )
+    assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
+    pids = {name: launch.pids()[name] for name in ("world", "agent-2")}
+    before = {name: _rss_mb(pid) for name, pid in pids.items()}
+    k = Keys(launch.run_id)
+    payload = b"\0" * 30_000
+    with rogue(launch, "agent-2") as sess:
+        put_all(sess, [(k.cmd(2), payload), (k.telemetry(2), payload)], rounds=20_000)
+    peak = {name: _rss_mb(pid) for name, pid in pids.items()}
+    bound = {"world": 20.0, "agent-2": 8.0}  # MB above the start, once given back (measured: 12-15, 0-1)
+    settled = launch.wait_until(
+        lambda: all(_rss_mb(pid) - before[name] < bound[name] for name, pid in pids.items()),
+        timeout_s=4 * FLOOD_CHECK_S + 10.0,
+    )
+    after = {name: _rss_mb(pid) for name, pid in pids.items()}
+    print("flood of 40,000 x 30 kB: RSS MB before", before, "peak", peak, "after", after)
+    assert settled, (before, peak, after)
+    launch.interrupt()
+    res = launch.wait(timeout_s=60)
+    parts = res.summary["parts"]
+    assert parts["world"]["rejected"] == {"not msgpack": 20_000}
+    assert parts["agent-2"]["rejected"] == {"unexpected key": 40_000}
+    assert parts["agent-2"]["memory_given_back"] >= 1  # (the world's comes within FLOOD_CHECK_S of its own)

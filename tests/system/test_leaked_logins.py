@@ -26,6 +26,7 @@ from tests.system.test_attacks import FIG11, HUGE_SEQ, assert_unharmed, attacks,
 
 pytestmark = pytest.mark.slow
 
+FORGED = 1000  # forged "done" commands, one per tick
 SHORT = {"run.duration_s": 12.0}  # 240 ticks; the leader is 18 m along its 80 m path at the end
 
 
@@ -54,22 +55,26 @@ def _witnessed(sess: Any, key: str) -> None:
 
 
 def test_a_leaked_leader_login_cannot_end_the_run(swarm_launch: Callable[..., Launch], clean: dict[str, Any]) -> None:
-    """The leader's login says "done" at tick ~40 of 1,061, five times. Before, the
-    world took the leader's word: the run ended at once, exit 0, "the leader reached
-    its last waypoint". Now the world sees the leader 3 m along an 80 m path: each
-    forgery is rejected whole, and the leader's own answers count."""
+    """The leader's login says "done" for each of the next 1,000 ticks from about
+    tick 40 of 1,061 (one of them lands on the tick the world is at). Before, the
+    world took the leader's word: the run ended there, exit 0, "the leader
+    reached its last waypoint". Now the world sees the leader 3 m along an 80 m
+    path: each forgery is rejected whole, and the leader's own answers count."""
     launch = swarm_launch(FIG11, logger=False)
     assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
-    tick = int(round(launch.sim_time() / 0.05))
+    first = int(round(launch.sim_time() / 0.05))
     k = Keys(launch.run_id)
-    forged = Command(sender=1, seq=HUGE_SEQ, tick=tick, left_mps=0.0, right_mps=0.0, formation=0, done=True)
+    forged = [
+        Command(sender=1, seq=HUGE_SEQ, tick=tick, left_mps=0.0, right_mps=0.0, formation=0, done=True).to_bytes()
+        for tick in range(first, first + FORGED)
+    ]
     with rogue(launch, "agent-1") as sess:
-        put_all(sess, [(k.cmd(1), forged.to_bytes())], rounds=5)
+        put_all(sess, [(k.cmd(1), payload) for payload in forged], rounds=1)
         res = launch.wait(timeout_s=240)
     assert_unharmed(res)
     s = res.summary
     assert (s["ticks"], s["end_reason"], s["ended_at_s"]) == (1061, "leader_finished", clean["ended_at_s"])
-    assert s["rejected"]["world"] == {"done before the last waypoint": 5}
+    assert s["rejected"]["world"] == {"done before the last waypoint": FORGED}
     assert s["trajectory_digest"] == clean["trajectory_digest"]
     assert s["robot_digests"] == clean["robot_digests"]
 

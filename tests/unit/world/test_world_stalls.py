@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from formation_swarm.protocol.messages import Command
 from formation_swarm.spec import scenario as scenario_mod
-from formation_swarm.world.stalls import LOST_WAIT_S, STALL_AFTER_MISSES
+from formation_swarm.world.stalls import LOST_WAIT_S, STALL_AFTER_MISSES, STALLED_OBS_PERIOD_S
 from formation_swarm.world.tick import WorldTick
 from tests.helpers import SCENARIOS
 
@@ -143,3 +143,20 @@ def test_a_robot_whose_token_goes_while_it_answers_is_not_awaited() -> None:
     _tick(world, (1, 2, 3), seq=1)
     assert world.agent_token(2, False) == "robot 2 lost its agent at t=0.05 s; stopped until it returns"
     assert world.awaited() == []
+
+
+def test_a_stalled_robot_is_observed_only_now_and_then() -> None:
+    wall = Wall()
+    world = _world(wall)
+    for n in range(1, STALL_AFTER_MISSES + 1):
+        _tick(world, (1, 3), seq=n)
+    seen = []
+    for n in range(10):
+        wall.s = n * STALLED_OBS_PERIOD_S / 5
+        world.start(0.0)
+        seen.append(2 in dict(world.observations()))
+        for rid in (1, 3):
+            _answer(world, rid, seq=100 + n)
+        world.close()
+        world.step()
+    assert seen == [True, False, False, False, False, True, False, False, False, False]
