@@ -16,7 +16,9 @@ The launcher executes the scenario's process faults on the world's calls
 (launch.faults): a fresh agent has its own log ``logs/agent-N.2.log`` and
 stats ``stats/agent-N.2.json``; each execution is an event of the summary
 with the call's tick and sim time and the wall time. With ``hosts`` the
-agents run on other machines (launch.hosts).
+agents run on other machines (launch.hosts); with ``external`` some robots
+are left to agents someone else starts, and ``observer_login`` writes a
+read-only login for the run (launch.external).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import zenoh
 
+from formation_swarm.launch import external as external_mod
 from formation_swarm.launch import remote
 from formation_swarm.launch.console import print_result
 from formation_swarm.launch.faults import FaultExecutor
@@ -47,6 +50,7 @@ from formation_swarm.protocol.session import make_config
 from formation_swarm.runtime import proc
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.runtime.children import Child, free_port
+from formation_swarm.runtime.role import DEFAULT_PEERS_TIMEOUT_S
 
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
@@ -85,7 +89,11 @@ class Launch:
         self.faults = FaultExecutor(self.sc, self.procs, self.journal, self._restart)
         host_options = HostOptions(**{k: v for k, v in options.items() if k in _HOST_KEYS})
         self.hosts = Hosts(host_options, self.plan, self.journal, self.procs)
+        if self.plan.external and self.hosts.names:
+            raise ValueError("external robots and hosts: not together; an outside agent connects to this machine")
         self.port = 0
+        self._logins: dict[str, Path] | None = None  # the run's, once written (prepare)
+        self.external: dict[int, external_mod.ExternalAgent] = {}  # robot -> what its outside agent needs (prepare)
         self.session: zenoh.Session | None = None
         self.token: zenoh.LivelinessToken | None = None  # held: a dropped token is undeclared
         self._interrupt = threading.Event()  # interrupt(): another thread's Ctrl-C (a sweep's runs)
@@ -156,19 +164,41 @@ class Launch:
                 self._summary(1 if host_failed else 130, Ending(interrupted=not host_failed))
             raise
 
+    def prepare(self) -> dict[int, external_mod.ExternalAgent]:
+        """The run's folder, port and logins, made once, before any process starts
+        (start() does it if not done): what each outside agent needs, by robot,
+        known before the router exists. Writes the observer's login if asked."""
+        if self._logins is None:
+            plan = self.plan
+            scenario = plan.make_folder()
+            self.port = free_port()
+            self._logins = plan.write_logins(
+                world_is_router=not self.hosts.names, host_logins=self.hosts.logins, tls=self.hosts.tls
+            )
+            self.external = external_mod.slots(
+                plan.external, endpoint=self.endpoint, run_id=self.run_id, scenario=scenario, logins=self._logins
+            )
+            if (target := self.observer_login) is not None and self._logins:
+                external_mod.write_observer_login(self._logins[trust.OBSERVER], target)
+        return self.external
+
+    @property
+    def observer_login(self) -> Path | None:
+        """Where the run's read-only login is written (``observer_login``), if asked."""
+        target = self.plan.options.observer_login
+        return None if target is None else Path(target)
+
     def _start(self) -> None:
         plan, remote_agents = self.plan, bool(self.hosts.names)
-        plan.make_folder()
-        self.port = free_port()
-        secrets = plan.write_logins(
-            world_is_router=not remote_agents, host_logins=self.hosts.logins, tls=self.hosts.tls
-        )
+        self.prepare()
+        secrets = self._logins or {}
         if remote_agents:
             self.session = self.hosts.open_router(self.endpoint, secrets)
         lines = plan.command_lines(self.endpoint, secrets, remote_agents=remote_agents, live=self._live())
         self.journal.started_at = time.monotonic()
         for name, argv in lines.items():
             self.procs.start(Child(name, argv, plan.log_path(name), fork=plan.options.fork))
+        self._hand_over()
         if self.session is None:
             settings = trust.read_settings(secrets["launcher"]) if secrets else None
             self.session = zenoh.open(make_config("client", [self.endpoint], connect_timeout_s=30.0, settings=settings))
@@ -179,6 +209,18 @@ class Launch:
         self.token = self.session.liveliness().declare_token(keys.alive("launcher", 0))
         if remote_agents:
             self.hosts.start(self.session, secrets)
+
+    def _hand_over(self) -> None:
+        """Say on the console how to join: each outside agent's command line, the observer's login."""
+        wait = self.plan.options.peers_timeout_s or DEFAULT_PEERS_TIMEOUT_S
+        for agent in self.external.values():
+            for line in external_mod.announce(agent, wait):
+                self.journal.say(line)
+        if self.observer_login is not None:
+            self.journal.say(
+                f"[swarm] observer: --connect {self.endpoint} --auth {self.observer_login}: it hears the whole "
+                f"run (swarm/{self.run_id}/**) and can send nothing"
+            )
 
     def _live(self) -> str | None:
         """The viewer the logger also streams to: ``live`` if one answers there."""
@@ -249,6 +291,8 @@ class Launch:
         world = self.children["world"]
         code = ending.exit_code(world.proc.returncode if world.proc is not None else None)
         world_stats = summary_mod.read_parts(self.run_dir / "stats").get("world", {})
+        if self.plan.external and (line := external_mod.gave_up(world_stats, self.journal.events, self.plan)):
+            self.journal.say(line)
         if code == 0 and (lost := summary_mod.robots_lost(world_stats, self.sc)):
             self.journal.say(f"[swarm] the run failed: {lost}")
             code = 1  # it ran to its end, but not as a formation: not a success
@@ -335,5 +379,7 @@ class Launch:
             recording="recording.rrd" if self.plan.options.logger else None,
         )
         self.hosts.add_to_summary(summary)
+        if self.plan.external:
+            external_mod.mark_summary(summary, self.plan.external)
         summary_mod.write(self.run_dir, summary)
         return summary
