@@ -9,6 +9,8 @@ that deny everything not granted (``default_permission: deny``):
               formation codes, on one key for all followers); subscribes to
               robot N's inbox and the run status; a follower receives the codes
     logger    subscribes to the world's streams and the telemetry; publishes nothing
+    observer  (on request) subscribes to the whole run and watches every token;
+              publishes nothing, holds no token: a dashboard, a user's own monitor
     launcher  subscribes to the run status and the world's fault calls (it executes
               process faults: kill, start, freeze, thaw) and holds its token; in a
               run placed on machines, queries those hosts and watches their tokens
@@ -97,9 +99,15 @@ def host_user(name: str) -> str:
     return f"host-{check_host_name(name)}"
 
 
-def grants(run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[str] = ()) -> dict[str, Grants]:
+OBSERVER = "observer"  # the read-only login: swarm secure --observer, swarm run --observer-login
+
+
+def grants(
+    run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[str] = (), *, observer: bool = False
+) -> dict[str, Grants]:
     """Every identity of a run and what it may do (``hosts``: the machines'
-    ``swarm host`` the run's agents are placed on)."""
+    ``swarm host`` the run's agents are placed on; ``observer``: with the
+    read-only login)."""
     k = Keys(run_id)
     out = {
         "world": Grants(
@@ -120,6 +128,8 @@ def grants(run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[s
             ask=tuple(HostKeys(h).ctl for h in hosts),
         ),
     }
+    if observer:  # everything of the run, nothing back: no publisher, no token, no query but liveliness
+        out[OBSERVER] = Grants(subscribe=(k.everything,), watch=(k.alive_any,))
     for h in hosts:
         out[host_user(h)] = Grants(
             tokens=(HostKeys(h).alive,), watch=(k.alive("launcher", 0),), serve=(HostKeys(h).ctl,)
@@ -140,7 +150,9 @@ def _rule(rule_id: str, flow: str, messages: list[str], keys: Iterable[str]) -> 
     return {"id": rule_id, "permission": "allow", "flows": [flow], "messages": messages, "key_exprs": list(keys)}
 
 
-def access_control(run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[str] = ()) -> dict[str, Any]:
+def access_control(
+    run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[str] = (), *, observer: bool = False
+) -> dict[str, Any]:
     """The router's ``access_control`` section for one run: deny by default,
     each identity granted exactly its role's keys."""
     k = Keys(run_id)
@@ -150,7 +162,7 @@ def access_control(run_id: str, robots: Sequence[int], leader_id: int, hosts: Se
     ]
     subjects: list[dict[str, Any]] = []
     policies: list[dict[str, Any]] = []
-    for user, g in grants(run_id, robots, leader_id, hosts).items():
+    for user, g in grants(run_id, robots, leader_id, hosts, observer=observer).items():
         own: list[dict[str, Any]] = []
         if g.publish:
             own.append(_rule(f"{user}-put", "ingress", ["put"], g.publish))
@@ -226,6 +238,7 @@ def write_run_secrets(
     world_is_router: bool = True,
     tls: Tls | None = None,
     host_logins: dict[str, Credential] | None = None,
+    observer: bool = False,
 ) -> dict[str, Path]:
     """Fresh credentials for every role of a run, in ``folder`` (0700, files 0600):
     ``<user>.json`` for each client, ``router.json`` for the router, which
@@ -235,11 +248,12 @@ def write_run_secrets(
     name each other relative to the folder, so it can be copied as a whole.
     ``host_logins`` (host name -> its lasting login, :func:`read_host_logins`)
     are let in too, with their rules; they get no file here (each host has its own).
+    ``observer``: an ``observer`` login too (:data:`OBSERVER`).
     Returns the settings file of each user and of "router"."""
     folder.mkdir(mode=0o700, parents=True, exist_ok=True)
     os.chmod(folder, 0o700)
     hosts = sorted(host_logins or {})
-    users = [u for u in grants(run_id, robots, leader_id) if not (world_is_router and u == "world")]
+    users = [u for u in grants(run_id, robots, leader_id, observer=observer) if not (world_is_router and u == "world")]
     creds = new_credentials(users)
     logins = [*creds.values(), *(host_logins or {}).values()]
     _write_private(folder / PASSWORDS, "".join(f"{c.user}:{c.password}\n" for c in logins))
@@ -251,9 +265,8 @@ def write_run_secrets(
         out[user] = folder / f"{user}.json"
         _write_private(out[user], json.dumps(client_settings(cred, CA if tls else None), indent=1))
     out["router"] = folder / "router.json"
-    router = router_settings(
-        PASSWORDS, access_control(run_id, robots, leader_id, hosts), (CERTIFICATE, PRIVATE_KEY) if tls else None
-    )
+    acl = access_control(run_id, robots, leader_id, hosts, observer=observer)
+    router = router_settings(PASSWORDS, acl, (CERTIFICATE, PRIVATE_KEY) if tls else None)
     _write_private(out["router"], json.dumps(router, indent=1))
     return out
 

@@ -19,15 +19,23 @@ Fixtures:
     badly (exit code 1: a robot lost, a process that never started) is
     returned for the test to check.
 
+    ``external=[3]`` leaves robot 3 to an agent the test starts: give
+    ``join``, called with the started ``Launch`` before the wait, to start it
+    (``launch.external[3].flags()``: ``--id --scenario --run --connect
+    --auth``); a ``subprocess.Popen`` (or a list of them) it returns is
+    stopped and reaped after the run.
+
 ``swarm_launch``
     ``swarm_launch(scenario, **kwargs) -> Launch``: the same, started but not
     waited for, for tests that act on a run while it runs (``launch.endpoint``,
-    ``launch.run_id``, ``launch.wait_until(...)``, ``launch.wait()``).
+    ``launch.run_id``, ``launch.wait_until(...)``, ``launch.wait()``; with
+    ``external=[3]``, ``launch.external[3]`` says what robot 3's agent needs).
 """
 
 from __future__ import annotations
 
 import math
+import subprocess
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -89,11 +97,19 @@ def swarm_launch(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[Cal
 def swarm_run(swarm_launch: Callable[..., Launch]) -> Callable[..., RunResult]:
     """Run a scenario to its end as real processes; returns a ``RunResult``."""
 
-    def run(scenario: str | Path, *, timeout_s: float = 300.0, **kwargs: Any) -> RunResult:
+    def run(
+        scenario: str | Path, *, timeout_s: float = 300.0, join: Callable[[Launch], Any] | None = None, **kwargs: Any
+    ) -> RunResult:
         if isinstance(timeout_s, bool) or not isinstance(timeout_s, (int, float)) or not 0 < timeout_s < math.inf:
             raise ValueError(f"swarm_run: timeout_s must be a number of seconds > 0, got {timeout_s!r}")
+        if kwargs.get("external") and join is None:
+            raise ValueError("swarm_run: external robots need join=, which starts their agents (else the run waits)")
         launch = swarm_launch(scenario, **kwargs)
-        res = launch.wait(timeout_s=timeout_s)
+        joined = _as_processes(join(launch)) if join is not None else []
+        try:
+            res = launch.wait(timeout_s=timeout_s)
+        finally:
+            _reap(joined)
         if res.exit_code == INTERRUPTED:
             raise KeyboardInterrupt  # every process is stopped by now
         if res.exit_code == TIMED_OUT:
@@ -107,3 +123,24 @@ def swarm_run(swarm_launch: Callable[..., Launch]) -> Callable[..., RunResult]:
         return res
 
     return run
+
+
+def _as_processes(value: Any) -> list[subprocess.Popen[Any]]:
+    """What ``join`` returned that the fixture reaps: a Popen, or a list of them."""
+    items = value if isinstance(value, (list, tuple)) else [value]
+    return [p for p in items if isinstance(p, subprocess.Popen)]
+
+
+def _reap(procs: list[subprocess.Popen[Any]], grace_s: float = 15.0) -> None:
+    """Each outside agent leaves on the world's "done"; one still there after
+    ``grace_s`` is terminated, then killed; all are reaped."""
+    for p in procs:
+        try:
+            p.wait(timeout=grace_s)
+        except subprocess.TimeoutExpired:
+            p.terminate()
+            try:
+                p.wait(timeout=5.0)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()

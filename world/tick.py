@@ -75,6 +75,8 @@ class WorldTick:
         self.tick_wall_s = 0.0  # real time: the wall time the current tick started at
         self.misses = 0
         self.late_answers = 0
+        # Per robot, answers refused because it had answered their tick already: a second agent's.
+        self.duplicate_agents: collections.Counter[int] = collections.Counter()
         self.leader_done = False
         self.finished = False  # "done" sent: agents leaving now are not deaths
         self.truth_due: TruthState | None = None  # ground truth not yet sent (take_truth)
@@ -113,11 +115,17 @@ class WorldTick:
         self.counts["cmd_received"] += 1
         if msg.done and not self.gate.done(msg, eng.robots[self.setup.leader.robot_id].pose):
             return
+        answered_tick = self.gate.last[msg.sender][0]
         if not self.gate.admit(msg, eng.tick):
             return
         self._heard(msg.sender)
         if self.lockstep and msg.tick != eng.tick:
             self.late_answers += 1
+            return
+        if msg.tick == answered_tick:
+            # One robot, one agent. An agent answers a tick once; Zenoh merges the
+            # tokens of one key, so a second agent of the robot shows here only.
+            self.duplicate_agents[msg.sender] += 1
             return
         # It answers the tick, whatever its link does with it: lost or held, the
         # robot's command is not renewed now.

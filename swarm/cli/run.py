@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from formation_swarm.cli import interrupts
+from formation_swarm.cli.outside import add_outside_flags, outside_options
 from formation_swarm.runtime.cliargs import (
     USAGE_ERROR,
     Parser,
@@ -39,6 +40,8 @@ examples:
   swarm run fig11_obstacles --fault "kill agent-3@20s"
   swarm run fig11_obstacles --fault "restart agent-2@20s after=1s" --fault "drop obs:3@10s for=5s p=0.5"
   (every fault kind: docs/faults.md)
+  swarm run fig11_obstacles --external 3        (then start robot 3's agent as the run says)
+  swarm run fig11_obstacles --observer-login observer.json
 """
 
 
@@ -85,6 +88,7 @@ def _launch(args: argparse.Namespace) -> Launch:
         hosts_timeout_s=args.hosts_timeout,
         tls=tls(args),
         rt_priority=args.rt_priority,
+        **outside_options(args),
     )
     if args.out is not None and not args.out.strip():
         raise ValueError("--out '': an empty name")
@@ -165,6 +169,7 @@ def add_run(sub: argparse._SubParsersAction[Parser]) -> None:
     _add_scenario_flags(run)
     _add_fault_flags(run)
     _add_viewer_flags(run)
+    add_outside_flags(run)
     _add_host_flags(run.add_argument_group("agents on other machines (deploy/README.md)"))
     run.set_defaults(func=_cmd_run, parser=run)
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import shutil
 import statistics
 import sys
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
@@ -21,11 +21,13 @@ from formation_swarm.launch.words import (
     describe_stall,
 )
 from formation_swarm.launch.words import num as _num
+from formation_swarm.nodes import viewer
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.spec import scenario as scenario_mod
 
 if TYPE_CHECKING:
     from formation_swarm.launch.launcher import RunResult
+    from formation_swarm.protocol.messages import Status
 
 # The run's words (launch.words), taken from here too by the report and tests.
 __all__ = [
@@ -295,3 +297,21 @@ def _faults_and_events(w: Any, s: Mapping[str, Any]) -> None:
             continue  # carried out for a fault: its line above says it
         if not (ev.get("event") == "exited" and ev.get("process") in killed):  # the kill said it
             w(f"  event: {describe_event(ev)}\n")
+
+
+def progress_line(st: Status) -> str:
+    """A status's tick, share of the run and sim time."""
+    pct = 100.0 * st.tick / max(1, st.total_ticks)
+    return f"[swarm] tick {st.tick}/{st.total_ticks} ({pct:.0f}%), sim {st.time_s:.1f} s"
+
+
+def reachable_live(live: str | None, say: Callable[[str], None]) -> str | None:
+    """The viewer the logger also streams to: ``live`` if one answers there.
+    Said here, once, when none does: the logger's own line would end in its log."""
+    if live and (why := viewer.unreachable(live)) is not None:
+        say(
+            f"[swarm] --live {live}: no Rerun viewer answers there ({why}); not streaming "
+            "there, the run is recorded to recording.rrd only"
+        )
+        return None
+    return live

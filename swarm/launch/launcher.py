@@ -6,17 +6,16 @@ them all at the end, on Ctrl-C or when the world fails, and always reaps
 them (a child also dies with the launcher: PR_SET_PDEATHSIG). The run folder
 holds the scenario as run, recording.rrd, summary.json and logs/.
 
-An agent or the logger that dies is reported in the summary and the run goes
-on (the world stops a robot whose agent is gone); a world that dies ends the run,
-and so does any process that dies before tick 0 (the world waits for them all).
-A process that exits with an error is named on the console with its exit code
-and the last lines of its log (logs/<name>.log), and in the summary's events.
+An agent or the logger that dies is reported and the run goes on; a world
+that dies ends the run, and so does any process that dies before tick 0. A
+process that exits with an error is named on the console with its exit code
+and the last lines of its log, and in the summary's events.
 
 The launcher executes the scenario's process faults on the world's calls
-(launch.faults): a fresh agent has its own log ``logs/agent-N.2.log`` and
-stats ``stats/agent-N.2.json``; each execution is an event of the summary
-with the call's tick and sim time and the wall time. With ``hosts`` the
-agents run on other machines (launch.hosts).
+(launch.faults; a fresh agent logs to ``logs/agent-N.2.log``). With
+``hosts`` the agents run on other machines (launch.hosts); with ``external``
+some robots are left to agents someone else starts, and ``observer_login``
+writes a read-only login for the run (launch.external).
 """
 
 from __future__ import annotations
@@ -31,22 +30,24 @@ from typing import TYPE_CHECKING, Any
 
 import zenoh
 
+from formation_swarm.launch import external as external_mod
 from formation_swarm.launch import remote
-from formation_swarm.launch.console import print_result
+from formation_swarm.launch.console import print_result, progress_line, reachable_live
 from formation_swarm.launch.faults import FaultExecutor
 from formation_swarm.launch.hosts import HostOptions, Hosts
+from formation_swarm.launch.logins import RunLogins
 from formation_swarm.launch.plan import SECRETS, KillAt, Plan, RunOptions
 from formation_swarm.launch.processes import Processes, wait_for_fork_server
-from formation_swarm.launch.record import Journal, StatusFeed
+from formation_swarm.launch.record import Journal, StatusFeed, folder_gone, folder_identity
 from formation_swarm.launch.result import Ending, RunResult, end_reason, place_exits, processes_part
 from formation_swarm.launch.signals import stop_signals_noted
 from formation_swarm.nodes import viewer
 from formation_swarm.protocol import trust
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.protocol.messages import Status
 from formation_swarm.protocol.session import make_config
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.runtime.children import Child, free_port
+from formation_swarm.runtime.role import DEFAULT_PEERS_TIMEOUT_S
 
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
@@ -85,12 +86,15 @@ class Launch:
         self.faults = FaultExecutor(self.sc, self.procs, self.journal, self._restart)
         host_options = HostOptions(**{k: v for k, v in options.items() if k in _HOST_KEYS})
         self.hosts = Hosts(host_options, self.plan, self.journal, self.procs)
+        if self.plan.external and self.hosts.names:
+            raise ValueError("external robots and hosts: not together; an outside agent connects to this machine")
         self.port = 0
+        self.logins: RunLogins | None = None  # the run's, once written (prepare)
+        self.external: dict[int, external_mod.ExternalAgent] = {}  # robot -> what its outside agent needs (prepare)
         self.session: zenoh.Session | None = None
         self.token: zenoh.LivelinessToken | None = None  # held: a dropped token is undeclared
         self._interrupt = threading.Event()  # interrupt(): another thread's Ctrl-C (a sweep's runs)
         self.said_web = False  # the web viewer's address is on the console
-        self.logins: dict[str, dict[str, Any]] = {}  # user -> settings, every login of the run
         self.folder_id: tuple[int, int] | None = None  # the run folder's (device, inode)
 
     # -- what the run is ------------------------------------------------------------
@@ -134,7 +138,7 @@ class Launch:
         """The Zenoh settings of ``user``'s login in this run (world, logger,
         launcher, agent-N; None without auth), from the launcher's memory: the
         files are gone once their process has read them."""
-        found = self.logins.get(user)
+        found = None if self.logins is None else self.logins.settings.get(user)
         return None if found is None else dict(found)
 
     def sim_time(self) -> float:
@@ -165,31 +169,50 @@ class Launch:
                 self._summary(1 if host_failed else 130, Ending(interrupted=not host_failed))
             raise
 
+    def prepare(self) -> dict[int, external_mod.ExternalAgent]:
+        """The run's folder, port and logins, made once, before any process starts
+        (start() does it if not done): what each outside agent needs, by robot,
+        known before the router exists. Writes the observer's login if asked."""
+        if self.logins is None:
+            plan = self.plan
+            scenario = plan.make_folder()
+            self.folder_id = folder_identity(self.run_dir)
+            self.port = free_port()
+            written = plan.write_logins(
+                world_is_router=not self.hosts.names, host_logins=self.hosts.logins, tls=self.hosts.tls
+            )
+            self.logins = RunLogins.kept(written)
+            self.external = external_mod.slots(
+                plan.external, endpoint=self.endpoint, run_id=self.run_id, scenario=scenario, logins=written
+            )
+            if (target := plan.options.observer_login) is not None and written:
+                external_mod.write_observer_login(written[trust.OBSERVER], Path(target))
+        return self.external
+
     def _start(self) -> None:
         plan, remote_agents = self.plan, bool(self.hosts.names)
         if plan.options.fork:
             wait_for_fork_server()
-        plan.make_folder()
-        st = self.run_dir.stat()
-        self.folder_id = (st.st_dev, st.st_ino)  # a folder deleted and made again is not the run's
-        self.port = free_port()
-        secrets = plan.write_logins(
-            world_is_router=not remote_agents, host_logins=self.hosts.logins, tls=self.hosts.tls
-        )
-        # Every login in memory: a process deletes its own file once read (--auth-once),
-        # and a restarted agent (or a host's) gets its login from here.
-        self.logins = {user: trust.read_settings(path) for user, path in secrets.items()}
+        self.prepare()
+        logins = self.logins or RunLogins()
+        secrets = logins.files
         if remote_agents:
             self.session = self.hosts.open_router(self.endpoint, secrets)
-        lines = plan.command_lines(self.endpoint, secrets, remote_agents=remote_agents, live=self._live())
-        for path in secrets.values():  # the logins no process here reads (the hosts' agents', ours)
-            if not any(str(path) in argv for argv in lines.values()):
-                path.unlink(missing_ok=True)
+        lines = plan.command_lines(
+            self.endpoint,
+            secrets,
+            remote_agents=remote_agents,
+            live=reachable_live(self.plan.options.live, self.journal.say),
+        )
+        logins.forget_unread(lines.values(), keep=[a.login for a in self.external.values()])
         self.journal.started_at = time.monotonic()
         for name, argv in lines.items():
             self.procs.start(Child(name, argv, plan.log_path(name), fork=plan.options.fork))
+        wait = self.plan.options.peers_timeout_s or DEFAULT_PEERS_TIMEOUT_S
+        ends = {"endpoint": self.endpoint, "observer_login": self.plan.options.observer_login, "run_id": self.run_id}
+        external_mod.hand_over(self.journal.say, self.external, wait, **ends)
         if self.session is None:
-            settings = self.logins.get("launcher")
+            settings = logins.settings.get("launcher")
             self.session = zenoh.open(make_config("client", [self.endpoint], connect_timeout_s=30.0, settings=settings))
         keys = Keys(self.run_id)
         self.session.declare_subscriber(keys.status, lambda s: self.status.put(s.payload.to_bytes()))
@@ -197,19 +220,7 @@ class Launch:
         # After the subscriber: with process faults the world waits for this token before tick 0.
         self.token = self.session.liveliness().declare_token(keys.alive("launcher", 0))
         if remote_agents:
-            self.hosts.start(self.session, self.logins)
-
-    def _live(self) -> str | None:
-        """The viewer the logger also streams to: ``live`` if one answers there."""
-        live = self.plan.options.live
-        if live and (why := viewer.unreachable(live)) is not None:
-            # Said here, once: the logger's own line would end in its log.
-            self.journal.say(
-                f"[swarm] --live {live}: no Rerun viewer answers there ({why}); not streaming "
-                "there, the run is recorded to recording.rrd only"
-            )
-            return None
-        return live
+            self.hosts.start(self.session, logins.settings)
 
     def _restart(self, process: str) -> str:
         """A fresh process for ``process`` (an agent), as the first was started
@@ -220,8 +231,8 @@ class Launch:
         if isinstance(old, remote.RemoteChild):
             return self.hosts.restart(old, name)
         argv = self.plan.restart_argv(self.children[process].argv, name)
-        if "--auth" in argv:  # the first one deleted its login once read: a fresh file, deleted the same way
-            trust.write_settings(Path(argv[argv.index("--auth") + 1]), self.logins[process])
+        if self.logins is not None:
+            self.logins.rewrite(process, argv)
         return self.procs.start(Child(name, argv, self.plan.log_path(name), fork=self.plan.options.fork))
 
     @property
@@ -274,7 +285,9 @@ class Launch:
         self._watch()
         last = self.status.last
         if last is not None and last.tick != shown and not ending.interrupted:
-            self._show_progress()  # where it ended: a run shorter than a line's 2 s showed only its start
+            self.journal.say(
+                progress_line(last)
+            )  # where it ended: a run shorter than a line's 2 s showed only its start
         self.stop(graceful_first=not ending.abrupt)
         if self.interrupted and not ending.interrupted:  # while the processes left
             self.journal.say("[swarm] interrupted: every process stopped")
@@ -287,6 +300,8 @@ class Launch:
         place_exits(self.journal.events, world_stats)
         events = self.journal.events
         lost = summary_mod.run_failed(parts, self.sc) or summary_mod.logger_lost(world_stats, events)
+        if self.plan.external and (line := external_mod.gave_up(world_stats, events, self.plan)):
+            self.journal.say(line)
         if code == 0 and lost:
             self.journal.say(f"[swarm] the run failed: {lost}")
             code = 1  # it ran to its end, but not as a formation, or not recorded whole: not a success
@@ -318,9 +333,11 @@ class Launch:
                 if shown is None and self.status.first is not None:
                     # The run's start first, even when its end is already queued behind it
                     # (a short lockstep run may be over before this loop's first look).
-                    shown, last_line = self._show_progress(self.status.first), now
+                    self.journal.say(progress_line(self.status.first))
+                    shown, last_line = self.status.first.tick, now
                 elif now - last_line >= PROGRESS_PERIOD_S and self.status.last is not None:
-                    shown, last_line = self._show_progress(), now
+                    self.journal.say(progress_line(self.status.last))
+                    shown, last_line = self.status.last.tick, now
                 if deadline is not None and now > deadline:
                     self.journal.say(f"[swarm] timeout after {timeout_s:g} s: stopping the run")
                     return Ending(timed_out=True, limit_s=timeout_s), shown
@@ -330,14 +347,6 @@ class Launch:
             self.journal.say("[swarm] interrupted: stopping every process")
             return Ending(interrupted=True), shown
         return Ending(), shown
-
-    def _show_progress(self, st: Status | None = None) -> int:
-        """Print a status's tick (the last one's by default), share of the run and sim time; its tick."""
-        st = st or self.status.last
-        assert st is not None
-        pct = 100.0 * st.tick / max(1, st.total_ticks)
-        self.journal.say(f"[swarm] tick {st.tick}/{st.total_ticks} ({pct:.0f}%), sim {st.time_s:.1f} s")
-        return st.tick
 
     def stop(self, graceful_first: bool = True) -> None:
         """End of run: give everyone END_GRACE_S to leave on the world's "done",
@@ -378,7 +387,9 @@ class Launch:
         )
         self.hosts.add_to_summary(summary)
         summary["ticks_seen"] = None if self.status.last is None else self.status.last.tick
-        if (gone := self._folder_gone()) is not None:
+        if self.plan.external:
+            external_mod.mark_summary(summary, self.plan.external)
+        if (gone := folder_gone(self.run_dir, self.folder_id)) is not None:
             summary["unkept"] = gone
             return summary
         try:
@@ -386,14 +397,3 @@ class Launch:
         except OSError as exc:
             summary["unkept"] = f"cannot write {exc.filename or self.run_dir / 'summary.json'}: {exc.strerror or exc}"
         return summary
-
-    def _folder_gone(self) -> str | None:
-        """Why the run folder holds none of the run (deleted while it ran, even if
-        a process made it again since), or None."""
-        try:
-            st = self.run_dir.stat()
-        except OSError:
-            st = None
-        if st is None or (self.folder_id is not None and (st.st_dev, st.st_ino) != self.folder_id):
-            return f"its folder {self.run_dir} was deleted during the run: its recording, logs and stats are lost"
-        return None

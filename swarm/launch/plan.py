@@ -15,6 +15,7 @@ from typing import Any
 
 from formation_swarm.common.faults import Fault
 from formation_swarm.common.version import __version__
+from formation_swarm.launch import external as external_mod
 from formation_swarm.nodes import viewer
 from formation_swarm.protocol import trust
 from formation_swarm.protocol.hostmsg import HostRequest
@@ -78,6 +79,9 @@ class RunOptions:
     auth: bool = True  # every process logs in with its own fresh credentials; the world enforces the rules
     fork: bool = True  # our roles forked from the spawner, else exec'd (formation_swarm.runtime.spawner)
     rt_priority: int | None = None  # the real-time world's (None: swarm world's default)
+    external: Sequence[int] | int = ()  # robots whose agent someone else starts (launch.external)
+    observer_login: str | Path | None = None  # write a read-only login for the run here (launch.external)
+    peers_timeout_s: float | None = None  # every role's wait for the others at the start (None: their default)
 
 
 def _as_fault(value: Fault | KillAt | str | Mapping[str, Any], kill: bool) -> Fault:
@@ -99,6 +103,12 @@ def _check_options(opts: RunOptions) -> None:
     rt = opts.rt_priority
     if rt is not None and not (opts.mode == "realtime" and 0 <= rt <= 99):
         raise ValueError(f"rt_priority: 0-99 and only in real time, got {rt!r} in {opts.mode}")
+    if opts.observer_login is not None and (not opts.auth or Path(opts.observer_login).is_dir()):
+        why = "a folder; give a file name" if opts.auth else "a run without logins (auth=False) has none to give"
+        raise ValueError(f"observer_login {opts.observer_login}: {why}")
+    wait = opts.peers_timeout_s
+    if wait is not None and (isinstance(wait, bool) or not isinstance(wait, (int, float)) or not 0 < wait <= 1e6):
+        raise ValueError(f"peers_timeout_s: a number of seconds in (0, 1e6], got {wait!r}")
 
 
 def _load(path: Path, opts: RunOptions) -> scenario_mod.Scenario:
@@ -131,6 +141,7 @@ class Plan:
     sc: scenario_mod.Scenario
     run_id: str
     run_dir: Path
+    external: tuple[int, ...] = ()  # robots whose agent the launcher does not start
 
     @classmethod
     def make(cls, scenario_path: str | Path, options: RunOptions) -> Plan:
@@ -145,11 +156,16 @@ class Plan:
             for flag, p in zip(("--grpc-port", "--web-port"), options.web_ports, strict=True):
                 if (why := viewer.port_taken(p)) is not None:
                     raise ValueError(f"{flag} {p}: cannot serve the web viewer there ({why}); choose another port")
-        return cls(options, path, sc, run_id, run_dir)
+        return cls(options, path, sc, run_id, run_dir, external_mod.check(sc, options.external))
+
+    @property
+    def own_robots(self) -> list[int]:
+        """The robots whose agent the launcher starts (all but the external ones)."""
+        return [r for r in self.sc.robots if r not in self.external]
 
     def names(self) -> list[str]:
-        """The scenario's processes: the world, the logger, one agent per robot."""
-        return ["world", *(["logger"] if self.options.logger else []), *(f"agent-{r}" for r in self.sc.robots)]
+        """The run's own processes: the world, the logger, one agent per robot not external."""
+        return ["world", *(["logger"] if self.options.logger else []), *(f"agent-{r}" for r in self.own_robots)]
 
     def check_process_faults(self) -> None:
         """ValueError for a process fault whose process the run does not have."""
@@ -189,6 +205,7 @@ class Plan:
             world_is_router=world_is_router,
             host_logins=host_logins,
             tls=tls,
+            observer=self.options.observer_login is not None,
         )
 
     def command_lines(
@@ -201,7 +218,7 @@ class Plan:
         lines = {"world": self._world(endpoint, secrets, remote_agents)}
         if self.options.logger:
             lines["logger"] = self._logger(endpoint, secrets, live)
-        for rid in [] if remote_agents else self.sc.robots:
+        for rid in [] if remote_agents else self.own_robots:
             lines[f"agent-{rid}"] = self._agent(rid, endpoint, secrets)
         return lines
 
@@ -235,7 +252,14 @@ class Plan:
         return [self.options.python, "-m", f"formation_swarm.{module}"]
 
     def _common(self) -> list[str]:
-        return ["--scenario", str(self.run_dir / "scenario.toml"), "--run", self.run_id]
+        wait = self.options.peers_timeout_s
+        return [
+            "--scenario",
+            str(self.run_dir / "scenario.toml"),
+            "--run",
+            self.run_id,
+            *(["--peers-timeout", f"{wait:g}"] if wait is not None else []),
+        ]
 
     def _stats(self, name: str) -> str:
         return str(self.run_dir / "stats" / f"{name}.json")

@@ -7,6 +7,7 @@ import queue
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from formation_swarm.protocol.codec import Rejections
@@ -62,3 +63,21 @@ class StatusFeed:
     @property
     def done(self) -> bool:
         return self.last is not None and self.last.state == "done"
+
+
+def folder_identity(folder: Path) -> tuple[int, int]:
+    """The folder's (device, inode): a folder deleted and made again is not the run's."""
+    st = folder.stat()
+    return (st.st_dev, st.st_ino)
+
+
+def folder_gone(folder: Path, identity: tuple[int, int] | None) -> str | None:
+    """Why the run folder holds none of the run (deleted while it ran, even if
+    a process made it again since), or None."""
+    try:
+        now: tuple[int, int] | None = folder_identity(folder)
+    except OSError:
+        now = None
+    if now is None or (identity is not None and now != identity):
+        return f"its folder {folder} was deleted during the run: its recording, logs and stats are lost"
+    return None

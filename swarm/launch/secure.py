@@ -1,9 +1,9 @@
 """``swarm secure``: credentials and access rules for a run spread over machines.
 
 Writes, for one scenario and run id, a folder with one login per role (the
-world, the logger, the launcher, each robot's agent), the router's password
-list and access rules, and optionally the TLS files; every file 0600, the
-folder 0700. Copy to each machine the files its processes need.
+world, the logger, the launcher, each robot's agent, and with --observer a
+read-only one), the router's password list and access rules, and optionally
+the TLS files; every file 0600, the folder 0700. Copy to each machine the files its processes need.
 """
 
 from __future__ import annotations
@@ -11,21 +11,26 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from formation_swarm.protocol import trust
 from formation_swarm.protocol.keys import check_host_name, check_run_id
 from formation_swarm.runtime import cliargs
 
+if TYPE_CHECKING:
+    from formation_swarm.spec.scenario import Scenario
+
 DESCRIPTION = """\
 Make the credentials and access rules of one run spread over machines: a
 folder with a login per role (world.json, logger.json, launcher.json,
-agent-N.json), the router's password list and access rules (router.json),
-and with --tls-* the CA, certificate and key for TLS links. Every file is
-readable by its owner only.
+agent-N.json, and with --observer observer.json), the router's password list
+and access rules (router.json), and with --tls-* the CA, certificate and key
+for TLS links. Every file is readable by its owner only.
 
 The router enforces the rules: without a login nothing connects, and each
 login may only publish and subscribe what its role does (only agent N drives
-robot N, only the leader sends formation codes, only the world ends the run).
+robot N, only the leader sends formation codes, only the world ends the run;
+the observer hears the whole run and can send nothing).
 Start each process with --auth FILE, its own file; copy to each machine only
 the files its processes need. The passwords are fresh each time: make a new
 folder for each run."""
@@ -60,6 +65,12 @@ def build_parser() -> cliargs.Parser:
         "its --auth) and hosts.txt, swarm run --hosts's --host-logins",
     )
     ap.add_argument("--out", required=True, metavar="DIR", help="the folder to write (created; must be empty)")
+    ap.add_argument(
+        "--observer",
+        action="store_true",
+        help="also a read-only login, observer.json: it may subscribe to the whole run's keys and watch its "
+        "liveliness tokens, and publish nothing (an operator's dashboard, your own monitor)",
+    )
     ap.add_argument("--tls-ca", metavar="FILE", help="TLS: the CA certificate clients check the router against (PEM)")
     ap.add_argument("--tls-cert", metavar="FILE", help="TLS: the router's certificate, naming its host (PEM)")
     ap.add_argument("--tls-key", metavar="FILE", help="TLS: the router's private key (PEM)")
@@ -94,12 +105,19 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(str(exc))
     tls = trust.Tls(Path(args.tls_ca), Path(args.tls_cert), Path(args.tls_key)) if all(tls_files) else None
     try:
-        files = trust.write_run_secrets(out, args.run, sc.robots, sc.leader.robot_id, world_is_router=False, tls=tls)
+        files = trust.write_run_secrets(
+            out, args.run, sc.robots, sc.leader.robot_id, world_is_router=False, tls=tls, observer=args.observer
+        )
     except OSError as exc:
         print(f"swarm secure: cannot write {out}: {exc}", file=sys.stderr)
         return cliargs.USAGE_ERROR
-    scheme = "tls" if tls else "tcp"
-    print(f"swarm secure: run {args.run} ({sc.name}, robots {', '.join(map(str, sc.robots))}): wrote {out}/")
+    _say_commands(args, sc, files, "tls" if tls else "tcp")
+    return 0
+
+
+def _say_commands(args: argparse.Namespace, sc: Scenario, files: dict[str, Path], scheme: str) -> None:
+    """What was written, and each process's command line with its login."""
+    print(f"swarm secure: run {args.run} ({sc.name}, robots {', '.join(map(str, sc.robots))}): wrote {args.out}/")
     print(f"  router:   swarm router --listen {scheme}/0.0.0.0:7447 --auth {files['router']}")
     common = f"--scenario {args.scenario} --run {args.run}"
     print(
@@ -113,9 +131,11 @@ def main(argv: list[str] | None = None) -> int:
             f"  agent {rid}:  swarm agent --id {rid} {common} --connect {scheme}/ROUTER:7447 "
             f"--auth {files[trust.agent_user(rid)]}"
         )
-    if not tls:
+    if args.observer:
+        observer = files[trust.OBSERVER]
+        print(f"  observer: --connect {scheme}/ROUTER:7447 --auth {observer} (hears the whole run, sends nothing)")
+    if scheme != "tls":
         print("  links are plain TCP: the run's data crosses the network unencrypted; see deploy/README.md for TLS")
-    return 0
 
 
 def _hosts(ap: cliargs.Parser, args: argparse.Namespace) -> int:
@@ -127,8 +147,8 @@ def _hosts(ap: cliargs.Parser, args: argparse.Namespace) -> int:
         ap.error(f"argument --hosts: {exc}")
     if not names or len(set(names)) != len(names):
         ap.error(f"argument --hosts: distinct host names separated by commas, got {args.hosts!r}")
-    if args.scenario or args.run or args.tls_cert or args.tls_key:
-        ap.error("argument --hosts: takes no SCENARIO, --run, --tls-cert or --tls-key (only --tls-ca)")
+    if args.scenario or args.run or args.tls_cert or args.tls_key or args.observer:
+        ap.error("argument --hosts: takes no SCENARIO, --run, --observer, --tls-cert or --tls-key (only --tls-ca)")
     out = Path(args.out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         ap.error(f"argument --out: {out} already holds files; secrets are never overwritten: give a new folder")

@@ -341,6 +341,7 @@ class World:
                 "ticks_per_s": tick.engine.tick / self.loop_wall_s if self.loop_wall_s > 0 else math.nan,
                 "lockstep_misses": tick.misses,
                 "late_answers": tick.late_answers,
+                "duplicate_agents": {str(rid): n for rid, n in sorted(tick.duplicate_agents.items())},
                 "late_ticks": clock.late_ticks,
                 "wake_ups": 0 if self.inbox is None else self.inbox.wakes,
                 "max_tick_lateness_s": clock.max_tick_lateness_s,

@@ -1,15 +1,17 @@
 """A follower agent written from docs/protocol.md alone.
 
     python tests/helpers/foreign_follower.py --id 2 --scenario S.toml --run RUN --connect tcp/HOST:PORT
-                                     [--seed N] [--stats FILE]
+                                     [--auth LOGIN.json] [--seed N] [--stats FILE]
 
 It imports nothing of formation_swarm: raw ``zenoh`` and ``msgpack``, the
 standard library, and the scenario file read with ``tomllib``. It stands for
 an agent in another language, so it follows the document, not our code:
-the keys, the envelope and the checks it needs, the start-up order, the
-lockstep answer, the formation-code rule, the link-fault draws and the end
-of the run. Its Zenoh session keeps Zenoh's default transport (ours use the
-low-latency one), as a foreign agent would.
+the client's configuration (the endpoint, the connect timeout and retry,
+scouting off, the login file), the keys, the envelope and the checks it
+needs, the start-up order (and the check for another agent of its robot),
+the lockstep answer, the formation-code rule, the link-fault draws and the
+end of the run (draining its sends). Its Zenoh session keeps Zenoh's default
+transport (ours use the low-latency one), as a foreign agent would.
 
 Its control law is a plain pursuit, not the paper's fuzzy controller: the
 virtual target from the reading (docs/protocol.md, "Formation codes") goes
@@ -45,7 +47,12 @@ MAX_PAYLOAD_BYTES = 32 * 1024
 MAX_ROBOT_ID = 10_000
 MAX_TICK = 2**53
 WORLD_ID = 0
-STARTUP_TIMEOUT_S = 60.0
+STARTUP_TIMEOUT_S = 60.0  # for the router (connect), then for the world
+RETRY = {"period_init_ms": 50, "period_max_ms": 500, "period_increase_factor": 2}  # while the router is not up
+DRAIN_S = 5.0  # at the end, the longest wait for the router to have read our last messages
+EXIT_DUPLICATE = 4
+# A login's settings that name a file: relative to the login file's folder (docs/protocol.md).
+FILE_SETTINGS = ("root_ca_certificate",)
 
 
 # -- the control law ---------------------------------------------------------------
@@ -310,20 +317,44 @@ class Agent:
 
 
 # -- the process -------------------------------------------------------------------
-def run(agent: Agent, run_id: str, endpoint: str) -> int:
+def client_config(endpoint: str, login: str | None) -> zenoh.Config:
+    """A client of the run's router (docs/protocol.md, "The client's configuration")."""
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"client"')
+    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    conf.insert_json5("connect/timeout_ms", json.dumps(int(STARTUP_TIMEOUT_S * 1000)))  # the router may come later
+    conf.insert_json5("connect/retry", json.dumps(RETRY))
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    if login is not None:  # a JSON object: Zenoh configuration path -> value
+        settings = json.loads(Path(login).read_text())
+        for path, value in settings.items():
+            if path.rsplit("/", 1)[-1] in FILE_SETTINGS and not Path(value).is_absolute():
+                value = str(Path(login).absolute().parent / value)
+            conf.insert_json5(path, json.dumps(value))
+    return conf
+
+
+def already_flown(session: zenoh.Session, key: str) -> bool:
+    """Whether another session holds our robot's token (asked of the router)."""
+    return any(reply.ok is not None for reply in session.liveliness().get(key, timeout=1.0))
+
+
+def drain(session: zenoh.Session, key: str) -> None:
+    """Until the router has read what we sent: it answers a query after the
+    messages sent before it on our link (docs/protocol.md, "Leaving")."""
+    for _ in session.liveliness().get(key, timeout=DRAIN_S):
+        pass
+
+
+def run(agent: Agent, run_id: str, endpoint: str, login: str | None, ask_first: bool = True) -> int:
     """Start-up, the inbox loop and the end of the run (docs/protocol.md); the exit code."""
     events: queue.SimpleQueue[tuple[Any, ...]] = queue.SimpleQueue()  # every callback hands its sample here
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: events.put(("stop",)))
     prefix, rid, stats = f"swarm/{run_id}", agent.rid, agent.stats
-    conf = zenoh.Config()
-    conf.insert_json5("mode", '"client"')
-    conf.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    conf.insert_json5("connect/timeout_ms", "30000")  # the router may come up after us
-    conf.insert_json5("scouting/multicast/enabled", "false")
-    with zenoh.open(conf) as session:
+    with zenoh.open(client_config(endpoint, login)) as session:
         # 1. Subscribers: the inbox (remote origin: not our own puts), the status, the world's token.
-        session.declare_subscriber(
+        inbox = session.declare_subscriber(
             f"{prefix}/robot/{rid}/*",
             lambda s: events.put(("inbox", str(s.key_expr), s.payload.to_bytes())),
             allowed_origin=zenoh.Locality.REMOTE,
@@ -332,49 +363,65 @@ def run(agent: Agent, run_id: str, endpoint: str) -> int:
         session.liveliness().declare_subscriber(
             f"{prefix}/alive/world/0", lambda s: events.put(("world", s.kind == zenoh.SampleKind.PUT)), history=True
         )
-        # 2. Publishers. 3. The token once the world hears our commands.
+        # 2. Publishers. 3. The token once the world hears our commands, if no one else flies the robot.
         block = zenoh.CongestionControl.BLOCK
         cmd_pub = session.declare_publisher(f"{prefix}/robot/{rid}/cmd", congestion_control=block)
-        tel_pub = session.declare_publisher(f"{prefix}/robot/{rid}/telemetry")
+        tel_pub = session.declare_publisher(f"{prefix}/robot/{rid}/telemetry", congestion_control=block)
         cmd_pub.declare_matching_listener(lambda st: events.put(("matched", st.matching)))
-        matched, token, world_seen = cmd_pub.matching_status.matching, None, False
+        token_key = f"{prefix}/alive/agent/{rid}"
+        matched, token = cmd_pub.matching_status.matching, None
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         code = 0
         while stats["exit"] is None:
             if matched and token is None:
-                token = session.liveliness().declare_token(f"{prefix}/alive/agent/{rid}")
+                if ask_first and already_flown(session, token_key):
+                    print(f"foreign follower {rid}: robot {rid} already has an agent", file=sys.stderr)
+                    stats["exit"] = "another agent flies the robot"
+                    return EXIT_DUPLICATE
+                token = session.liveliness().declare_token(token_key)
             try:
                 event = events.get(timeout=None if token else max(0.0, deadline - time.monotonic()))
             except queue.Empty:
                 print(f"foreign follower {rid}: the world never matched our commands", file=sys.stderr)
                 stats["exit"], code = "no world", 2
                 break
-            kind = event[0]
-            if kind == "matched":
-                matched = matched or event[1]
-            elif kind == "stop":
-                stats["exit"], code = "signal", 130
-            elif kind == "world":
-                world_seen = world_seen or event[1]
-                if world_seen and not event[1]:
-                    stats["exit"] = "world gone"
-            else:
-                try:
-                    if kind == "status":
-                        _, _, tick, _, state, _ = decode(event[1], TAG_STATUS, WORLD_ID)
-                        if state == "done":
-                            stats["exit"], stats["done_tick"] = "done", tick
-                    elif event[1].rsplit("/", 1)[-1] == "obs":
-                        cmd_pub.put(agent.on_observation(event[2]))
-                    elif event[1].rsplit("/", 1)[-1] == "formation":
-                        agent.on_formation(event[2])
-                    else:
-                        raise Rejected("unexpected key")
-                except Rejected as exc:
-                    agent.reject(exc.reason)
-        tel_pub.put(msgpack.packb([TAG_BATCH, VERSION, []]))  # the end of our (empty) telemetry stream
+            code = handle(agent, event, cmd_pub, code)
+            matched = matched or (event[0] == "matched" and event[1])
+        # The end: no more input, the end of our (empty) telemetry stream, our token, then drain.
+        inbox.undeclare()
+        tel_pub.put(msgpack.packb([TAG_BATCH, VERSION, []]))
         if token is not None:
             token.undeclare()
+        drain(session, f"{prefix}/alive/world/0")
+    return code
+
+
+def handle(agent: Agent, event: tuple[Any, ...], cmd_pub: zenoh.Publisher, code: int) -> int:
+    """One event of the loop; the exit code so far."""
+    kind, stats = event[0], agent.stats
+    if kind == "stop":
+        stats["exit"] = "signal"
+        return 130
+    if kind == "world":
+        stats["world_seen"] = stats.get("world_seen", False) or event[1]
+        if stats["world_seen"] and not event[1]:
+            stats["exit"] = "world gone"
+        return code
+    if kind not in ("status", "inbox"):
+        return code
+    try:
+        if kind == "status":
+            _, _, tick, _, state, _ = decode(event[1], TAG_STATUS, WORLD_ID)
+            if state == "done":
+                stats["exit"], stats["done_tick"] = "done", tick
+        elif event[1].rsplit("/", 1)[-1] == "obs":
+            cmd_pub.put(agent.on_observation(event[2]))
+        elif event[1].rsplit("/", 1)[-1] == "formation":
+            agent.on_formation(event[2])
+        else:
+            raise Rejected("unexpected key")
+    except Rejected as exc:
+        agent.reject(exc.reason)
     return code
 
 
@@ -384,8 +431,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--scenario", required=True, help="the scenario file (TOML)")
     ap.add_argument("--run", required=True)
     ap.add_argument("--connect", required=True, metavar="ENDPOINT")
+    ap.add_argument("--auth", metavar="LOGIN.json", help="the robot's login: Zenoh settings, path -> value (JSON)")
     ap.add_argument("--seed", type=int, help="overrides the scenario's run.seed (link faults)")
     ap.add_argument("--stats", help="write the agent's counters (JSON) here at exit")
+    ap.add_argument(
+        "--fly-beside",
+        action="store_true",
+        help="skip the query for another agent of the robot (for a test of the world's own rule only)",
+    )
     args = ap.parse_args(argv)
     sc = tomllib.loads(Path(args.scenario).read_text())
     try:
@@ -393,7 +446,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"foreign follower: {exc}", file=sys.stderr)
         return 2
-    code = run(agent, args.run, args.connect)
+    code = run(agent, args.run, args.connect, args.auth, ask_first=not args.fly_beside)
     agent.stats.update(obs_dropped=agent.obs_link.dropped, formation_dropped=agent.code_link.dropped, code=agent.code)
     if args.stats:
         Path(args.stats).write_text(json.dumps(agent.stats, indent=2))

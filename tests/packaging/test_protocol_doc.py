@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import json
 import math
 import re
 from dataclasses import dataclass, field
@@ -20,9 +21,10 @@ from typing import Any
 import msgpack
 import pytest
 
-from formation_swarm.protocol import codec, keys, messages
+from formation_swarm.protocol import codec, keys, messages, session, trust
 from formation_swarm.protocol.codec import DecodeError, Message
 from formation_swarm.protocol.keys import Keys
+from formation_swarm.runtime import role
 from formation_swarm.spec import keys as scenario_keys
 from tests.helpers import ROOT
 
@@ -342,3 +344,65 @@ def test_scenario_defaults() -> None:
             assert ours == default.strip('"'), key
         else:
             assert ours == number(default), key
+
+
+# -- the client's configuration and the logins' grants -------------------------------
+
+
+def test_the_clients_configuration_is_ours() -> None:
+    """Each setting of the table as our clients' configuration has it (the
+    endpoint and the login as the document's examples)."""
+    rows = {r[0]: json.loads(r[1]) for r in table(section("The client's configuration"))}
+    assert set(rows) == {
+        "mode",
+        "connect/endpoints",
+        "connect/timeout_ms",
+        "connect/retry",
+        "scouting/multicast/enabled",
+        "transport/auth/usrpwd",
+    }
+    login = rows["transport/auth/usrpwd"]
+    settings = trust.client_settings(trust.Credential(login["user"], "p" * 16))
+    conf = session.make_config(
+        "client",
+        rows["connect/endpoints"],
+        connect_timeout_s=role.DEFAULT_PEERS_TIMEOUT_S + role.CONNECT_MARGIN_S,
+        settings=settings,
+    )
+    for path, value in rows.items():
+        ours = json.loads(conf.get_json(path))
+        if path == "transport/auth/usrpwd":
+            assert set(ours) >= set(value), ours
+            assert ours["user"] == value["user"]
+        else:
+            assert ours == value, path
+
+
+def _grant_keys(cell: str, run: str, ids: tuple[int, ...]) -> set[str]:
+    """The keys a cell of the grants table names, placed: ``<id>`` each of
+    ``ids``, ``<name>`` the host "b", under the run's prefix but the hosts' keys."""
+    out = set()
+    for key in re.findall(r"`([^`]+)`", cell) or ([cell] if cell else []):  # a lone key lost its backticks
+        for rid in ids if "<id>" in key else (0,):
+            k = key.replace("<id>", str(rid)).replace("<name>", "b")
+            out.add(k if k.startswith("swarmhost/") else f"swarm/{run}/{k}")
+    return out
+
+
+def test_the_logins_grants_are_the_code_s() -> None:
+    robots, leader, follower = (1, ID), 1, ID
+    ours = trust.grants(RUN, robots, leader, hosts=("b",), observer=True)
+    fields = ("publish", "subscribe", "receive", "tokens", "watch", "serve", "ask")
+    seen = set()
+    for row in table(section("Logins and access rules")):
+        login = row[0].split(" (")[0].strip("`")  # `agent-<id>` (the leader); the table drops a lone pair
+        if login == "agent-<id>":
+            rid = leader if "leader" in row[0] else follower
+            ids: tuple[int, ...] = (rid,)
+            user = trust.agent_user(rid)
+        else:
+            ids, user = robots, login.replace("<name>", "b")
+        seen.add(user)
+        for name, cell in zip(fields, row[1:], strict=True):
+            assert _grant_keys(cell, RUN, ids) == set(getattr(ours[user], name)), (user, name)
+    assert seen == set(ours)

@@ -8,13 +8,16 @@ run must complete with every tick answered and a bounded formation error.
 Two of them fly Fig. 11's followers with drops on their links: they must
 change formation with our leader, one tick after it at the earliest. Its
 reading of the document is also checked against our code where the
-document gives a formula: link-fault draws and formation slots.
+document gives a formula: link-fault draws and formation slots; and its
+client's configuration against the document's table. (With a login, as the
+outside agent of a swarm run: tests/system/test_external.py.)
 """
 
 from __future__ import annotations
 
 import ast
 import json
+import re
 import subprocess
 import sys
 import time
@@ -25,10 +28,11 @@ from pathlib import Path
 import pytest
 
 from formation_swarm.launch.launcher import free_port
+from formation_swarm.protocol import trust
 from formation_swarm.protocol.links import uniform
 from formation_swarm.spec import files as scenario_files
 from formation_swarm.spec import scenario as scenario_mod
-from tests.helpers import SCENARIOS
+from tests.helpers import ROOT, SCENARIOS
 from tests.helpers import foreign_follower as foreign
 
 FOREIGN = Path(foreign.__file__)
@@ -42,6 +46,19 @@ def test_the_foreign_follower_imports_nothing_of_ours() -> None:
     imported |= {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
     roots = {name.split(".")[0] for name in imported}
     assert roots <= set(sys.stdlib_module_names) | {"msgpack", "zenoh"}, roots
+
+
+def test_its_client_configuration_is_the_documents(tmp_path: Path) -> None:
+    """docs/protocol.md, "The client's configuration": the settings an outside
+    process needs, its login read from the file format the document gives."""
+    doc = (ROOT / "docs" / "protocol.md").read_text().split("### The client's configuration", 1)[1]
+    rows = dict(re.findall(r"^\| `([^`]+)` \| `([^`]+)` \|", doc, re.MULTILINE))
+    files = trust.write_run_secrets(tmp_path / "secrets", "r1", (1, 2, 3), leader_id=1)
+    conf = foreign.client_config(json.loads(rows["connect/endpoints"])[0], str(files["agent-2"]))
+    for path in ("mode", "connect/endpoints", "connect/retry", "scouting/multicast/enabled"):
+        assert json.loads(conf.get_json(path)) == json.loads(rows[path]), path
+    assert json.loads(conf.get_json("connect/timeout_ms")) >= 60_000  # the router may come a minute later
+    assert json.loads(conf.get_json("transport/auth/usrpwd"))["user"] == "agent-2"
 
 
 def test_its_link_fault_draws_are_ours() -> None:

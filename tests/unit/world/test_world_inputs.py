@@ -49,24 +49,24 @@ def test_lockstep_world_takes_an_answer_only_for_the_tick_it_published() -> None
 
 
 def test_a_command_with_a_huge_seq_costs_the_real_agent_that_tick_only() -> None:
-    """Commands are ordered by (tick, seq) and the tick cannot pass the world's:
-    a plausible forgery with seq 2**53 - 10**6 (a stolen login's) is taken for its
-    tick, then the real agent's next answer is newer. Ordered by seq alone, every
-    real command after it looked replayed, for the rest of the run."""
+    """Commands are ordered by (tick, seq), the tick cannot pass the world's, and a
+    robot answers a tick once: a plausible forgery with seq 2**53 - 10**6 (a
+    stolen login's) that comes before the real answer to its tick is taken for
+    that tick (the real one then looks replayed), one that comes after it is a
+    second answer, refused; the real agent's next answer is newer either way.
+    Ordered by seq alone, every real command after it looked replayed, for the
+    rest of the run."""
     world = _world("realtime")
     eng = world.engine
     for _ in range(5):
         eng.step(eng.time_s)
     world.command(
-        Command(sender=2, seq=9, tick=5, left_mps=1.0, right_mps=1.0, formation=0, done=False)
-    )  # the real agent, tick 5
-    world.command(
         Command(sender=2, seq=2**53 - 10**6, tick=5, left_mps=2.0, right_mps=2.0, formation=0, done=False)
-    )  # the forgery, same tick
+    )  # the forgery, first
     assert eng.robots[2].command == (2.0, 2.0)
     world.command(
         Command(sender=2, seq=10, tick=5, left_mps=1.0, right_mps=1.0, formation=0, done=False)
-    )  # the real one's retry of tick 5: older
+    )  # the real agent's answer to tick 5: older
     assert world.rejected() == {"replayed or reordered": 1}
     eng.step(eng.time_s)
     world.command(
@@ -74,13 +74,22 @@ def test_a_command_with_a_huge_seq_costs_the_real_agent_that_tick_only() -> None
     )  # tick 6: taken
     assert eng.robots[2].command == (1.1, 1.1)
     world.command(
+        Command(sender=2, seq=2**53 - 10**6 + 1, tick=6, left_mps=2.0, right_mps=2.0, formation=0, done=False)
+    )  # the forgery, after the real answer to its tick: a second answer
+    assert world.duplicate_agents == {2: 1}
+    assert eng.robots[2].command == (1.1, 1.1)
+    world.command(
         Command(sender=2, seq=11, tick=6, left_mps=1.1, right_mps=1.1, formation=0, done=False)
-    )  # its replay: refused
+    )  # a replay: refused
     world.command(
         Command(sender=2, seq=2**53 - 10**6, tick=9, left_mps=2.0, right_mps=2.0, formation=0, done=False)
     )  # a tick to come: refused
     assert world.rejected() == {"replayed or reordered": 2, "tick ahead of the world": 1}
-    assert eng.robots[2].command == (1.1, 1.1)
+    eng.step(eng.time_s)
+    world.command(
+        Command(sender=2, seq=12, tick=7, left_mps=1.2, right_mps=1.2, formation=0, done=False)
+    )  # tick 7: taken
+    assert eng.robots[2].command == (1.2, 1.2)
 
 
 def test_the_world_rejects_and_counts_a_command_for_an_unknown_formation() -> None:
@@ -122,10 +131,9 @@ def test_only_the_leader_at_its_last_waypoint_ends_the_run() -> None:
     assert world.running
     assert world.rejected() == {"done from a follower": 1, "done before the last waypoint": 1}
     assert not world.engine.robots[1].answered  # its real answer still counts for the tick
-    world.command(Command(sender=1, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=0, done=False))
-    assert world.engine.robots[1].answered
     world.engine.robots[1].pose = Pose(0.3, 79.6, 0.0)  # 0.5 m from (0, 80): within its 1 m look-ahead
     world.command(Command(sender=1, seq=3, tick=0, left_mps=0.0, right_mps=0.0, formation=0, done=True))
+    assert world.engine.robots[1].answered
     assert world.leader_done
     assert not world.running
 
@@ -169,20 +177,22 @@ def test_a_payload_is_judged_by_the_key_it_came_on_and_by_the_codec() -> None:
 
 
 def test_wheel_speeds_beyond_the_motors_are_rejected_and_rounding_beyond_them_is_clamped() -> None:
-    world = _world()
+    world = _world("realtime")  # one answer per tick: each command here answers a tick of its own
     eng, lim = world.engine, FIG11.max_wheel_mps
+    for _ in range(10):
+        eng.step(eng.time_s)
     world.command(
-        Command(sender=2, seq=1, tick=0, left_mps=1e308, right_mps=1e308, formation=0, done=False)
+        Command(sender=2, seq=1, tick=1, left_mps=1e308, right_mps=1e308, formation=0, done=False)
     )  # schema-valid, physically absurd
-    world.command(Command(sender=2, seq=2, tick=0, left_mps=1.0, right_mps=-lim * 1.001, formation=0, done=False))
+    world.command(Command(sender=2, seq=2, tick=2, left_mps=1.0, right_mps=-lim * 1.001, formation=0, done=False))
     assert world.rejected() == {"wheel speed out of bounds": 2}
     assert eng.robots[2].command == (0.0, 0.0)
     for seq, cmd in enumerate(((lim, -lim), (-lim, lim), (0.0, -lim), (-lim, 0.0)), start=3):
-        world.command(Command(sender=2, seq=seq, tick=0, left_mps=cmd[0], right_mps=cmd[1], formation=0, done=False))
+        world.command(Command(sender=2, seq=seq, tick=seq, left_mps=cmd[0], right_mps=cmd[1], formation=0, done=False))
         assert eng.robots[2].command == cmd  # at the limit: as sent
     assert world.summary()["clamped_commands"] == 0
     world.command(
-        Command(sender=2, seq=7, tick=0, left_mps=lim * (1 + 5e-10), right_mps=0.0, formation=0, done=False)
+        Command(sender=2, seq=7, tick=7, left_mps=lim * (1 + 5e-10), right_mps=0.0, formation=0, done=False)
     )  # rounding: run at the limit
     world.command(Command(sender=3, seq=1, tick=0, left_mps=0.0, right_mps=-lim * (1 + 5e-10), formation=0, done=False))
     assert (eng.robots[2].command, eng.robots[3].command) == ((lim, 0.0), (0.0, -lim))

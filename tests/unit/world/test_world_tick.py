@@ -179,3 +179,22 @@ def test_status_counts_its_own_stream(state: str) -> None:
     first, second = world.status(state), world.status(state)
     assert (first.seq, second.seq, first.total_ticks) == (1, 2, FIG11.ticks)
     assert dict(world.observations())[2].seq == 1  # observations are numbered apart from status
+
+
+@pytest.mark.parametrize("lockstep", [True, False])
+def test_a_second_answer_to_a_tick_is_a_second_agents_refused_and_counted(lockstep: bool) -> None:
+    """One robot, one agent: the first valid answer to a tick is the robot's; a
+    newer one for the same tick (another agent flying it) changes nothing."""
+    world = _tick(lockstep=lockstep)
+    _publish(world)
+    first = Command(sender=2, seq=7, tick=0, left_mps=0.5, right_mps=0.5, formation=0, done=False)
+    world.command(first)
+    world.command(Command(sender=2, seq=1, tick=0, left_mps=2.0, right_mps=2.0, formation=0, done=False))
+    world.command(Command(sender=2, seq=9, tick=0, left_mps=2.0, right_mps=-2.0, formation=1, done=False))
+    assert world.engine.robots[2].command == (0.5, 0.5)
+    assert world.engine.robots[2].formation == 0
+    assert world.rejected() == {"replayed or reordered": 1}  # older than the first: refused by the gate
+    assert world.duplicate_agents == {2: 1}
+    assert world.late_answers == 0
+    world.command(Command(sender=3, seq=1, tick=0, left_mps=0.5, right_mps=0.5, formation=0, done=False))
+    assert world.duplicate_agents == {2: 1}  # one answer each: none

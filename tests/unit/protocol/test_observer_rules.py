@@ -1,0 +1,46 @@
+"""The read-only login, without a network: what its grants and router rules
+allow (tests/system/test_external.py checks a router enforces them)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from formation_swarm.protocol import trust
+from formation_swarm.protocol.trust import Grants
+
+ROBOTS = (1, 2, 3)
+R = "swarm/r1"
+
+
+def test_the_observer_may_hear_the_whole_run_and_nothing_else() -> None:
+    g = trust.grants("r1", ROBOTS, leader_id=1, observer=True)
+    assert g[trust.OBSERVER] == Grants(subscribe=(f"{R}/**",), watch=(f"{R}/alive/*/*",))
+    assert trust.OBSERVER not in trust.grants("r1", ROBOTS, leader_id=1)  # only on request
+
+
+def test_its_router_rules_allow_no_put_no_token_no_query_but_liveliness() -> None:
+    acl = trust.access_control("r1", ROBOTS, leader_id=1, observer=True)
+    policy = next(p for p in acl["policies"] if p["id"] == trust.OBSERVER)
+    rules = {r["id"]: r for r in acl["rules"]}
+    assert policy == {
+        "id": trust.OBSERVER,
+        "rules": ["learn-subscribers", "observer-sub", "observer-data", "observer-watch", "observer-seen"],
+        "subjects": [trust.OBSERVER],
+    }
+    assert [(rules[r]["flows"], rules[r]["messages"], rules[r]["key_exprs"]) for r in policy["rules"][1:]] == [
+        (["ingress"], ["declare_subscriber"], [f"{R}/**"]),
+        (["egress"], ["put"], [f"{R}/**"]),
+        (["ingress"], ["declare_liveliness_subscriber", "liveliness_query"], [f"{R}/alive/*/*"]),
+        (["egress"], ["liveliness_token", "reply"], [f"{R}/alive/*/*"]),
+    ]
+    # What it sends the router (ingress) is declarations and liveliness queries only: no data.
+    sent = {m for r in policy["rules"] if rules[r]["flows"] == ["ingress"] for m in rules[r]["messages"]}
+    assert sent == {"declare_subscriber", "declare_liveliness_subscriber", "liveliness_query"}
+    assert {"id": trust.OBSERVER, "usernames": [trust.OBSERVER]} in acl["subjects"]
+
+
+def test_a_runs_secrets_hold_its_login_on_request(tmp_path: Path) -> None:
+    files = trust.write_run_secrets(tmp_path / "s", "r1", ROBOTS, 1, observer=True)
+    assert trust.login_user(trust.read_settings(files[trust.OBSERVER])) == trust.OBSERVER
+    assert f"{trust.OBSERVER}:" in (tmp_path / "s" / trust.PASSWORDS).read_text()
+    assert trust.OBSERVER not in trust.write_run_secrets(tmp_path / "t", "r1", ROBOTS, 1)
