@@ -1,12 +1,39 @@
-"""A lockstep run replayed in one process: the world's engine, the leader's and
-the followers' brains and the link layer, called in the order the processes
-call them (swarm/nodes/world.py, swarm/nodes/agent.py), without the wire.
+"""A lockstep run replayed in one process: the world's tick (world.tick) and
+every robot's role (agents.leader_role, agents.follower_role, built by
+nodes.agent_setup as the agent process builds them), driven the way the
+world process (nodes.world_node, nodes.world_clock's LockstepClock) and the
+agent processes (nodes.agent, nodes.agent_wire) drive them, without Zenoh.
 
-In lockstep the processes add nothing to the figures: tick k is observed,
-every robot answers it, the world steps. So this replica gives the run's
-trajectory digest bit for bit (tests/system/test_distributed.py checks it against a
-real run), and the published figures can be recomputed in a second, for
-every change of the maths, by tests/unit/studies/test_published.py and by mutation testing.
+Each message crosses as bytes, as on the wire: an agent's side decodes what
+reaches its inbox with the process's own ``agent_wire.Router``, the world
+takes each command's payload with ``WorldTick.receive``. Tick k:
+
+- the fault calls of tick k, the robots whose agent is back (world side; a
+  killed agent's role is gone, a restarted robot gets a fresh role);
+- the tick's observations, followers first (``WorldTick.observations``):
+  each robot's role takes its own, answers it (the code to the followers,
+  then the command to the world) and prepares the next tick;
+- the world records the last tick's metrics, then takes the commands (a
+  robot with none misses the tick, as at the lockstep deadline), closes the
+  tick and steps;
+- the leader's formation code reaches each follower's inbox before tick
+  k + 1's observation (its put precedes the command the world waited for),
+  so a follower holds it from k + 1 on, as in lockstep.
+
+In lockstep the processes add nothing to the figures: this gives the run's
+trajectory digest bit for bit (tests/system/test_distributed.py checks it
+against real runs), and the published figures are recomputed in seconds by
+tests/unit/studies/test_published.py and by mutation testing.
+
+What it replays: steady link drops, link faults (drop, burst, delay,
+duplicate, reorder, partition: the roles' and the world's receiving ends),
+sensor and actuator faults (the world's engine), and the process faults on
+agents that the world places on its ticks: kill, restart (the fresh agent
+is there at once, as the lockstep world waits for it), freeze. Not what
+depends on the processes' timing: a process too slow for the lockstep
+deadline, an agent frozen beyond the Zenoh lease (the router drops its
+session), a frozen logger holding back the agents' telemetry. There is no
+logger here, and no telemetry or ground truth is sent.
 """
 
 from __future__ import annotations
@@ -15,77 +42,84 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from formation_swarm.agents.follower import Follower
-from formation_swarm.agents.leader import CodeRepeats, FormationSwitch
-from formation_swarm.agents.pilot import PathPilot
-from formation_swarm.protocol.links import Link, link_name
+from formation_swarm.nodes.agent_setup import role_for
+from formation_swarm.nodes.agent_wire import Router
+from formation_swarm.protocol.keys import Keys
 from formation_swarm.spec import scenario as scenario_mod
-from formation_swarm.world.engine import WorldEngine
-from formation_swarm.world.kinematics import Pose
+from formation_swarm.world.process_faults import KILL
+from formation_swarm.world.tick import WorldTick
 
-WORLD = 0
+RUN_ID = "replica"
 
 
 def replay(path: str | Path, seed: int, overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The world's summary of the lockstep run of a scenario with this seed."""
-    sc = scenario_mod.load(path, overrides)
-    eng = WorldEngine(sc, seed)
-    ld = sc.leader
-    lead = ld.robot_id
-    pilot = PathPilot(ld.waypoints, ld.speed_mps, sc.width_m, ld.lookahead_m, ld.turn_rate_rps, corners=ld.corners)
-    code = sc.code_of(ld.formation)
-    avoid = None if ld.avoid_formation is None else sc.code_of(ld.avoid_formation)
-    switch = FormationSwitch(code, avoid, ld.clear_after_s, sc.dt_s)
-    repeats = CodeRepeats(ld.code_burst_s, ld.code_period_s, sc.dt_s)
-    leader_cmd = (0.0, 0.0)
-    codes = dict.fromkeys(sc.robots, code)  # the code each robot flies
-    slots = sc.formation_by_code(code).slots
-    followers = {rid: Follower(sc.followers[rid], slots[rid].offset) for rid in sc.follower_ids}
-    reference = {rid: slots[rid].reference for rid in sc.follower_ids}
-    obs_links = {rid: Link(link_name("obs", WORLD, rid), sc.links.obs_drop, seed) for rid in sc.robots}
-    form_links = {
-        rid: Link(link_name("formation", lead, rid), sc.links.formation_drop, seed) for rid in sc.follower_ids
-    }
-    cmd_links = {rid: Link(link_name("cmd", rid, WORLD), sc.links.cmd_drop, seed) for rid in sc.robots}
-    seqs = dict.fromkeys(sc.robots, 0)  # each agent's one counter (commands, codes, telemetry)
-    pending: dict[int, list[tuple[int, int]]] = {rid: [] for rid in sc.follower_ids}  # (tick, code) received
-    while eng.tick < sc.ticks:
-        tick, now = eng.tick, eng.time_s
-        seen = {rid: eng.observation(rid) for rid in eng.alive_ids}  # published together, before any answer
-        answers = {}
-        for rid, (pose, readings, obstacles) in seen.items():
-            delivered = obs_links[rid].accept(tick + 1)  # the world numbers each robot's observations from 1
-            if rid == lead:
-                if delivered:
-                    codes[lead] = switch.step(obstacles)
-                    leader_cmd = pilot.step(Pose(*pose))
-                if repeats.due(codes[lead]):
-                    seqs[lead] += 1  # one put for every follower; each link draws on its own
-                    for f in sc.follower_ids:
-                        if form_links[f].accept(seqs[lead]):
-                            pending[f].append((tick, codes[lead]))
-                answers[rid] = (*leader_cmd, codes[lead])
-                continue
-            while pending[rid] and pending[rid][0][0] < tick:  # a code for tick k is flown from k + 1
-                _, new = pending[rid].pop(0)
-                if new != codes[rid]:
-                    slot = sc.formation_by_code(new).slots[rid]
-                    if slot.reference != reference[rid]:
-                        followers[rid].new_reference()
-                    codes[rid], reference[rid] = new, slot.reference
-                    followers[rid].set_offset(slot.offset)
-            reading = None
-            if delivered:
-                reading = next(((r, p, b) for i, r, p, b in readings if i == reference[rid]), None)
-            d = followers[rid].step(reading)
-            answers[rid] = (d.left_mps, d.right_mps, codes[rid])
-        for rid, (left, right, flown) in answers.items():
-            seqs[rid] += 1
-            if cmd_links[rid].accept(seqs[rid]):
-                eng.set_command(rid, left, right, flown, now)
-            if rid != lead:
-                seqs[rid] += 1  # a follower's telemetry follows its command
-        eng.step(now)
-        if pilot.finished:
-            break
-    return eng.summary()
+    replica = Replica(scenario_mod.load(path, overrides), seed)
+    replica.run()
+    return replica.world.summary()
+
+
+class Replica:
+    """One lockstep run: the world's tick and an agent (its role, behind its inbox) per robot."""
+
+    def __init__(self, sc: scenario_mod.Scenario, seed: int) -> None:
+        self.sc = sc
+        self.seed = seed
+        self.keys = Keys(RUN_ID)
+        self.world = WorldTick(sc, seed, lockstep=True, wall_s=self._sim_s)
+        self.agents: dict[int, Router] = {}  # the robots whose agent is there, by robot id
+        for rid in sc.robots:
+            self._start_agent(rid)
+
+    def _sim_s(self) -> float:
+        """What the fault log records as wall time: the sim time (nothing here waits)."""
+        return self.world.engine.time_s
+
+    def _start_agent(self, rid: int) -> None:
+        """A fresh agent for robot ``rid``: its role, and its token the world sees."""
+        self.agents[rid] = Router(self.keys, role_for(self.sc, rid, self.seed))
+        self.world.agent_token(rid, True)
+
+    def run(self) -> None:
+        world, keys = self.world, self.keys
+        while world.running:
+            world.start(self._sim_s())
+            self._process_faults()
+            commands: list[tuple[int, bytes]] = []
+            codes: list[bytes] = []
+            for rid, obs in world.observations():
+                agent = self.agents.get(rid)
+                if agent is None:  # no agent hears it (none is observed without one in lockstep)
+                    continue
+                agent.take(keys.obs(rid), obs.to_bytes())
+                answer = agent.role.answer()
+                if answer is None:
+                    continue
+                if answer.code is not None:
+                    codes.append(answer.code.to_bytes())
+                commands.append((rid, answer.command.to_bytes()))
+                agent.role.prepare()
+            world.record()
+            for rid, payload in commands:
+                world.receive(rid, payload)
+            if waiting := world.waiting():
+                world.miss(waiting)  # the lockstep deadline passes: stopped for this step
+            world.close()
+            world.step()
+            for payload in codes:  # the router's copy to every follower's inbox
+                for agent in self.agents.values():
+                    if agent.role.TAKES_CODES:
+                        agent.take(keys.codes, payload)
+
+    def _process_faults(self) -> None:
+        """This tick's fault calls, the world's side and the agents': a killed
+        agent leaves (its token goes), a restart's "start" brings a fresh one
+        (the world waits for it in lockstep), which is re-admitted now."""
+        world = self.world
+        for call in world.calls_due():
+            if (rid := world.apply_call(call)) is not None:
+                self._start_agent(rid)
+            elif call.action == KILL and call.robot in self.agents:
+                del self.agents[call.robot]
+                world.agent_token(call.robot, False)
+        world.readmit(self.agents.__contains__)
