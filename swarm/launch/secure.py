@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from formation_swarm.protocol import trust
+from formation_swarm.protocol import acl, trust
 from formation_swarm.protocol.keys import check_host_name, check_run_id
 from formation_swarm.runtime import cliargs
 
@@ -129,10 +129,10 @@ def _say_commands(args: argparse.Namespace, sc: Scenario, files: dict[str, Path]
     for rid in sc.robots:
         print(
             f"  agent {rid}:  swarm agent --id {rid} {common} --connect {scheme}/ROUTER:7447 "
-            f"--auth {files[trust.agent_user(rid)]}"
+            f"--auth {files[acl.agent_user(rid)]}"
         )
     if args.observer:
-        observer = files[trust.OBSERVER]
+        observer = files[acl.OBSERVER]
         print(f"  observer: --connect {scheme}/ROUTER:7447 --auth {observer} (hears the whole run, sends nothing)")
     if scheme != "tls":
         print("  links are plain TCP: the run's data crosses the network unencrypted; see deploy/README.md for TLS")
@@ -158,7 +158,7 @@ def _hosts(ap: cliargs.Parser, args: argparse.Namespace) -> int:
     scheme = "tls" if args.tls_ca else "tcp"
     print(f"swarm secure: logins for hosts {', '.join(names)}: wrote {out}/")
     for n in names:
-        print(f"  host {n}:  swarm host --name {n} --connect {scheme}/ROUTER:7447 --auth {files[trust.host_user(n)]}")
+        print(f"  host {n}:  swarm host --name {n} --connect {scheme}/ROUTER:7447 --auth {files[acl.host_user(n)]}")
     tls = " --tls-ca CA --tls-cert CERT --tls-key KEY" if args.tls_ca else ""
     print(
         f"  swarm run S --hosts {','.join(names)} --listen {scheme}/0.0.0.0:7447 --host-logins "
