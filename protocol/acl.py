@@ -113,10 +113,19 @@ def _rule(rule_id: str, flow: str, messages: list[str], keys: Iterable[str]) -> 
 
 
 def access_control(
-    run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[str] = (), *, observer: bool = False
+    run_id: str,
+    robots: Sequence[int],
+    leader_id: int,
+    hosts: Sequence[str] = (),
+    *,
+    observer: bool = False,
+    mtls: bool = False,
 ) -> dict[str, Any]:
     """The router's ``access_control`` section for one run: deny by default,
-    each identity granted exactly its role's keys."""
+    each identity granted exactly its role's keys. With ``mtls``, an identity
+    is its user name and its TLS certificate's common name, both: a stolen
+    password without the certificate's key, or a certificate of another
+    name, matches no one and is granted nothing."""
     k = Keys(run_id)
     rules: list[dict[str, Any]] = [
         # Publishers only send once they know of a subscriber: everyone may learn the run's subscriptions.
@@ -144,6 +153,6 @@ def access_control(
             own.append(_rule(f"{user}-ask", "ingress", ["query"], g.ask))
             own.append(_rule(f"{user}-answers", "egress", ["declare_queryable", "reply"], g.ask))
         rules += own
-        subjects.append({"id": user, "usernames": [user]})
+        subjects.append({"id": user, "usernames": [user], **({"cert_common_names": [user]} if mtls else {})})
         policies.append({"id": user, "rules": ["learn-subscribers", *(r["id"] for r in own)], "subjects": [user]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}

@@ -23,12 +23,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from formation_swarm.protocol import tls as tls_mod
 from formation_swarm.protocol.acl import access_control, grants, host_user
+from formation_swarm.protocol.tls import CA, CERTIFICATE, PRIVATE_KEY, Tls
 
 _USER = re.compile(r"^[a-z][a-z0-9-]{0,31}$")
 PASSWORDS = "passwords.txt"  # the router's list of user:password, one per line
-CA, CERTIFICATE, PRIVATE_KEY = "ca.pem", "router.pem", "router.key"
-TLS_ROOT_CA = "transport/link/tls/root_ca_certificate"  # a client's setting: the CA its router's certificate is from
 
 
 @dataclass(frozen=True)
@@ -66,32 +66,25 @@ def _write_private(path: Path, text: str) -> None:
     os.chmod(path, 0o600)
 
 
-@dataclass(frozen=True)
-class Tls:
-    """TLS for links that leave the machine: the CA every client checks the
-    router's certificate against, and the router's certificate and key.
-    Endpoints are then ``tls/HOST:PORT``; the certificate must name HOST."""
-
-    ca: Path
-    certificate: Path
-    private_key: Path
-
-
-def client_settings(cred: Credential, ca: str | None = None) -> dict[str, Any]:
+def client_settings(cred: Credential, ca: str | None = None, *, own_certificate: bool = False) -> dict[str, Any]:
     """Zenoh settings (path -> value) that make a session log in as ``cred``
-    (and, with ``ca``, accept only a router certified by it)."""
+    (and, with ``ca``, accept only a router certified by it; with
+    ``own_certificate`` too, present ``<user>.pem``, mutual TLS)."""
     out: dict[str, Any] = {"transport/auth/usrpwd": {"user": cred.user, "password": cred.password}}
     if ca:
-        out[TLS_ROOT_CA] = ca
+        out |= tls_mod.client_settings(ca, tls_mod.client_files(cred.user) if own_certificate else None)
     return out
 
 
-def router_settings(dictionary: str, acl: dict[str, Any], tls: tuple[str, str] | None = None) -> dict[str, Any]:
+def router_settings(
+    dictionary: str, acl: dict[str, Any], tls: tuple[str, str] | None = None, client_ca: str | None = None
+) -> dict[str, Any]:
     """Zenoh settings for the run's router: who may log in, and what each may do
-    (and, with ``tls`` = (certificate, key), its TLS identity)."""
+    (and, with ``tls`` = (certificate, key), its TLS identity; with
+    ``client_ca`` too, the CA every client's own certificate must be from)."""
     out: dict[str, Any] = {"transport/auth/usrpwd": {"dictionary_file": dictionary}, "access_control": acl}
     if tls:
-        out["transport/link/tls/listen_certificate"], out["transport/link/tls/listen_private_key"] = tls
+        out |= tls_mod.router_settings(*tls, client_ca)
     return out
 
 
@@ -115,24 +108,36 @@ def write_run_secrets(
     ``host_logins`` (host name -> its lasting login, :func:`read_host_logins`)
     are let in too, with their rules; they get no file here (each host has its own).
     ``observer``: an ``observer`` login too (:data:`OBSERVER`).
+    With ``tls.clients`` (mutual TLS), each login's certificate and key are
+    copied in as ``<user>.pem``/``.key`` and named by its login, and the
+    router's rules require both the user and the certificate's common name.
     Returns the settings file of each user and of "router"."""
     folder.mkdir(mode=0o700, parents=True, exist_ok=True)
     os.chmod(folder, 0o700)
     hosts = sorted(host_logins or {})
     users = [u for u in grants(run_id, robots, leader_id, observer=observer) if not (world_is_router and u == "world")]
+    clients = tls.clients if tls is not None else None
+    mtls = clients is not None
+    if clients is not None and (host_logins or any(u not in clients for u in users)):
+        missing = [u for u in users if u not in clients]
+        raise ValueError(f"mutual TLS: no certificate for {', '.join(missing or sorted(host_logins or {}))}")
     creds = new_credentials(users)
     logins = [*creds.values(), *(host_logins or {}).values()]
     _write_private(folder / PASSWORDS, "".join(f"{c.user}:{c.password}\n" for c in logins))
     if tls is not None:
         for name, src in ((CA, tls.ca), (CERTIFICATE, tls.certificate), (PRIVATE_KEY, tls.private_key)):
             _write_private(folder / name, Path(src).read_text())
+    for user in users if clients is not None else ():
+        for name, src in zip(tls_mod.client_files(user), clients[user], strict=True):
+            _write_private(folder / name, Path(src).read_text())
     out: dict[str, Path] = {}
     for user, cred in creds.items():
         out[user] = folder / f"{user}.json"
-        _write_private(out[user], json.dumps(client_settings(cred, CA if tls else None), indent=1))
+        login = client_settings(cred, CA if tls else None, own_certificate=mtls)
+        _write_private(out[user], json.dumps(login, indent=1))
     out["router"] = folder / "router.json"
-    acl = access_control(run_id, robots, leader_id, hosts, observer=observer)
-    router = router_settings(PASSWORDS, acl, (CERTIFICATE, PRIVATE_KEY) if tls else None)
+    acl = access_control(run_id, robots, leader_id, hosts, observer=observer, mtls=mtls)
+    router = router_settings(PASSWORDS, acl, (CERTIFICATE, PRIVATE_KEY) if tls else None, CA if mtls else None)
     _write_private(out["router"], json.dumps(router, indent=1))
     return out
 
@@ -156,6 +161,8 @@ def write_settings(path: Path, settings: Mapping[str, Any]) -> Path:
 
 
 # A router's settings that name files with secrets in them: gone with the settings once read.
+# Not a client's own TLS key: Zenoh reads it again for each link it opens, and a
+# client whose link broke reconnects.
 _SECRET_FILES = ("dictionary_file", "listen_private_key")
 
 
@@ -250,7 +257,14 @@ def read_settings(path: str | Path) -> dict[str, Any]:
 
 
 # Settings that name a file: a relative name is taken from the settings file's folder, made absolute.
-_FILE_SETTINGS = ("dictionary_file", "root_ca_certificate", "listen_certificate", "listen_private_key")
+_FILE_SETTINGS = (
+    "dictionary_file",
+    "root_ca_certificate",
+    "listen_certificate",
+    "listen_private_key",
+    "connect_certificate",
+    "connect_private_key",
+)
 
 
 def _resolve_files(data: Any, folder: Path) -> Any:
