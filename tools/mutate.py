@@ -170,6 +170,7 @@ MODULES = (
     Module("protocol/batch.py", (T("test_protocol.py"), T("test_messages.py"))),
     Module("protocol/acl.py", (T("test_trust_rules.py"), T("test_observer_rules.py"))),
     Module("protocol/trust.py", (T("test_trust_rules.py"),)),
+    Module("protocol/tls.py", (T("test_tls.py"),)),
     Module("agents/inbox.py", (T("test_inbox.py"), T("test_agent_inputs.py"), T("test_world_inputs.py"))),
     Module("swarm/common/faults.py", (T("test_fault_grammar.py"),)),
     Module("swarm/common/fault_kinds.py", (T("test_fault_grammar.py"),)),
