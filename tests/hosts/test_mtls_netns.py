@@ -181,7 +181,7 @@ def test_a_wrong_certificate_name_gets_nothing_and_the_right_ones_fly_fig11(robo
     assert summary["ticks"] == world["ticks"] == FIG11_TICKS
     for name, got in seen["wrong"].items():
         assert got["received"] == 0, name
-        assert got["puts"] > 200, name  # it kept trying, every 50 ms, the whole run long
+        assert got["puts"] > 20, name  # it kept trying, every 50 ms, the whole run long
     assert seen["observer"]["wrong_puts"] == 0
     assert seen["observer"]["observations"] >= FIG11_TICKS  # the right certificates heard every tick
     # The run as without them: no miss, no rejection, the formation changes, robot 2 answered every tick.
