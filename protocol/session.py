@@ -41,7 +41,7 @@ from typing import Any
 
 import zenoh
 
-from formation_swarm.protocol import trust
+from formation_swarm.protocol import tls, trust
 from formation_swarm.protocol.codec import MAX_PAYLOAD_BYTES
 
 # Above our own limit, so an oversized payload still reaches the decoder and is
@@ -159,7 +159,10 @@ def make_config(
     settings: Mapping[str, Any] | None = None,
 ) -> zenoh.Config:
     """``lowlatency=False`` keeps Zenoh's default transport (the benchmark's bare
-    exchange); it and the size filter are only set without a configuration file."""
+    exchange); it and the size filter are only set without a configuration file.
+    With a tls/ endpoint, the TLS files of the configuration are checked first
+    (protocol.tls): a missing one, or a key not its certificate's, is a
+    ValueError naming the file."""
     if mode not in ("client", "peer", "router"):
         raise ValueError(f"mode must be client, peer or router, got {mode!r}")
     for ep in (*connect, *listen):
@@ -195,7 +198,19 @@ def make_config(
             conf.insert_json5(path, json.dumps(value))
         except zenoh.ZError as exc:
             raise ValueError(f"invalid Zenoh setting {path}: {zenoh_reason(exc)}") from None
+    if any(ep.startswith(("tls/", "quic/")) for ep in _endpoints(conf)):
+        tls.check_files(json.loads(conf.get_json(tls.SECTION)), mode)
     return conf
+
+
+def _endpoints(conf: zenoh.Config) -> list[str]:
+    """Every endpoint a configuration connects to or listens on (a list, or one per mode)."""
+    out: list[str] = []
+    for path in ("connect/endpoints", "listen/endpoints"):
+        value = json.loads(conf.get_json(path))
+        for eps in value.values() if isinstance(value, dict) else [value]:
+            out += [e for e in eps if isinstance(e, str)] if isinstance(eps, list) else []
+    return out
 
 
 def config_from_args(args: argparse.Namespace, connect_timeout_s: float = 30.0) -> zenoh.Config:

@@ -1,37 +1,14 @@
-"""Who may say what: one identity per role, and the router's access rules.
+"""Logins: one identity per process of a run, and the files that hold them.
 
 Every process of a run authenticates to the router with its own user name and
-password (Zenoh's usrpwd authentication), and the router holds access rules
-that deny everything not granted (``default_permission: deny``):
-
-    world     publishes observations, truth, run status and fault calls; subscribes to commands
-    agent-N   publishes robot N's command and telemetry (the leader also the
-              formation codes, on one key for all followers); subscribes to
-              robot N's inbox and the run status; a follower receives the codes
-    logger    subscribes to the world's streams and the telemetry; publishes nothing
-    observer  (on request) subscribes to the whole run and watches every token;
-              publishes nothing, holds no token: a dashboard, a user's own monitor
-    launcher  subscribes to the run status and the world's fault calls (it executes
-              process faults: kill, start, freeze, thaw) and holds its token; in a
-              run placed on machines, queries those hosts and watches their tokens
-    host-NAME a machine's ``swarm host``, in a run placed on it: answers queries on
-              its own key (swarmhost/NAME/ctl) and nothing else, holds its own
-              token, watches the launcher's token; it publishes and subscribes
-              nothing (the agents it starts log in with their own agent-N login)
+password (Zenoh's usrpwd authentication); the router holds the password list
+and the access rules of protocol.acl. A client without credentials cannot
+connect at all; one holding a role's credentials can only do what that role
+does. A login file is a JSON object of Zenoh settings, readable by its owner
+only; the router's names its password list and rules.
 
 A host's login outlives runs (``swarm secure --hosts``): the launcher adds it
 to the run's password list and rules (``host_logins``).
-
-Each role may also hold its own liveliness token and watch the tokens it
-needs. A client without credentials cannot connect at all; one holding a
-role's credentials can only do what that role does. Receivers still check
-every message (sender against key, tick window, physical bounds): the rules
-stop strangers, the checks stop a role that misbehaves.
-
-Facts measured with eclipse-zenoh 1.10.2: a publisher's puts only leave a
-client once the router has told it of a matching subscriber, so every role
-may learn the run's subscriber declarations (egress ``declare_subscriber``
-on the whole run); rules apply only at the router that holds them.
 """
 
 from __future__ import annotations
@@ -46,12 +23,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from formation_swarm.protocol.keys import HostKeys, Keys, check_host_name, check_robot_id
+from formation_swarm.protocol import tls as tls_mod
+from formation_swarm.protocol.acl import access_control, grants, host_user
+from formation_swarm.protocol.tls import CA, CERTIFICATE, PRIVATE_KEY, Tls
 
 _USER = re.compile(r"^[a-z][a-z0-9-]{0,31}$")
 PASSWORDS = "passwords.txt"  # the router's list of user:password, one per line
-CA, CERTIFICATE, PRIVATE_KEY = "ca.pem", "router.pem", "router.key"
-TLS_ROOT_CA = "transport/link/tls/root_ca_certificate"  # a client's setting: the CA its router's certificate is from
 
 
 @dataclass(frozen=True)
@@ -69,122 +46,11 @@ class Credential:
         return f"Credential(user={self.user!r}, password=***)"
 
 
-@dataclass(frozen=True)
-class Grants:
-    """What one identity may do, as key expressions."""
-
-    publish: tuple[str, ...] = ()
-    subscribe: tuple[str, ...] = ()
-    # Data it is handed on keys it does not subscribe to by name: a put on a
-    # wildcard key (the leader's formation codes) that its subscription matches.
-    receive: tuple[str, ...] = ()
-    tokens: tuple[str, ...] = ()
-    watch: tuple[str, ...] = ()
-    serve: tuple[str, ...] = ()  # queryables it declares and answers
-    ask: tuple[str, ...] = ()  # queryables it queries
-
-
-def agent_user(robot_id: int) -> str:
-    return f"agent-{check_robot_id(robot_id)}"
-
-
 def login_user(settings: Mapping[str, Any]) -> str | None:
     """The user a process's credentials log in as (None: no login in them)."""
     login = settings.get("transport/auth/usrpwd")
     user = login.get("user") if isinstance(login, Mapping) else None
     return user if isinstance(user, str) else None
-
-
-def host_user(name: str) -> str:
-    return f"host-{check_host_name(name)}"
-
-
-OBSERVER = "observer"  # the read-only login: swarm secure --observer, swarm run --observer-login
-
-
-def grants(
-    run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[str] = (), *, observer: bool = False
-) -> dict[str, Grants]:
-    """Every identity of a run and what it may do (``hosts``: the machines'
-    ``swarm host`` the run's agents are placed on; ``observer``: with the
-    read-only login)."""
-    k = Keys(run_id)
-    out = {
-        "world": Grants(
-            publish=(*(k.obs(r) for r in robots), k.truth, k.status, k.faults, k.world_wake),
-            subscribe=(k.all_cmd,),
-            tokens=(k.alive("world", 0),),
-            watch=(f"{k.prefix}/alive/*/*",),
-        ),
-        "logger": Grants(
-            subscribe=(k.world_all, k.all_telemetry, k.codes),  # the leader's codes: its switches, for the events
-            tokens=(k.alive("logger", 0),),
-            watch=(k.alive("world", 0), k.alive_all("agent")),  # the agents': a follower gone sends no more
-        ),
-        "launcher": Grants(
-            subscribe=(k.status, k.faults),
-            tokens=(k.alive("launcher", 0),),
-            watch=(f"{k.prefix}/alive/*/*", *(HostKeys(h).alive for h in hosts)),
-            ask=tuple(HostKeys(h).ctl for h in hosts),
-        ),
-    }
-    if observer:  # everything of the run, nothing back: no publisher, no token, no query but liveliness
-        out[OBSERVER] = Grants(subscribe=(k.everything,), watch=(k.alive_any,))
-    for h in hosts:
-        out[host_user(h)] = Grants(
-            tokens=(HostKeys(h).alive,), watch=(k.alive("launcher", 0),), serve=(HostKeys(h).ctl,)
-        )
-    for rid in robots:
-        out[agent_user(rid)] = Grants(
-            publish=(k.cmd(rid), k.telemetry(rid), *((k.codes,) if rid == leader_id else ())),
-            subscribe=(k.inbox(rid), k.status),
-            receive=() if rid == leader_id else (k.codes,),
-            tokens=(k.alive("agent", rid),),
-            # Its own: is another agent flying it? The logger's: a follower leaves after it.
-            watch=(k.alive("world", 0), k.alive("agent", rid), k.alive("logger", 0)),
-        )
-    return out
-
-
-def _rule(rule_id: str, flow: str, messages: list[str], keys: Iterable[str]) -> dict[str, Any]:
-    return {"id": rule_id, "permission": "allow", "flows": [flow], "messages": messages, "key_exprs": list(keys)}
-
-
-def access_control(
-    run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[str] = (), *, observer: bool = False
-) -> dict[str, Any]:
-    """The router's ``access_control`` section for one run: deny by default,
-    each identity granted exactly its role's keys."""
-    k = Keys(run_id)
-    rules: list[dict[str, Any]] = [
-        # Publishers only send once they know of a subscriber: everyone may learn the run's subscriptions.
-        _rule("learn-subscribers", "egress", ["declare_subscriber"], [k.everything]),
-    ]
-    subjects: list[dict[str, Any]] = []
-    policies: list[dict[str, Any]] = []
-    for user, g in grants(run_id, robots, leader_id, hosts, observer=observer).items():
-        own: list[dict[str, Any]] = []
-        if g.publish:
-            own.append(_rule(f"{user}-put", "ingress", ["put"], g.publish))
-        if g.subscribe:
-            own.append(_rule(f"{user}-sub", "ingress", ["declare_subscriber"], g.subscribe))
-            own.append(_rule(f"{user}-data", "egress", ["put"], (*g.subscribe, *g.receive)))
-        if g.tokens:
-            own.append(_rule(f"{user}-token", "ingress", ["liveliness_token"], g.tokens))
-        if g.watch:
-            watching = ["declare_liveliness_subscriber", "liveliness_query"]
-            own.append(_rule(f"{user}-watch", "ingress", watching, g.watch))
-            own.append(_rule(f"{user}-seen", "egress", ["liveliness_token", "reply"], g.watch))
-        if g.serve:  # declare its queryable, receive the queries, answer them
-            own.append(_rule(f"{user}-serve", "ingress", ["declare_queryable", "reply"], g.serve))
-            own.append(_rule(f"{user}-queries", "egress", ["query"], g.serve))
-        if g.ask:  # learn the queryable, query it, receive the answers
-            own.append(_rule(f"{user}-ask", "ingress", ["query"], g.ask))
-            own.append(_rule(f"{user}-answers", "egress", ["declare_queryable", "reply"], g.ask))
-        rules += own
-        subjects.append({"id": user, "usernames": [user]})
-        policies.append({"id": user, "rules": ["learn-subscribers", *(r["id"] for r in own)], "subjects": [user]})
-    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}
 
 
 def new_credentials(users: Iterable[str]) -> dict[str, Credential]:
@@ -200,32 +66,25 @@ def _write_private(path: Path, text: str) -> None:
     os.chmod(path, 0o600)
 
 
-@dataclass(frozen=True)
-class Tls:
-    """TLS for links that leave the machine: the CA every client checks the
-    router's certificate against, and the router's certificate and key.
-    Endpoints are then ``tls/HOST:PORT``; the certificate must name HOST."""
-
-    ca: Path
-    certificate: Path
-    private_key: Path
-
-
-def client_settings(cred: Credential, ca: str | None = None) -> dict[str, Any]:
+def client_settings(cred: Credential, ca: str | None = None, *, own_certificate: bool = False) -> dict[str, Any]:
     """Zenoh settings (path -> value) that make a session log in as ``cred``
-    (and, with ``ca``, accept only a router certified by it)."""
+    (and, with ``ca``, accept only a router certified by it; with
+    ``own_certificate`` too, present ``<user>.pem``, mutual TLS)."""
     out: dict[str, Any] = {"transport/auth/usrpwd": {"user": cred.user, "password": cred.password}}
     if ca:
-        out[TLS_ROOT_CA] = ca
+        out |= tls_mod.client_settings(ca, tls_mod.client_files(cred.user) if own_certificate else None)
     return out
 
 
-def router_settings(dictionary: str, acl: dict[str, Any], tls: tuple[str, str] | None = None) -> dict[str, Any]:
+def router_settings(
+    dictionary: str, acl: dict[str, Any], tls: tuple[str, str] | None = None, client_ca: str | None = None
+) -> dict[str, Any]:
     """Zenoh settings for the run's router: who may log in, and what each may do
-    (and, with ``tls`` = (certificate, key), its TLS identity)."""
+    (and, with ``tls`` = (certificate, key), its TLS identity; with
+    ``client_ca`` too, the CA every client's own certificate must be from)."""
     out: dict[str, Any] = {"transport/auth/usrpwd": {"dictionary_file": dictionary}, "access_control": acl}
     if tls:
-        out["transport/link/tls/listen_certificate"], out["transport/link/tls/listen_private_key"] = tls
+        out |= tls_mod.router_settings(*tls, client_ca)
     return out
 
 
@@ -249,24 +108,36 @@ def write_run_secrets(
     ``host_logins`` (host name -> its lasting login, :func:`read_host_logins`)
     are let in too, with their rules; they get no file here (each host has its own).
     ``observer``: an ``observer`` login too (:data:`OBSERVER`).
+    With ``tls.clients`` (mutual TLS), each login's certificate and key are
+    copied in as ``<user>.pem``/``.key`` and named by its login, and the
+    router's rules require both the user and the certificate's common name.
     Returns the settings file of each user and of "router"."""
     folder.mkdir(mode=0o700, parents=True, exist_ok=True)
     os.chmod(folder, 0o700)
     hosts = sorted(host_logins or {})
     users = [u for u in grants(run_id, robots, leader_id, observer=observer) if not (world_is_router and u == "world")]
+    clients = tls.clients if tls is not None else None
+    mtls = clients is not None
+    if clients is not None and (host_logins or any(u not in clients for u in users)):
+        missing = [u for u in users if u not in clients]
+        raise ValueError(f"mutual TLS: no certificate for {', '.join(missing or sorted(host_logins or {}))}")
     creds = new_credentials(users)
     logins = [*creds.values(), *(host_logins or {}).values()]
     _write_private(folder / PASSWORDS, "".join(f"{c.user}:{c.password}\n" for c in logins))
     if tls is not None:
         for name, src in ((CA, tls.ca), (CERTIFICATE, tls.certificate), (PRIVATE_KEY, tls.private_key)):
             _write_private(folder / name, Path(src).read_text())
+    for user in users if clients is not None else ():
+        for name, src in zip(tls_mod.client_files(user), clients[user], strict=True):
+            _write_private(folder / name, Path(src).read_text())
     out: dict[str, Path] = {}
     for user, cred in creds.items():
         out[user] = folder / f"{user}.json"
-        _write_private(out[user], json.dumps(client_settings(cred, CA if tls else None), indent=1))
+        login = client_settings(cred, CA if tls else None, own_certificate=mtls)
+        _write_private(out[user], json.dumps(login, indent=1))
     out["router"] = folder / "router.json"
-    acl = access_control(run_id, robots, leader_id, hosts, observer=observer)
-    router = router_settings(PASSWORDS, acl, (CERTIFICATE, PRIVATE_KEY) if tls else None)
+    acl = access_control(run_id, robots, leader_id, hosts, observer=observer, mtls=mtls)
+    router = router_settings(PASSWORDS, acl, (CERTIFICATE, PRIVATE_KEY) if tls else None, CA if mtls else None)
     _write_private(out["router"], json.dumps(router, indent=1))
     return out
 
@@ -290,6 +161,8 @@ def write_settings(path: Path, settings: Mapping[str, Any]) -> Path:
 
 
 # A router's settings that name files with secrets in them: gone with the settings once read.
+# Not a client's own TLS key: Zenoh reads it again for each link it opens, and a
+# client whose link broke reconnects.
 _SECRET_FILES = ("dictionary_file", "listen_private_key")
 
 
@@ -384,7 +257,14 @@ def read_settings(path: str | Path) -> dict[str, Any]:
 
 
 # Settings that name a file: a relative name is taken from the settings file's folder, made absolute.
-_FILE_SETTINGS = ("dictionary_file", "root_ca_certificate", "listen_certificate", "listen_private_key")
+_FILE_SETTINGS = (
+    "dictionary_file",
+    "root_ca_certificate",
+    "listen_certificate",
+    "listen_private_key",
+    "connect_certificate",
+    "connect_private_key",
+)
 
 
 def _resolve_files(data: Any, folder: Path) -> Any:

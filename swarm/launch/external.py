@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from formation_swarm.protocol import trust
+from formation_swarm.protocol import acl, trust
 from formation_swarm.runtime.children import log_tail
 from formation_swarm.runtime.end_reason import PEERS_TIMEOUT
 
@@ -91,7 +91,7 @@ def slots(
             endpoint=endpoint,
             run_id=run_id,
             scenario=scenario,
-            login=logins.get(trust.agent_user(rid)),
+            login=logins.get(acl.agent_user(rid)),
         )
         for rid in robots
     }

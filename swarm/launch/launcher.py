@@ -42,7 +42,7 @@ from formation_swarm.launch.record import Journal, StatusFeed, folder_gone, fold
 from formation_swarm.launch.result import Ending, RunResult, end_reason, place_exits, processes_part
 from formation_swarm.launch.signals import stop_signals_noted
 from formation_swarm.nodes import viewer
-from formation_swarm.protocol import trust
+from formation_swarm.protocol import acl
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.session import make_config
 from formation_swarm.runtime import summary as summary_mod
@@ -186,7 +186,7 @@ class Launch:
                 plan.external, endpoint=self.endpoint, run_id=self.run_id, scenario=scenario, logins=written
             )
             if (target := plan.options.observer_login) is not None and written:
-                external_mod.write_observer_login(written[trust.OBSERVER], Path(target))
+                external_mod.write_observer_login(written[acl.OBSERVER], Path(target))
         return self.external
 
     def _start(self) -> None:

@@ -17,7 +17,7 @@ from formation_swarm.common.faults import Fault
 from formation_swarm.common.version import __version__
 from formation_swarm.launch import external as external_mod
 from formation_swarm.nodes import viewer
-from formation_swarm.protocol import trust
+from formation_swarm.protocol import acl, trust
 from formation_swarm.protocol.hostmsg import HostRequest
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.spec import files as scenario_files
@@ -232,7 +232,7 @@ class Plan:
         """What a host is asked to start agent ``name`` (agent-3, agent-3.2) with,
         its login included (``logins``: user -> settings, the launcher's copy)."""
         rid = int(name.split(".")[0].removeprefix("agent-"))
-        user, password = trust.agent_user(rid), ""
+        user, password = acl.agent_user(rid), ""
         if logins:
             password = logins[user]["transport/auth/usrpwd"]["password"]
         return HostRequest(
@@ -315,7 +315,7 @@ class Plan:
             "--world-grace",
             f"{AGENT_WORLD_GRACE_S:g}",
             *(["--lockstep"] if self.options.mode == "lockstep" else []),
-            *_auth(secrets, trust.agent_user(rid)),
+            *_auth(secrets, acl.agent_user(rid)),
         ]
 
 

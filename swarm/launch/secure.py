@@ -3,17 +3,21 @@
 Writes, for one scenario and run id, a folder with one login per role (the
 world, the logger, the launcher, each robot's agent, and with --observer a
 read-only one), the router's password list and access rules, and optionally
-the TLS files; every file 0600, the folder 0700. Copy to each machine the files its processes need.
+the TLS files: given (--tls-*), or made for the run with a certificate per
+login (--mtls). Every file 0600, the folder 0700. Copy to each machine the
+files its processes need.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from formation_swarm.protocol import trust
+from formation_swarm.launch import certs
+from formation_swarm.protocol import acl, tls, trust
 from formation_swarm.protocol.keys import check_host_name, check_run_id
 from formation_swarm.runtime import cliargs
 
@@ -33,13 +37,24 @@ robot N, only the leader sends formation codes, only the world ends the run;
 the observer hears the whole run and can send nothing).
 Start each process with --auth FILE, its own file; copy to each machine only
 the files its processes need. The passwords are fresh each time: make a new
-folder for each run."""
+folder for each run.
+
+With --mtls (mutual TLS) it also makes a CA for this run alone, the
+router's certificate naming --router-address, and a certificate per login
+(agent-2.pem and agent-2.key, ...) whose common name is the login's user.
+The router then lets in only clients holding a certificate of that CA, and
+grants each what its login may do only when the certificate's name is the
+login's user: a password without its certificate's key, or a certificate
+of another name, is granted nothing. The CA's key is discarded once every
+certificate is signed: no other certificate can join the run."""
 
 EPILOG = """\
 examples:
   swarm secure fig11_obstacles --run field-1 --out secure-field-1
   swarm secure fig11_obstacles --run field-1 --out secure-field-1 \\
       --tls-ca ca.pem --tls-cert router.pem --tls-key router.key
+  swarm secure fig11_obstacles --run field-1 --out secure-field-1 \\
+      --mtls --router-address 192.168.1.10
 
 then, on the router's machine and on each robot's (see deploy/README.md):
   swarm router --listen tls/0.0.0.0:7447 --auth secure-field-1/router.json
@@ -48,8 +63,9 @@ then, on the router's machine and on each robot's (see deploy/README.md):
   swarm agent --id 2 --scenario fig11_obstacles --run field-1 \\
       --connect tls/ROUTER:7447 --auth secure-field-1/agent-2.json
 
-exit codes: 0 written; 2 a bad command line, scenario or TLS file, or a
-folder that already holds files (nothing written)."""
+exit codes: 0 written; 1 openssl failed (--mtls); 2 a bad command line,
+scenario or TLS file, or a folder that already holds files (nothing
+written)."""
 
 
 def build_parser() -> cliargs.Parser:
@@ -74,6 +90,25 @@ def build_parser() -> cliargs.Parser:
     ap.add_argument("--tls-ca", metavar="FILE", help="TLS: the CA certificate clients check the router against (PEM)")
     ap.add_argument("--tls-cert", metavar="FILE", help="TLS: the router's certificate, naming its host (PEM)")
     ap.add_argument("--tls-key", metavar="FILE", help="TLS: the router's private key (PEM)")
+    ap.add_argument(
+        "--tls-ca-key",
+        metavar="FILE",
+        help="with --mtls and --tls-ca: sign the run's certificates with your CA (its key, PEM; read, not "
+        "copied) instead of a fresh one",
+    )
+    ap.add_argument(
+        "--mtls",
+        action="store_true",
+        help="mutual TLS: make a CA for this run, the router's certificate and one per login (its common "
+        "name the login's user); the router's rules then require both the password and the certificate "
+        "(needs openssl; instead of --tls-cert and --tls-key)",
+    )
+    ap.add_argument(
+        "--router-address",
+        metavar="ADDR[,ADDR...]",
+        help="with --mtls: the router's IP addresses or host names, as the others' tls/ endpoints give "
+        "them (its certificate names them)",
+    )
     return ap
 
 
@@ -90,12 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         check_run_id(args.run)
     except ValueError as exc:
         ap.error(f"argument --run: {exc}")
-    tls_files = (args.tls_ca, args.tls_cert, args.tls_key)
-    if any(tls_files) and not all(tls_files):
-        ap.error("arguments --tls-ca, --tls-cert and --tls-key: give all three or none")
-    for name, path in zip(("--tls-ca", "--tls-cert", "--tls-key"), tls_files, strict=True):
-        if path and not Path(path).is_file():
-            ap.error(f"argument {name}: no such file: {path}")
+    given, addresses = _tls_options(ap, args)
     out = Path(args.out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         ap.error(f"argument --out: {out} already holds files; secrets are never overwritten: give a new folder")
@@ -103,16 +133,70 @@ def main(argv: list[str] | None = None) -> int:
         sc = scenario_mod.load(args.scenario)
     except ValueError as exc:
         ap.error(str(exc))
-    tls = trust.Tls(Path(args.tls_ca), Path(args.tls_cert), Path(args.tls_key)) if all(tls_files) else None
-    try:
-        files = trust.write_run_secrets(
-            out, args.run, sc.robots, sc.leader.robot_id, world_is_router=False, tls=tls, observer=args.observer
-        )
-    except OSError as exc:
-        print(f"swarm secure: cannot write {out}: {exc}", file=sys.stderr)
-        return cliargs.USAGE_ERROR
-    _say_commands(args, sc, files, "tls" if tls else "tcp")
+    users = list(acl.grants(args.run, sc.robots, sc.leader.robot_id, observer=args.observer))
+    with tempfile.TemporaryDirectory(prefix="swarm-ca-") as made:  # the run's CA key, gone with it
+        try:
+            run_tls = certs.make_run_certificates(Path(made), users, addresses, given) if args.mtls else given
+        except OSError as exc:
+            print(f"swarm secure: cannot make the certificates: {exc}", file=sys.stderr)
+            return 1
+        try:
+            files = trust.write_run_secrets(
+                out, args.run, sc.robots, sc.leader.robot_id, world_is_router=False, tls=run_tls, observer=args.observer
+            )
+        except OSError as exc:
+            print(f"swarm secure: cannot write {out}: {exc}", file=sys.stderr)
+            return cliargs.USAGE_ERROR
+    _say_commands(args, sc, files, "tls" if run_tls else "tcp")
     return 0
+
+
+def _tls_options(ap: cliargs.Parser, args: argparse.Namespace) -> tuple[tls.Tls | None, list[str]]:
+    """The TLS files given: the CA and the router's certificate and key, or
+    with --mtls the CA to sign with (or none) and the router's addresses."""
+    if args.mtls:
+        return _mtls_options(ap, args)
+    if args.router_address or args.tls_ca_key:
+        ap.error("arguments --router-address and --tls-ca-key: only with --mtls")
+    tls_files = (args.tls_ca, args.tls_cert, args.tls_key)
+    if any(tls_files) and not all(tls_files):
+        ap.error("arguments --tls-ca, --tls-cert and --tls-key: give all three or none")
+    if not any(tls_files):
+        return None, []
+    try:
+        tls.check_certificate(args.tls_ca, "--tls-ca")
+        tls.check_certificate(args.tls_cert, "--tls-cert")
+        tls.check_key(args.tls_cert, args.tls_key, "--tls-key")
+    except ValueError as exc:
+        ap.error(str(exc))
+    return tls.Tls(Path(args.tls_ca), Path(args.tls_cert), Path(args.tls_key)), []
+
+
+def _mtls_options(ap: cliargs.Parser, args: argparse.Namespace) -> tuple[tls.Tls | None, list[str]]:
+    """With --mtls: your CA to sign with (--tls-ca and --tls-ca-key; its key
+    stands in for the router's), else None; the router's addresses."""
+    if args.tls_cert or args.tls_key:
+        ap.error("argument --mtls: it makes the router's certificate; give no --tls-cert or --tls-key")
+    if bool(args.tls_ca) != bool(args.tls_ca_key):
+        ap.error("arguments --tls-ca and --tls-ca-key: with --mtls, give both (your CA) or neither (a fresh one)")
+    if not args.router_address:
+        ap.error("argument --mtls: give --router-address ADDR, the router's address in the others' tls/ endpoints")
+    if problem := certs.openssl_missing():
+        ap.error(f"argument --mtls: {problem}")
+    addresses = [a.strip() for a in args.router_address.split(",") if a.strip()]
+    try:
+        for a in addresses:
+            certs.subject_alt_name(a)
+    except ValueError as exc:
+        ap.error(f"argument --router-address: {exc}")
+    if not args.tls_ca:
+        return None, addresses
+    try:
+        tls.check_certificate(args.tls_ca, "--tls-ca")
+        tls.check_key(args.tls_ca, args.tls_ca_key, "--tls-ca-key")
+    except ValueError as exc:
+        ap.error(str(exc))
+    return tls.Tls(Path(args.tls_ca), Path(args.tls_ca), Path(args.tls_ca_key)), addresses
 
 
 def _say_commands(args: argparse.Namespace, sc: Scenario, files: dict[str, Path], scheme: str) -> None:
@@ -129,11 +213,21 @@ def _say_commands(args: argparse.Namespace, sc: Scenario, files: dict[str, Path]
     for rid in sc.robots:
         print(
             f"  agent {rid}:  swarm agent --id {rid} {common} --connect {scheme}/ROUTER:7447 "
-            f"--auth {files[trust.agent_user(rid)]}"
+            f"--auth {files[acl.agent_user(rid)]}"
         )
     if args.observer:
-        observer = files[trust.OBSERVER]
+        observer = files[acl.OBSERVER]
         print(f"  observer: --connect {scheme}/ROUTER:7447 --auth {observer} (hears the whole run, sends nothing)")
+    if args.mtls:
+        signer = (
+            f"your CA {args.tls_ca} signed them: keep its key off the network"
+            if args.tls_ca
+            else f"the CA's key is gone, so no other certificate joins run {args.run}"
+        )
+        print(
+            f"  each login's own certificate is beside it (agent-2.json: agent-2.pem, agent-2.key): copy the three "
+            f"and {tls.CA} to its machine; {signer}"
+        )
     if scheme != "tls":
         print("  links are plain TCP: the run's data crosses the network unencrypted; see deploy/README.md for TLS")
 
@@ -147,8 +241,11 @@ def _hosts(ap: cliargs.Parser, args: argparse.Namespace) -> int:
         ap.error(f"argument --hosts: {exc}")
     if not names or len(set(names)) != len(names):
         ap.error(f"argument --hosts: distinct host names separated by commas, got {args.hosts!r}")
-    if args.scenario or args.run or args.tls_cert or args.tls_key or args.observer:
-        ap.error("argument --hosts: takes no SCENARIO, --run, --observer, --tls-cert or --tls-key (only --tls-ca)")
+    if args.scenario or args.run or args.tls_cert or args.tls_key or args.observer or args.mtls or args.router_address:
+        ap.error(
+            "argument --hosts: takes no SCENARIO, --run, --observer, --tls-cert, --tls-key, --mtls or "
+            "--router-address (only --tls-ca)"
+        )
     out = Path(args.out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         ap.error(f"argument --out: {out} already holds files; secrets are never overwritten: give a new folder")
@@ -158,7 +255,7 @@ def _hosts(ap: cliargs.Parser, args: argparse.Namespace) -> int:
     scheme = "tls" if args.tls_ca else "tcp"
     print(f"swarm secure: logins for hosts {', '.join(names)}: wrote {out}/")
     for n in names:
-        print(f"  host {n}:  swarm host --name {n} --connect {scheme}/ROUTER:7447 --auth {files[trust.host_user(n)]}")
+        print(f"  host {n}:  swarm host --name {n} --connect {scheme}/ROUTER:7447 --auth {files[acl.host_user(n)]}")
     tls = " --tls-ca CA --tls-cert CERT --tls-key KEY" if args.tls_ca else ""
     print(
         f"  swarm run S --hosts {','.join(names)} --listen {scheme}/0.0.0.0:7447 --host-logins "

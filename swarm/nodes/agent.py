@@ -49,7 +49,7 @@ from formation_swarm.nodes.agent_setup import role_for
 from formation_swarm.nodes.agent_stats import KEYS as STATS_KEYS
 from formation_swarm.nodes.agent_stats import StatsFile
 from formation_swarm.nodes.agent_wire import Outbox, Router
-from formation_swarm.protocol import session, trust
+from formation_swarm.protocol import acl, session
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Status
@@ -368,7 +368,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.id not in sc.robots:
         role.complain(f"--id {args.id} is not a robot of this scenario; its robots are {list(sc.robots)}")
         return role_mod.EXIT_USAGE
-    sess_cm = role.connect(args, login=trust.agent_user(args.id))
+    sess_cm = role.connect(args, login=acl.agent_user(args.id))
     if isinstance(sess_cm, int):
         return sess_cm
     seed = sc.seed if args.seed is None else args.seed

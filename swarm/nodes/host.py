@@ -34,7 +34,7 @@ import zenoh
 
 from formation_swarm.common.version import __version__
 from formation_swarm.nodes.hosting import LAUNCHER_WAIT_S, Host
-from formation_swarm.protocol import session, trust
+from formation_swarm.protocol import acl, session, tls, trust
 from formation_swarm.protocol.keys import check_host_name
 from formation_swarm.runtime import cliargs, spawner
 from formation_swarm.runtime.proc import SIGNAL_CHECK_S, StopEvent, install_stop_handlers
@@ -108,7 +108,7 @@ def _check_login(settings: dict[str, Any], name: str, path: str | None) -> None:
         raise ValueError(
             f"--auth {path}: holds no login (transport/auth/usrpwd): give host-{name}.json of swarm secure --hosts"
         )
-    if user is not None and user != trust.host_user(name):
+    if user is not None and user != acl.host_user(name):
         whose = f"host {user[5:]}" if str(user).startswith("host-") else f"user {user!r}, not a host's"
         raise ValueError(
             f"--auth {path}: this login is for {whose}, not for host {name} (--name): give the file of "
@@ -186,7 +186,7 @@ def _configure(ap: cliargs.Parser, args: Any) -> tuple[str, tuple[int, ...] | No
         if not args.connect and args.config is None:
             raise ValueError("--connect ENDPOINT: the router to serve runs through (scouting is off)")
         plain = [e for e in args.connect if not e.startswith("tls/") and not session.loopback(e)]
-        if settings.get(trust.TLS_ROOT_CA) and plain:  # on this machine, a router's local endpoint may be tcp/
+        if settings.get(tls.ROOT_CA) and plain:  # on this machine, a router's local endpoint may be tcp/
             raise ValueError(
                 f"--connect {plain[0]}: this login ({args.auth}) names a CA, for TLS: connect with "
                 "tls/ROUTER:PORT, or the agents' passwords would cross the network in clear"

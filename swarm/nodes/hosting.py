@@ -24,7 +24,7 @@ from typing import Any
 import zenoh
 
 from formation_swarm.common.version import __version__
-from formation_swarm.protocol import hostmsg, trust
+from formation_swarm.protocol import acl, hostmsg, trust
 from formation_swarm.protocol.codec import DecodeError, Rejections
 from formation_swarm.protocol.hostmsg import HostReply, HostRequest
 from formation_swarm.protocol.keys import HostKeys, Keys
@@ -169,8 +169,8 @@ class Host:
             return self.refuse(f"{req.process!r} is not agent-N")
         if self.robots is not None and robot not in self.robots:
             return self.refuse(f"host {self.name} may run robots {', '.join(map(str, self.robots))}, not {robot}")
-        if req.user != trust.agent_user(robot):
-            return self.refuse(f"the login of {req.process} must be {trust.agent_user(robot)}, got {req.user!r}")
+        if req.user != acl.agent_user(robot):
+            return self.refuse(f"the login of {req.process} must be {acl.agent_user(robot)}, got {req.user!r}")
         run = self.runs.get(req.run)
         if run is None:
             run = self.open_run(req.run)

@@ -10,7 +10,6 @@ Needs root, iproute2 (``ip netns``) and openssl; skipped with the reason otherwi
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 import sys
@@ -59,37 +58,6 @@ def _tls_files(folder: Path, host_ip: str) -> tuple[Path, Path, Path]:
     ):
         subprocess.run(["openssl", *map(str, argv)], check=True, capture_output=True, timeout=30)
     return ca, cert, key
-
-
-def _ip(*args: str) -> None:
-    subprocess.run(["ip", *args], check=True, capture_output=True, timeout=10)
-
-
-@pytest.fixture
-def robot_host() -> object:
-    """(namespace, router-side address, robot-side address), torn down after."""
-    if os.geteuid() != 0 or shutil.which("ip") is None:
-        pytest.skip("needs root and iproute2 to create a network namespace")
-    tag = uuid.uuid4().hex[:6]
-    ns, host_if, ns_if = f"swarm-{tag}", f"sw{tag}h", f"sw{tag}n"
-    subnet = 16 + int(tag[:2], 16) % 200  # 10.77.<subnet>.0/24, one per test run
-    host_ip, ns_ip = f"10.77.{subnet}.1", f"10.77.{subnet}.2"
-    try:
-        _ip("netns", "add", ns)
-    except (subprocess.CalledProcessError, OSError) as exc:
-        pytest.skip(f"cannot create a network namespace here: {exc}")
-    try:
-        _ip("link", "add", host_if, "type", "veth", "peer", "name", ns_if)
-        _ip("link", "set", ns_if, "netns", ns)
-        _ip("addr", "add", f"{host_ip}/24", "dev", host_if)
-        _ip("link", "set", host_if, "up")
-        _ip("netns", "exec", ns, "ip", "addr", "add", f"{ns_ip}/24", "dev", ns_if)
-        _ip("netns", "exec", ns, "ip", "link", "set", ns_if, "up")
-        _ip("netns", "exec", ns, "ip", "link", "set", "lo", "up")
-        yield ns, host_ip, ns_ip
-    finally:
-        subprocess.run(["ip", "link", "del", host_if], capture_output=True, timeout=10)
-        subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=10)
 
 
 def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tuple, tmp_path: Path) -> None:

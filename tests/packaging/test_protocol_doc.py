@@ -21,7 +21,7 @@ from typing import Any
 import msgpack
 import pytest
 
-from formation_swarm.protocol import codec, keys, messages, session, trust
+from formation_swarm.protocol import acl, codec, keys, messages, session, trust
 from formation_swarm.protocol.codec import DecodeError, Message
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.runtime import role
@@ -391,7 +391,7 @@ def _grant_keys(cell: str, run: str, ids: tuple[int, ...]) -> set[str]:
 
 def test_the_logins_grants_are_the_code_s() -> None:
     robots, leader, follower = (1, ID), 1, ID
-    ours = trust.grants(RUN, robots, leader, hosts=("b",), observer=True)
+    ours = acl.grants(RUN, robots, leader, hosts=("b",), observer=True)
     fields = ("publish", "subscribe", "receive", "tokens", "watch", "serve", "ask")
     seen = set()
     for row in table(section("Logins and access rules")):
@@ -399,7 +399,7 @@ def test_the_logins_grants_are_the_code_s() -> None:
         if login == "agent-<id>":
             rid = leader if "leader" in row[0] else follower
             ids: tuple[int, ...] = (rid,)
-            user = trust.agent_user(rid)
+            user = acl.agent_user(rid)
         else:
             ids, user = robots, login.replace("<name>", "b")
         seen.add(user)

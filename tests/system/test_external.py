@@ -30,7 +30,7 @@ import zenoh
 
 from formation_swarm.launch.launcher import Launch, RunResult, free_port
 from formation_swarm.launch.plan import Plan, RunOptions
-from formation_swarm.protocol import trust
+from formation_swarm.protocol import acl, trust
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import WORLD_ID, Command, FormationCode, Observation, Status
 from formation_swarm.protocol.session import make_config
@@ -269,7 +269,7 @@ def observed(tmp_path: Path) -> Iterator[tuple[Launch, Path]]:
 def test_the_observer_hears_every_key_of_a_run_and_its_puts_go_nowhere(observed: tuple[Launch, Path]) -> None:
     launch, login = observed
     settings = trust.read_settings(login)
-    assert trust.login_user(settings) == trust.OBSERVER
+    assert trust.login_user(settings) == acl.OBSERVER
     k = Keys(launch.run_id)
     launch.start()  # the router exists from here on; the observers are not waited for
     conf = make_config("client", [launch.endpoint], connect_timeout_s=30.0, settings=settings)
@@ -319,10 +319,10 @@ def test_swarm_secure_writes_the_observer_login_on_request(tmp_path: Path) -> No
     )
     assert made.returncode == 0, made.stderr
     assert f"observer: --connect tcp/ROUTER:7447 --auth {out / 'observer.json'}" in made.stdout
-    assert trust.login_user(trust.read_settings(out / "observer.json")) == trust.OBSERVER
-    acl = json.loads((out / "router.json").read_text())["access_control"]
-    policy = next(p for p in acl["policies"] if p["id"] == trust.OBSERVER)
-    rules = {r["id"]: r for r in acl["rules"]}
+    assert trust.login_user(trust.read_settings(out / "observer.json")) == acl.OBSERVER
+    access = json.loads((out / "router.json").read_text())["access_control"]
+    policy = next(p for p in access["policies"] if p["id"] == acl.OBSERVER)
+    rules = {r["id"]: r for r in access["rules"]}
     assert policy["rules"] == ["learn-subscribers", "observer-sub", "observer-data", "observer-watch", "observer-seen"]
     assert all(rules[r]["flows"] == ["egress"] or "put" not in rules[r]["messages"] for r in policy["rules"])
 

@@ -14,8 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from formation_swarm.protocol import trust
-from formation_swarm.protocol.trust import Credential, Grants
+from formation_swarm.protocol import acl, trust
+from formation_swarm.protocol.acl import Grants
+from formation_swarm.protocol.trust import Credential
 
 ROBOTS = (1, 2, 3)
 R = "swarm/r1"  # the key prefix of run "r1"
@@ -31,7 +32,7 @@ def _mode(path: Path) -> int:
 
 
 def test_the_grants_of_a_three_robot_run() -> None:
-    g = trust.grants("r1", ROBOTS, leader_id=1)
+    g = acl.grants("r1", ROBOTS, leader_id=1)
     assert list(g) == ["world", "logger", "launcher", "agent-1", "agent-2", "agent-3"]
     assert g["world"] == Grants(
         publish=(
@@ -77,7 +78,7 @@ def test_the_grants_of_a_three_robot_run() -> None:
 
 @pytest.mark.parametrize("leader", ROBOTS)
 def test_whoever_leads_only_the_leader_publishes_formation_codes(leader: int) -> None:
-    g = trust.grants("r1", ROBOTS, leader_id=leader)
+    g = acl.grants("r1", ROBOTS, leader_id=leader)
     codes = {user: [key for key in grants.publish if key.endswith("/formation")] for user, grants in g.items()}
     followers = [r for r in ROBOTS if r != leader]
     expected = {"world": [], "logger": [], "launcher": []}
@@ -92,7 +93,7 @@ def test_robot_ids_above_256_are_compared_by_value() -> None:
     robots = [int(s) for s in ("1001", "1002")]
     leader = int("1001")
     assert leader is not robots[0]
-    g = trust.grants("r1", robots, leader_id=leader)
+    g = acl.grants("r1", robots, leader_id=leader)
     assert g["agent-1001"].publish == (f"{R}/robot/1001/cmd", f"{R}/robot/1001/telemetry", f"{R}/robot/*/formation")
     assert g["agent-1002"].publish == (f"{R}/robot/1002/cmd", f"{R}/robot/1002/telemetry")
 
@@ -168,7 +169,7 @@ def test_the_router_rules_of_a_two_robot_run() -> None:
         for user, own in rows.items()
         for rule, flow, messages, keys in own
     ]
-    assert trust.access_control("r1", (1, 2), leader_id=1) == {
+    assert acl.access_control("r1", (1, 2), leader_id=1) == {
         "enabled": True,
         "default_permission": "deny",
         "rules": rules,
@@ -212,7 +213,7 @@ def test_credentials_and_grants_cannot_change_after_their_checks() -> None:
     cred = Credential("agent-2", "x" * 16)
     with pytest.raises(dataclasses.FrozenInstanceError):
         cred.password = "short"  # type: ignore[misc]
-    grants = trust.grants("r1", ROBOTS, 1)["agent-2"]
+    grants = acl.grants("r1", ROBOTS, 1)["agent-2"]
     with pytest.raises(dataclasses.FrozenInstanceError):
         grants.publish = (f"{R}/**",)  # type: ignore[misc]
     assert repr(cred) == "Credential(user='agent-2', password=***)"
@@ -233,10 +234,10 @@ def test_client_and_router_settings() -> None:
     assert trust.client_settings(cred) == usrpwd
     assert trust.client_settings(cred, "") == usrpwd
     assert trust.client_settings(cred, "ca.pem") == usrpwd | {"transport/link/tls/root_ca_certificate": "ca.pem"}
-    acl = {"enabled": True}
-    router = {"transport/auth/usrpwd": {"dictionary_file": "pw.txt"}, "access_control": acl}
-    assert trust.router_settings("pw.txt", acl) == router
-    assert trust.router_settings("pw.txt", acl, ("r.pem", "r.key")) == router | {
+    rules = {"enabled": True}
+    router = {"transport/auth/usrpwd": {"dictionary_file": "pw.txt"}, "access_control": rules}
+    assert trust.router_settings("pw.txt", rules) == router
+    assert trust.router_settings("pw.txt", rules, ("r.pem", "r.key")) == router | {
         "transport/link/tls/listen_certificate": "r.pem",
         "transport/link/tls/listen_private_key": "r.key",
     }
@@ -292,7 +293,7 @@ def test_without_tls_no_tls_setting_is_written(tmp_path: Path) -> None:
     assert client["transport/auth/usrpwd"]["user"] == "agent-2"
     assert json.loads(files["router"].read_text()) == {
         "transport/auth/usrpwd": {"dictionary_file": "passwords.txt"},
-        "access_control": trust.access_control("r1", ROBOTS, 1),
+        "access_control": acl.access_control("r1", ROBOTS, 1),
     }
 
 
@@ -316,7 +317,7 @@ def test_tls_files_are_copied_private_and_named_relative_to_the_folder(tmp_path:
     }
     assert json.loads(files["router"].read_text()) == {
         "transport/auth/usrpwd": {"dictionary_file": "passwords.txt"},
-        "access_control": trust.access_control("r1", ROBOTS, 1),
+        "access_control": acl.access_control("r1", ROBOTS, 1),
         "transport/link/tls/listen_certificate": "router.pem",
         "transport/link/tls/listen_private_key": "router.key",
     }

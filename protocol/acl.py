@@ -1,0 +1,158 @@
+"""Who may say what: one identity per role, and the router's access rules.
+
+The router holds access rules that deny everything not granted
+(``default_permission: deny``); each identity is granted its role's keys:
+
+    world     publishes observations, truth, run status and fault calls; subscribes to commands
+    agent-N   publishes robot N's command and telemetry (the leader also the
+              formation codes, on one key for all followers); subscribes to
+              robot N's inbox and the run status; a follower receives the codes
+    logger    subscribes to the world's streams and the telemetry; publishes nothing
+    observer  (on request) subscribes to the whole run and watches every token;
+              publishes nothing, holds no token: a dashboard, a user's own monitor
+    launcher  subscribes to the run status and the world's fault calls (it executes
+              process faults: kill, start, freeze, thaw) and holds its token; in a
+              run placed on machines, queries those hosts and watches their tokens
+    host-NAME a machine's ``swarm host``, in a run placed on it: answers queries on
+              its own key (swarmhost/NAME/ctl) and nothing else, holds its own
+              token, watches the launcher's token; it publishes and subscribes
+              nothing (the agents it starts log in with their own agent-N login)
+
+Each role may also hold its own liveliness token and watch the tokens it
+needs. Receivers still check
+every message (sender against key, tick window, physical bounds): the rules
+stop strangers, the checks stop a role that misbehaves.
+
+Facts measured with eclipse-zenoh 1.10.2: a publisher's puts only leave a
+client once the router has told it of a matching subscriber, so every role
+may learn the run's subscriber declarations (egress ``declare_subscriber``
+on the whole run); rules apply only at the router that holds them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from formation_swarm.protocol.keys import HostKeys, Keys, check_host_name, check_robot_id
+
+
+@dataclass(frozen=True)
+class Grants:
+    """What one identity may do, as key expressions."""
+
+    publish: tuple[str, ...] = ()
+    subscribe: tuple[str, ...] = ()
+    # Data it is handed on keys it does not subscribe to by name: a put on a
+    # wildcard key (the leader's formation codes) that its subscription matches.
+    receive: tuple[str, ...] = ()
+    tokens: tuple[str, ...] = ()
+    watch: tuple[str, ...] = ()
+    serve: tuple[str, ...] = ()  # queryables it declares and answers
+    ask: tuple[str, ...] = ()  # queryables it queries
+
+
+def agent_user(robot_id: int) -> str:
+    return f"agent-{check_robot_id(robot_id)}"
+
+
+def host_user(name: str) -> str:
+    return f"host-{check_host_name(name)}"
+
+
+OBSERVER = "observer"  # the read-only login: swarm secure --observer, swarm run --observer-login
+
+
+def grants(
+    run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[str] = (), *, observer: bool = False
+) -> dict[str, Grants]:
+    """Every identity of a run and what it may do (``hosts``: the machines'
+    ``swarm host`` the run's agents are placed on; ``observer``: with the
+    read-only login)."""
+    k = Keys(run_id)
+    out = {
+        "world": Grants(
+            publish=(*(k.obs(r) for r in robots), k.truth, k.status, k.faults, k.world_wake),
+            subscribe=(k.all_cmd,),
+            tokens=(k.alive("world", 0),),
+            watch=(f"{k.prefix}/alive/*/*",),
+        ),
+        "logger": Grants(
+            subscribe=(k.world_all, k.all_telemetry, k.codes),  # the leader's codes: its switches, for the events
+            tokens=(k.alive("logger", 0),),
+            watch=(k.alive("world", 0), k.alive_all("agent")),  # the agents': a follower gone sends no more
+        ),
+        "launcher": Grants(
+            subscribe=(k.status, k.faults),
+            tokens=(k.alive("launcher", 0),),
+            watch=(f"{k.prefix}/alive/*/*", *(HostKeys(h).alive for h in hosts)),
+            ask=tuple(HostKeys(h).ctl for h in hosts),
+        ),
+    }
+    if observer:  # everything of the run, nothing back: no publisher, no token, no query but liveliness
+        out[OBSERVER] = Grants(subscribe=(k.everything,), watch=(k.alive_any,))
+    for h in hosts:
+        out[host_user(h)] = Grants(
+            tokens=(HostKeys(h).alive,), watch=(k.alive("launcher", 0),), serve=(HostKeys(h).ctl,)
+        )
+    for rid in robots:
+        out[agent_user(rid)] = Grants(
+            publish=(k.cmd(rid), k.telemetry(rid), *((k.codes,) if rid == leader_id else ())),
+            subscribe=(k.inbox(rid), k.status),
+            receive=() if rid == leader_id else (k.codes,),
+            tokens=(k.alive("agent", rid),),
+            # Its own: is another agent flying it? The logger's: a follower leaves after it.
+            watch=(k.alive("world", 0), k.alive("agent", rid), k.alive("logger", 0)),
+        )
+    return out
+
+
+def _rule(rule_id: str, flow: str, messages: list[str], keys: Iterable[str]) -> dict[str, Any]:
+    return {"id": rule_id, "permission": "allow", "flows": [flow], "messages": messages, "key_exprs": list(keys)}
+
+
+def access_control(
+    run_id: str,
+    robots: Sequence[int],
+    leader_id: int,
+    hosts: Sequence[str] = (),
+    *,
+    observer: bool = False,
+    mtls: bool = False,
+) -> dict[str, Any]:
+    """The router's ``access_control`` section for one run: deny by default,
+    each identity granted exactly its role's keys. With ``mtls``, an identity
+    is its user name and its TLS certificate's common name, both: a stolen
+    password without the certificate's key, or a certificate of another
+    name, matches no one and is granted nothing."""
+    k = Keys(run_id)
+    rules: list[dict[str, Any]] = [
+        # Publishers only send once they know of a subscriber: everyone may learn the run's subscriptions.
+        _rule("learn-subscribers", "egress", ["declare_subscriber"], [k.everything]),
+    ]
+    subjects: list[dict[str, Any]] = []
+    policies: list[dict[str, Any]] = []
+    for user, g in grants(run_id, robots, leader_id, hosts, observer=observer).items():
+        own: list[dict[str, Any]] = []
+        if g.publish:
+            own.append(_rule(f"{user}-put", "ingress", ["put"], g.publish))
+        if g.subscribe:
+            own.append(_rule(f"{user}-sub", "ingress", ["declare_subscriber"], g.subscribe))
+            own.append(_rule(f"{user}-data", "egress", ["put"], (*g.subscribe, *g.receive)))
+        if g.tokens:
+            own.append(_rule(f"{user}-token", "ingress", ["liveliness_token"], g.tokens))
+        if g.watch:
+            watching = ["declare_liveliness_subscriber", "liveliness_query"]
+            own.append(_rule(f"{user}-watch", "ingress", watching, g.watch))
+            own.append(_rule(f"{user}-seen", "egress", ["liveliness_token", "reply"], g.watch))
+        if g.serve:  # declare its queryable, receive the queries, answer them
+            own.append(_rule(f"{user}-serve", "ingress", ["declare_queryable", "reply"], g.serve))
+            own.append(_rule(f"{user}-queries", "egress", ["query"], g.serve))
+        if g.ask:  # learn the queryable, query it, receive the answers
+            own.append(_rule(f"{user}-ask", "ingress", ["query"], g.ask))
+            own.append(_rule(f"{user}-answers", "egress", ["declare_queryable", "reply"], g.ask))
+        rules += own
+        subjects.append({"id": user, "usernames": [user], **({"cert_common_names": [user]} if mtls else {})})
+        policies.append({"id": user, "rules": ["learn-subscribers", *(r["id"] for r in own)], "subjects": [user]})
+    return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}
