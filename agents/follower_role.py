@@ -202,8 +202,9 @@ class FollowerRole(RoleBase):
         tick's, or an older one the link held back (stale, as delays are)."""
         reading = None
         if reading_obs is not None:
+            ref = self.slot.reference
             for rid, rho, phi, beta in reading_obs.readings:
-                if rid == self.slot.reference:
+                if rid == ref:
                     reading = MarkerReading(rho_m=rho, phi_rad=phi, beta_rad=beta)
                     break
         # The ticks since the last one answered: more than one where observations
