@@ -1,5 +1,5 @@
 """A run's rows as Rerun columns: to the live stream at each send, to the
-recording file in batches of sim time (FILE_BATCH_S, more for a large swarm).
+recording file in batches of FILE_BATCH_S of sim time.
 
 Every ``send_columns`` call makes one chunk of the file, and a chunk costs
 about 1.2 kB whatever its rows (measured with rerun-sdk 0.41). The logger
@@ -7,7 +7,7 @@ sends every 0.25 s of wall time: a real-time run would get a chunk per
 entity every 0.25 s, 4-8 times those of the same run in lockstep (which
 passes more sim time per send), for the same rows. Batching by sim time
 makes a file's size the same in both modes. A logger killed with SIGKILL
-loses the rows of its last batch (2 s of sim time; 4 s from 50 robots).
+loses the rows of its last batch.
 """
 
 from __future__ import annotations
@@ -22,18 +22,6 @@ if TYPE_CHECKING:
     from formation_swarm.nodes.recording import Recording
 
 FILE_BATCH_S = 2.0  # sim time, s, of the rows in one chunk of the file
-# Beyond this many robots a chunk spans more sim time, in proportion: each
-# entity's chunk costs a send (about 0.1 ms of the logger's CPU), and a swarm
-# of N robots has about 20 N entities. At most FILE_BATCH_MAX_S: the last
-# chunk is written once the run has ended, within the launcher's grace (with
-# 200 robots, 16 s of rows took 2.8 s of wall time to send, 2 s of rows 1.3 s).
-FILE_BATCH_ROBOTS = 25
-FILE_BATCH_MAX_S = 4.0
-
-
-def file_batch_s(robots: int) -> float:
-    """The sim time, s, of the rows in one chunk of the file for a run of ``robots``."""
-    return min(FILE_BATCH_MAX_S, FILE_BATCH_S * max(1.0, robots / FILE_BATCH_ROBOTS))
 
 
 def columns(kind: str, values: np.ndarray) -> Any:

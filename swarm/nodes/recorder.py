@@ -45,7 +45,7 @@ import numpy as np
 import rerun as rr
 
 from formation_swarm.nodes.blueprint import LEADER_FRAME, MEAN_S, SMOOTHED, TIMELINE, static_entities
-from formation_swarm.nodes.columns import ColumnSink, file_batch_s
+from formation_swarm.nodes.columns import ColumnSink
 from formation_swarm.nodes.running_mean import CentredMean
 from formation_swarm.world.kinematics import Pose, from_body_frame
 
@@ -77,7 +77,7 @@ class Recorder:
         self.counts = {"log_errors": 0, "rows": 0, "unjoined": 0}
         self.schedule: list[tuple[float, str, str]] = []  # fault schedule events still to come: time s, text, level
         self.last_time_s = -1.0
-        self.sink = ColumnSink(rec, TIMELINE, batch_s=file_batch_s(len(sc.robots)))
+        self.sink = ColumnSink(rec, TIMELINE)
         self.means: dict[tuple[int, str], CentredMean] = {}  # (follower, series) -> its 1 s mean
 
     def add_truths(self, truths: list[Truth]) -> None:
