@@ -55,8 +55,8 @@ class EkfParams:
 
 def _residual(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     y = a - b
-    y[1, 0] = wrap_angle(y[1, 0])
-    y[2, 0] = wrap_angle(y[2, 0])
+    y[1, 0] = wrap_angle(y.item(1))  # item: a Python float, the same number, faster arithmetic
+    y[2, 0] = wrap_angle(y.item(2))
     return y
 
 
@@ -100,7 +100,7 @@ def _hx(state: np.ndarray, d: float, out: np.ndarray | None = None) -> np.ndarra
     """Eq. 1, h(x) = (rho_r, beta, phi), written into ``out`` (3 x 1) if given."""
     if out is None:
         out = np.zeros((3, 1))
-    x, y, phi = state[0, 0], state[1, 0], state[2, 0]
+    x, y, phi = state.item(0), state.item(1), state.item(2)
     mx = x + d * math.sin(phi)
     my = y - d * math.cos(phi)
     out[0, 0] = math.hypot(mx, my)
@@ -114,7 +114,7 @@ def _h_jacobian(state: np.ndarray, d: float, out: np.ndarray | None = None) -> n
     the constant entries, 0 and 1, of :func:`jacobian_template`)."""
     if out is None:
         out = jacobian_template()
-    x, y, phi = state[0, 0], state[1, 0], state[2, 0]
+    x, y, phi = state.item(0), state.item(1), state.item(2)
     mx = x + d * math.sin(phi)
     my = y - d * math.cos(phi)
     r2 = max(mx * mx + my * my, 1e-12)
@@ -162,6 +162,8 @@ class TargetEKF:
         self._h = jacobian_template()
         self._hx = np.zeros((3, 1))
         self._z = np.zeros((3, 1))
+        # Eq. 2's Jacobian with respect to the state, filled in place by target().
+        self._j = np.array([[1.0, 0.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0, 0.0]])
         self.initialized = False
         self.resets = 0  # divergences: a state or covariance no longer finite and bounded
 
@@ -173,7 +175,8 @@ class TargetEKF:
         numbers overflowing) starts again from the next reading instead of
         raising or steering on garbage."""
         x, y, phi, v, w = self._kf.x[:, 0].tolist()
-        trace = float(self._kf.P.trace())
+        p = self._kf.P.item  # P's trace, summed in numpy's order (ndarray.trace costs more than the step)
+        trace = (((p(0) + p(6)) + p(12)) + p(18)) + p(24)
         # Written out (a tick's hot path); a nan fails every comparison.
         if not (
             0.0 <= trace < MAX_COVARIANCE_TRACE
@@ -278,14 +281,16 @@ class TargetEKF:
         return self._kf.P.copy()
 
     def leader(self) -> tuple[Point, float]:
-        x, y, phi = self._kf.x[:3, 0]
-        return Point(float(x), float(y)), float(phi)
+        x, y, phi = self._kf.x[:3, 0].tolist()
+        return Point(x, y), phi
 
     def target(self, offset: Point) -> tuple[Point, np.ndarray]:
         """Eq. 2 on the estimate: P_g and its 2x2 covariance (first order)."""
-        x, y, phi = self._kf.x[:3, 0]
-        off = rotate(float(phi), offset[0], offset[1])
+        x, y, phi = self._kf.x[:3, 0].tolist()
+        off = rotate(phi, offset[0], offset[1])
         # d/dphi R(phi) P_vt = R(phi + pi/2) P_vt = (-off_y, off_x)
-        j = np.array([[1.0, 0.0, -off.y_m, 0.0, 0.0], [0.0, 1.0, off.x_m, 0.0, 0.0]])
+        j = self._j
+        j[0, 2] = -off.y_m
+        j[1, 2] = off.x_m
         cov = j @ self._kf.P @ j.T
-        return Point(float(x) + off.x_m, float(y) + off.y_m), cov
+        return Point(x + off.x_m, y + off.y_m), cov

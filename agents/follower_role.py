@@ -27,9 +27,10 @@ for the process's log.
 from __future__ import annotations
 
 import collections
+import functools
 import math
 import traceback
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from formation_swarm.agents.controller import (
@@ -129,7 +130,7 @@ class FollowerRole(RoleBase):
         answer = self._controlled(obs, inp) if self.failure is None else None
         if answer is None:  # failed, now or before: stopped
             command = self._command(obs.tick, 0.0, 0.0)
-            answer = Answer(command=command, telemetry=self._telemetry(obs, command, {}))
+            answer = Answer(command=command, telemetry=self._telemetry(obs, command, {}.get, {}))
         self._answered(obs.tick)
         return answer
 
@@ -141,8 +142,9 @@ class FollowerRole(RoleBase):
             if not (math.isfinite(left) and math.isfinite(right)):
                 raise ValueError(f"wheel speeds must be finite numbers, got left_mps={left!r}, right_mps={right!r}")
             command = self._command(obs.tick, float(left), float(right))
-            self._count(obs.tick, out.telemetry)
-            telemetry = self._telemetry(obs, command, out.telemetry)
+            get = _getter(out.telemetry)
+            self._count(obs.tick, get)
+            telemetry = self._telemetry(obs, command, get, out.telemetry)
         except Exception as exc:  # noqa: BLE001 - whatever the controller does wrong stops this robot only
             self._fail(obs.tick, exc)
             return None
@@ -200,8 +202,9 @@ class FollowerRole(RoleBase):
         tick's, or an older one the link held back (stale, as delays are)."""
         reading = None
         if reading_obs is not None:
+            ref = self.slot.reference
             for rid, rho, phi, beta in reading_obs.readings:
-                if rid == self.slot.reference:
+                if rid == ref:
                     reading = MarkerReading(rho_m=rho, phi_rad=phi, beta_rad=beta)
                     break
         # The ticks since the last one answered: more than one where observations
@@ -219,15 +222,16 @@ class FollowerRole(RoleBase):
         self._moved = self._new_reference = False
         return inp
 
-    def _count(self, tick: int, values: Mapping[str, float]) -> None:
+    def _count(self, tick: int, get: Getter) -> None:
         """The counters the controller's named values feed (agents.controller.ROLE_COUNTED)."""
-        self.stops.count(tick, holding=_flag(values, "holding"), waiting=_flag(values, "waiting"))
-        resets = values.get("ekf_resets")
-        if resets is not None and math.isfinite(resets):
+        self.stops.count(tick, holding=(get("holding") or 0.0) > 0.0, waiting=(get("waiting") or 0.0) > 0.0)
+        resets = get("ekf_resets")
+        if resets is not None:
             self.ekf_resets = int(resets)
 
-    def _telemetry(self, obs: Observation, command: Command, t: Mapping[str, float]) -> Telemetry:
-        steering_to = int(_value(t, "steering_to") or 0)
+    def _telemetry(self, obs: Observation, command: Command, get: Getter, t: Mapping[str, float]) -> Telemetry:
+        """The tick's telemetry from the controller's values ``t``, read by ``get`` (:func:`_getter`)."""
+        steering_to = int(get("steering_to") or 0)
         return Telemetry(
             sender=self.robot_id,
             seq=self._next_seq(),
@@ -235,16 +239,16 @@ class FollowerRole(RoleBase):
             time_s=obs.time_s,
             reference=self.slot.reference,
             formation=self.code,
-            measured=_values(t, "measured_x_m", "measured_y_m"),
-            estimate=_values(t, "estimate_x_m", "estimate_y_m"),
-            target_cov=_values(t, "estimate_cov_xx_m2", "estimate_cov_xy_m2", "estimate_cov_yy_m2"),
-            rho_m=_value(t, "rho_m"),
-            alpha_rad=_value(t, "alpha_rad"),
-            vn=_value(t, "vn_mps"),
+            measured=_values(get, "measured_x_m", "measured_y_m"),
+            estimate=_values(get, "estimate_x_m", "estimate_y_m"),
+            target_cov=_values(get, "estimate_cov_xx_m2", "estimate_cov_xy_m2", "estimate_cov_yy_m2"),
+            rho_m=get("rho_m"),
+            alpha_rad=get("alpha_rad"),
+            vn=get("vn_mps"),
             left_mps=command.left_mps,
             right_mps=command.right_mps,
             steering_to=steering_to if 0 <= steering_to <= 3 else 0,
-            changing=_flag(t, "changing"),
+            changing=(get("changing") or 0.0) > 0.0,
             obs_dropped=self.inbox.link.lost,
             formation_dropped=self.formation_link.lost,
             rejected=self.rejections.total,
@@ -314,9 +318,27 @@ def _slot(slot: Slot) -> Slot:
     return Slot(reference=slot.reference, offset=Point(float(slot.offset[0]), float(slot.offset[1])))
 
 
+Getter = Callable[[str], "float | None"]  # a named value of the controller's (see _getter)
+_FLOAT = frozenset((float,))
+
+
+def _getter(values: Mapping[str, float]) -> Getter:
+    """What reads the controller's named values for the role: each as a float,
+    None where it is absent, NaN or infinite (the wire carries neither). A
+    value that is no number raises when read (the controller's failure). When
+    every value is a finite float (the common case, tested in C for all of
+    them at once), the mapping's own ``get``."""
+    if (
+        isinstance(values, dict)
+        and _FLOAT.issuperset(map(type, values.values()))
+        and math.isfinite(sum(values.values()))
+    ):
+        return values.get
+    return functools.partial(_value, values)
+
+
 def _value(values: Mapping[str, float], name: str) -> float | None:
-    """A named value; None where it is absent, NaN or infinite (the wire carries
-    neither). A value that is no number raises (the controller's failure)."""
+    """A named value; None where it is absent, NaN or infinite. A value that is no number raises."""
     v = values.get(name)
     if v is None:
         return None
@@ -325,11 +347,7 @@ def _value(values: Mapping[str, float], name: str) -> float | None:
     return v if math.isfinite(v) else None
 
 
-def _values(values: Mapping[str, float], *names: str) -> tuple[float, ...] | None:
+def _values(get: Getter, *names: str) -> tuple[float, ...] | None:
     """Named values together; None unless every one is there."""
-    got = tuple(_value(values, n) for n in names)
-    return None if None in got else got  # type: ignore[return-value]
-
-
-def _flag(values: Mapping[str, float], name: str) -> bool:
-    return (_value(values, name) or 0.0) > 0.0
+    got = [get(n) for n in names]
+    return None if None in got else tuple(got)  # type: ignore[arg-type]

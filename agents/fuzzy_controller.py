@@ -77,9 +77,9 @@ class FuzzyController(TrackingController):
         prev_rho = self._prev_rho if choice == self._prev_choice else None
         err = errors(goal, prev_rho, phi_rad)
         if p.drho_at_sign_change == "distance" and prev_rho is not None and prev_rho * err.rho_m < 0.0:
-            err = err._replace(drho_m=abs(err.rho_m) - abs(prev_rho))  # level with the target: no jump
+            err = TargetErrors(err.alpha_rad, err.rho_m, abs(err.rho_m) - abs(prev_rho))  # level with it: no jump
         if p.lookahead_m:
-            err = err._replace(alpha_rad=lookahead_bearing(goal, phi_rad, p.lookahead_m))
+            err = TargetErrors(lookahead_bearing(goal, phi_rad, p.lookahead_m), err.rho_m, err.drho_m)
         return err
 
     def _wait(self, rho_m: float) -> bool:

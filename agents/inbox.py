@@ -66,17 +66,37 @@ class InboxChecks:
     def observation(self, obs: Observation) -> str | None:
         if obs.tick <= self.last_tick:
             return "replayed or reordered"
-        for rid, rho, phi, beta in obs.readings:
-            if rid not in self.robots:
-                return "unknown robot"
-            if not (0.0 <= rho <= self.max_rho_m and abs(phi) <= ANGLE_LIMIT_RAD and abs(beta) <= ANGLE_LIMIT_RAD):
-                return "reading out of bounds"
+        if not self._readings_plausible(obs.readings) and (why := self._reading_rejected(obs.readings)) is not None:
+            return why
         for dist, bearing, radius in obs.obstacles:
             if not (radius > 0.0 and dist >= 0.0 and dist - radius <= self.sensing_range_m + 1e-9):
                 return "obstacle out of bounds"
             if abs(bearing) > ANGLE_LIMIT_RAD:
                 return "obstacle out of bounds"
         self.last_tick = obs.tick
+        return None
+
+    def _readings_plausible(self, readings: tuple[tuple[int, float, float, float], ...]) -> bool:
+        """Whether every reading passes (the common case, tested a column at a
+        time in C: a camera sees a dozen markers in a long line)."""
+        if not readings:
+            return True
+        rids, rhos, phis, betas = zip(*readings, strict=True)
+        return (
+            self.robots.issuperset(rids)
+            and min(rhos) >= 0.0
+            and max(rhos) <= self.max_rho_m
+            and max(map(abs, phis)) <= ANGLE_LIMIT_RAD
+            and max(map(abs, betas)) <= ANGLE_LIMIT_RAD
+        )
+
+    def _reading_rejected(self, readings: tuple[tuple[int, float, float, float], ...]) -> str | None:
+        """The reason of the first reading that fails, in order."""
+        for rid, rho, phi, beta in readings:
+            if rid not in self.robots:
+                return "unknown robot"
+            if not (0.0 <= rho <= self.max_rho_m and abs(phi) <= ANGLE_LIMIT_RAD and abs(beta) <= ANGLE_LIMIT_RAD):
+                return "reading out of bounds"
         return None
 
     def code(self, fc: FormationCode) -> str | None:

@@ -32,8 +32,12 @@ TICKS_PER_S = os.sysconf("SC_CLK_TCK")
 
 def threads(pid: int) -> dict[str, tuple[str, float, float]]:
     """Per thread id: its name, user and system CPU seconds so far."""
-    out = {}
-    for task in Path(f"/proc/{pid}/task").iterdir():
+    out: dict[str, tuple[str, float, float]] = {}
+    try:
+        tasks = list(Path(f"/proc/{pid}/task").iterdir())
+    except OSError:
+        return out  # the process ended
+    for task in tasks:
         try:
             name = (task / "comm").read_text().strip()
             fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
@@ -72,6 +76,9 @@ def main() -> None:
         after = {name: threads(pid) for name, pid in pids.items()}
         ticks = (launch.sim_time() - sim0) / launch.sc.dt_s
         launch.wait(timeout_s=600.0)
+    gone = sorted(name for name in pids if not after[name])
+    if gone:
+        print(f"ended within the window (not counted): {', '.join(gone)}")
     print(f"{args.robots} robots, {ticks:.0f} ticks in {args.window:g} s; load average {os.getloadavg()[0]:.2f}")
     groups: dict[str, collections.Counter[str]] = {}
     count: collections.Counter[str] = collections.Counter()

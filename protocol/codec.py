@@ -20,6 +20,7 @@ wire for writers of agents in other languages.
 from __future__ import annotations
 
 import math
+import operator
 import re
 from collections import Counter
 from collections.abc import Callable
@@ -55,6 +56,11 @@ class DecodeError(ValueError):
 # Every check tests the common case first (a finite float, an int in range)
 # and builds a field name or an error only on the way to a rejection: these
 # run on every message of every tick.
+
+_FLOAT = frozenset((float,))
+_INT = frozenset((int,))
+_BOOL = frozenset((bool,))
+_LIST = frozenset((list,))
 
 
 def number(name: str, v: Any) -> float:
@@ -98,10 +104,9 @@ def numbers(n: int, optional: bool = False) -> Callable[[str, Any], tuple[float,
             return None
         if not isinstance(v, (list, tuple)) or len(v) != n:
             raise DecodeError("wrong shape", f"{name} must be a list of {n} numbers")
-        for x in v:
-            if type(x) is not float or not math.isfinite(x):
-                return tuple(number(f"{name}[{i}]", x) for i, x in enumerate(v))
-        return tuple(v)
+        if _FLOAT.issuperset(map(type, v)) and math.isfinite(sum(v)):
+            return tuple(v)
+        return tuple(number(f"{name}[{i}]", x) for i, x in enumerate(v))
 
     return check
 
@@ -110,15 +115,16 @@ def _column_ok(check: Callable[[str, Any], Any], column: tuple[Any, ...]) -> boo
     """Whether every value of a column passes ``check`` as it is (the common
     case, tested in one go: a few calls per column instead of one per value).
     False sends the records through the checks one by one, which decide."""
+    # The types are taken in C (map, a set): no Python call per value.
     if check is number:
         # A NaN or an inf makes the sum NaN or inf; so can a sum that overflows,
         # which only costs the slow path.
-        return all(type(x) is float for x in column) and math.isfinite(sum(column))
+        return _FLOAT.issuperset(map(type, column)) and math.isfinite(sum(column))
     if check is boolean:
-        return all(type(x) is bool for x in column)
+        return _BOOL.issuperset(map(type, column))
     bounds = getattr(check, "bounds", None)
     if bounds is not None:
-        return all(type(x) is int for x in column) and bounds[0] <= min(column) and max(column) <= bounds[1]
+        return _INT.issuperset(map(type, column)) and bounds[0] <= min(column) and max(column) <= bounds[1]
     return False
 
 
@@ -130,10 +136,12 @@ def records(*item_checks: Callable[[str, Any], Any]) -> Callable[[str, Any], tup
             raise DecodeError("wrong type", f"{name} must be a list")
         if len(v) > MAX_ITEMS:
             raise DecodeError("too many items", f"{name} has {len(v)} > {MAX_ITEMS}")
-        if v and all(type(rec) is list and len(rec) == n for rec in v):
-            columns = list(zip(*v, strict=True))
-            if all(_column_ok(c, col) for c, col in zip(item_checks, columns, strict=True)):
-                return tuple(zip(*columns, strict=True))
+        if v and _LIST.issuperset(map(type, v)) and {n}.issuperset(map(len, v)):
+            for c, col in zip(item_checks, zip(*v, strict=True), strict=True):
+                if not _column_ok(c, col):
+                    break
+            else:
+                return tuple(map(tuple, v))
         out = []
         for i, rec in enumerate(v):
             if not isinstance(rec, (list, tuple)) or len(rec) != n:
@@ -226,7 +234,7 @@ class Message:
     OPTIONAL: ClassVar[int] = 0
 
     def to_bytes(self) -> bytes:
-        values = [self.TAG, VERSION, *[getattr(self, n) for n in self._names()]]
+        values = [self.TAG, VERSION, *self._getter()(self)]
         if self.OPTIONAL:
             for _ in range(self.OPTIONAL):  # empty optional fields at the end are left out
                 if values[-1]:
@@ -262,7 +270,7 @@ class Message:
         if type(tick) is not int or not 0 <= tick <= MAX_TICK:
             count("tick", tick)
         values = [c(n, v) for c, n, v in zip(cls.CHECKS, names[3:], raw[5:], strict=True)]
-        return cls(**dict(zip(names, (sender, seq, tick, *values), strict=True)))
+        return cls(sender=sender, seq=seq, tick=tick, **dict(zip(names[3:], values, strict=True)))
 
     @classmethod
     def _names(cls) -> tuple[str, ...]:
@@ -271,6 +279,15 @@ class Message:
             cached = tuple(f.name for f in fields(cls))
             type.__setattr__(cls, "_NAMES", cached)
         return cached
+
+    @classmethod
+    def _getter(cls) -> Callable[[Message], tuple[Any, ...]]:
+        """The fields' values in wire order, taken in one call."""
+        cached = cls.__dict__.get("_GETTER")
+        if cached is None:
+            cached = operator.attrgetter(*cls._names())
+            type.__setattr__(cls, "_GETTER", cached)
+        return cached  # type: ignore[no-any-return]
 
 
 def unpack_batch(payload: bytes) -> list[bytes]:

@@ -93,6 +93,13 @@ class CameraFrame:
         self.params = params
         self.ids = sorted(poses)
         self._row = {rid: i for i, rid in enumerate(self.ids)}
+        # By row, once a frame: each marker's world position (marker_position) and
+        # each heading's cosine and sine (to_body_frame's), the same numbers.
+        d = params.marker_offset_m
+        rows = [poses[rid] for rid in self.ids]
+        self._headings = [p[2] for p in rows]
+        self._markers = [marker_position(p, d) for p in rows]
+        self._trig = [(math.cos(p[2]), math.sin(p[2])) for p in rows]
         self._maybe: np.ndarray | None = None  # None: every other robot's marker is read
         if len(self.ids) <= self.SCALAR_MAX:
             return
@@ -116,26 +123,35 @@ class CameraFrame:
     def observe(self, observer_id: int, rng: np.random.Generator) -> list[MarkerReading]:
         params = self.params
         i = self._row[observer_id]
-        noise = rng.standard_normal(3 * (len(self.ids) - 1)).tolist()
+        # Three draws per other robot, in view or not (the stream); only those of
+        # the markers in view are read, as Python floats (item: the same numbers).
+        noise = rng.standard_normal(3 * (len(self.ids) - 1)).item
         observer = self.poses[observer_id]
         half_fov = 0.5 * params.fov_rad
         out: list[MarkerReading] = []
         maybe = self._maybe
         candidates = range(len(self.ids)) if maybe is None else np.flatnonzero(maybe[i]).tolist()
+        ox, oy, oth = observer[0], observer[1], observer[2]
+        c, s = self._trig[i]
+        markers, headings = self._markers, self._headings
         for j in candidates:
             if j == i:
                 continue
-            rid = self.ids[j]
             k = 3 * (j if j < i else j - 1)  # the observer itself draws nothing
-            rho, phi, beta = true_reading(observer, self.poses[rid], params.marker_offset_m)
+            # true_reading, written out on the frame's markers and trigonometry.
+            dx = markers[j][0] - ox
+            dy = markers[j][1] - oy
+            xb, yb = dx * s - dy * c, dx * c + dy * s
+            rho, beta = math.hypot(xb, yb), math.atan2(xb, yb)
             if rho > params.range_m or abs(beta) > half_fov:
                 continue
+            phi = wrap_angle(headings[j] - oth)
             out.append(
                 MarkerReading(
-                    rid,
-                    max(0.0, rho + params.sigma_rho_m * noise[k]),
-                    wrap_angle(phi + params.sigma_phi_rad * noise[k + 1]),
-                    wrap_angle(beta + params.sigma_beta_rad * noise[k + 2]),
+                    self.ids[j],
+                    max(0.0, rho + params.sigma_rho_m * noise(k)),
+                    wrap_angle(phi + params.sigma_phi_rad * noise(k + 1)),
+                    wrap_angle(beta + params.sigma_beta_rad * noise(k + 2)),
                 )
             )
         return out

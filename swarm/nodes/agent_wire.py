@@ -31,23 +31,24 @@ class Router:
     def __init__(self, keys: Keys, role: RoleBase) -> None:
         self.keys = keys
         self.role = role
-        self.codes_key = keys.codes  # compared with every inbox message's key: built once
+        # Compared with every inbox message's key: built once.
+        self.codes_key = keys.codes
+        self.obs_key = keys.obs(role.robot_id)
 
     def take(self, key: str, payload: bytes) -> None:
         role, rejections = self.role, self.role.rejections
+        if key == self.obs_key:  # every tick's: its key need not be taken apart
+            if (obs := rejections.decode(Observation, payload)) is not None:
+                role.take_observation(obs)
+            return
         if key == self.codes_key:
             if not role.TAKES_CODES:
                 rejections.reject("unexpected key")
             elif (fc := rejections.decode(FormationCode, payload)) is not None:
                 role.take_code(fc)
             return
-        rk = self.keys.parse_robot(key)
-        if rk is None or rk.robot_id != role.robot_id:
-            rejections.reject("unknown key")
-        elif rk.kind != "obs":
-            rejections.reject("unexpected key")
-        elif (obs := rejections.decode(Observation, payload)) is not None:
-            role.take_observation(obs)
+        rk = self.keys.parse_robot(key)  # another of this robot's keys (not its obs), or none of it
+        rejections.reject("unknown key" if rk is None or rk.robot_id != role.robot_id else "unexpected key")
 
 
 class Outbox:

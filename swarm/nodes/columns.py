@@ -54,8 +54,9 @@ class ColumnSink:
     def add(self, entity: str, kind: str, times: np.ndarray, values: np.ndarray) -> None:
         if len(times) == 0:
             return
-        self.held.setdefault((entity, kind), []).append((np.asarray(times), np.asarray(values)))
-        self.span = (min(self.span[0], float(np.min(times))), max(self.span[1], float(np.max(times))))
+        times = np.asarray(times)
+        self.held.setdefault((entity, kind), []).append((times, np.asarray(values)))
+        self.span = (min(self.span[0], float(times.min())), max(self.span[1], float(times.max())))
         if self.rec.live is not None:
             self._send(self.rec.live, (entity, kind), times, values)
 

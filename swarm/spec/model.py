@@ -77,9 +77,10 @@ class Scenario:
         from the fields, once: the loader warns with them, swarm run prints them."""
         return caveats.of(self)
 
-    @property
+    @cached_property
     def formation_names(self) -> tuple[str, ...]:
-        """Formation codes are indices into this tuple."""
+        """Formation codes are indices into this tuple (made once: the world
+        asks for each robot's formation every tick)."""
         return tuple(self.formations)
 
     def code_of(self, name: str) -> int:

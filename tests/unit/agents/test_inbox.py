@@ -60,6 +60,22 @@ def test_a_reading_the_camera_cannot_make_is_refused(reading: tuple, why: str | 
 
 
 @pytest.mark.parametrize(
+    ("readings", "why"),
+    [
+        (((1, 2.0, 0.0, 0.0), (2, 3.0, 0.1, -0.1), (3, 9.0, -3.0, 3.0)), None),
+        (((1, 2.0, 0.0, 0.0), (2, 11.0, 0.0, 0.0), (4, 2.0, 0.0, 0.0)), "reading out of bounds"),
+        (((1, 2.0, 0.0, 0.0), (4, 2.0, 0.0, 0.0), (2, 11.0, 0.0, 0.0)), "unknown robot"),
+        (((1, 2.0, 0.0, 4.0), (2, -1.0, 0.0, 0.0)), "reading out of bounds"),
+    ],
+)
+def test_of_several_readings_the_first_that_fails_names_the_reason(readings: tuple, why: str | None) -> None:
+    """A dozen markers in view are checked a column at a time; a refusal still
+    gives the reason of the first reading that fails, in the message's order."""
+    c = checks()
+    assert c.observation(obs(1, readings)) == why
+
+
+@pytest.mark.parametrize(
     ("obstacle", "why"),
     [
         ((SENSING_M + 1.0, 0.3, 1.0), None),  # its edge at the sensing range

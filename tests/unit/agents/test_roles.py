@@ -206,8 +206,17 @@ def test_the_leaders_wheels_are_its_pilots() -> None:
 
 def test_the_roles_and_their_process_fill_the_stats_file_between_them() -> None:
     """Every key of an agent's stats file comes from its role or from its process, none from both."""
-    process = {"robot", "role", "lockstep", "busy_s", "cpu_s", "loop_cpu_s", "world_back_after_s", "rejected"}
-    process.add("memory_given_back")  # a flood's relief: the process's (runtime.memory)
+    process = {
+        "robot",
+        "role",
+        "lockstep",
+        "busy_s",
+        "cpu_s",
+        "loop_cpu_s",
+        "world_back_after_s",
+        "rejected",
+        "memory_given_back",
+    }
     for role in (_leader(FIG11), _follower(FIG11, 2)):
         assert set(role.stats()) == set(STATS_KEYS) - process, role.NAME
     assert _leader(FIG11).stats()["formation_changes"] == []
