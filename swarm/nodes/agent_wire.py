@@ -48,7 +48,10 @@ class Router:
                 role.take_code(fc)
             return
         rk = self.keys.parse_robot(key)  # another of this robot's keys (not its obs), or none of it
-        rejections.reject("unknown key" if rk is None or rk.robot_id != role.robot_id else "unexpected key")
+        if rk is None or rk.robot_id != role.robot_id:
+            rejections.reject("unknown key")
+        else:
+            rejections.reject("unexpected key")
 
 
 class Outbox:
