@@ -23,9 +23,8 @@ lint: $(STAMP)
 	$(BIN)/python tools/lint_imports.py
 	$(BIN)/ruff format --check .
 
-# Two workers (pytest-xdist; tests/conftest.py keeps each file on one worker).
 test: lint browser
-	$(BIN)/python -m pytest -n 2 --dist loadgroup
+	$(BIN)/python -m pytest
 
 # The suite beside two CPU hogs (tools/stress.sh): its retries and time bounds
 # must hold on a busy machine. PYTEST_ARGS="tests/system" runs a part of it.

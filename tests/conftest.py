@@ -1,21 +1,10 @@
-"""Suite-wide guard: no process of ours may outlive the test session. With
-pytest-xdist (``make test``: two workers), the tests of one file stay on one
-worker (module fixtures, and test_claims' last test reads the runs of the
-tests before it), and every test of tests/hosts/ on one worker: each makes
-network namespaces and addresses of its own."""
+"""Suite-wide guard: no process of ours may outlive the test session."""
 
 from __future__ import annotations
 
 import pytest
 
 from tests.helpers import processes
-
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    for item in items:
-        path = item.nodeid.split("::", 1)[0]
-        group = "hosts" if path.startswith("tests/hosts/") else path
-        item.add_marker(pytest.mark.xdist_group(group))
 
 
 @pytest.fixture(scope="session", autouse=True)
