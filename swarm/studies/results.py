@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -29,7 +28,8 @@ from formation_swarm.runtime.proc import interrupt_on_stop_signals
 from formation_swarm.spec.files import parse_overrides
 from formation_swarm.studies import claims, sensitivity, sensitivity_figure
 from formation_swarm.studies.jobs import Job
-from formation_swarm.studies.sweep import MAX_JOBS, MAX_SEEDS, Sweep
+from formation_swarm.studies.sections import BEGIN, END, check_markers, markers, write_all
+from formation_swarm.studies.sweep import MAX_JOBS, MAX_SEEDS, Sweep, run_sweeps
 from formation_swarm.studies.tables import aggregate
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -52,15 +52,6 @@ NOISE: dict[str, dict[str, Any]] = {
         "controller.ekf.sigma_beta_rad": 0.0436,
     },
 }
-
-
-def markers(what: str = "results table", settings: str = "") -> tuple[str, str]:
-    """The markers a generated table sits between, naming its settings if any."""
-    name = f"{what} ({settings})" if settings else what
-    return f"<!-- {name}: begin -->", f"<!-- {name}: end -->"
-
-
-BEGIN, END = markers()
 
 
 def settings_text(settings: Mapping[str, Any]) -> str:
@@ -115,36 +106,6 @@ def table(rows: Sequence[Mapping[str, Any]], seeds: int, settings: Mapping[str, 
                 cells.append(cell(label, "r2_rms_m") + (f" [{mx['mean']:.2f}]" if mx else ""))
             lines.append(f"| {ctrl} | {noise} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
-
-
-def unfit_runs(rows: Sequence[Mapping[str, Any]]) -> list[str]:
-    """The runs that may not enter the table, each with the reason: a run that
-    failed, and a lockstep run that missed a tick (the world stopped a robot for
-    want of its answer: neither the controller's figure nor reproducible)."""
-    out = []
-    for r in rows:
-        if r.get("exit_code") != 0:
-            out.append(f"{r.get('run')}: exit code {r.get('exit_code')}")
-        elif r.get("lockstep_misses") != 0:
-            out.append(f"{r.get('run')}: {r.get('lockstep_misses')} lockstep misses")
-    return out
-
-
-def check_markers(path: Path, begin: str = BEGIN, end: str = END) -> None:
-    """Raise ValueError unless ``path`` is a file with the table's markers."""
-    try:
-        doc = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"--write {path}: cannot read it ({getattr(exc, 'strerror', None) or exc})") from None
-    if begin not in doc or end not in doc:
-        raise ValueError(f"--write {path}: has no {begin} ... {end} markers")
-
-
-def write_into(path: Path, text: str, begin: str = BEGIN, end: str = END) -> None:
-    check_markers(path, begin, end)
-    doc = path.read_text()
-    new = re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _m: f"{begin}\n{text}\n{end}", doc, flags=re.S)
-    path.write_text(new)
 
 
 def build_parser() -> Parser:
@@ -245,21 +206,6 @@ def claim_sweeps(seeds: Sequence[int], settings: Mapping[str, Any], out: Path, w
     return sensitivity.plan(seeds, settings, [], out, workers=workers)
 
 
-def run_sweeps(sweeps: Mapping[str, Sweep], out: Path) -> dict[str, list[dict[str, Any]]] | None:
-    """Every sweep's rows; None, having said why, when a run cannot enter a table."""
-    rows = {name: sweep.run() for name, sweep in sweeps.items()}
-    unfit = [why for r in rows.values() for why in unfit_runs(r)]
-    if unfit:
-        # A failed run is run again by the next sweep; one with misses is kept, so it must be deleted.
-        print(
-            f"swarm results: {len(unfit)} runs cannot enter the table; delete their folders under "
-            f"{out} and run again:\n  " + "\n  ".join(unfit[:10]),
-            file=sys.stderr,
-        )
-        return None
-    return rows
-
-
 def run_sensitivity(
     axes: Sequence[sensitivity.Axis],
     seeds: int,
@@ -292,17 +238,6 @@ def run_sensitivity(
         if not write_all(writes, text, *markers("sensitivity", axis.name)):
             return 1
     return 0
-
-
-def write_all(writes: Sequence[Path], text: str, begin: str, end: str) -> bool:
-    """``text`` between the markers of every file; False, having said why, if one cannot take it."""
-    for target in writes:
-        try:
-            write_into(target, text, begin, end)
-        except (OSError, ValueError) as exc:
-            print(f"swarm results: {exc}", file=sys.stderr)
-            return False
-    return True
 
 
 @dataclass

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from scipy import stats
 
-from formation_swarm.studies import claims, results
+from formation_swarm.studies import claims, results, sections, sweep
 from formation_swarm.studies.tables import aggregate
 
 ROWS_PER_SEED = [1.0, 2.5, 0.5, 3.0, 1.5]  # one metric over five seeds
@@ -106,12 +106,12 @@ def test_the_grid_is_the_published_one() -> None:
 def test_write_into_replaces_only_between_the_markers(tmp_path: Path) -> None:
     doc = tmp_path / "doc.md"
     doc.write_text(f"before\n{results.BEGIN}\nold\n{results.END}\nafter\n")
-    results.write_into(doc, "new table")
+    sections.write_into(doc, "new table")
     assert doc.read_text() == f"before\n{results.BEGIN}\nnew table\n{results.END}\nafter\n"
     for text in ("no markers", f"only {results.BEGIN}", f"only {results.END}"):
         (tmp_path / "none.md").write_text(text)
         with pytest.raises(ValueError, match="markers"):
-            results.write_into(tmp_path / "none.md", "x")
+            sections.write_into(tmp_path / "none.md", "x")
 
 
 def test_failed_runs_and_runs_with_lockstep_misses_are_unfit() -> None:
@@ -119,8 +119,8 @@ def test_failed_runs_and_runs_with_lockstep_misses_are_unfit() -> None:
     rows[1]["exit_code"] = 1
     rows[2]["lockstep_misses"] = 3
     del rows[3]["lockstep_misses"]  # a run that does not say: not trusted either
-    assert results.unfit_runs(rows) == ["r1: exit code 1", "r2: 3 lockstep misses", "r3: None lockstep misses"]
-    assert results.unfit_runs(_rows([1.0, 2.0])) == []
+    assert sweep.unfit_runs(rows) == ["r1: exit code 1", "r2: 3 lockstep misses", "r3: None lockstep misses"]
+    assert sweep.unfit_runs(_rows([1.0, 2.0])) == []
 
 
 class _FakeSweep:
@@ -193,7 +193,7 @@ def test_a_setting_goes_into_every_run_its_labels_and_its_own_markers(tmp_path: 
     assert begin == "<!-- claims (robot.wheel_noise_mps=0.1): begin -->"
     doc = tmp_path / "doc.md"
     doc.write_text(f"{results.BEGIN}\nbaseline\n{results.END}\n{begin}\nold\n{end}\n")
-    results.write_into(doc, "noisy claims", begin, end)
+    sections.write_into(doc, "noisy claims", begin, end)
     assert doc.read_text() == f"{results.BEGIN}\nbaseline\n{results.END}\n{begin}\nnoisy claims\n{end}\n"
 
 
