@@ -1,6 +1,7 @@
 """The baseline comparison: fuzzy static / fuzzy dynamic / l-psi, under
 observation drops and two camera-noise levels, on the paper's turning path;
-or, with --claims, the paper's claims a-d measured seed by seed; or, with
+or, with --claims, the paper's claims a-d measured seed by seed (and, as
+shipped, claim d's runs without the avoidance beside them); or, with
 --sensitivity, those claims at every value of one setting at a time.
 
 Runs the grid through swarm sweep (resumable: rerunning reuses finished runs),
@@ -18,7 +19,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -247,7 +248,20 @@ class _Plan:
     settings: dict[str, Any]
     axes: list[sensitivity.Axis] = field(default_factory=list)  # --sensitivity: the settings to vary
     sweeps: dict[str, Sweep] = field(default_factory=dict)  # otherwise: the sweeps of the table
-    markers: tuple[str, str] = ("", "")  # the table's, in the --write files
+    # The tables made of the sweeps' rows, each with its markers in the --write files.
+    tables: list[tuple[tuple[str, str], Callable[[claims.Rows], str]]] = field(default_factory=list)
+
+
+def _tables(args: argparse.Namespace, settings: dict[str, Any]) -> list[tuple[tuple[str, str], Callable[..., str]]]:
+    """The tables of the command line, each with its markers: the baseline's, or the claims' and,
+    as shipped (no --set), claim d's ablation of the avoidance."""
+    said = settings_text(settings)
+    if not args.claims:
+        return [(markers("results table", said), lambda rows: table(rows[""], args.seeds, settings))]
+    out = [(markers("claims", said), lambda rows: claims.table(rows, said))]
+    if not settings:
+        out.append((markers("avoidance ablation"), claims.avoidance_table))
+    return out
 
 
 def _plan(args: argparse.Namespace, out: Path, writes: Sequence[Path]) -> _Plan:
@@ -262,17 +276,17 @@ def _plan(args: argparse.Namespace, out: Path, writes: Sequence[Path]) -> _Plan:
     plan = _Plan(parse_overrides(args.set))
     if args.sensitivity:
         plan.axes = [sensitivity.AXIS_NAMES[a] for a in args.axis] or list(sensitivity.AXES)
-        for target in writes:  # before the runs, not after
-            for axis in plan.axes:
-                check_markers(target, *markers("sensitivity", axis.name))
+        wanted = [markers("sensitivity", axis.name) for axis in plan.axes]
     else:
-        plan.markers = markers("claims" if args.claims else "results table", settings_text(plan.settings))
-        for target in writes:
-            check_markers(target, *plan.markers)  # before the runs, not after
+        plan.tables = _tables(args, plan.settings)
+        wanted = [marks for marks, _make in plan.tables]
         if args.claims:
             plan.sweeps = claim_sweeps(range(args.seeds), plan.settings, out, args.jobs)
         else:
             plan.sweeps = {"": Sweep(SCENARIO, jobs(range(args.seeds), plan.settings), out, workers=args.jobs)}
+    for target in writes:  # before the runs, not after
+        for marks in wanted:
+            check_markers(target, *marks)
     if args.sensitivity and Path(args.figures).exists() and not Path(args.figures).is_dir():
         raise ValueError(f"--figures {args.figures}: is an existing file, not a folder")
     make_folder("--out", out)  # last: nothing made for a bad input
@@ -301,13 +315,15 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     if rows is None:
         return 1
-    settings = plan.settings
-    text = claims.table(rows, settings_text(settings)) if args.claims else table(rows[""], args.seeds, settings)
-    print(text)
     if args.rows:
         try:
             claims.write_rows(Path(args.rows), rows)
         except OSError as exc:
             print(f"swarm results: --rows {args.rows}: cannot write it ({exc.strerror or exc})", file=sys.stderr)
             return 1
-    return 0 if write_all(writes, text, *plan.markers) else 1
+    for marks, make in plan.tables:
+        text = make(rows)
+        print(text)
+        if not write_all(writes, text, *marks):
+            return 1
+    return 0

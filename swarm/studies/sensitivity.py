@@ -45,7 +45,10 @@ LINES = {
     "static 2": "fuzzy, V_N = 2",
     "l-psi": "l-psi",
 }
-SHORT = {c.__name__: name for c, name in zip(claims.CLAIMS, ("a", "b, behind", "b, overshoot", "c", "d"), strict=True)}
+SHORT = {
+    c.__name__: name
+    for c, name in zip(claims.CLAIMS, ("a", "b, behind", "b, overshoot", "c", "d", "d, rank swap"), strict=True)
+}
 
 
 def _camera(sigma_rho_m: float) -> dict[str, Any]:
@@ -149,7 +152,7 @@ def plan(
     workers: int | None,
     extras: Sequence[str] = (),
 ) -> dict[str, Sweep]:
-    """The sweeps of one point: the claims' (one per scenario, in ``out/<scenario>``) and the extra
+    """The sweeps of one point: the claims' (one per ``claims.SWEEPS``, in ``out/<its folder>``) and the extra
     controllers' (in ``out/<scenario>-<extra>``). Every run's label names the settings and the faults,
     so the points of an axis share those folders and a point without either is the claims' own runs."""
     from formation_swarm.studies.jobs import Job
@@ -159,14 +162,14 @@ def plan(
     label = "; ".join(t for t in (settings_text(settings), ", ".join(faults)) if t)
     out_sweeps = {
         name: Sweep(
-            ROOT / "scenarios" / file,
-            [Job(label, dict(settings), s) for s in seeds],
-            out / Path(file).stem,
+            ROOT / "scenarios" / src.file,
+            [Job(label, {**settings, **src.overrides}, s) for s in seeds],
+            out / src.folder,
             workers=workers,
-            logger=logger,
+            logger=src.logger,
             faults=list(faults),
         )
-        for name, (file, logger) in claims.SWEEPS.items()
+        for name, src in claims.SWEEPS.items()
     }
     for name in extras:
         ov = {**EXTRAS[name], **settings}

@@ -19,7 +19,7 @@ def _claims(holds: list[int], seeds: int = 10) -> list[claims.Claim]:
 
 
 def _points(axis: sensitivity.Axis, holds_a: list[int]) -> list[Point]:
-    return [Point(v, _claims([h, 10, 0, 5, 10])) for v, h in zip(axis.values, holds_a, strict=True)]
+    return [Point(v, _claims([h, 10, 0, 5, 10, 10])) for v, h in zip(axis.values, holds_a, strict=True)]
 
 
 def test_holds_for_names_the_values_where_a_claim_holds_in_every_seed_some_and_none() -> None:
@@ -97,6 +97,16 @@ def _row(seed: int, rms: float, ahead: float = 0.0, lag: float = 0.8) -> dict:
     }
 
 
+def _swap(seed: int, avoidance: bool) -> dict:
+    formations = {f"r{i}_formations": "rank_left>rank_right" for i in (1, 2, 3)}
+    return {
+        **_row(seed, 0.5),
+        **formations,
+        "collisions": 0 if avoidance else 2,
+        "min_distance_m": 1.2 if avoidance else 0.35,
+    }
+
+
 def _rows(dynamic_rms: float) -> dict[str, list[dict]]:
     return {
         "dynamic": [_row(s, dynamic_rms + 0.02 * s) for s in range(3)],
@@ -104,13 +114,16 @@ def _rows(dynamic_rms: float) -> dict[str, list[dict]]:
         "static 2": [_row(s, 1.2, ahead=0.5, lag=0.1) for s in range(3)],
         "ekf": [_row(s, 0.7) for s in range(3)],
         "obstacles": [_row(s, 0.5) for s in range(3)],
+        "obstacles, no avoidance": [_row(s, 0.5) for s in range(3)],
+        "rank swap": [_swap(s, avoidance=True) for s in range(3)],
+        "rank swap, no avoidance": [_swap(s, avoidance=False) for s in range(3)],
         "l-psi": [_row(s, 0.09) for s in range(3)],
     }
 
 
 def test_a_point_measures_the_claims_and_the_figures_metrics() -> None:
     pt = sensitivity.measure(1.0, _rows(0.7))
-    assert [c.holds for c in pt.claims] == [3, 3, 3, 3, 3]
+    assert [c.holds for c in pt.claims] == [3, 3, 3, 3, 3, 3]
     assert pt.stats["dynamic", "r2_rms_m"].mean == pytest.approx(0.72)
     assert pt.stats["l-psi", "r2_rms_m"].mean == pytest.approx(0.09)
     assert ("static 1.7", "r2_rms_m") not in pt.stats  # not flown at this point
@@ -161,3 +174,23 @@ def test_sensitivity_refuses_claims_set_and_a_missing_marker_before_running(tmp_
     assert "--axis needs --sensitivity" in err
     assert "has no <!-- sensitivity (wheel_bias): begin -->" in err
     assert not out.exists()  # nothing made for a bad input
+
+
+def test_the_ablation_table_says_both_ways_with_closest_approaches() -> None:
+    rows = _rows(0.7)
+    rows["rank swap, no avoidance"][2] = {**rows["rank swap, no avoidance"][2], "collisions": 0, "min_distance_m": 0.41}
+    text = claims.avoidance_table(rows)
+    assert text.startswith("Lockstep runs, seeds 0-2, with the partition-zone avoidance")
+    assert "| `fig11_obstacles` | off | 0 of 3 | 0 | 0 | 1.300-1.300 (1.300) |" in text
+    assert "| `fig11_rank_swap` | on (as shipped) | 0 of 3 | 0 | 0 | 1.200-1.200 (1.200) |" in text
+    assert "| `fig11_rank_swap` | off | 2 of 3 | 4 | 0 | 0.350-0.410 (0.350) |" in text
+    assert text.endswith(
+        "- `fig11_obstacles`: no two robots touch in any of the 3 seeds, with eq. 11-13 or without them; "
+        "the avoidance is not what keeps them apart there.\n"
+        "- `fig11_rank_swap`: two robots touch in 2 of 3 seeds without eq. 11-13 and in 0 with them; "
+        "the avoidance is what keeps them apart."
+    )
+    rows["rank swap"][0] = {**rows["rank swap"][0], "collisions": 1}
+    assert claims.avoidance_table(rows).endswith(
+        "- `fig11_rank_swap`: two robots touch in 2 of 3 seeds without eq. 11-13 and in 1 with them."
+    )
