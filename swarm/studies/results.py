@@ -27,7 +27,7 @@ from typing import Any
 from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser, integer, make_folder
 from formation_swarm.runtime.proc import interrupt_on_stop_signals
 from formation_swarm.spec.files import parse_overrides
-from formation_swarm.studies import claims, sensitivity, sensitivity_figure
+from formation_swarm.studies import claims, sensitivity, sensitivity_run
 from formation_swarm.studies.jobs import Job
 from formation_swarm.studies.sections import BEGIN, END, check_markers, markers, write_all
 from formation_swarm.studies.sweep import MAX_JOBS, MAX_SEEDS, Sweep, run_sweeps
@@ -177,13 +177,17 @@ def _add_study_arguments(ap: Parser) -> None:
         metavar="CSV",
         default=None,
         help="with --claims: also write every run's row (sweep, seed and its metrics) to this CSV, "
-        "the data tests/unit/studies/test_claims.py checks the claims over",
+        "the data tests/unit/studies/test_claims.py checks the claims over; with --sensitivity: put the "
+        "rows of the axes run into this CSV (axis, value, sweep, seed, metrics; the other axes' rows are "
+        "kept) and write the summary of every claim along every axis in it between "
+        f"{sensitivity_run.WHERE[0]} ... markers",
     )
     ap.add_argument(
         "--sensitivity",
         action="store_true",
         help="measure the claims at every value of one setting at a time (the leader's speed, the "
-        "camera's noise, the wheels' noise and bias), with l-psi and static V_N 1.7 and 1.8 beside; "
+        "observations' drops, the camera's noise, the wheels' noise and bias), with l-psi and static "
+        "V_N 1.7 and 1.8 beside; "
         "writes a figure per setting into --figures and, with --write, its section between "
         f"{markers('sensitivity', 'leader_speed')[0]} ... markers",
     )
@@ -205,40 +209,6 @@ def _add_study_arguments(ap: Parser) -> None:
 def claim_sweeps(seeds: Sequence[int], settings: Mapping[str, Any], out: Path, workers: int | None) -> dict[str, Sweep]:
     """One sweep per scenario the claims are measured on, each in its own folder under ``out``."""
     return sensitivity.plan(seeds, settings, [], out, workers=workers)
-
-
-def run_sensitivity(
-    axes: Sequence[sensitivity.Axis],
-    seeds: int,
-    out: Path,
-    *,
-    workers: int | None,
-    figures: Path,
-    writes: Sequence[Path],
-) -> int:
-    """Each axis's points, then its figure and its section (printed, and written into ``writes``)."""
-    for n, axis in enumerate(axes, 1):
-        points = []
-        for k, value in enumerate(axis.values, 1):
-            print(
-                f"[sensitivity] {axis.title} = {axis.label(value)}: value {k} of {len(axis.values)}, "
-                f"axis {n} of {len(axes)}",
-                flush=True,
-            )
-            settings, faults = axis.point(value)
-            sweeps = sensitivity.plan(range(seeds), settings, faults, out, workers=workers, extras=axis.extras)
-            rows = run_sweeps(sweeps, out)
-            if rows is None:
-                return 1
-            points.append(sensitivity.measure(value, rows))
-        png = figures / f"sensitivity-{axis.name}.png"
-        sensitivity_figure.write_figure(png, axis, points)
-        rel = png.relative_to(figures.parent) if figures.name == "figures" else png
-        text = sensitivity.markdown(axis, points, str(rel))
-        print(text)
-        if not write_all(writes, text, *markers("sensitivity", axis.name)):
-            return 1
-    return 0
 
 
 @dataclass
@@ -271,12 +241,13 @@ def _plan(args: argparse.Namespace, out: Path, writes: Sequence[Path]) -> _Plan:
         raise ValueError("--sensitivity varies its own settings: it takes neither --claims nor --set")
     if args.axis and not args.sensitivity:
         raise ValueError("--axis needs --sensitivity")
-    if args.rows and not args.claims:
-        raise ValueError("--rows needs --claims")
+    if args.rows and not (args.claims or args.sensitivity):
+        raise ValueError("--rows needs --claims or --sensitivity")
     plan = _Plan(parse_overrides(args.set))
     if args.sensitivity:
         plan.axes = [sensitivity.AXIS_NAMES[a] for a in args.axis] or list(sensitivity.AXES)
         wanted = [markers("sensitivity", axis.name) for axis in plan.axes]
+        wanted += [sensitivity_run.WHERE] if args.rows else []
     else:
         plan.tables = _tables(args, plan.settings)
         wanted = [marks for marks, _make in plan.tables]
@@ -307,8 +278,14 @@ def main(argv: list[str] | None = None) -> int:
     interrupt_on_stop_signals()
     try:
         if args.sensitivity:
-            return run_sensitivity(
-                plan.axes, args.seeds, out, workers=args.jobs, figures=Path(args.figures), writes=writes
+            return sensitivity_run.run(
+                plan.axes,
+                args.seeds,
+                out,
+                workers=args.jobs,
+                figures=Path(args.figures),
+                writes=writes,
+                rows_csv=Path(args.rows) if args.rows else None,
             )
         rows = run_sweeps(plan.sweeps, out)
     except KeyboardInterrupt:
