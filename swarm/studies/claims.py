@@ -4,8 +4,10 @@
 The claims and their criteria are those of tests/unit/studies/test_claims.py (the claims
 themselves, not fitted margins); here they are evaluated seed by seed and
 said in a table: the figures (min-max over the seeds) and in how many seeds
-each holds. Nothing here runs anything: ``plan`` names the sweeps, ``table``
-reads their rows.
+each holds. Claim d is judged twice: on the paper's Fig. 11 run, and on a
+rank that swaps sides, where eq. 11-13 decide it; that run is flown without
+them too (``avoidance_table``, the ablation). Nothing here runs anything:
+``SWEEPS`` names the runs, ``table`` reads their rows.
 """
 
 from __future__ import annotations
@@ -14,17 +16,40 @@ import csv
 import math
 import statistics
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-# What each claim is measured on: (sweep name, scenario file, needs the logger).
-SWEEPS: dict[str, tuple[str, bool]] = {
-    "static 1.5": ("fig6_turn_vn_1_5.toml", False),
-    "static 2": ("fig6_turn_vn_2.toml", False),
-    "dynamic": ("fig7_turn_vn_dynamic.toml", False),
-    "ekf": ("fig9_ekf_noise.toml", True),  # the EKF's and the raw target errors come from the recording
-    "obstacles": ("fig11_obstacles.toml", False),
+
+@dataclass(frozen=True)
+class Source:
+    """The runs a claim is measured on: a shipped scenario, whether the logger
+    records them (for the EKF's and the raw target errors), and scenario keys
+    of their own, which put them in a folder of their own (``tag``)."""
+
+    file: str
+    logger: bool = False
+    overrides: Mapping[str, Any] = field(default_factory=dict)
+    tag: str = ""
+
+    @property
+    def folder(self) -> str:
+        return Path(self.file).stem + (f"-{self.tag}" if self.tag else "")
+
+
+# Eq. 11-13 skipped: a follower goes straight to its new slot (claim d's ablation).
+NO_AVOIDANCE = {"controller.avoidance": False}
+# What each claim is measured on, by sweep name.
+SWEEPS: dict[str, Source] = {
+    "static 1.5": Source("fig6_turn_vn_1_5.toml"),
+    "static 2": Source("fig6_turn_vn_2.toml"),
+    "dynamic": Source("fig7_turn_vn_dynamic.toml"),
+    "ekf": Source("fig9_ekf_noise.toml", logger=True),
+    "obstacles": Source("fig11_obstacles.toml"),
+    "obstacles, no avoidance": Source("fig11_obstacles.toml", overrides=NO_AVOIDANCE, tag="no-avoidance"),
+    # A rank that swaps sides behind its references: eq. 11-13 keep it apart, and without them it touches.
+    "rank swap": Source("fig11_rank_swap.toml"),
+    "rank swap, no avoidance": Source("fig11_rank_swap.toml", overrides=NO_AVOIDANCE, tag="no-avoidance"),
 }
 
 Rows = Mapping[str, Sequence[Mapping[str, Any]]]  # sweep name -> one row per seed, in seed order
@@ -132,19 +157,23 @@ def claim_c(rows: Rows) -> Claim:
     return Claim("c. the EKF's target error is at most half the raw error", text, ok, n)
 
 
+def _clear(r: Mapping[str, Any]) -> bool:
+    """No contact, between robots or with an obstacle, and never closer than a robot's diameter."""
+    return r["collisions"] == 0 and r["obstacle_collisions"] == 0 and r["min_distance_m"] > 0.4
+
+
+def _changes(r: Mapping[str, Any], sequence: str) -> bool:
+    """Every robot of the three flew these formations, in this order."""
+    return [r.get(f"r{i}_formations") for i in (1, 2, 3)] == [sequence] * 3
+
+
 def claim_d(rows: Rows) -> Claim:
     obs = rows["obstacles"]
     n = len(obs)
-
-    def changes(r: Mapping[str, Any]) -> bool:
-        return [r.get(f"r{i}_formations") for i in (1, 2, 3)] == ["line>triangle"] * 3
-
-    def clear(r: Mapping[str, Any]) -> bool:
-        return r["collisions"] == 0 and r["obstacle_collisions"] == 0 and r["min_distance_m"] > 0.4
-
-    ok = _count(n, lambda i: changes(obs[i]) and clear(obs[i]))
+    changed = _count(n, lambda i: _changes(obs[i], "line>triangle"))
+    ok = _count(n, lambda i: _changes(obs[i], "line>triangle") and _clear(obs[i]))
     text = (
-        f"`fig11_obstacles`: every robot line then triangle in {_count(n, lambda i: changes(obs[i]))} of {n} "
+        f"`fig11_obstacles`: every robot line then triangle in {changed} of {n} "
         f"seeds; {sum(r['collisions'] for r in obs)} collisions between robots, "
         f"{sum(r['obstacle_collisions'] for r in obs)} with obstacles; minimum distance "
         f"{min(r['min_distance_m'] for r in obs):.2f} m (diameter 0.4 m). R3's max error {_m(obs, 'r3_max_m')}."
@@ -152,7 +181,26 @@ def claim_d(rows: Rows) -> Claim:
     return Claim("d. the obstacle run goes triangle, line, triangle, no collision", text, ok, n)
 
 
-CLAIMS = (claim_a, claim_b_behind, claim_b_overshoot, claim_c, claim_d)
+def claim_d_avoidance(rows: Rows) -> Claim:
+    """Claim d where eq. 11-13 decide it: judged on the runs with them; the same
+    seeds without them (the ablation) say that they do."""
+    swap, off = rows["rank swap"], rows["rank swap, no avoidance"]
+    n = len(swap)
+    changed = _count(n, lambda i: _changes(swap[i], "rank_left>rank_right"))
+    ok = _count(n, lambda i: _changes(swap[i], "rank_left>rank_right") and _clear(swap[i]))
+    text = (
+        f"`fig11_rank_swap`: every robot to the left and back in {changed} of {n} seeds; "
+        f"{sum(r['collisions'] for r in swap)} collisions between robots, "
+        f"{sum(r['obstacle_collisions'] for r in swap)} with obstacles; minimum distance "
+        f"{min(r['min_distance_m'] for r in swap):.2f} m. Without eq. 11-13 (`controller.avoidance = false`): "
+        f"two robots touch in {sum(1 for r in off if r['collisions'])} of {len(off)} seeds "
+        f"({sum(r['collisions'] for r in off)} contacts), minimum distance "
+        f"{min(r['min_distance_m'] for r in off):.2f} m."
+    )
+    return Claim("d. with eq. 11-13 a rank swaps sides and back without collision", text, ok, n)
+
+
+CLAIMS = (claim_a, claim_b_behind, claim_b_overshoot, claim_c, claim_d, claim_d_avoidance)
 
 
 def measure(rows: Rows) -> list[Claim]:
@@ -170,6 +218,57 @@ def table(rows: Rows, settings: str) -> str:
     ]
     lines += [f"| {c.name} | {c.measured} | {c.verdict} |" for c in measure(rows)]
     return "\n".join(lines)
+
+
+# Claim d's ablation: (scenario, eq. 11-13, sweep), the rows of avoidance_table.
+ABLATION = (
+    ("fig11_obstacles", "on (as shipped)", "obstacles"),
+    ("fig11_obstacles", "off", "obstacles, no avoidance"),
+    ("fig11_rank_swap", "on (as shipped)", "rank swap"),
+    ("fig11_rank_swap", "off", "rank swap, no avoidance"),
+)
+
+
+def avoidance_table(rows: Rows) -> str:
+    """Claim d's ablation: its runs with and without eq. 11-13, seed for seed, and what that says."""
+    n = len(rows["rank swap"])
+    lines = [
+        f"Lockstep runs, seeds 0-{n - 1}, with the partition-zone avoidance (eq. 11-13) and without it "
+        "(`controller.avoidance = false`: a follower goes straight to its new slot); robots are 0.4 m "
+        "across, closer than that they touch.",
+        "",
+        "| scenario | eq. 11-13 | seeds in which two robots touch | contacts between robots "
+        "| contacts with obstacles | closest approach of two robots' centres, min-max (median), m |",
+        "|---|---|---|---|---|---|",
+    ]
+    for scenario, label, name in ABLATION:
+        runs = rows[name]
+        closest = [float(r["min_distance_m"]) for r in runs]
+        lines.append(
+            f"| `{scenario}` | {label} | {_touched(runs)} of {len(runs)} "
+            f"| {sum(r['collisions'] for r in runs)} | {sum(r['obstacle_collisions'] for r in runs)} "
+            f"| {min(closest):.3f}-{max(closest):.3f} ({statistics.median(closest):.3f}) |"
+        )
+    lines += ["", *(f"- {_ablation_said(scenario, rows)}" for scenario, _label, _name in ABLATION[::2])]
+    return "\n".join(lines)
+
+
+def _touched(runs: Sequence[Mapping[str, Any]]) -> int:
+    """The runs in which two robots touched."""
+    return sum(1 for r in runs if r["collisions"])
+
+
+def _ablation_said(scenario: str, rows: Rows) -> str:
+    """What the ablation of one scenario says of eq. 11-13, from its two rows."""
+    on, off = (rows[name] for s, _label, name in ABLATION if s == scenario)
+    k_on, k_off, n = _touched(on), _touched(off), len(on)
+    if k_off == 0:
+        return (
+            f"`{scenario}`: no two robots touch in any of the {n} seeds, with eq. 11-13 or without them; "
+            "the avoidance is not what keeps them apart there."
+        )
+    said = f"`{scenario}`: two robots touch in {k_off} of {n} seeds without eq. 11-13 and in {k_on} with them"
+    return said + ("; the avoidance is what keeps them apart." if k_on == 0 else ".")
 
 
 def write_rows(path: Path, rows: Rows) -> None:
@@ -195,14 +294,14 @@ def read_rows(path: Path) -> dict[str, list[dict[str, Any]]]:
             for k, v in r.items():
                 if k == "sweep" or v is None:
                     continue
-                row[k] = _number(v)
+                row[k] = number(v)
             out.setdefault(r["sweep"], []).append(row)
     for runs in out.values():
         runs.sort(key=lambda r: r["seed"])
     return out
 
 
-def _number(text: str) -> Any:
+def number(text: str) -> Any:
     if text == "":
         return None
     try:

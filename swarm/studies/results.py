@@ -1,6 +1,7 @@
 """The baseline comparison: fuzzy static / fuzzy dynamic / l-psi, under
 observation drops and two camera-noise levels, on the paper's turning path;
-or, with --claims, the paper's claims a-d measured seed by seed; or, with
+or, with --claims, the paper's claims a-d measured seed by seed (and, as
+shipped, claim d's runs without the avoidance beside them); or, with
 --sensitivity, those claims at every value of one setting at a time.
 
 Runs the grid through swarm sweep (resumable: rerunning reuses finished runs),
@@ -17,9 +18,8 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,9 +27,10 @@ from typing import Any
 from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser, integer, make_folder
 from formation_swarm.runtime.proc import interrupt_on_stop_signals
 from formation_swarm.spec.files import parse_overrides
-from formation_swarm.studies import claims, sensitivity, sensitivity_figure
+from formation_swarm.studies import claims, sensitivity, sensitivity_run
 from formation_swarm.studies.jobs import Job
-from formation_swarm.studies.sweep import MAX_JOBS, MAX_SEEDS, Sweep
+from formation_swarm.studies.sections import BEGIN, END, check_markers, markers, write_all
+from formation_swarm.studies.sweep import MAX_JOBS, MAX_SEEDS, Sweep, run_sweeps
 from formation_swarm.studies.tables import aggregate
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -52,15 +53,6 @@ NOISE: dict[str, dict[str, Any]] = {
         "controller.ekf.sigma_beta_rad": 0.0436,
     },
 }
-
-
-def markers(what: str = "results table", settings: str = "") -> tuple[str, str]:
-    """The markers a generated table sits between, naming its settings if any."""
-    name = f"{what} ({settings})" if settings else what
-    return f"<!-- {name}: begin -->", f"<!-- {name}: end -->"
-
-
-BEGIN, END = markers()
 
 
 def settings_text(settings: Mapping[str, Any]) -> str:
@@ -115,36 +107,6 @@ def table(rows: Sequence[Mapping[str, Any]], seeds: int, settings: Mapping[str, 
                 cells.append(cell(label, "r2_rms_m") + (f" [{mx['mean']:.2f}]" if mx else ""))
             lines.append(f"| {ctrl} | {noise} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
-
-
-def unfit_runs(rows: Sequence[Mapping[str, Any]]) -> list[str]:
-    """The runs that may not enter the table, each with the reason: a run that
-    failed, and a lockstep run that missed a tick (the world stopped a robot for
-    want of its answer: neither the controller's figure nor reproducible)."""
-    out = []
-    for r in rows:
-        if r.get("exit_code") != 0:
-            out.append(f"{r.get('run')}: exit code {r.get('exit_code')}")
-        elif r.get("lockstep_misses") != 0:
-            out.append(f"{r.get('run')}: {r.get('lockstep_misses')} lockstep misses")
-    return out
-
-
-def check_markers(path: Path, begin: str = BEGIN, end: str = END) -> None:
-    """Raise ValueError unless ``path`` is a file with the table's markers."""
-    try:
-        doc = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"--write {path}: cannot read it ({getattr(exc, 'strerror', None) or exc})") from None
-    if begin not in doc or end not in doc:
-        raise ValueError(f"--write {path}: has no {begin} ... {end} markers")
-
-
-def write_into(path: Path, text: str, begin: str = BEGIN, end: str = END) -> None:
-    check_markers(path, begin, end)
-    doc = path.read_text()
-    new = re.sub(re.escape(begin) + ".*?" + re.escape(end), lambda _m: f"{begin}\n{text}\n{end}", doc, flags=re.S)
-    path.write_text(new)
 
 
 def build_parser() -> Parser:
@@ -215,13 +177,17 @@ def _add_study_arguments(ap: Parser) -> None:
         metavar="CSV",
         default=None,
         help="with --claims: also write every run's row (sweep, seed and its metrics) to this CSV, "
-        "the data tests/unit/studies/test_claims.py checks the claims over",
+        "the data tests/unit/studies/test_claims.py checks the claims over; with --sensitivity: put the "
+        "rows of the axes run into this CSV (axis, value, sweep, seed, metrics; the other axes' rows are "
+        "kept) and write the summary of every claim along every axis in it between "
+        f"{sensitivity_run.WHERE[0]} ... markers",
     )
     ap.add_argument(
         "--sensitivity",
         action="store_true",
         help="measure the claims at every value of one setting at a time (the leader's speed, the "
-        "camera's noise, the wheels' noise and bias), with l-psi and static V_N 1.7 and 1.8 beside; "
+        "observations' drops, the camera's noise, the wheels' noise and bias), with l-psi and static "
+        "V_N 1.7 and 1.8 beside; "
         "writes a figure per setting into --figures and, with --write, its section between "
         f"{markers('sensitivity', 'leader_speed')[0]} ... markers",
     )
@@ -245,66 +211,6 @@ def claim_sweeps(seeds: Sequence[int], settings: Mapping[str, Any], out: Path, w
     return sensitivity.plan(seeds, settings, [], out, workers=workers)
 
 
-def run_sweeps(sweeps: Mapping[str, Sweep], out: Path) -> dict[str, list[dict[str, Any]]] | None:
-    """Every sweep's rows; None, having said why, when a run cannot enter a table."""
-    rows = {name: sweep.run() for name, sweep in sweeps.items()}
-    unfit = [why for r in rows.values() for why in unfit_runs(r)]
-    if unfit:
-        # A failed run is run again by the next sweep; one with misses is kept, so it must be deleted.
-        print(
-            f"swarm results: {len(unfit)} runs cannot enter the table; delete their folders under "
-            f"{out} and run again:\n  " + "\n  ".join(unfit[:10]),
-            file=sys.stderr,
-        )
-        return None
-    return rows
-
-
-def run_sensitivity(
-    axes: Sequence[sensitivity.Axis],
-    seeds: int,
-    out: Path,
-    *,
-    workers: int | None,
-    figures: Path,
-    writes: Sequence[Path],
-) -> int:
-    """Each axis's points, then its figure and its section (printed, and written into ``writes``)."""
-    for n, axis in enumerate(axes, 1):
-        points = []
-        for k, value in enumerate(axis.values, 1):
-            print(
-                f"[sensitivity] {axis.title} = {axis.label(value)}: value {k} of {len(axis.values)}, "
-                f"axis {n} of {len(axes)}",
-                flush=True,
-            )
-            settings, faults = axis.point(value)
-            sweeps = sensitivity.plan(range(seeds), settings, faults, out, workers=workers, extras=axis.extras)
-            rows = run_sweeps(sweeps, out)
-            if rows is None:
-                return 1
-            points.append(sensitivity.measure(value, rows))
-        png = figures / f"sensitivity-{axis.name}.png"
-        sensitivity_figure.write_figure(png, axis, points)
-        rel = png.relative_to(figures.parent) if figures.name == "figures" else png
-        text = sensitivity.markdown(axis, points, str(rel))
-        print(text)
-        if not write_all(writes, text, *markers("sensitivity", axis.name)):
-            return 1
-    return 0
-
-
-def write_all(writes: Sequence[Path], text: str, begin: str, end: str) -> bool:
-    """``text`` between the markers of every file; False, having said why, if one cannot take it."""
-    for target in writes:
-        try:
-            write_into(target, text, begin, end)
-        except (OSError, ValueError) as exc:
-            print(f"swarm results: {exc}", file=sys.stderr)
-            return False
-    return True
-
-
 @dataclass
 class _Plan:
     """What a command line asks for, checked before any run."""
@@ -312,7 +218,20 @@ class _Plan:
     settings: dict[str, Any]
     axes: list[sensitivity.Axis] = field(default_factory=list)  # --sensitivity: the settings to vary
     sweeps: dict[str, Sweep] = field(default_factory=dict)  # otherwise: the sweeps of the table
-    markers: tuple[str, str] = ("", "")  # the table's, in the --write files
+    # The tables made of the sweeps' rows, each with its markers in the --write files.
+    tables: list[tuple[tuple[str, str], Callable[[claims.Rows], str]]] = field(default_factory=list)
+
+
+def _tables(args: argparse.Namespace, settings: dict[str, Any]) -> list[tuple[tuple[str, str], Callable[..., str]]]:
+    """The tables of the command line, each with its markers: the baseline's, or the claims' and,
+    as shipped (no --set), claim d's ablation of the avoidance."""
+    said = settings_text(settings)
+    if not args.claims:
+        return [(markers("results table", said), lambda rows: table(rows[""], args.seeds, settings))]
+    out = [(markers("claims", said), lambda rows: claims.table(rows, said))]
+    if not settings:
+        out.append((markers("avoidance ablation"), claims.avoidance_table))
+    return out
 
 
 def _plan(args: argparse.Namespace, out: Path, writes: Sequence[Path]) -> _Plan:
@@ -322,22 +241,23 @@ def _plan(args: argparse.Namespace, out: Path, writes: Sequence[Path]) -> _Plan:
         raise ValueError("--sensitivity varies its own settings: it takes neither --claims nor --set")
     if args.axis and not args.sensitivity:
         raise ValueError("--axis needs --sensitivity")
-    if args.rows and not args.claims:
-        raise ValueError("--rows needs --claims")
+    if args.rows and not (args.claims or args.sensitivity):
+        raise ValueError("--rows needs --claims or --sensitivity")
     plan = _Plan(parse_overrides(args.set))
     if args.sensitivity:
         plan.axes = [sensitivity.AXIS_NAMES[a] for a in args.axis] or list(sensitivity.AXES)
-        for target in writes:  # before the runs, not after
-            for axis in plan.axes:
-                check_markers(target, *markers("sensitivity", axis.name))
+        wanted = [markers("sensitivity", axis.name) for axis in plan.axes]
+        wanted += [sensitivity_run.WHERE] if args.rows else []
     else:
-        plan.markers = markers("claims" if args.claims else "results table", settings_text(plan.settings))
-        for target in writes:
-            check_markers(target, *plan.markers)  # before the runs, not after
+        plan.tables = _tables(args, plan.settings)
+        wanted = [marks for marks, _make in plan.tables]
         if args.claims:
             plan.sweeps = claim_sweeps(range(args.seeds), plan.settings, out, args.jobs)
         else:
             plan.sweeps = {"": Sweep(SCENARIO, jobs(range(args.seeds), plan.settings), out, workers=args.jobs)}
+    for target in writes:  # before the runs, not after
+        for marks in wanted:
+            check_markers(target, *marks)
     if args.sensitivity and Path(args.figures).exists() and not Path(args.figures).is_dir():
         raise ValueError(f"--figures {args.figures}: is an existing file, not a folder")
     make_folder("--out", out)  # last: nothing made for a bad input
@@ -358,21 +278,29 @@ def main(argv: list[str] | None = None) -> int:
     interrupt_on_stop_signals()
     try:
         if args.sensitivity:
-            return run_sensitivity(
-                plan.axes, args.seeds, out, workers=args.jobs, figures=Path(args.figures), writes=writes
+            return sensitivity_run.run(
+                plan.axes,
+                args.seeds,
+                out,
+                workers=args.jobs,
+                figures=Path(args.figures),
+                writes=writes,
+                rows_csv=Path(args.rows) if args.rows else None,
             )
         rows = run_sweeps(plan.sweeps, out)
     except KeyboardInterrupt:
         return 130
     if rows is None:
         return 1
-    settings = plan.settings
-    text = claims.table(rows, settings_text(settings)) if args.claims else table(rows[""], args.seeds, settings)
-    print(text)
     if args.rows:
         try:
             claims.write_rows(Path(args.rows), rows)
         except OSError as exc:
             print(f"swarm results: --rows {args.rows}: cannot write it ({exc.strerror or exc})", file=sys.stderr)
             return 1
-    return 0 if write_all(writes, text, *plan.markers) else 1
+    for marks, make in plan.tables:
+        text = make(rows)
+        print(text)
+        if not write_all(writes, text, *marks):
+            return 1
+    return 0

@@ -1,8 +1,8 @@
 """How far the paper's claims hold: claims a-d measured seed by seed at every
 value of one setting at a time (``swarm results --sensitivity``).
 
-The settings are the leader's speed, the camera's noise, and the wheels'
-noise and speed bias; at each value the claims' own runs are repeated
+The settings are the leader's speed, the observations' drops, the camera's
+noise, and the wheels' noise and speed bias; at each value the claims' own runs are repeated
 (the scenarios and criteria of tests/unit/studies/test_claims.py, formation_swarm.studies.claims),
 with, beside the paper's controllers, the l-psi baseline on every axis and
 the static V_N values 1.7 and 1.8 on the leader-speed axis. The shipped value
@@ -10,8 +10,8 @@ of an axis is the claims' own runs (no setting changed), so those runs are
 shared with ``swarm results --claims``.
 
 ``plan`` names the sweeps of a point, ``measure`` reads their rows into one
-``Point`` per value, ``markdown`` says them and ``sensitivity_figure`` draws
-them.
+``Point`` per value, ``sensitivity_text`` says them and ``sensitivity_figure``
+draws them.
 """
 
 from __future__ import annotations
@@ -45,7 +45,10 @@ LINES = {
     "static 2": "fuzzy, V_N = 2",
     "l-psi": "l-psi",
 }
-SHORT = {c.__name__: name for c, name in zip(claims.CLAIMS, ("a", "b, behind", "b, overshoot", "c", "d"), strict=True)}
+SHORT = {
+    c.__name__: name
+    for c, name in zip(claims.CLAIMS, ("a", "b, behind", "b, overshoot", "c", "d", "d, rank swap"), strict=True)
+}
 
 
 def _camera(sigma_rho_m: float) -> dict[str, Any]:
@@ -96,11 +99,22 @@ AXES: tuple[Axis, ...] = (
         "leader_speed",
         "leader speed",
         "m/s",
-        (1.0, 1.25, 1.5, 1.75, 2.0),
+        # The paper's band 1.0-2.0 m/s, and every 0.05 m/s from 1.3 to 1.8 where claims a and b change.
+        (1.0, 1.25, 1.3, 1.35, 1.4, 1.45, 1.5, 1.55, 1.6, 1.65, 1.7, 1.75, 1.8, 2.0),
         1.5,
         lambda v: {"leader.speed_mps": v},
         extras=tuple(EXTRAS),
         note="every scenario's leader at this speed (shipped: 1.5 m/s); the turn rate stays 0.25 rad/s",
+    ),
+    Axis(
+        "obs_drop",
+        "observation drops",
+        "%",
+        (0.0, 10.0, 20.0, 30.0, 40.0, 50.0),
+        0.0,
+        lambda v: {"links.obs_drop": v / 100},
+        note="links.obs_drop: this share of the world's observations to every robot is lost on the way "
+        "(a drop decided per message from the seed); a follower without a reading predicts with its EKF",
     ),
     Axis(
         "camera_noise",
@@ -149,7 +163,7 @@ def plan(
     workers: int | None,
     extras: Sequence[str] = (),
 ) -> dict[str, Sweep]:
-    """The sweeps of one point: the claims' (one per scenario, in ``out/<scenario>``) and the extra
+    """The sweeps of one point: the claims' (one per ``claims.SWEEPS``, in ``out/<its folder>``) and the extra
     controllers' (in ``out/<scenario>-<extra>``). Every run's label names the settings and the faults,
     so the points of an axis share those folders and a point without either is the claims' own runs."""
     from formation_swarm.studies.jobs import Job
@@ -159,14 +173,14 @@ def plan(
     label = "; ".join(t for t in (settings_text(settings), ", ".join(faults)) if t)
     out_sweeps = {
         name: Sweep(
-            ROOT / "scenarios" / file,
-            [Job(label, dict(settings), s) for s in seeds],
-            out / Path(file).stem,
+            ROOT / "scenarios" / src.file,
+            [Job(label, {**settings, **src.overrides}, s) for s in seeds],
+            out / src.folder,
             workers=workers,
-            logger=logger,
+            logger=src.logger,
             faults=list(faults),
         )
-        for name, (file, logger) in claims.SWEEPS.items()
+        for name, src in claims.SWEEPS.items()
     }
     for name in extras:
         ov = {**EXTRAS[name], **settings}
@@ -206,12 +220,20 @@ METRICS: tuple[tuple[str, str, tuple[str, ...], float | None], ...] = (
 )
 
 
+# Claim d's runs, flown with and without eq. 11-13: in Point.counts, "robot contact, <sweep>" and
+# "obstacle contact, <sweep>" count the runs in which two robots, or a robot and an obstacle, touched.
+CONTACT_SWEEPS = ("obstacles", "obstacles, no avoidance", "rank swap", "rank swap, no avoidance")
+# The leader's distance from its path, on the path of claims a-c (the dynamic run's).
+LEADER = ("leader_off_path_m", "leader_end_m")
+
+
 @dataclass
 class Point:
     value: float
     claims: list[claims.Claim]
     stats: dict[tuple[str, str], Stat] = field(default_factory=dict)  # (sweep, metric) -> over the seeds
-    counts: dict[str, int] = field(default_factory=dict)  # claim d's runs with a contact, of counts["runs"]
+    # Claim d's runs in which something touched (CONTACT_SWEEPS), and the runs of each sweep ("runs <sweep>").
+    counts: dict[str, int] = field(default_factory=dict)
 
 
 def measure(value: float, rows: claims.Rows) -> Point:
@@ -221,88 +243,11 @@ def measure(value: float, rows: claims.Rows) -> Point:
         for name in sweeps:
             if name in rows:
                 pt.stats[name, key] = stat([r.get(key) for r in rows[name]])
-    if "obstacles" in rows:
-        obs = rows["obstacles"]
-        pt.stats["obstacles", "min_distance_m"] = stat([r["min_distance_m"] for r in obs])
-        pt.counts["obstacle contact"] = sum(1 for r in obs if r["obstacle_collisions"])
-        pt.counts["robot contact"] = sum(1 for r in obs if r["collisions"])
-        pt.counts["runs"] = len(obs)
+    for name in CONTACT_SWEEPS:
+        pt.stats[name, "min_distance_m"] = stat([r["min_distance_m"] for r in rows[name]])
+        pt.counts[f"runs {name}"] = len(rows[name])
+        pt.counts[f"robot contact, {name}"] = sum(1 for r in rows[name] if r["collisions"])
+        pt.counts[f"obstacle contact, {name}"] = sum(1 for r in rows[name] if r["obstacle_collisions"])
+    for key in LEADER:
+        pt.stats["dynamic", key] = stat([r.get(key) for r in rows["dynamic"]])
     return pt
-
-
-def _ranges(axis: Axis, values: Sequence[float]) -> str:
-    """``1.5-2 m/s`` for consecutive values of the axis, ``1, 1.5 m/s`` otherwise."""
-    idx = sorted(axis.values.index(v) for v in values)
-    runs: list[list[int]] = []
-    for i in idx:
-        if runs and i == runs[-1][-1] + 1:
-            runs[-1].append(i)
-        else:
-            runs.append([i])
-    parts = [f"{axis.values[r[0]]:g}" if len(r) == 1 else f"{axis.values[r[0]]:g}-{axis.values[r[-1]]:g}" for r in runs]
-    return f"{', '.join(parts)} {axis.unit}".strip()
-
-
-def holds_for(axis: Axis, points: Sequence[Point], k: int) -> str:
-    """Claim ``k`` along the axis: the values where it holds in every seed, in some, in none."""
-    every = [p.value for p in points if p.claims[k].holds == p.claims[k].seeds]
-    none = [p.value for p in points if p.claims[k].holds == 0]
-    some = [p for p in points if 0 < p.claims[k].holds < p.claims[k].seeds]
-    parts = []
-    if every:
-        parts.append(f"holds for {_ranges(axis, every)}")
-    if some:
-        parts.append(
-            "holds in some seeds at "
-            + ", ".join(f"{axis.label(p.value)} ({p.claims[k].holds} of {p.claims[k].seeds})" for p in some)
-        )
-    parts.append(f"fails for {_ranges(axis, none)}" if none else "fails for none of these values")
-    return "; ".join(parts)
-
-
-def _cell(s: Stat | None, fmt: str = ".2f") -> str:
-    if s is None or s.n == 0:
-        return "-"
-    return f"{s.mean:{fmt}}" if math.isnan(s.half) else f"{s.mean:{fmt}} ± {s.half:{fmt}}"
-
-
-def markdown(axis: Axis, points: Sequence[Point], figure_path: str) -> str:
-    """The axis's section: where each claim holds, the table of seeds and the metrics, the figure."""
-    seeds = points[0].claims[0].seeds
-    lines = [
-        f"**{axis.title}** ({axis.note}); lockstep runs, seeds 0-{seeds - 1} per value, the criteria "
-        "of tests/unit/studies/test_claims.py "
-        "evaluated seed by seed; mean ± 95% confidence half-width over the seeds.",
-        "",
-    ]
-    for k, c in enumerate(points[0].claims):
-        lines.append(f"- {c.name}: {holds_for(axis, points, k)}.")
-    head = " | ".join(axis.label(p.value) + (" (shipped)" if p.value == axis.shipped else "") for p in points)
-    lines += ["", f"| | {head} |", "|---" * (len(points) + 1) + "|"]
-    for k in range(len(points[0].claims)):
-        short = SHORT[claims.CLAIMS[k].__name__]
-        lines.append(
-            f"| claim {short}: seeds where it holds | "
-            + " | ".join(f"{p.claims[k].holds}/{p.claims[k].seeds}" for p in points)
-            + " |"
-        )
-    for title, key, sweeps, _thr in METRICS:
-        for name in sweeps:
-            if all((name, key) not in p.stats for p in points):
-                continue
-            who = LINES.get(name, "fuzzy, dynamic V_N, claim c's run (fig9_ekf_noise)")
-            lines.append(
-                f"| {title.split(' (')[0]}: {who} | "
-                + " | ".join(_cell(p.stats.get((name, key))) for p in points)
-                + " |"
-            )
-    lines.append(
-        "| least distance between two robots' centres, m (claim d; touching below 0.4) | "
-        + " | ".join(_cell(p.stats.get(("obstacles", "min_distance_m"))) for p in points)
-        + " |"
-    )
-    for what, said in (("obstacle contact", "a robot touches an obstacle"), ("robot contact", "two robots touch")):
-        cells = " | ".join(f"{p.counts.get(what, 0)}/{p.counts.get('runs', 0)}" for p in points)
-        lines.append(f"| claim d: runs in which {said} | {cells} |")
-    lines += ["", f"![{axis.title}]({figure_path})"]
-    return "\n".join(lines)

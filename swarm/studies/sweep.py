@@ -9,7 +9,8 @@ deviation and 95% confidence interval (Student t) of every metric, and
 DIR/aggregate.png the main ones (formation error RMS and maximum, EKF target
 error, least distance between robots) with their intervals against the swept
 value, one line per follower. The sweep ends with a table of the main
-metrics per combination on the console.
+metrics per combination on the console. ``run_sweeps`` runs several sweeps for one
+table (``swarm results``) and refuses rows that cannot enter it.
 """
 
 from __future__ import annotations
@@ -206,6 +207,34 @@ def _load_done(run_dir: Path) -> dict[str, Any] | None:
     except (OSError, json.JSONDecodeError):
         return None
     return s if isinstance(s, dict) and s.get("exit_code") == 0 and summary_mod.recording_gap(s) is None else None
+
+
+def unfit_runs(rows: Sequence[Mapping[str, Any]]) -> list[str]:
+    """The runs that may not enter the table, each with the reason: a run that
+    failed, and a lockstep run that missed a tick (the world stopped a robot for
+    want of its answer: neither the controller's figure nor reproducible)."""
+    out = []
+    for r in rows:
+        if r.get("exit_code") != 0:
+            out.append(f"{r.get('run')}: exit code {r.get('exit_code')}")
+        elif r.get("lockstep_misses") != 0:
+            out.append(f"{r.get('run')}: {r.get('lockstep_misses')} lockstep misses")
+    return out
+
+
+def run_sweeps(sweeps: Mapping[str, Sweep], out: Path) -> dict[str, list[dict[str, Any]]] | None:
+    """Every sweep's rows; None, having said why, when a run cannot enter a table."""
+    rows = {name: sweep.run() for name, sweep in sweeps.items()}
+    unfit = [why for r in rows.values() for why in unfit_runs(r)]
+    if unfit:
+        # A failed run is run again by the next sweep; one with misses is kept, so it must be deleted.
+        print(
+            f"swarm results: {len(unfit)} runs cannot enter the table; delete their folders under "
+            f"{out} and run again:\n  " + "\n  ".join(unfit[:10]),
+            file=sys.stderr,
+        )
+        return None
+    return rows
 
 
 MAX_SEEDS = 10_000  # runs per combination: each takes seconds to minutes

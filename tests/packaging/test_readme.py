@@ -9,7 +9,7 @@ this interpreter's environment (the worktree's .venv) first on PATH, so that
 `swarm`, `make`, `rerun` resolve as after `make run`. A `make TARGET`
 command runs as `make -n TARGET`: it proves the target exists and prints
 what it would do, without creating a second .venv, running the suite inside
-the suite, or the 45 minutes of `make results`. Every other command runs
+the suite, or the two hours of `make results`. Every other command runs
 for real and must exit 0.
 """
 

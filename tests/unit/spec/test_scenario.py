@@ -76,8 +76,8 @@ def test_missing_file_and_bad_toml_are_clear(tmp_path: Path) -> None:
 def test_a_shipped_scenario_loads_by_name_and_a_near_miss_is_suggested() -> None:
     assert set(scenario_files.shipped()) == {p.stem for p in SCENARIOS.glob("*.toml")}
     assert sm.load("fig11_obstacles").name == sm.load(FIG11).name == "fig11-obstacles"
-    with pytest.raises(sm.ScenarioError, match="named 'fig11'; did you mean 'fig11_obstacles'"):
-        sm.load("fig11")
+    with pytest.raises(sm.ScenarioError, match="named 'fig11_obstacle'; did you mean 'fig11_obstacles'"):
+        sm.load("fig11_obstacle")
     assert all(scenario_files.description(p) for p in scenario_files.shipped().values())
 
 

@@ -10,8 +10,16 @@ from pathlib import Path
 import pytest
 from scipy import stats
 
-from formation_swarm.studies import claims, results, sensitivity, sensitivity_figure
-from formation_swarm.studies.sensitivity import AXIS_NAMES, Point
+from formation_swarm.studies import (
+    claims,
+    results,
+    sensitivity,
+    sensitivity_figure,
+    sensitivity_rows,
+    sensitivity_run,
+    sensitivity_text,
+)
+from formation_swarm.studies.sensitivity import AXIS_NAMES, Axis, Point
 
 
 def _claims(holds: list[int], seeds: int = 10) -> list[claims.Claim]:
@@ -19,19 +27,33 @@ def _claims(holds: list[int], seeds: int = 10) -> list[claims.Claim]:
 
 
 def _points(axis: sensitivity.Axis, holds_a: list[int]) -> list[Point]:
-    return [Point(v, _claims([h, 10, 0, 5, 10])) for v, h in zip(axis.values, holds_a, strict=True)]
+    return [Point(v, _claims([h, 10, 0, 5, 10, 10])) for v, h in zip(axis.values, holds_a, strict=True)]
 
 
-def test_holds_for_names_the_values_where_a_claim_holds_in_every_seed_some_and_none() -> None:
-    speed = AXIS_NAMES["leader_speed"]  # 1.0, 1.25, 1.5, 1.75, 2.0 m/s
+def test_holds_for_states_each_claims_band_with_its_seeds() -> None:
+    speed = Axis("s", "leader speed", "m/s", (1.0, 1.25, 1.5, 1.75, 2.0), 1.5, lambda v: {"leader.speed_mps": v})
     pts = _points(speed, [0, 3, 10, 10, 10])
-    assert sensitivity.holds_for(speed, pts, 0) == (
-        "holds for 1.5-2 m/s; holds in some seeds at 1.25 m/s (3 of 10); fails for 1 m/s"
+    assert (
+        sensitivity_text.holds_for(speed, pts, 0)
+        == "holds in 10/10 seeds at 1.5-2 m/s; in 3/10 at 1.25 m/s; 0/10 at 1 m/s"
     )
-    assert sensitivity.holds_for(speed, pts, 1) == "holds for 1-2 m/s; fails for none of these values"
-    assert sensitivity.holds_for(speed, pts, 2) == "fails for 1-2 m/s"
+    assert sensitivity_text.holds_for(speed, pts, 1) == "holds in 10/10 seeds at every value tried (1-2 m/s)"
+    assert sensitivity_text.holds_for(speed, pts, 2) == "holds in 0/10 seeds at every value tried (1-2 m/s)"
+    assert sensitivity_text.holds_for(speed, pts, 3) == (
+        "holds in 5/10 at 1 m/s, 5/10 at 1.25 m/s, 5/10 at 1.5 m/s, 5/10 at 1.75 m/s, 5/10 at 2 m/s"
+    )
     gaps = _points(speed, [10, 0, 10, 0, 10])
-    assert sensitivity.holds_for(speed, gaps, 0) == "holds for 1, 1.5, 2 m/s; fails for 1.25, 1.75 m/s"
+    assert sensitivity_text.holds_for(speed, gaps, 0) == "holds in 10/10 seeds at 1, 1.5, 2 m/s; 0/10 at 1.25, 1.75 m/s"
+
+
+def test_the_speed_axis_is_fine_where_claims_a_and_b_change_and_drops_go_to_half() -> None:
+    speed = AXIS_NAMES["leader_speed"]
+    assert speed.values == (1.0, 1.25, 1.3, 1.35, 1.4, 1.45, 1.5, 1.55, 1.6, 1.65, 1.7, 1.75, 1.8, 2.0)
+    drops = AXIS_NAMES["obs_drop"]
+    assert [drops.point(v) for v in drops.values] == [({}, [])] + [
+        ({"links.obs_drop": p}, []) for p in (0.1, 0.2, 0.3, 0.4, 0.5)
+    ]
+    assert drops.label(30.0) == "30 %"
 
 
 def test_the_shipped_value_is_the_claims_own_runs() -> None:
@@ -94,6 +116,18 @@ def _row(seed: int, rms: float, ahead: float = 0.0, lag: float = 0.8) -> dict:
         "min_distance_m": 1.3,
         "r3_max_m": 4.0,
         **{f"r{i}_formations": "line>triangle" for i in (1, 2, 3)},
+        "leader_off_path_m": 5.05,
+        "leader_end_m": 1.9,
+    }
+
+
+def _swap(seed: int, avoidance: bool) -> dict:
+    formations = {f"r{i}_formations": "rank_left>rank_right" for i in (1, 2, 3)}
+    return {
+        **_row(seed, 0.5),
+        **formations,
+        "collisions": 0 if avoidance else 2,
+        "min_distance_m": 1.2 if avoidance else 0.35,
     }
 
 
@@ -104,13 +138,19 @@ def _rows(dynamic_rms: float) -> dict[str, list[dict]]:
         "static 2": [_row(s, 1.2, ahead=0.5, lag=0.1) for s in range(3)],
         "ekf": [_row(s, 0.7) for s in range(3)],
         "obstacles": [_row(s, 0.5) for s in range(3)],
+        "obstacles, no avoidance": [_row(s, 0.5) for s in range(3)],
+        "rank swap": [_swap(s, avoidance=True) for s in range(3)],
+        "rank swap, no avoidance": [_swap(s, avoidance=False) for s in range(3)],
         "l-psi": [_row(s, 0.09) for s in range(3)],
     }
 
 
 def test_a_point_measures_the_claims_and_the_figures_metrics() -> None:
     pt = sensitivity.measure(1.0, _rows(0.7))
-    assert [c.holds for c in pt.claims] == [3, 3, 3, 3, 3]
+    assert [c.holds for c in pt.claims] == [3, 3, 3, 3, 3, 3]
+    assert pt.counts["robot contact, rank swap"] == pt.counts["obstacle contact, rank swap"] == 0
+    assert pt.counts["robot contact, rank swap, no avoidance"] == pt.counts["runs rank swap, no avoidance"] == 3
+    assert pt.stats["dynamic", "leader_off_path_m"].mean == pytest.approx(5.05)
     assert pt.stats["dynamic", "r2_rms_m"].mean == pytest.approx(0.72)
     assert pt.stats["l-psi", "r2_rms_m"].mean == pytest.approx(0.09)
     assert ("static 1.7", "r2_rms_m") not in pt.stats  # not flown at this point
@@ -120,15 +160,21 @@ def test_a_point_measures_the_claims_and_the_figures_metrics() -> None:
 def test_the_section_and_the_figure_of_an_axis(tmp_path: Path) -> None:
     axis = AXIS_NAMES["wheel_noise"]
     pts = [sensitivity.measure(v, _rows(rms)) for v, rms in zip(axis.values, (0.7, 0.9, 1.09), strict=True)]
-    text = sensitivity.markdown(axis, pts, "figures/sensitivity-wheel_noise.png")
-    assert "- a. dynamic V_N has lower RMS and max error than static 1.5 and 2: holds for 0-0.05 m/s; " in text
-    assert "holds in some seeds at 0.1 m/s (1 of 3); fails for none of these values." in text
+    text = sensitivity_text.markdown(axis, pts, "figures/sensitivity-wheel_noise.png")
+    assert (
+        "- a. dynamic V_N has lower RMS and max error than static 1.5 and 2: holds in 3/3 seeds at 0-0.05 m/s; " in text
+    )
+    assert "in 1/3 at 0.1 m/s." in text
     assert "| | 0 m/s (shipped) | 0.05 m/s | 0.1 m/s |" in text
     assert "| claim a: seeds where it holds | 3/3 | 3/3 | 1/3 |" in text
     assert "| formation error RMS, m: fuzzy, dynamic V_N | 0.72 ± 0.05 | 0.92 ± 0.05 | 1.11 ± 0.05 |" in text
     assert "| claim d: runs in which a robot touches an obstacle | 0/3 | 0/3 | 0/3 |" in text
-    least = "| least distance between two robots' centres, m (claim d; touching below 0.4) |"
+    least = "| least distance between two robots' centres, m (claim d, fig11_obstacles; touching below 0.4) |"
     assert least + " 1.30 ± 0.00 | 1.30 ± 0.00 | 1.30 ± 0.00 |" in text
+    assert "| claim d, rank swap: seeds where it holds | 3/3 | 3/3 | 3/3 |" in text
+    assert "| the rank swap without eq. 11-13: the same | 3/3 | 3/3 | 3/3 |" in text
+    assert "| claim d, rank swap: runs in which a robot touches an obstacle | 0/3 | 0/3 | 0/3 |" in text
+    assert "| the leader's largest distance from its path, m | 5.05 ± 0.00 | 5.05 ± 0.00 | 5.05 ± 0.00 |" in text
     assert "![wheel noise](figures/sensitivity-wheel_noise.png)" in text
     fig = sensitivity_figure.figure(axis, pts)
     panels = fig.axes
@@ -161,3 +207,76 @@ def test_sensitivity_refuses_claims_set_and_a_missing_marker_before_running(tmp_
     assert "--axis needs --sensitivity" in err
     assert "has no <!-- sensitivity (wheel_bias): begin -->" in err
     assert not out.exists()  # nothing made for a bad input
+
+
+def test_rows_of_an_axis_go_to_the_csv_and_back_and_the_others_are_kept(tmp_path: Path) -> None:
+    path = tmp_path / "sensitivity.csv"
+    speed, drops = AXIS_NAMES["leader_speed"], AXIS_NAMES["obs_drop"]
+    first = {v: _rows(0.7) for v in (1.0, 1.25)}
+    first[1.25]["dynamic"][1] = {**first[1.25]["dynamic"][1], "r2_rms_m": 0.1 + 0.2}  # 0.30000000000000004
+    sensitivity_rows.merge(path, speed.name, first)
+    table = sensitivity_rows.merge(path, drops.name, {0.0: _rows(0.7), 50.0: _rows(1.09)})
+    assert sensitivity_rows.read(path) == table
+    assert list(table) == ["leader_speed", "obs_drop"]
+    back = table["leader_speed"][1.25]
+    assert back["dynamic"][1]["r2_rms_m"] == 0.1 + 0.2  # every digit
+    assert back["rank swap"][0]["r1_formations"] == "rank_left>rank_right"
+    assert "ticks_per_s" not in back["dynamic"][0]  # wall time is no figure of the run
+    assert set(back) == set(_rows(0.7))
+    sensitivity_rows.merge(path, speed.name, {1.0: _rows(1.09)})  # run again: replaces its own rows only
+    again = sensitivity_rows.read(path)
+    assert list(again["leader_speed"]) == [1.0]
+    assert again["obs_drop"] == table["obs_drop"]
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_where_each_claim_holds_is_written_from_the_csv(tmp_path: Path) -> None:
+    path = tmp_path / "sensitivity.csv"
+    sensitivity_rows.merge(path, "obs_drop", {0.0: _rows(0.7), 50.0: _rows(1.09)})
+    sensitivity_rows.merge(path, "leader_speed", {1.0: _rows(1.09), 1.5: _rows(0.7)})
+    text = sensitivity_run.where_text(path)
+    lines = text.splitlines()
+    assert lines[0].startswith("From the sensitivity runs below (seeds 0-2 at every value")
+    a = lines.index("- **a. dynamic V_N has lower RMS and max error than static 1.5 and 2.**")
+    assert lines[a + 1 : a + 3] == [
+        "  - leader speed: holds in 3/3 seeds at 1.5 m/s; in 1/3 at 1 m/s.",  # the axes in AXES' order
+        "  - observation drops: holds in 3/3 seeds at 0 %; in 1/3 at 50 %.",
+    ]
+    d = lines.index("- **d. with eq. 11-13 a rank swaps sides and back without collision.**")
+    assert lines[d + 3 : d + 6] == [
+        "  - `fig11_rank_swap` without eq. 11-13 (`controller.avoidance = false`), the same seeds:",
+        "    - leader speed: two robots touch in 3/3 seeds at every value tried (1, 1.5 m/s).",
+        "    - observation drops: two robots touch in 3/3 seeds at every value tried (0, 50 %).",
+    ]
+
+
+def test_the_ablation_table_says_both_ways_with_closest_approaches() -> None:
+    rows = _rows(0.7)
+    rows["rank swap, no avoidance"][2] = {**rows["rank swap, no avoidance"][2], "collisions": 0, "min_distance_m": 0.41}
+    text = claims.avoidance_table(rows)
+    assert text.startswith("Lockstep runs, seeds 0-2, with the partition-zone avoidance")
+    assert "| `fig11_obstacles` | off | 0 of 3 | 0 | 0 | 1.300-1.300 (1.300) |" in text
+    assert "| `fig11_rank_swap` | on (as shipped) | 0 of 3 | 0 | 0 | 1.200-1.200 (1.200) |" in text
+    assert "| `fig11_rank_swap` | off | 2 of 3 | 4 | 0 | 0.350-0.410 (0.350) |" in text
+    assert text.endswith(
+        "- `fig11_obstacles`: no two robots touch in any of the 3 seeds, with eq. 11-13 or without them; "
+        "the avoidance is not what keeps them apart there.\n"
+        "- `fig11_rank_swap`: two robots touch in 2 of 3 seeds without eq. 11-13 and in 0 with them; "
+        "the avoidance is what keeps them apart."
+    )
+    rows["rank swap"][0] = {**rows["rank swap"][0], "collisions": 1}
+    assert claims.avoidance_table(rows).endswith(
+        "- `fig11_rank_swap`: two robots touch in 2 of 3 seeds without eq. 11-13 and in 1 with them."
+    )
+
+
+def test_rows_need_a_study_and_the_claims_need_the_ablations_markers_before_running(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "sweeps"
+    assert results.main(["--rows", str(tmp_path / "r.csv"), "--out", str(out)]) == 2
+    doc = tmp_path / "r.md"
+    doc.write_text("<!-- claims: begin -->\n<!-- claims: end -->\n")  # no ablation markers
+    assert results.main(["--claims", "--write", str(doc), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--rows needs --claims or --sensitivity" in err
+    assert "has no <!-- avoidance ablation: begin -->" in err
+    assert not out.exists()
