@@ -9,8 +9,7 @@ deviation and 95% confidence interval (Student t) of every metric, and
 DIR/aggregate.png the main ones (formation error RMS and maximum, EKF target
 error, least distance between robots) with their intervals against the swept
 value, one line per follower. The sweep ends with a table of the main
-metrics per combination on the console. ``run_sweeps`` runs several sweeps for one
-table (``swarm results``) and refuses rows that cannot enter it.
+metrics per combination on the console.
 """
 
 from __future__ import annotations
@@ -223,7 +222,8 @@ def unfit_runs(rows: Sequence[Mapping[str, Any]]) -> list[str]:
 
 
 def run_sweeps(sweeps: Mapping[str, Sweep], out: Path) -> dict[str, list[dict[str, Any]]] | None:
-    """Every sweep's rows; None, having said why, when a run cannot enter a table."""
+    """Every sweep's rows, for one table (swarm results); None, having said why,
+    when a run cannot enter it."""
     rows = {name: sweep.run() for name, sweep in sweeps.items()}
     unfit = [why for r in rows.values() for why in unfit_runs(r)]
     if unfit:

@@ -27,6 +27,9 @@ pytestmark = pytest.mark.slow
 
 FIG11 = "fig11_obstacles"
 DT = 0.05
+# 2,400 ticks, 2-3 s of wall time in lockstep: long enough to be running still
+# when a test acts (the launcher's view of the sim time lags up to 0.25 s).
+LONG = {"run.duration_s": 120.0, "leader.waypoints": [[0.0, 0.0], [0.0, 1000.0]]}
 
 
 def _printed(res: RunResult) -> str:
@@ -44,7 +47,7 @@ def test_robots_cut_off_beyond_the_lease_in_lockstep_are_waited_for_and_rejoin(
     before they were back. Now they stall after STALL_AFTER_MISSES misses, the
     world holds its clock once their tokens go, re-admits them when they are
     back, and the run goes on with them to its end."""
-    launch = swarm_launch(FIG11, logger=False, overrides={"run.duration_s": 12.0})
+    launch = swarm_launch(FIG11, logger=False, overrides=LONG)
     assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
     agents = [launch.pids()[f"agent-{rid}"] for rid in (1, 2, 3)]
     for pid in agents:
@@ -58,7 +61,7 @@ def test_robots_cut_off_beyond_the_lease_in_lockstep_are_waited_for_and_rejoin(
     s = res.summary
     world = s["parts"]["world"]
     assert res.exit_code == 0, s["failure"]
-    assert (s["ticks"], s["end_reason"]) == (240, "duration_reached")
+    assert (s["ticks"], s["end_reason"]) == (2400, "duration_reached")
     assert world["dead_robots"] == []
     events = [(e["robot"], e["event"]) for e in s["stalls"]]
     assert sorted(events) == sorted(
@@ -183,7 +186,7 @@ def test_a_full_disk_fails_the_run_naming_the_path_and_leaves_nothing_half_writt
     file is left."""
     lines: list[str] = []
     out = small_disk / "run"
-    launch = swarm_launch(FIG11, out=out, overrides={"run.duration_s": 6.0}, progress=lines.append)
+    launch = swarm_launch(FIG11, out=out, overrides=LONG, progress=lines.append)
     assert launch.wait_until(lambda: launch.sim_time() >= 1.0, timeout_s=60)
     _fill(small_disk)
     res = launch.wait(timeout_s=120)

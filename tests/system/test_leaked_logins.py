@@ -27,7 +27,9 @@ from tests.system.test_attacks import FIG11, HUGE_SEQ, assert_unharmed, attacks,
 pytestmark = pytest.mark.slow
 
 FORGED = 1000  # forged "done" commands, one per tick
-SHORT = {"run.duration_s": 12.0}  # 240 ticks; the leader is 18 m along its 80 m path at the end
+# 2,400 ticks, 2-3 s of wall time in lockstep: long enough to be running still
+# when a test acts (the launcher's view of the sim time lags up to 0.25 s).
+LONG = {"run.duration_s": 120.0, "leader.waypoints": [[0.0, 0.0], [0.0, 1000.0]]}
 
 
 def _clean(tmp: Path, **kwargs: Any) -> dict[str, Any]:
@@ -44,8 +46,8 @@ def clean(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 
 
 @pytest.fixture(scope="module")
-def clean_short(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    return _clean(tmp_path_factory.mktemp("clean-short"), overrides=SHORT)
+def clean_long(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    return _clean(tmp_path_factory.mktemp("clean-long"), overrides=LONG)
 
 
 def _witnessed(sess: Any, key: str) -> None:
@@ -80,14 +82,14 @@ def test_a_leaked_leader_login_cannot_end_the_run(swarm_launch: Callable[..., La
 
 
 def test_a_leaked_follower_login_holding_a_dead_agents_token_only_stalls_its_robot(
-    swarm_launch: Callable[..., Launch], clean_short: dict[str, Any]
+    swarm_launch: Callable[..., Launch], clean_long: dict[str, Any]
 ) -> None:
     """Agent 2's login holds robot 2's token, then the real agent 2 dies (SIGKILL,
     outside the schedule): its death is hidden from the world. Before, every
-    tick then waited its 2 s deadline for robot 2 (a 12 s run took minutes).
+    tick then waited its 2 s deadline for robot 2 (a 120 s run took hours).
     Now robot 2 is stalled after STALL_AFTER_MISSES misses and the run goes on
     at the others' pace, to its end; the leader flies as in a clean run."""
-    launch = swarm_launch(FIG11, logger=False, overrides=SHORT)
+    launch = swarm_launch(FIG11, logger=False, overrides=LONG)
     assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
     k = Keys(launch.run_id)
     with rogue(launch, "agent-2") as sess:
@@ -98,12 +100,12 @@ def test_a_leaked_follower_login_holding_a_dead_agents_token_only_stalls_its_rob
         token.undeclare()
     s = res.summary
     assert res.exit_code == 0, s["failure"]  # a follower stalled: the formation flew on
-    assert (s["ticks"], s["end_reason"]) == (240, "duration_reached")
+    assert (s["ticks"], s["end_reason"]) == (2400, "duration_reached")
     assert s["deaths"] == []  # its token never went
     assert s["lockstep_misses"] == STALL_AFTER_MISSES
     assert [(e["robot"], e["event"], e["misses"]) for e in s["stalls"]] == [(2, "stalled", STALL_AFTER_MISSES)]
     assert s["parts"]["world"]["loop_wall_time_s"] < STALL_AFTER_MISSES * 2.0 + 30.0
-    assert s["robot_digests"]["1"] == clean_short["robot_digests"]["1"]
+    assert s["robot_digests"]["1"] == clean_long["robot_digests"]["1"]
     assert s["rejected_total"] == 0
 
 
@@ -133,7 +135,7 @@ def test_a_leaked_logger_login_can_listen_and_hold_the_loggers_token_only(
 
 def test_a_local_run_has_no_world_login_to_steal(swarm_launch: Callable[..., Launch]) -> None:
     """The world of a local run is its router: it logs in as nobody."""
-    launch = swarm_launch(FIG11, logger=False, overrides=SHORT)
+    launch = swarm_launch(FIG11, logger=False, overrides=LONG)
     assert launch.login("world") is None
     assert launch.login("agent-2") is not None
     assert launch.wait(timeout_s=120).exit_code == 0
@@ -152,7 +154,7 @@ def test_no_password_stays_on_disk_and_a_restarted_agent_still_logs_in(swarm_lau
     password of the run) for the whole local run. Now each process deletes its
     own once read; the launcher keeps them in memory and writes a fresh one for
     a restarted agent, which deletes it the same way."""
-    launch = swarm_launch(FIG11, logger=False, faults=["restart agent-3@2s after=1"], overrides=SHORT)
+    launch = swarm_launch(FIG11, logger=False, faults=["restart agent-3@2s after=1"], overrides=LONG)
     logins = [launch.login(user) or {} for user in ("logger", "launcher", "agent-1", "agent-2", "agent-3")]
     passwords = [login["transport/auth/usrpwd"]["password"] for login in logins]
     assert len(passwords) == 5  # logger, launcher, three agents (the world, the router, has none)
