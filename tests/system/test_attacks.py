@@ -172,14 +172,6 @@ def assert_unharmed(res: RunResult) -> None:
     assert changes == sorted((r, f) for r in (1, 2, 3) for f in ("line", "triangle")), changes
 
 
-@pytest.fixture(scope="module")
-def clean_digest(tmp_path_factory: pytest.TempPathFactory) -> str:
-    with Launch(FIG11, out=tmp_path_factory.mktemp("clean") / "run", logger=False, progress=lambda _l: None) as run:
-        res = run.wait(timeout_s=240)
-    assert res.exit_code == 0
-    return str(res.summary["trajectory_digest"])
-
-
 def test_a_client_without_credentials_is_refused_by_the_router(swarm_launch: Callable[..., Launch]) -> None:
     launch = swarm_launch(FIG11, logger=False)
     assert launch.wait_until(lambda: launch.sim_time() >= 0.0, timeout_s=60)

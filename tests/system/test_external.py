@@ -266,7 +266,11 @@ def observed(tmp_path: Path) -> Iterator[tuple[Launch, Path]]:
 
 
 @pytest.mark.slow
-def test_the_observer_hears_every_key_of_a_run_and_its_puts_go_nowhere(observed: tuple[Launch, Path]) -> None:
+def test_the_observer_hears_every_key_of_a_run_and_its_puts_go_nowhere(
+    observed: tuple[Launch, Path], clean_digest: str
+) -> None:
+    """A leaked observer login at worst: it hears everything, and its forgeries
+    reach no receiver; the run is bit-identical to a clean one."""
     launch, login = observed
     settings = trust.read_settings(login)
     assert trust.login_user(settings) == acl.OBSERVER
@@ -298,6 +302,7 @@ def test_the_observer_hears_every_key_of_a_run_and_its_puts_go_nowhere(observed:
     assert res.exit_code == 0, s["events"]
     assert s["end_reason"] == "leader_finished"
     assert s["ticks"] == 1061
+    assert s["trajectory_digest"] == clean_digest
     assert s["rejected_total"] == 0, s["rejected"]  # nothing reached a receiver to be refused
     world = s["parts"]["world"]
     assert world["messages"]["cmd_received"] == 3 * s["ticks"]  # one answer per robot and tick: none forged

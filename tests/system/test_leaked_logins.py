@@ -123,6 +123,7 @@ def test_a_leaked_logger_login_can_listen_and_hold_the_loggers_token_only(
         token = sess.liveliness().declare_token(k.alive("logger", 0))
         tick = int(launch.sim_time() / 0.05) + 1
         put_all(sess, attacks(k, tick), rounds=5, witness=k.alive("world", 0))
+        assert launch.children["world"].poll() is None  # the router took every put while the run went on
         res = launch.wait(timeout_s=240)
         token.undeclare()
     assert_unharmed(res)
@@ -131,6 +132,33 @@ def test_a_leaked_logger_login_can_listen_and_hold_the_loggers_token_only(
     assert s["trajectory_digest"] == clean["trajectory_digest"]
     assert s["rejected_total"] == 0
     assert s["parts"]["logger"]["messages"]["truth"] == 1061  # the real logger recorded every tick
+
+
+def test_a_leaked_launcher_login_can_hear_the_status_and_hold_the_launchers_token_only(
+    swarm_launch: Callable[..., Launch], clean_long: dict[str, Any]
+) -> None:
+    """The launcher's login, beside the real launcher: it hears the status and
+    the world's fault calls, holds a second launcher token and tries every
+    forgery of the attacks. The router lets none through; the run completes,
+    bit-identical, and the real launcher still sees it end."""
+    launch = swarm_launch(FIG11, logger=False, overrides=LONG)
+    assert launch.wait_until(lambda: launch.sim_time() >= 0.0, timeout_s=60)
+    k = Keys(launch.run_id)
+    with rogue(launch, "launcher") as sess:
+        heard: list[bytes] = []
+        sess.declare_subscriber(k.status, lambda sample: heard.append(sample.payload.to_bytes()))
+        token = sess.liveliness().declare_token(k.alive("launcher", 0))
+        put_all(sess, attacks(k, tick=int(launch.sim_time() / 0.05) + 1), rounds=5, witness=k.alive("world", 0))
+        assert launch.children["world"].poll() is None  # the router took every put while the run went on
+        res = launch.wait(timeout_s=240)
+        token.undeclare()
+    s = res.summary
+    assert res.exit_code == 0, s["failure"]
+    assert all(p["exit_code"] == 0 for p in s["processes"].values()), s["processes"]
+    assert (s["ticks"], s["end_reason"]) == (2400, "duration_reached")
+    assert s["trajectory_digest"] == clean_long["trajectory_digest"]
+    assert s["rejected_total"] == 0, s["rejected"]  # nothing got through to be rejected
+    assert len(heard) >= 1  # what the login may do, it does
 
 
 def test_a_local_run_has_no_world_login_to_steal(swarm_launch: Callable[..., Launch]) -> None:
