@@ -37,7 +37,11 @@ their loop's): on two cores a run that needs C seconds of CPU per tick cannot
 pass 2 / C ticks/s however well its processes overlap, which bounds the
 ratio a run can reach before its latency counts.
 
-    python bench/lockstep.py [--repeat 3] [--ticks 3000]
+With ``--robots N`` every variant has N robots (the full runs in a line,
+each robot following the one ahead, as bench/scale.py): the bare exchange at
+N robots is what one process per robot costs before any of the paper's maths.
+
+    python bench/lockstep.py [--repeat 3] [--ticks 3000] [--robots 3]
 """
 
 from __future__ import annotations
@@ -74,13 +78,13 @@ MIN_TICKS = 100  # fewer would measure mostly the start
 ANSWER_TIMEOUT_S = 5.0  # the bare world's longest wait for an answer
 
 
-def bare_world(endpoint: str, run: str, ticks: int, lowlatency: bool) -> None:
+def bare_world(endpoint: str, run: str, ticks: int, lowlatency: bool, robots: int) -> None:
     k = Keys(run)
     with zenoh.open(make_config("router", listen=[endpoint], lowlatency=lowlatency)) as s:
         # Received on this thread through a Zenoh FIFO channel, as the world does.
         cmds = s.declare_subscriber(k.all_cmd, zenoh.handlers.FifoChannel(1024))
         answers = cmds.handler
-        pubs = [s.declare_publisher(k.obs(r)) for r in (1, 2, 3)]
+        pubs = [s.declare_publisher(k.obs(r)) for r in range(1, robots + 1)]
         truth = s.declare_publisher(k.truth)
         done = s.declare_publisher(k.status)
         # Each agent's token comes once its subscribers are declared and its command
@@ -88,9 +92,11 @@ def bare_world(endpoint: str, run: str, ticks: int, lowlatency: bool) -> None:
         # can take seconds for that).
         tokens: set[str] = set()
         s.liveliness().declare_subscriber(k.alive_any, lambda smp: tokens.add(str(smp.key_expr)), history=True)
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + start_s(robots)
         while not (
-            all(p.matching_status.matching for p in pubs) and truth.matching_status.matching and len(tokens) >= 4
+            all(p.matching_status.matching for p in pubs)
+            and truth.matching_status.matching
+            and len(tokens) >= robots + 1
         ):
             if time.monotonic() > deadline:
                 raise SystemExit("bare world: peers never matched")
@@ -106,7 +112,7 @@ def bare_world(endpoint: str, run: str, ticks: int, lowlatency: bool) -> None:
                 for p in pubs:
                     p.put(OBS)
                 truth.put(TRUTH)
-                for _ in range(3):
+                for _ in range(robots):
                     answers.recv()
                 answered[0] += 1
         except zenoh.ZError:
@@ -117,6 +123,12 @@ def bare_world(endpoint: str, run: str, ticks: int, lowlatency: bool) -> None:
         cpu = time.process_time() - cpu0
         done.put(b"done")
         print(f"{rate:.1f} {cpu:.6f}", flush=True)
+
+
+def start_s(robots: int) -> float:
+    """The longest wait for every process to be up: each one's imports take about
+    a second of CPU, and N of them share the cores."""
+    return 60.0 + 1.0 * robots
 
 
 def _watchdog(answered: list[int], sub: zenoh.Subscriber, stop: threading.Event) -> None:
@@ -144,7 +156,7 @@ def bare_agent(endpoint: str, run: str, rid: int, lowlatency: bool, control: boo
         cmd = s.declare_publisher(k.cmd(rid))
         tel = s.declare_publisher(k.telemetry(rid))
         form = s.declare_publisher(k.codes) if rid == 1 else None
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + start_s(rid)
         while not cmd.matching_status.matching and time.monotonic() < deadline:
             time.sleep(0.01)
         token = s.liveliness().declare_token(k.alive("agent", rid))  # held: dropped, it is undeclared
@@ -207,21 +219,21 @@ def bare_logger(endpoint: str, run: str, lowlatency: bool) -> None:
         print(f"{time.process_time() - cpu0:.6f}", flush=True)
 
 
-def measure_bare(ticks: int, lowlatency: bool = False, control: bool = False) -> tuple[float, float]:
+def measure_bare(ticks: int, robots: int, lowlatency: bool = False, control: bool = False) -> tuple[float, float]:
     """Ticks per second, and the CPU of every process over the exchange per tick (s);
     ``control``: the followers run the controller (bare + controller)."""
     run = f"bench-{uuid.uuid4().hex[:8]}"
     ep = f"tcp/127.0.0.1:{free_port()}"
     me = [sys.executable, __file__, "--role"]
     ll = "lowlatency" if lowlatency else "default"
-    world = subprocess.Popen([*me, "world", ep, run, ll, str(ticks)], stdout=subprocess.PIPE, text=True)
+    world = subprocess.Popen([*me, "world", ep, run, ll, str(ticks), str(robots)], stdout=subprocess.PIPE, text=True)
     piped = {"stdout": subprocess.PIPE, "text": True}
     others = [subprocess.Popen([*me, "logger", ep, run, ll], **piped)]
     brain = ["control"] if control else []
-    others += [subprocess.Popen([*me, "agent", ep, run, ll, str(r), *brain], **piped) for r in (1, 2, 3)]
+    others += [subprocess.Popen([*me, "agent", ep, run, ll, str(r), *brain], **piped) for r in range(1, robots + 1)]
     cpu = 0.0
     try:
-        out, _ = world.communicate(timeout=600)
+        out, _ = world.communicate(timeout=600 + start_s(robots))
         rate, world_cpu = map(float, out.strip().splitlines()[-1].split())
         cpu += world_cpu
     finally:
@@ -236,7 +248,10 @@ def measure_bare(ticks: int, lowlatency: bool = False, control: bool = False) ->
     return rate, cpu / ticks
 
 
-def measure_full(duration_s: float, logger: bool = True, auth: bool = True) -> tuple[float, dict]:
+def measure_full(duration_s: float, robots: int, logger: bool = True, auth: bool = True) -> tuple[float, dict]:
+    overrides: dict[str, object] = {"run.duration_s": duration_s, "leader.waypoints": [[0.0, 0.0], [0.0, 400.0]]}
+    if robots != 3:
+        overrides |= {"run.robots": robots, "leader.formation": "line"}
     with (
         tempfile.TemporaryDirectory() as tmp,
         Launch(
@@ -244,7 +259,7 @@ def measure_full(duration_s: float, logger: bool = True, auth: bool = True) -> t
             out=Path(tmp) / "run",
             logger=logger,
             auth=auth,
-            overrides={"run.duration_s": duration_s, "leader.waypoints": [[0.0, 0.0], [0.0, 400.0]]},
+            overrides=overrides,
             progress=lambda _l: None,
         ) as launch,
     ):
@@ -276,13 +291,20 @@ def main() -> None:
         metavar="N",
         help=f"ticks per measurement, at least {MIN_TICKS} (full: as sim time; default 3000)",
     )
+    ap.add_argument(
+        "--robots",
+        type=integer(3, 500),
+        default=3,
+        metavar="N",
+        help="robots in every variant, 3 to 500 (default 3: fig11 as shipped; more: in a line)",
+    )
     ap.add_argument("--role", nargs="+", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.role:
         role, ep, run, transport, *rest = args.role
         ll = transport == "lowlatency"
         if role == "world":
-            bare_world(ep, run, int(rest[0]), ll)
+            bare_world(ep, run, int(rest[0]), ll, int(rest[1]))
         elif role == "agent":
             bare_agent(ep, run, int(rest[0]), ll, control=rest[1:] == ["control"])
         else:
@@ -290,20 +312,21 @@ def main() -> None:
         return
     bare, bare_ll, floor, full, quiet, open_ = [], [], [], [], [], []
     bare_cpu, floor_cpu, full_cpu = [], [], []
-    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
+    n = args.robots
+    print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}; {n} robots")
     for i in range(args.repeat):
-        rate, cpu = measure_bare(args.ticks)
+        rate, cpu = measure_bare(args.ticks, n)
         bare.append(rate)
         bare_cpu.append(cpu)
-        bare_ll.append(measure_bare(args.ticks, lowlatency=True)[0])
-        rate, cpu = measure_bare(args.ticks, control=True)
+        bare_ll.append(measure_bare(args.ticks, n, lowlatency=True)[0])
+        rate, cpu = measure_bare(args.ticks, n, control=True)
         floor.append(rate)
         floor_cpu.append(cpu)
-        rate, summary = measure_full(args.ticks * 0.05)
+        rate, summary = measure_full(args.ticks * 0.05, n)
         full.append(rate)
         full_cpu.append(full_cpu_per_tick(summary))
-        quiet.append(measure_full(args.ticks * 0.05, logger=False)[0])
-        open_.append(measure_full(args.ticks * 0.05, auth=False)[0])
+        quiet.append(measure_full(args.ticks * 0.05, n, logger=False)[0])
+        open_.append(measure_full(args.ticks * 0.05, n, auth=False)[0])
         print(
             f"  round {i + 1}: bare {bare[-1]:7.0f} ticks/s   bare low-latency {bare_ll[-1]:7.0f}   "
             f"bare + controller {floor[-1]:7.0f}   "

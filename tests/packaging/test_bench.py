@@ -26,7 +26,7 @@ def _lockstep_bench():
 def test_bare_exchange_runs_its_ticks_and_reports_every_process_cpu():
     bench = _lockstep_bench()
     t0 = time.monotonic()
-    rate, cpu = bench.measure_bare(200)
+    rate, cpu = bench.measure_bare(200, 3)
     # 200 ticks of five processes; about 2 s here with their start, 3x for a loaded machine.
     assert time.monotonic() - t0 < 30
     assert rate > 0
@@ -53,7 +53,7 @@ def test_bare_exchange_with_the_controller_steps_the_followers_filter():
     decision = brain.follower.decide(bench.READINGS[40])
     assert decision.left_mps > 0.5
     assert decision.right_mps > 0.5
-    rate, cpu = bench.measure_bare(200, control=True)
+    rate, cpu = bench.measure_bare(200, 5, control=True)  # four followers
     assert math.isfinite(rate)
     assert rate > 0
     assert math.isfinite(cpu)
@@ -69,6 +69,7 @@ def test_bare_exchange_with_the_controller_steps_the_followers_filter():
         ("scale.py", ["--lockstep-duration", "-1"], "argument --lockstep-duration: must be a number of seconds > 0"),
         ("lockstep.py", ["--repeat", "0"], "argument --repeat: must be >= 1, got '0'"),
         ("lockstep.py", ["--ticks", "50"], "argument --ticks: must be >= 100, got '50'"),
+        ("lockstep.py", ["--robots", "2"], "argument --robots: must be in [3, 500], got '2'"),
     ],
 )
 def test_a_benchmark_refuses_bad_flags_on_one_line(script: str, argv: list[str], said: str) -> None:
