@@ -210,7 +210,7 @@ class Agent:
                     return stop.exit_code
                 if self.role.left_s() <= 0:
                     self.end_note = "gave up waiting for its peers"
-                    return self.role.gave_up(f"{' and '.join(missing)} ({self.opts.where}); check --run and --connect")
+                    return self.role.gave_up(f"{' and '.join(missing)} ({self.opts.where}); {role_mod.CHECK_PEERS}")
                 wait_for(changed, self.role.left_s())
                 changed.clear()
         finally:

@@ -151,7 +151,7 @@ class Logger:
                 if not self.peers.world_seen and self.role.left_s() <= 0:
                     self.end_note = "gave up waiting for the world"
                     return self.role.gave_up(
-                        f"no world of run {self.keys.run_id!r} ({self.where}); check --run and --connect"
+                        f"no world of run {self.keys.run_id!r} ({self.where}); {role_mod.CHECK_PEERS}"
                     )
                 self.wake.wait(max(0.0, min(last_send + self.send_period_s, end_by) - time.monotonic()))
                 self.wake.clear()

@@ -225,7 +225,7 @@ class World:
             missing.append(f"agents {', '.join(map(str, deaf))} present but not subscribed to their observations")
         self.role.gave_up(
             f"{' and '.join(missing)} in run {self.keys.run_id!r} ({self.opts.where}); "
-            "check --run and --connect of the missing processes"
+            f"for the missing processes, {role_mod.CHECK_PEERS}"
         )
 
     def _on_alive(self, key: str, present: bool) -> None:

@@ -125,6 +125,12 @@ def open_session(conf: zenoh.Config, stop: StopEvent, deadline: float) -> zenoh.
     raise TimeoutError
 
 
+# What a process that hears no peer asks its user to check: a login or
+# certificate of another run or role still connects (mTLS, access rules) but
+# is handed nothing.
+CHECK_PEERS = "check --run and --connect, and with --auth that its login and certificate are this run's and this role's"
+
+
 def describe_session(args: argparse.Namespace) -> str:
     """Where a session from the common Zenoh flags is, for a report line."""
     if args.zenoh_mode == "client":

@@ -119,7 +119,7 @@ def test_mismatched_run_ids_give_up_at_the_deadline_with_one_line(tmp_path: Path
         assert f"waiting up to {PEERS_TIMEOUT_S:g} s" in connected, connected
         (gave_up,) = p.lines("err")
         assert gave_up.startswith(f"{p.name.replace('-', ' ')}: gave up after {PEERS_TIMEOUT_S:g} s: "), gave_up
-        assert "check --run and --connect" in gave_up, gave_up
+        assert "check --run and --connect, and with --auth that its login" in gave_up, gave_up
     (line,) = world.lines("err")
     assert f"no agent for robots 1, 2 and no logger in run {world_run!r}" in line, line
     assert endpoint in line
