@@ -317,6 +317,17 @@ def test_messages_are_built_by_keyword_and_keep_their_wire_order() -> None:
     assert _raw(CMD) == [2, VERSION, 2, 9, 3, 0.4, -0.1, 1, False]  # header, then the fields as declared
 
 
+def test_a_subclass_is_decoded_as_itself() -> None:
+    assert type(Command.from_bytes(CMD.to_bytes())) is Command  # the parent's builder made first
+
+    class Sub(Command):
+        __slots__ = ()
+
+    got = Sub.from_bytes(CMD.to_bytes())
+    assert type(got) is Sub
+    assert _raw(got) == _raw(CMD)
+
+
 def test_a_list_of_only_non_finite_numbers_is_rejected() -> None:
     with pytest.raises(DecodeError, match="not finite"):
         Observation.from_bytes(msgpack.packb([1, 1, 0, 1, 1, 0.0, [math.inf, math.nan, math.inf], [], []]))
