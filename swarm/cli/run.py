@@ -29,8 +29,9 @@ GRPC_PORT, WEB_PORT = 9876, 9090  # --serve-web's defaults: Rerun's own
 
 RUN_EPILOG = """\
 exit codes: 0 the run ended normally; 1 the world failed, a process failed
-before tick 0 (its log's last lines are printed), or the run lost its leader
-(or every follower) for good, a kill fault included; 2 a bad command line (one
+before tick 0 (its log's last lines are printed), a robot's controller failed,
+or the run lost its leader (or every follower) for good, a kill fault included
+(collisions do not fail a run: see summary.json); 2 a bad command line (one
 line on stderr, nothing started); 124 --timeout; 130 interrupted (Ctrl-C).
 
 examples:
