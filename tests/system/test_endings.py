@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import os
 import shutil
 import signal
@@ -205,6 +206,14 @@ def _rss_mb(pid: int) -> float:
     raise AssertionError(f"no VmRSS for {pid}")
 
 
+def _given_back(stats: Path) -> int:
+    """An agent's memory_given_back in its stats file so far (0 before the first)."""
+    try:
+        return int(json.loads(stats.read_text()).get("memory_given_back", 0))
+    except (OSError, ValueError):
+        return 0
+
+
 def test_memory_a_flood_takes_is_bounded_and_given_back(swarm_launch: Callable[..., Launch]) -> None:
     """Robot 2's login floods its command and telemetry keys with 20,000 payloads
     of 30 kB each (rejected by the world and by agent 2). Before, the world held
@@ -231,6 +240,10 @@ def test_memory_a_flood_takes_is_bounded_and_given_back(swarm_launch: Callable[.
     after = {name: _rss_mb(pid) for name, pid in pids.items()}
     print("flood of 40,000 x 30 kB: RSS MB before", before, "peak", peak, "after", after)
     assert settled, (before, peak, after)
+    # The agent gives back in its first look (every FLOOD_CHECK_S) once its inbox is drained:
+    # wait for its stats (written every second) to say so, as a loaded machine drains slowly.
+    stats = launch.run_dir / "stats" / "agent-2.json"
+    assert launch.wait_until(lambda: _given_back(stats) >= 1, timeout_s=4 * FLOOD_CHECK_S + 10.0)
     launch.interrupt()
     res = launch.wait(timeout_s=60)
     parts = res.summary["parts"]
