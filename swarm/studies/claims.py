@@ -167,16 +167,27 @@ def _changes(r: Mapping[str, Any], sequence: str) -> bool:
     return [r.get(f"r{i}_formations") for i in (1, 2, 3)] == [sequence] * 3
 
 
+def _switched_clear(runs: Sequence[Mapping[str, Any]], sequence: str) -> tuple[int, int, str]:
+    """Of these runs: how many flew ``sequence``, how many also touched nothing,
+    and the contacts and closest approach, said."""
+    n = len(runs)
+    changed = _count(n, lambda i: _changes(runs[i], sequence))
+    ok = _count(n, lambda i: _changes(runs[i], sequence) and _clear(runs[i]))
+    said = (
+        f"{sum(r['collisions'] for r in runs)} collisions between robots, "
+        f"{sum(r['obstacle_collisions'] for r in runs)} with obstacles; minimum distance "
+        f"{min(r['min_distance_m'] for r in runs):.2f} m"
+    )
+    return changed, ok, said
+
+
 def claim_d(rows: Rows) -> Claim:
     obs = rows["obstacles"]
     n = len(obs)
-    changed = _count(n, lambda i: _changes(obs[i], "line>triangle"))
-    ok = _count(n, lambda i: _changes(obs[i], "line>triangle") and _clear(obs[i]))
+    changed, ok, said = _switched_clear(obs, "line>triangle")
     text = (
         f"`fig11_obstacles`: every robot line then triangle in {changed} of {n} "
-        f"seeds; {sum(r['collisions'] for r in obs)} collisions between robots, "
-        f"{sum(r['obstacle_collisions'] for r in obs)} with obstacles; minimum distance "
-        f"{min(r['min_distance_m'] for r in obs):.2f} m (diameter 0.4 m). R3's max error {_m(obs, 'r3_max_m')}."
+        f"seeds; {said} (diameter 0.4 m). R3's max error {_m(obs, 'r3_max_m')}."
     )
     return Claim("d. the obstacle run goes triangle, line, triangle, no collision", text, ok, n)
 
@@ -186,13 +197,10 @@ def claim_d_avoidance(rows: Rows) -> Claim:
     seeds without them (the ablation) say that they do."""
     swap, off = rows["rank swap"], rows["rank swap, no avoidance"]
     n = len(swap)
-    changed = _count(n, lambda i: _changes(swap[i], "rank_left>rank_right"))
-    ok = _count(n, lambda i: _changes(swap[i], "rank_left>rank_right") and _clear(swap[i]))
+    changed, ok, said = _switched_clear(swap, "rank_left>rank_right")
     text = (
         f"`fig11_rank_swap`: every robot to the left and back in {changed} of {n} seeds; "
-        f"{sum(r['collisions'] for r in swap)} collisions between robots, "
-        f"{sum(r['obstacle_collisions'] for r in swap)} with obstacles; minimum distance "
-        f"{min(r['min_distance_m'] for r in swap):.2f} m. Without eq. 11-13 (`controller.avoidance = false`): "
+        f"{said}. Without eq. 11-13 (`controller.avoidance = false`): "
         f"two robots touch in {sum(1 for r in off if r['collisions'])} of {len(off)} seeds "
         f"({sum(r['collisions'] for r in off)} contacts), minimum distance "
         f"{min(r['min_distance_m'] for r in off):.2f} m."
