@@ -5,9 +5,10 @@ from __future__ import annotations
 import os
 import shutil
 import socket
+import subprocess
 import sys
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -69,6 +70,21 @@ def processes(match: Callable[[str], bool]) -> list[tuple[int, str]]:
 def our_processes() -> list[tuple[int, str]]:
     """Live processes running one of our roles."""
     return processes(lambda cmd: any(f"-m {m} " in cmd for m in OUR_MODULES))
+
+
+def reap(procs: Iterable[subprocess.Popen[Any]], grace_s: float = 5.0) -> None:
+    """SIGTERM every process still running, then SIGKILL any not gone within ``grace_s`` in all."""
+    procs = list(procs)
+    deadline = time.monotonic() + grace_s
+    for p in procs:
+        if p.poll() is None:
+            p.terminate()
+    for p in procs:
+        try:
+            p.wait(timeout=max(0.1, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
 
 
 def run_together(

@@ -22,7 +22,6 @@ import shutil
 import subprocess
 import sys
 import threading
-import time
 import uuid
 from collections.abc import Sequence
 from pathlib import Path
@@ -33,7 +32,7 @@ import pytest
 from formation_swarm.launch import certs
 from formation_swarm.launch.launcher import free_port
 from formation_swarm.protocol import tls, trust
-from tests.helpers import ROOT, SCENARIOS
+from tests.helpers import ROOT, SCENARIOS, reap
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"
 FIG11_TICKS = 1061  # the leader's last waypoint, seed 1 (tests/packaging/test_packaging.py)
@@ -157,16 +156,7 @@ def test_a_wrong_certificate_name_gets_nothing_and_the_right_ones_fly_fig11(robo
         assert probe.returncode == 0, (tmp_path / "probe.err").read_text()
         seen = json.loads(out.strip().splitlines()[-1])
     finally:
-        deadline = time.monotonic() + 5
-        for p in procs.values():
-            if p.poll() is None:
-                p.terminate()
-        for p in procs.values():
-            try:
-                p.wait(timeout=max(0.1, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+        reap(procs.values())
     (tmp_path / "seen.json").write_text(json.dumps(seen, indent=1))
     print(json.dumps(seen))  # the figures, for a reader of the test's output (-s)
 

@@ -13,14 +13,13 @@ import json
 import shutil
 import subprocess
 import sys
-import time
 import uuid
 from pathlib import Path
 
 import pytest
 
 from formation_swarm.launch.launcher import free_port
-from tests.helpers import ROOT, SCENARIOS
+from tests.helpers import ROOT, SCENARIOS, reap
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"
 ROUTER_CONFIG = ROOT / "deploy" / "router.json5"
@@ -201,13 +200,4 @@ def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tupl
             assert f"run {run} ended (" in last, (name, last)
             assert "exit code 0" in last, (name, last)
     finally:
-        deadline = time.monotonic() + 5
-        for p in procs.values():
-            if p.poll() is None:
-                p.terminate()
-        for p in procs.values():
-            try:
-                p.wait(timeout=max(0.1, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+        reap(procs.values())
