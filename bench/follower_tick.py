@@ -104,7 +104,7 @@ class Robot:
         self.tel.sent.clear()
 
     def serve(self, messages: list[tuple[str, bytes]], timed: bool) -> None:
-        """One pass of the agent's loop (nodes.agent.Agent._serve)."""
+        """One pass of the agent's loop (nodes.agent_node.Agent._serve)."""
         spent, clock = self.spent, time.perf_counter
         t0 = clock()
         for key, payload in messages:
