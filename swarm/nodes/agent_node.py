@@ -244,11 +244,15 @@ class Agent:
 
     def _serve(self, channel: Any, outbox: Outbox) -> None:
         stop, brain, take = self.role.stop, self.brain, self.router.take
-        while not stop.is_set() and not self.done:
+        # The loop ends when recv raises, not on "done": what arrived before
+        # "done" (the leader's code of the last tick, while we answered it) is
+        # counted, so a run's link counts do not depend on when the status
+        # callback ran.
+        while not stop.is_set():
             try:
                 sample = channel.recv()
             except zenoh.ZError:
-                break  # closed by _close_inbox
+                break  # closed by _close_inbox, once what was queued is read
             if not self.started:
                 self.started = True
                 self.role.say(f"run {self.keys.run_id} started")
@@ -261,6 +265,8 @@ class Agent:
                     sample = channel.try_recv()
                 except zenoh.ZError:
                     sample = None  # closed by _close_inbox: answer what we have, then recv ends the loop
+            if self.done:
+                continue  # the run is over: counted, not answered
             answer = brain.answer()
             if answer is not None:
                 outbox.send(answer)
