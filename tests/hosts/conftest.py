@@ -1,4 +1,4 @@
-"""Fixtures of the tests that spread a run over network namespaces."""
+"""Fixtures of the tests that spread a run over hosts: on loopback, and over network namespaces."""
 
 from __future__ import annotations
 
@@ -6,8 +6,12 @@ import os
 import shutil
 import subprocess
 import uuid
+from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
+
+from tests.hosts.local_hosts import Hosts
 
 
 def _ip(*args: str) -> None:
@@ -39,3 +43,12 @@ def robot_host() -> object:
     finally:
         subprocess.run(["ip", "link", "del", host_if], capture_output=True, timeout=10)
         subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=10)
+
+
+@pytest.fixture
+def two_hosts(tmp_path: Path) -> Iterator[Hosts]:
+    hosts = Hosts(tmp_path, ["a", "b"])
+    try:
+        yield hosts
+    finally:
+        hosts.close()

@@ -12,10 +12,8 @@ import os
 import re
 import signal
 import subprocess
-import sys
 import time
 import uuid
-from collections.abc import Iterator
 from pathlib import Path
 
 import msgpack
@@ -31,8 +29,7 @@ from formation_swarm.protocol.hostmsg import MAX_HOST_MESSAGE_BYTES, HostReply, 
 from formation_swarm.protocol.keys import HostKeys
 from formation_swarm.protocol.session import make_config
 from tests.helpers import Console
-
-PY = [sys.executable, "-m", "formation_swarm.cli"]
+from tests.hosts.local_hosts import PY, Hosts, agents_of, alive, summary_placement
 
 
 # -- the wire -----------------------------------------------------------------------
@@ -137,103 +134,6 @@ def test_a_host_login_answers_on_its_own_key_only_and_hears_nothing_of_the_run(t
 
 
 # -- runs on hosts ------------------------------------------------------------------
-class Hosts:
-    """``swarm host`` processes on this machine, each with its login and folder."""
-
-    def __init__(self, tmp_path: Path, names: list[str]) -> None:
-        self.tmp = tmp_path
-        self.endpoint = f"tcp/127.0.0.1:{free_port()}"
-        made = subprocess.run(
-            [*PY, "secure", "--hosts", ",".join(names), "--out", str(tmp_path / "sec")],
-            capture_output=True,
-            text=True,
-            timeout=60,
-            check=False,
-        )
-        assert made.returncode == 0, made.stderr
-        self.procs: dict[str, subprocess.Popen[bytes]] = {}
-        for n in names:
-            log = open(tmp_path / f"host-{n}.log", "wb")  # noqa: SIM115 - closed with the process
-            self.procs[n] = subprocess.Popen(
-                [
-                    *PY,
-                    "host",
-                    "--connect",
-                    self.endpoint,
-                    "--name",
-                    n,
-                    "--auth",
-                    str(tmp_path / "sec" / f"host-{n}.json"),
-                    "--workdir",
-                    str(tmp_path / f"work-{n}"),
-                ],
-                stdout=log,
-                stderr=subprocess.STDOUT,
-                stdin=subprocess.DEVNULL,
-            )
-            log.close()
-
-    def run_argv(self, out: Path, names: str) -> list[str]:
-        return [
-            *PY,
-            "run",
-            "fig11_obstacles",
-            "--seed",
-            "5",
-            "--out",
-            str(out),
-            "--hosts",
-            names,
-            "--listen",
-            self.endpoint,
-            "--host-logins",
-            str(self.tmp / "sec" / "hosts.txt"),
-        ]
-
-    def log(self, name: str) -> str:
-        return (self.tmp / f"host-{name}.log").read_text()
-
-    def close(self) -> None:
-        for p in self.procs.values():
-            if p.poll() is None:
-                p.terminate()
-        for p in self.procs.values():
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
-
-
-@pytest.fixture
-def two_hosts(tmp_path: Path) -> Iterator[Hosts]:
-    hosts = Hosts(tmp_path, ["a", "b"])
-    try:
-        yield hosts
-    finally:
-        hosts.close()
-
-
-def summary_placement(out: Path) -> dict[str, str]:
-    return json.loads((out / "summary.json").read_text())["placement"]
-
-
-def _parents() -> dict[int, int]:
-    out = {}
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                out[int(entry.name)] = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            except (OSError, IndexError, ValueError):
-                continue
-    return out
-
-
-def _agents(host_pid: int) -> list[int]:
-    """The processes a host forked (through its spawner's fork server): its agents."""
-    parents = _parents()
-    servers = {p for p, pp in parents.items() if pp == host_pid}
-    return sorted(p for p, pp in parents.items() if pp in servers)
 
 
 @pytest.mark.slow
@@ -282,7 +182,7 @@ def test_a_host_that_dies_mid_run_has_its_robots_counted_dead_and_fails_the_run(
     run = Console(two_hosts.run_argv(out, "a,b"), "[swarm] tick ")
     try:
         assert run.seen.wait(120), run.text
-        b_agents = _agents(two_hosts.procs["b"].pid)
+        b_agents = agents_of(two_hosts.procs["b"].pid)
         assert b_agents, "no agent of host b found"
         os.kill(two_hosts.procs["b"].pid, signal.SIGKILL)  # the host, not its agents
         code = run.wait(180)
@@ -307,18 +207,10 @@ def test_a_host_that_dies_mid_run_has_its_robots_counted_dead_and_fails_the_run(
     assert "agent-2 exited with code 255" not in text
     # Its agents died with it (they are forked by its spawner, which dies with it).
     deadline = time.monotonic() + 10
-    while any(Path(f"/proc/{p}").exists() and _alive(p) for p in b_agents) and time.monotonic() < deadline:
+    while any(Path(f"/proc/{p}").exists() and alive(p) for p in b_agents) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert not [p for p in b_agents if _alive(p)]
+    assert not [p for p in b_agents if alive(p)]
     assert (out / "logs" / "agent-1.log").is_file()  # host a's agents were fetched
-
-
-def _alive(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
-    except OSError:
-        return False
-    return state != "Z"
 
 
 @pytest.mark.slow
@@ -361,7 +253,7 @@ def test_the_hosts_stop_a_run_s_agents_when_its_launcher_dies(two_hosts: Hosts, 
         for line in proc.stdout:  # the run is going once the launcher says a tick
             if "[swarm] tick " in line or time.monotonic() > deadline:
                 break
-        agents = _agents(two_hosts.procs["a"].pid) + _agents(two_hosts.procs["b"].pid)
+        agents = agents_of(two_hosts.procs["a"].pid) + agents_of(two_hosts.procs["b"].pid)
         assert len(agents) == 3, agents
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=10)
@@ -370,9 +262,9 @@ def test_the_hosts_stop_a_run_s_agents_when_its_launcher_dies(two_hosts: Hosts, 
             proc.kill()
             proc.wait()
     deadline = time.monotonic() + 20
-    while [p for p in agents if _alive(p)] and time.monotonic() < deadline:
+    while [p for p in agents if alive(p)] and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert not [p for p in agents if _alive(p)]
+    assert not [p for p in agents if alive(p)]
     for n in ("a", "b"):
         while "its launcher's token went" not in two_hosts.log(n) and time.monotonic() < deadline + 10:
             time.sleep(0.05)
