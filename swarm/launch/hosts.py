@@ -126,6 +126,7 @@ class Hosts:
         self.placement: dict[int, str] = {}
         self.infos: dict[str, HostReply] = {}
         self.lost: list[str] = []
+        self.rejected: dict[str, dict[str, int]] = {}  # per host, the answers refused (remote.HostClient.ask)
         self.run_logins: Mapping[str, Mapping[str, Any]] = {}  # user -> settings: the agents' for their hosts
 
     def open_router(self, endpoint: str, secrets: Mapping[str, Path]) -> zenoh.Session:
@@ -218,11 +219,12 @@ class Hosts:
         for c in self.procs.children.values():
             if isinstance(c, remote.RemoteChild) and (why := c.fetch(stats)) is not None:
                 self.journal.add("not fetched", process=c.name, host=c.host, why=why)
-        for client in self.clients.values():
+        for h, client in self.clients.items():
             if not client.lost:
                 with contextlib.suppress(remote.HostError):
                     client.ask(HostRequest("end", __version__, run=self.plan.run_id))
             client.close()
+            self.rejected[h] = dict(client.rejections.by_reason)
         self.clients = {}
 
     def add_to_summary(self, summary: dict[str, Any]) -> None:
@@ -237,6 +239,8 @@ class Hosts:
                 "free_mem_mb": i.free_mem_mb,
                 "version": i.version,
                 "lost": h in self.lost,
+                # answers refused: undecodable, another host's, another session's on this host's login
+                "rejected": self.rejected.get(h, {}),
             }
             for h, i in self.infos.items()
         }

@@ -57,6 +57,7 @@ class HostClient:
         self.info: HostReply | None = None
         self.codes: dict[str, int | None] = {}  # process -> exit code (None: running), from the last poll
         self.rejections = Rejections()
+        self.session_id: str | None = None  # the Zenoh id of the session that answered first: the host's
         self.lock = threading.Lock()
         self.watcher = sess.liveliness().declare_subscriber(self.keys.alive, self._on_token, history=True)
 
@@ -68,25 +69,66 @@ class HostClient:
             self.lost = True
 
     def ask(self, req: HostRequest, timeout_s: float = REQUEST_TIMEOUT_S) -> HostReply:
-        """The host's answer; HostError when it refuses or does not answer within ``timeout_s``."""
+        """The host's answer; HostError when it refuses or does not answer within ``timeout_s``.
+
+        Every session serving the host's key hears the request and every answer
+        comes back (QueryTarget.ALL, no consolidation), so a second session on
+        the host's login (a leaked login) is seen: at the first answer (the
+        run's start) two answering sessions are an error, as neither can be told
+        to be the host; after it, only the session that gave it is listened to,
+        and the others' answers are counted, as they come."""
         if self.lost:
             raise HostError(f"host {self.name} is lost")
-        replies = self.session.get(self.keys.ctl, payload=req.to_bytes(), timeout=timeout_s)
-        for r in replies:
+        pinned = self.session_id
+        answers: dict[str, HostReply] = {}
+        over = threading.Event()
+
+        def on_reply(r: zenoh.Reply) -> None:  # a Zenoh thread
             if r.ok is None:
-                continue
+                return
             try:
                 reply = HostReply.from_bytes(r.ok.payload.to_bytes())
             except DecodeError as exc:
-                self.rejections.reject(exc.reason)
-                continue
-            if reply.host != self.name:
-                self.rejections.reject("host mismatch")
-                continue
-            if not reply.ok:
-                raise HostError(f"host {self.name} refused to {req.op}: {reply.error}")
-            return reply
-        raise HostError(f"host {self.name} did not answer '{req.op}' within {timeout_s:g} s")
+                reason = exc.reason
+            else:
+                sid = "unknown" if r.replier_id is None else str(r.replier_id.zid)
+                if reply.host != self.name:
+                    reason = "host mismatch"
+                elif pinned is not None and sid != pinned:
+                    reason = "another session on the host's login"
+                else:
+                    with self.lock:
+                        answers.setdefault(sid, reply)
+                    if pinned is not None:
+                        over.set()  # the host's own answer: the others are counted as they come
+                    return
+            with self.lock:
+                self.rejections.reject(reason)
+
+        self.session.get(
+            self.keys.ctl,
+            zenoh.handlers.Callback(on_reply, over.set),  # over.set also once every session answered
+            payload=req.to_bytes(),
+            timeout=timeout_s,
+            target=zenoh.QueryTarget.ALL,
+            consolidation=zenoh.ConsolidationMode.NONE,
+        )
+        over.wait(timeout_s + 1.0)
+        with self.lock:
+            got = dict(answers)
+        if len(got) > 1:
+            raise HostError(
+                f"host {self.name} answered from {len(got)} sessions on its login: it is in use elsewhere "
+                f"too (leaked?), so neither is trusted; make new host logins (swarm secure --hosts) and restart "
+                "the hosts with them"
+            )
+        if not got:
+            raise HostError(f"host {self.name} did not answer '{req.op}' within {timeout_s:g} s")
+        sid, reply = next(iter(got.items()))
+        self.session_id = sid
+        if not reply.ok:
+            raise HostError(f"host {self.name} refused to {req.op}: {reply.error}")
+        return reply
 
     def poll(self, run: str) -> None:
         if self.lost:

@@ -1,0 +1,129 @@
+"""What a stolen host login achieves at worst.
+
+A host's login may serve its own key, swarmhost/NAME/ctl, and nothing else
+(tests/hosts/test_hosts.py). A thief with it can answer the launcher's
+requests as that host would. The launcher asks every session on the key
+(remote.HostClient.ask): at the run's start two answering sessions stop the
+run before any agent starts, naming the host (neither can be told to be the
+real one); once the host has answered, the other session's answers are
+refused and counted, and the run flies as without it.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from formation_swarm import __version__
+from formation_swarm.protocol import trust
+from formation_swarm.protocol.hostmsg import HostReply, HostRequest
+from formation_swarm.protocol.keys import HostKeys
+from formation_swarm.protocol.session import make_config
+from tests.helpers import Console
+from tests.hosts.local_hosts import PY, Hosts
+
+pytestmark = pytest.mark.slow
+
+# 2,400 ticks: a run still going when the rogue has connected and been asked.
+LONG = ["--set", "run.duration_s=120", "--set", "leader.waypoints=[[0, 0], [0, 1000]]"]
+
+
+class RogueHost:
+    """A session on host ``name``'s login that answers its key as that host
+    would, falsely: every request done, agent-2 exited with code 1."""
+
+    def __init__(self, hosts: Hosts, name: str) -> None:
+        self.name = name
+        self.asked: list[str] = []
+        self.lock = threading.Lock()
+        settings = trust.read_settings(hosts.tmp / "sec" / f"host-{name}.json")
+        conf = make_config("client", [hosts.endpoint], connect_timeout_s=60.0, settings=settings)
+        self.session = zenoh.open(conf)
+        self.queryable = self.session.declare_queryable(HostKeys(name).ctl, self._answer)
+
+    def _answer(self, query: zenoh.Query) -> None:
+        req = HostRequest.from_bytes(query.payload.to_bytes())  # type: ignore[union-attr]
+        with self.lock:
+            self.asked.append(req.op)
+        lie = HostReply(
+            ok=True, version=__version__, host=self.name, hostname="rogue", processes=(("agent-2", 4242, 1),), code=1
+        )
+        query.reply(query.key_expr, lie.to_bytes())
+
+    def close(self) -> None:
+        self.session.close()
+
+
+def test_a_second_session_on_a_hosts_login_at_the_start_stops_the_run_before_any_agent(
+    two_hosts: Hosts, tmp_path: Path
+) -> None:
+    two_hosts.procs["b"].terminate()
+    two_hosts.procs["b"].wait(timeout=10)
+    out = tmp_path / "twice"
+    run = Console([*two_hosts.run_argv(out, "a,b"), "--hosts-timeout", "60"], "waiting up to 60 s for host")
+    rogue = None
+    try:
+        rogue = RogueHost(two_hosts, "b")  # connects once the run's router is up: before host b
+        two_hosts.start("b")
+        code = run.wait(120)
+    finally:
+        run.close()
+        if rogue is not None:
+            rogue.close()
+    text = run.text
+    assert code == 1, text
+    assert "host b answered from 2 sessions on its login" in text, text
+    assert "make new host logins (swarm secure --hosts)" in text
+    # Asked who it is, then told the run is over: never a start, which carries an agent's login.
+    assert rogue.asked == ["info", "end"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["end_reason"] == "start_failed"
+    assert summary["exit_code"] == 1
+    for n in ("a", "b"):  # no agent started anywhere
+        assert "started agent" not in two_hosts.log(n)
+
+
+def test_a_second_session_on_a_hosts_login_mid_run_is_refused_and_counted(two_hosts: Hosts, tmp_path: Path) -> None:
+    # Local first: the digests the placed run must have (test_hosts: placed and local runs are equal).
+    local = subprocess.run(
+        [*PY, "run", "fig11_obstacles", "--seed", "5", *LONG, "--no-logger", "--out", str(tmp_path / "l")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    assert local.returncode == 0, local.stdout + local.stderr
+    clean = json.loads((tmp_path / "l" / "summary.json").read_text())
+    out = tmp_path / "placed"
+    run = Console([*two_hosts.run_argv(out, "a,b"), *LONG], "[swarm] agent-3 on host")
+    rogue = None
+    try:
+        assert run.seen.wait(120), run.text
+        rogue = RogueHost(two_hosts, "b")
+        deadline = time.monotonic() + 30
+        while not rogue.asked and run.proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        asked_while_running = list(rogue.asked) if run.proc.poll() is None else []
+        code = run.wait(240)
+    finally:
+        run.close()
+        if rogue is not None:
+            rogue.close()
+    text = run.text
+    assert asked_while_running, f"the rogue was asked nothing while the run went on:\n{text}"
+    assert code == 0, text
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["ticks"] == clean["ticks"]
+    assert summary["end_reason"] == clean["end_reason"]
+    assert summary["robot_digests"] == clean["robot_digests"]
+    assert summary["hosts"]["b"]["hostname"] != "rogue"
+    refused = summary["hosts"]["b"]["rejected"]["another session on the host's login"]
+    assert refused >= len(asked_while_running), summary["hosts"]["b"]
+    assert summary["processes"]["agent-2"]["exit_code"] == 0  # not the rogue's 1
+    assert summary["hosts"]["a"]["rejected"] == {}
