@@ -156,8 +156,8 @@ def _telemetry(tick: int) -> bytes:
 
 def run_under_attack(swarm_launch: Callable[..., Launch], user: str | None, mode: str, **kwargs: Any) -> RunResult:
     launch = swarm_launch(FIG11, mode=mode, **kwargs)
-    assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
-    with rogue(launch, user) as sess:
+    with rogue(launch, user) as sess:  # connected first: the attack lands while a short lockstep run goes on
+        assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
         k = Keys(launch.run_id)
         put_all(sess, attacks(k, tick=int(launch.sim_time() / 0.05) + 1), rounds=20, witness=k.alive("world", 0))
         return launch.wait(timeout_s=240)
@@ -215,10 +215,10 @@ def test_a_robots_own_credentials_cannot_send_what_could_not_be_true(
     """Agent 3's login may put robot 3's commands: an absurd one, or one for a
     tick to come, is refused by the world and counted; the run is unchanged."""
     launch = swarm_launch(FIG11, logger=False)
-    assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
-    tick = int(launch.sim_time() / 0.05)
     k = Keys(launch.run_id)
-    with rogue(launch, "agent-3") as sess:
+    with rogue(launch, "agent-3") as sess:  # connected first: 1,061 ticks take about a second
+        assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
+        tick = int(launch.sim_time() / 0.05)
         put_all(
             sess,
             [
@@ -262,10 +262,10 @@ def test_without_the_router_the_receivers_still_refuse_what_could_not_be_true(
     taken, and the lockstep run stays bit-identical. (Plausible forgeries need
     the router's wall: that is what the tests above show.)"""
     launch = swarm_launch(FIG11, auth=False)
-    assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
-    tick = int(launch.sim_time() / 0.05)
     k = Keys(launch.run_id)
-    with rogue(launch, None) as sess:
+    with rogue(launch, None) as sess:  # connected first: 1,061 ticks take about a second
+        assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=60)
+        tick = int(launch.sim_time() / 0.05)
         put_all(
             sess,
             [
