@@ -19,7 +19,10 @@ The router holds access rules that deny everything not granted
               nothing (the agents it starts log in with their own agent-N login)
 
 Each role may also hold its own liveliness token and watch the tokens it
-needs. Receivers still check
+needs. An identity may also be bound to this machine (``local``: in a run
+placed on hosts, the world and the logger beside the launcher, its
+router): it is then granted nothing over any other network interface than
+loopback, so its login is of no use from another machine. Receivers still check
 every message (sender against key, tick window, physical bounds): the rules
 stop strangers, the checks stop a role that misbehaves.
 
@@ -31,6 +34,7 @@ on the whole run); rules apply only at the router that holds them.
 
 from __future__ import annotations
 
+import socket
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -62,6 +66,15 @@ def host_user(name: str) -> str:
 
 
 OBSERVER = "observer"  # the read-only login: swarm secure --observer, swarm run --observer-login
+
+
+def loopback_interfaces() -> list[str]:
+    """This machine's loopback interfaces by name (Linux lo, macOS lo0)."""
+    try:
+        names = [name for _i, name in socket.if_nameindex() if name.startswith("lo")]
+    except OSError:
+        names = []
+    return names or ["lo"]
 
 
 def grants(
@@ -120,12 +133,14 @@ def access_control(
     *,
     observer: bool = False,
     mtls: bool = False,
+    local: Sequence[str] = (),
 ) -> dict[str, Any]:
     """The router's ``access_control`` section for one run: deny by default,
     each identity granted exactly its role's keys. With ``mtls``, an identity
     is its user name and its TLS certificate's common name, both: a stolen
     password without the certificate's key, or a certificate of another
-    name, matches no one and is granted nothing."""
+    name, matches no one and is granted nothing. The users in ``local`` are
+    granted their keys over loopback only (Zenoh matches a link's interface)."""
     k = Keys(run_id)
     rules: list[dict[str, Any]] = [
         # Publishers only send once they know of a subscriber: everyone may learn the run's subscriptions.
@@ -153,6 +168,11 @@ def access_control(
             own.append(_rule(f"{user}-ask", "ingress", ["query"], g.ask))
             own.append(_rule(f"{user}-answers", "egress", ["declare_queryable", "reply"], g.ask))
         rules += own
-        subjects.append({"id": user, "usernames": [user], **({"cert_common_names": [user]} if mtls else {})})
+        subject: dict[str, Any] = {"id": user, "usernames": [user]}
+        if mtls:
+            subject["cert_common_names"] = [user]
+        if user in local:
+            subject["interfaces"] = loopback_interfaces()
+        subjects.append(subject)
         policies.append({"id": user, "rules": ["learn-subscribers", *(r["id"] for r in own)], "subjects": [user]})
     return {"enabled": True, "default_permission": "deny", "rules": rules, "subjects": subjects, "policies": policies}

@@ -108,6 +108,9 @@ def write_run_secrets(
     ``host_logins`` (host name -> its lasting login, :func:`read_host_logins`)
     are let in too, with their rules; they get no file here (each host has its own).
     ``observer``: an ``observer`` login too (:data:`OBSERVER`).
+    With ``host_logins`` (a run placed on hosts: its router is the launcher),
+    the world's and the logger's logins, made for processes beside it, are
+    granted their keys over loopback only (acl.access_control's ``local``).
     With ``tls.clients`` (mutual TLS), each login's certificate and key are
     copied in as ``<user>.pem``/``.key`` and named by its login, and the
     router's rules require both the user and the certificate's common name.
@@ -136,7 +139,8 @@ def write_run_secrets(
         login = client_settings(cred, CA if tls else None, own_certificate=mtls)
         _write_private(out[user], json.dumps(login, indent=1))
     out["router"] = folder / "router.json"
-    acl = access_control(run_id, robots, leader_id, hosts, observer=observer, mtls=mtls)
+    local = ("world", "logger") if host_logins else ()
+    acl = access_control(run_id, robots, leader_id, hosts, observer=observer, mtls=mtls, local=local)
     router = router_settings(PASSWORDS, acl, (CERTIFICATE, PRIVATE_KEY) if tls else None, CA if mtls else None)
     _write_private(out["router"], json.dumps(router, indent=1))
     return out

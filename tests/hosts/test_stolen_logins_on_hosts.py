@@ -1,4 +1,4 @@
-"""What a stolen host login achieves at worst.
+"""What a stolen login achieves at worst in a run placed on hosts.
 
 A host's login may serve its own key, swarmhost/NAME/ctl, and nothing else
 (tests/hosts/test_hosts.py). A thief with it can answer the launcher's
@@ -7,11 +7,16 @@ requests as that host would. The launcher asks every session on the key
 run before any agent starts, naming the host (neither can be told to be the
 real one); once the host has answered, the other session's answers are
 refused and counted, and the run flies as without it.
+
+The world's login of such a run is granted its keys over loopback only (its
+world runs beside the launcher, the router): from another interface it is
+granted nothing.
 """
 
 from __future__ import annotations
 
 import json
+import socket
 import subprocess
 import threading
 import time
@@ -21,11 +26,13 @@ import pytest
 import zenoh
 
 from formation_swarm import __version__
+from formation_swarm.launch.launcher import Launch
 from formation_swarm.protocol import trust
 from formation_swarm.protocol.hostmsg import HostReply, HostRequest
-from formation_swarm.protocol.keys import HostKeys
+from formation_swarm.protocol.keys import HostKeys, Keys
+from formation_swarm.protocol.messages import Status
 from formation_swarm.protocol.session import make_config
-from tests.helpers import Console
+from tests.helpers import SCENARIOS, Console
 from tests.hosts.local_hosts import PY, Hosts
 
 pytestmark = pytest.mark.slow
@@ -127,3 +134,57 @@ def test_a_second_session_on_a_hosts_login_mid_run_is_refused_and_counted(two_ho
     assert refused >= len(asked_while_running), summary["hosts"]["b"]
     assert summary["processes"]["agent-2"]["exit_code"] == 0  # not the rogue's 1
     assert summary["hosts"]["a"]["rejected"] == {}
+
+
+def _outward_address() -> str | None:
+    """This machine's address on its default route (not loopback), if any."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            s.connect(("10.255.255.255", 1))  # no packet is sent: it only picks the route
+        except OSError:
+            return None
+        address = s.getsockname()[0]
+    return None if address.startswith("127.") else address
+
+
+def test_a_placed_runs_world_login_is_granted_nothing_from_another_interface(two_hosts: Hosts, tmp_path: Path) -> None:
+    outward = _outward_address()
+    if outward is None:
+        pytest.skip("no network interface but loopback: nothing to reach the router from")
+    port = two_hosts.endpoint.rsplit(":", 1)[1]
+    options = {
+        "hosts": ["a", "b"],
+        "listen": f"tcp/0.0.0.0:{port}",  # the hosts come over loopback, the thief over its interface
+        "host_logins": two_hosts.tmp / "sec" / "hosts.txt",
+        "logger": False,
+        "overrides": {"run.duration_s": 120.0, "leader.waypoints": [[0.0, 0.0], [0.0, 1000.0]]},
+    }
+    fig11 = SCENARIOS / "fig11_obstacles.toml"
+    heard: dict[str, list[str]] = {"loopback": [], "outward": []}
+    with Launch(fig11, out=tmp_path / "run", progress=lambda _l: None, **options) as launch:
+        assert launch.wait_until(lambda: launch.sim_time() >= 1.0, timeout_s=120)
+        world = launch.login("world")
+        k = Keys(launch.run_id)
+        sessions = {
+            where: zenoh.open(make_config("client", [f"tcp/{address}:{port}"], connect_timeout_s=10.0, settings=world))
+            for where, address in (("loopback", "127.0.0.1"), ("outward", outward))
+        }
+        try:
+            for where, sess in sessions.items():
+                sess.declare_subscriber(k.all_cmd, lambda s, w=where: heard[w].append(str(s.key_expr)))
+            done = Status(sender=0, seq=2**62, tick=10**6, time_s=0.0, state="done", total_ticks=1).to_bytes()
+            pub = sessions["outward"].declare_publisher(k.status)
+            deadline = time.monotonic() + 10
+            while not heard["loopback"] and time.monotonic() < deadline:
+                pub.put(done)  # the run's end, forged: from here it reaches no one
+                time.sleep(0.05)
+            assert launch.sim_time() < 119.0, "the run was over before the forgeries"
+        finally:
+            for sess in sessions.values():
+                sess.close()
+        res = launch.wait(timeout_s=240)
+    assert heard["loopback"], "over loopback the world's login hears the commands"
+    assert heard["outward"] == []
+    assert res.exit_code == 0, res.summary.get("events")
+    assert res.summary["ticks"] == 2400
+    assert res.summary["end_reason"] == "duration_reached"
