@@ -63,7 +63,10 @@ class RogueHost:
         )
         query.reply(query.key_expr, lie.to_bytes())
 
-    def close(self) -> None:
+    def __enter__(self) -> RogueHost:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
         self.session.close()
 
 
@@ -74,15 +77,12 @@ def test_a_second_session_on_a_hosts_login_at_the_start_stops_the_run_before_any
     two_hosts.procs["b"].wait(timeout=10)
     out = tmp_path / "twice"
     run = Console([*two_hosts.run_argv(out, "a,b"), "--hosts-timeout", "60"], "waiting up to 60 s for host")
-    rogue = None
     try:
-        rogue = RogueHost(two_hosts, "b")  # connects once the run's router is up: before host b
-        two_hosts.start("b")
-        code = run.wait(120)
+        with RogueHost(two_hosts, "b") as rogue:  # connects once the run's router is up: before host b
+            two_hosts.start("b")
+            code = run.wait(120)
     finally:
         run.close()
-        if rogue is not None:
-            rogue.close()
     text = run.text
     assert code == 1, text
     assert "host b answered from 2 sessions on its login" in text, text
@@ -109,19 +109,16 @@ def test_a_second_session_on_a_hosts_login_mid_run_is_refused_and_counted(two_ho
     clean = json.loads((tmp_path / "l" / "summary.json").read_text())
     out = tmp_path / "placed"
     run = Console([*two_hosts.run_argv(out, "a,b"), *LONG], "[swarm] agent-3 on host")
-    rogue = None
     try:
         assert run.seen.wait(120), run.text
-        rogue = RogueHost(two_hosts, "b")
-        deadline = time.monotonic() + 30
-        while not rogue.asked and run.proc.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.05)
-        asked_while_running = list(rogue.asked) if run.proc.poll() is None else []
-        code = run.wait(240)
+        with RogueHost(two_hosts, "b") as rogue:
+            deadline = time.monotonic() + 30
+            while not rogue.asked and run.proc.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.05)
+            asked_while_running = list(rogue.asked) if run.proc.poll() is None else []
+            code = run.wait(240)
     finally:
         run.close()
-        if rogue is not None:
-            rogue.close()
     text = run.text
     assert asked_while_running, f"the rogue was asked nothing while the run went on:\n{text}"
     assert code == 0, text
