@@ -126,6 +126,7 @@ class Hosts:
         self.placement: dict[int, str] = {}
         self.infos: dict[str, HostReply] = {}
         self.lost: list[str] = []
+        self.left_out: dict[str, str] = {}  # host -> why it is not used (remote.HostLoginTwice)
         self.rejected: dict[str, dict[str, int]] = {}  # per host, the answers refused (remote.HostClient.ask)
         self.run_logins: Mapping[str, Mapping[str, Any]] = {}  # user -> settings: the agents' for their hosts
 
@@ -143,9 +144,10 @@ class Hosts:
         self.run_logins = logins  # kept: a restarted agent's login comes from here
         self.clients = {h: remote.HostClient(session, h) for h in self.names}
         self._wait_for_hosts()
+        usable = self._leave_out_doubled()
         allowed = {h: info.robots for h, info in self.infos.items()}
-        self.placement = remote.place(self.plan.sc.robots, self.names, allowed, self.explicit)
-        if idle := [h for h in self.names if h not in self.placement.values()]:
+        self.placement = remote.place(self.plan.sc.robots, usable, allowed, self.explicit)
+        if idle := [h for h in usable if h not in self.placement.values()]:
             self.journal.say(
                 f"[swarm] warning: host{'s' if len(idle) > 1 else ''} {', '.join(idle)} "
                 f"run{'' if len(idle) > 1 else 's'} no robot (the placement gave them none)"
@@ -173,7 +175,26 @@ class Hosts:
                     f"'swarm host --connect <this address> --name {h} --auth {login}' there (that file copied "
                     "to its machine), and check its --connect, its login and the network"
                 )
-            client.info = self.infos[h] = client.ask(HostRequest("info", __version__))
+            try:
+                client.info = self.infos[h] = client.ask(HostRequest("info", __version__))
+            except remote.HostLoginTwice as exc:
+                self.left_out[h] = str(exc)
+
+    def _leave_out_doubled(self) -> list[str]:
+        """The hosts the run may use: not one whose login answered from two
+        sessions (neither can be told to be the host, so neither is sent an
+        agent's login); its robots go to the others, unless placed on it or
+        no other host is left (HostError)."""
+        for h, why in self.left_out.items():
+            self.clients.pop(h).close()
+            self.journal.add("host left out", host=h, why=why, wall_s=self.journal.wall_s())
+            self.journal.say(f"[swarm] warning: {why}; host {h} is left out of this run")
+        usable = [h for h in self.names if h not in self.left_out]
+        pinned = sorted(r for r, h in self.explicit.items() if h in self.left_out)
+        if self.left_out and (pinned or not usable):
+            on = f"robots {', '.join(map(str, pinned))} are placed on it" if pinned else "no other host is left"
+            raise remote.HostError(f"{next(iter(self.left_out.values()))}; {on}")
+        return usable
 
     def start_agent(self, name: str, host: str, scenario_text: str, logins: Mapping[str, Mapping[str, Any]]) -> str:
         """Agent ``name`` (agent-3, or a fresh one: agent-3.2) started on ``host``; its name."""

@@ -20,6 +20,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import zenoh
 
@@ -43,6 +44,10 @@ ACTIONS = {
 
 class HostError(RuntimeError):
     """A host that is not there, refuses, or does not answer in time."""
+
+
+class HostLoginTwice(HostError):
+    """A host that answered from two sessions on its login: one is not the host."""
 
 
 class HostClient:
@@ -74,8 +79,8 @@ class HostClient:
         Every session serving the host's key hears the request and every answer
         comes back (QueryTarget.ALL, no consolidation), so a second session on
         the host's login (a leaked login) is seen: at the first answer (the
-        run's start) two answering sessions are an error, as neither can be told
-        to be the host; after it, only the session that gave it is listened to,
+        run's start) two answering sessions are HostLoginTwice, as neither can
+        be told to be the host; after it, only the session that gave it is listened to,
         and the others' answers are counted, as they come."""
         if self.lost:
             raise HostError(f"host {self.name} is lost")
@@ -86,24 +91,14 @@ class HostClient:
         def on_reply(r: zenoh.Reply) -> None:  # a Zenoh thread
             if r.ok is None:
                 return
-            try:
-                reply = HostReply.from_bytes(r.ok.payload.to_bytes())
-            except DecodeError as exc:
-                reason = exc.reason
-            else:
-                sid = "unknown" if r.replier_id is None else str(r.replier_id.zid)
-                if reply.host != self.name:
-                    reason = "host mismatch"
-                elif pinned is not None and sid != pinned:
-                    reason = "another session on the host's login"
-                else:
-                    with self.lock:
-                        answers.setdefault(sid, reply)
-                    if pinned is not None:
-                        over.set()  # the host's own answer: the others are counted as they come
-                    return
+            judged = self._judge(r.ok.payload.to_bytes(), r.replier_id, pinned)
             with self.lock:
-                self.rejections.reject(reason)
+                if isinstance(judged, str):
+                    self.rejections.reject(judged)
+                    return
+                answers.setdefault(*judged)
+            if pinned is not None:
+                over.set()  # the host's own answer: the others are counted as they come
 
         self.session.get(
             self.keys.ctl,
@@ -117,7 +112,7 @@ class HostClient:
         with self.lock:
             got = dict(answers)
         if len(got) > 1:
-            raise HostError(
+            raise HostLoginTwice(
                 f"host {self.name} answered from {len(got)} sessions on its login: it is in use elsewhere "
                 f"too (leaked?), so neither is trusted; make new host logins (swarm secure --hosts) and restart "
                 "the hosts with them"
@@ -129,6 +124,19 @@ class HostClient:
         if not reply.ok:
             raise HostError(f"host {self.name} refused to {req.op}: {reply.error}")
         return reply
+
+    def _judge(self, payload: bytes, replier: Any, pinned: str | None) -> tuple[str, HostReply] | str:
+        """An answer's session id and reply, or why it is refused."""
+        try:
+            reply = HostReply.from_bytes(payload)
+        except DecodeError as exc:
+            return exc.reason
+        sid = "unknown" if replier is None else str(replier.zid)
+        if reply.host != self.name:
+            return "host mismatch"
+        if pinned is not None and sid != pinned:
+            return "another session on the host's login"
+        return sid, reply
 
     def poll(self, run: str) -> None:
         if self.lost:
