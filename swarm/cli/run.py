@@ -301,7 +301,7 @@ def _add_host_flags(group: argparse._ArgumentGroup) -> None:
         "--listen",
         default=None,
         metavar="ENDPOINT",
-        help="with --hosts: where the world listens for the hosts' agents, an address they reach, "
+        help="with --hosts: where the launcher, the run's router, listens for the hosts, an address they reach, "
         "e.g. tcp/192.168.1.10:7447",
     )
     group.add_argument(

@@ -69,7 +69,7 @@ def _explicit(names: Sequence[str], plan: Plan, placement: Mapping[int, str] | N
 def _check_listen(names: Sequence[str], listen: str | None) -> None:
     if names and not listen:
         raise ValueError(
-            "--hosts needs --listen ENDPOINT: where the world listens for the hosts' agents, "
+            "--hosts needs --listen ENDPOINT: where the launcher, the run's router, listens for the hosts, "
             "e.g. tcp/192.168.1.10:7447 (an address every host reaches)"
         )
     if names and listen:  # checked before anything starts: a run that cannot listen fails a bad command
@@ -246,7 +246,19 @@ class Hosts:
                     client.ask(HostRequest("end", __version__, run=self.plan.run_id))
             client.close()
             self.rejected[h] = dict(client.rejections.by_reason)
+            self._say_doubled(h)
         self.clients = {}
+
+    def _say_doubled(self, h: str) -> None:
+        """Host ``h``'s login, answering from another session during the run: said."""
+        if not (refused := self.rejected[h].get(remote.ANOTHER_SESSION, 0)):
+            return
+        self.journal.add("host login used twice", host=h, answers_refused=refused, wall_s=self.journal.wall_s())
+        self.journal.say(
+            f"[swarm] warning: host {h}'s login answered from another session too during the run ({refused} "
+            f"answers refused): that session heard the run's requests to host {h}, its agents' logins included; "
+            "make new host logins (swarm secure --hosts) and restart the hosts with them"
+        )
 
     def add_to_summary(self, summary: dict[str, Any]) -> None:
         """Where each agent ran, and what each host said of itself."""

@@ -42,6 +42,10 @@ ACTIONS = {
 }
 
 
+# Why an answer from another session than the host's is refused (HostClient.ask).
+ANOTHER_SESSION = "another session on the host's login"
+
+
 class HostError(RuntimeError):
     """A host that is not there, refuses, or does not answer in time."""
 
@@ -135,7 +139,7 @@ class HostClient:
         if reply.host != self.name:
             return "host mismatch"
         if pinned is not None and sid != pinned:
-            return "another session on the host's login"
+            return ANOTHER_SESSION
         return sid, reply
 
     def poll(self, run: str) -> None:

@@ -278,7 +278,8 @@ class Host:
                 self.say(
                     f"connected again to a router at {where}"
                     if up
-                    else f"lost its router at {where}; retrying (runs cannot reach this host meanwhile)"
+                    else f"lost its router at {where}; retrying (runs cannot reach this host meanwhile; "
+                    "the router of swarm run --hosts, its launcher, goes when its run ends)"
                 )
         for run in list(self.runs.values()):
             if run.launcher == "gone":

@@ -232,7 +232,8 @@ def test_a_host_says_when_its_router_goes_and_comes_back(tmp_path: Path) -> None
         said("connected to a router at")
         router.close()
         assert said("lost its router at").strip() == (
-            f"host b: lost its router at {endpoint}; retrying (runs cannot reach this host meanwhile)"
+            f"host b: lost its router at {endpoint}; retrying (runs cannot reach this host meanwhile; "
+            "the router of swarm run --hosts, its launcher, goes when its run ends)"
         )
         router = zenoh.open(make_config("router", listen=[endpoint]))
         assert said("connected again").strip() == f"host b: connected again to a router at {endpoint}"

@@ -142,6 +142,9 @@ def test_a_second_session_on_a_hosts_login_mid_run_is_refused_and_counted(two_ho
     assert summary["hosts"]["b"]["hostname"] != "rogue"
     refused = summary["hosts"]["b"]["rejected"]["another session on the host's login"]
     assert refused >= len(asked_while_running), summary["hosts"]["b"]
+    said = [e for e in summary["events"] if e["event"] == "host login used twice"]
+    assert [(e["host"], e["answers_refused"]) for e in said] == [("b", refused)]
+    assert f"[swarm] warning: host b's login answered from another session too during the run ({refused} " in text
     assert summary["processes"]["agent-2"]["exit_code"] == 0  # not the rogue's 1
     assert summary["hosts"]["a"]["rejected"] == {}
 
