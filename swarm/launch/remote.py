@@ -84,8 +84,8 @@ class HostClient:
         comes back (QueryTarget.ALL, no consolidation), so a second session on
         the host's login (a leaked login) is seen: at the first answer (the
         run's start) two answering sessions are HostLoginTwice, as neither can
-        be told to be the host; after it, only the session that gave it is listened to,
-        and the others' answers are counted, as they come."""
+        be told to be the host; after it, only the session that gave it is
+        listened to, and the others' answers are counted as they come."""
         if self.lost:
             raise HostError(f"host {self.name} is lost")
         pinned = self.session_id
