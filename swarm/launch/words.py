@@ -25,8 +25,8 @@ def describe_event(ev: Mapping[str, Any]) -> str:
         tick = f" (tick {ev['tick']})" if isinstance(ev.get("tick"), int) else ""
         why = f"'{ev['fault']}'" if ev.get("fault") else "fault injection"
         return f"{ev['event']} {ev.get('process')} {when}{tick} ({why})"
-    if ev.get("event") == "host lost":
-        return summary_mod.describe_host_lost(ev)
+    if (host := _describe_host_event(ev)) is not None:
+        return host
     if ev.get("event") == "exited" and ev.get("host_lost"):  # its exit code stayed on that host
         return f"{ev.get('process')} lost with host {ev['host_lost']} {when}"
     if ev.get("event") == "not fetched":  # a remote agent's log and stats, at the run's end
@@ -37,6 +37,20 @@ def describe_event(ev: Mapping[str, Any]) -> str:
         tick = f" (tick {ev['tick']})" if isinstance(ev.get("tick"), int) else ""
         return f"{ev.get('process')} {describe_exit(ev['code'])} {when}{tick}"
     return ", ".join(f"{k} {v}" for k, v in ev.items() if k != "log_tail")
+
+
+def _describe_host_event(ev: Mapping[str, Any]) -> str | None:
+    """An event of a run's hosts as a sentence; None for any other event."""
+    if ev.get("event") == "host lost":
+        return summary_mod.describe_host_lost(ev)
+    if ev.get("event") == "host left out":  # its login answered from two sessions at the start
+        return f"host {ev.get('host')} left out of the run: its login answered from two sessions"
+    if ev.get("event") == "host login used twice":
+        return (
+            f"host {ev.get('host')}'s login answered from another session too: "
+            f"{ev.get('answers_refused')} answers refused"
+        )
+    return None
 
 
 def describe_recoveries(f: Mapping[str, Any]) -> list[str]:

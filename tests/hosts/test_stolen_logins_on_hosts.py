@@ -103,6 +103,7 @@ def test_a_host_whose_login_answers_twice_at_the_start_is_left_out_and_sent_no_l
     assert "[swarm] warning: host b answered from 2 sessions on its login" in text, text
     assert "make new host logins (swarm secure --hosts)" in text
     assert "host b is left out of this run" in text
+    assert "  event: host b left out of the run: its login answered from two sessions\n" in text
     assert asked == ["info"]  # asked who it is, and nothing more: never a start, which carries an agent's login
     summary = json.loads((out / "summary.json").read_text())
     assert summary["placement"] == {"agent-1": "a", "agent-2": "a", "agent-3": "a"}
@@ -145,6 +146,7 @@ def test_a_second_session_on_a_hosts_login_mid_run_is_refused_and_counted(two_ho
     said = [e for e in summary["events"] if e["event"] == "host login used twice"]
     assert [(e["host"], e["answers_refused"]) for e in said] == [("b", refused)]
     assert f"[swarm] warning: host b's login answered from another session too during the run ({refused} " in text
+    assert f"  event: host b's login answered from another session too: {refused} answers refused\n" in text
     assert summary["processes"]["agent-2"]["exit_code"] == 0  # not the rogue's 1
     assert summary["hosts"]["a"]["rejected"] == {}
 
