@@ -121,3 +121,16 @@ def check_key(certificate: str, private_key: str, setting: str) -> None:
                 f"TLS file {private_key} ({setting}): not the private key of the certificate {certificate}"
             ) from None
         raise ValueError(f"TLS file {private_key} ({setting}): not a private key in PEM form") from None
+
+
+def certificate_names(path: str | Path) -> set[str] | None:
+    """The host names and IP addresses a PEM certificate names (its subject
+    alternative names), or None when this Python cannot read them."""
+    decode = getattr(getattr(ssl, "_ssl", None), "_test_decode_cert", None)  # CPython's, without a dependency
+    if decode is None:
+        return None
+    try:
+        decoded = decode(str(path))
+    except (OSError, ssl.SSLError, ValueError):
+        return None
+    return {str(value).strip() for _kind, value in decoded.get("subjectAltName", ())}

@@ -88,37 +88,44 @@ def router_settings(
     return out
 
 
+WORLD_PLACES = ("router", "loopback", "anywhere")  # write_run_secrets's world: where its login is granted
+
+
 def write_run_secrets(
     folder: Path,
     run_id: str,
     robots: Sequence[int],
     leader_id: int,
     *,
-    world_is_router: bool = True,
+    world: str = "router",
     tls: Tls | None = None,
     host_logins: dict[str, Credential] | None = None,
     observer: bool = False,
 ) -> dict[str, Path]:
     """Fresh credentials for every role of a run, in ``folder`` (0700, files 0600):
     ``<user>.json`` for each client, ``router.json`` for the router, which
-    names the password list beside it. When the world is the router (a local
-    run) it logs in as nobody, so no "world" login exists to be stolen. With
-    ``tls``, the CA, the router's certificate and key are copied in too. Files
-    name each other relative to the folder, so it can be copied as a whole.
+    names the password list beside it. ``world`` (:data:`WORLD_PLACES`):
+    "router", the world is the router (a local run) and logs in as nobody,
+    so no "world" login exists to be stolen; "loopback", its login is granted
+    its keys over loopback only, on the router's machine (acl.access_control's
+    ``local``), and so is the logger's in a run placed on hosts
+    (``host_logins``: its router is the launcher, the logger beside it);
+    "anywhere", on any link. With ``tls``, the CA, the router's certificate
+    and key are copied in too. Files name each other relative to the folder.
     ``host_logins`` (host name -> its lasting login, :func:`read_host_logins`)
     are let in too, with their rules; they get no file here (each host has its own).
     ``observer``: an ``observer`` login too (:data:`OBSERVER`).
-    With ``host_logins`` (a run placed on hosts: its router is the launcher),
-    the world's and the logger's logins, made for processes beside it, are
-    granted their keys over loopback only (acl.access_control's ``local``).
     With ``tls.clients`` (mutual TLS), each login's certificate and key are
     copied in as ``<user>.pem``/``.key`` and named by its login, and the
     router's rules require both the user and the certificate's common name.
     Returns the settings file of each user and of "router"."""
+    if world not in WORLD_PLACES:
+        raise ValueError(f"world: one of {', '.join(WORLD_PLACES)}, got {world!r}")
     folder.mkdir(mode=0o700, parents=True, exist_ok=True)
     os.chmod(folder, 0o700)
     hosts = sorted(host_logins or {})
-    users = [u for u in grants(run_id, robots, leader_id, observer=observer) if not (world_is_router and u == "world")]
+    everyone = grants(run_id, robots, leader_id, observer=observer)
+    users = [u for u in everyone if not (world == "router" and u == "world")]
     clients = tls.clients if tls is not None else None
     mtls = clients is not None
     if clients is not None and (host_logins or any(u not in clients for u in users)):
@@ -139,7 +146,7 @@ def write_run_secrets(
         login = client_settings(cred, CA if tls else None, own_certificate=mtls)
         _write_private(out[user], json.dumps(login, indent=1))
     out["router"] = folder / "router.json"
-    local = ("world", "logger") if host_logins else ()
+    local = (("world", "logger") if host_logins else ("world",)) if world == "loopback" else ()
     acl = access_control(run_id, robots, leader_id, hosts, observer=observer, mtls=mtls, local=local)
     router = router_settings(PASSWORDS, acl, (CERTIFICATE, PRIVATE_KEY) if tls else None, CA if mtls else None)
     _write_private(out["router"], json.dumps(router, indent=1))

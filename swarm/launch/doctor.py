@@ -110,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
                     f"doctor-{uuid.uuid4().hex[:8]}",
                     robots,
                     robots[0],
-                    world_is_router=False,
+                    world="loopback",
                     tls=tls,
                     host_logins=logins,
                 )

@@ -179,7 +179,7 @@ class Launch:
             self.folder_id = folder_identity(self.run_dir)
             self.port = free_port()
             written = plan.write_logins(
-                world_is_router=not self.hosts.names, host_logins=self.hosts.logins, tls=self.hosts.tls
+                world="loopback" if self.hosts.names else "router", host_logins=self.hosts.logins, tls=self.hosts.tls
             )
             self.logins = RunLogins.kept(written)
             self.external = external_mod.slots(

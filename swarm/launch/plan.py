@@ -192,7 +192,7 @@ class Plan:
         return scenario_file
 
     def write_logins(
-        self, *, world_is_router: bool, host_logins: dict[str, trust.Credential] | None, tls: trust.Tls | None
+        self, *, world: str, host_logins: dict[str, trust.Credential] | None, tls: trust.Tls | None
     ) -> dict[str, Path]:
         """Fresh credentials for every process of the run (none without auth): user -> file."""
         if not self.options.auth:
@@ -202,7 +202,7 @@ class Plan:
             self.run_id,
             self.sc.robots,
             self.sc.leader.robot_id,
-            world_is_router=world_is_router,
+            world=world,
             host_logins=host_logins,
             tls=tls,
             observer=self.options.observer_login is not None,

@@ -24,6 +24,8 @@ from formation_swarm.runtime import cliargs
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
 
+LOOPBACK = "127.0.0.1"  # where the world reaches the router, on its machine
+
 DESCRIPTION = """\
 Make the credentials and access rules of one run spread over machines: a
 folder with a login per role (world.json, logger.json, launcher.json,
@@ -34,13 +36,17 @@ for TLS links. Every file is readable by its owner only.
 The router enforces the rules: without a login nothing connects, and each
 login may only publish and subscribe what its role does (only agent N drives
 robot N, only the leader sends formation codes, only the world ends the run;
-the observer hears the whole run and can send nothing).
+the observer hears the whole run and can send nothing). The world's login
+is granted over loopback only: start the world on the router's machine,
+connected to its loopback address (127.0.0.1), so that the login is worth
+nothing on any other machine; --world-anywhere lifts that.
 Start each process with --auth FILE, its own file; copy to each machine only
 the files its processes need. The passwords are fresh each time: make a new
 folder for each run.
 
 With --mtls (mutual TLS) it also makes a CA for this run alone, the
-router's certificate naming --router-address, and a certificate per login
+router's certificate naming --router-address (and 127.0.0.1, for the
+world), and a certificate per login
 (agent-2.pem and agent-2.key, ...) whose common name is the login's user.
 The router then lets in only clients holding a certificate of that CA, and
 grants each what its login may do only when the certificate's name is the
@@ -59,9 +65,12 @@ examples:
 then, on the router's machine and on each robot's (see deploy/README.md):
   swarm router --listen tls/0.0.0.0:7447 --auth secure-field-1/router.json
   swarm world --scenario fig11_obstacles --run field-1 --zenoh-mode client \\
-      --connect tls/ROUTER:7447 --auth secure-field-1/world.json --expect-logger
+      --connect tls/127.0.0.1:7447 --auth secure-field-1/world.json --expect-logger
   swarm agent --id 2 --scenario fig11_obstacles --run field-1 \\
       --connect tls/ROUTER:7447 --auth secure-field-1/agent-2.json
+
+(the world on the router's machine; a --tls-cert must name 127.0.0.1 or
+localhost too, or give --world-anywhere)
 
 exit codes: 0 written; 1 openssl failed (--mtls); 2 a bad command line,
 scenario or TLS file, or a folder that already holds files (nothing
@@ -109,6 +118,12 @@ def build_parser() -> cliargs.Parser:
         help="with --mtls: the router's IP addresses or host names, as the others' tls/ endpoints give "
         "them (its certificate names them)",
     )
+    ap.add_argument(
+        "--world-anywhere",
+        action="store_true",
+        help="grant the world's login on any link, so the world may run on another machine than the router "
+        "(default: over the router's loopback only, where a stolen copy of world.json is worth nothing)",
+    )
     return ap
 
 
@@ -126,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         ap.error(f"argument --run: {exc}")
     given, addresses = _tls_options(ap, args)
+    world_at = _world_address(ap, args, given, addresses)
     out = Path(args.out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         ap.error(f"argument --out: {out} already holds files; secrets are never overwritten: give a new folder")
@@ -142,13 +158,41 @@ def main(argv: list[str] | None = None) -> int:
             return 1
         try:
             files = trust.write_run_secrets(
-                out, args.run, sc.robots, sc.leader.robot_id, world_is_router=False, tls=run_tls, observer=args.observer
+                out,
+                args.run,
+                sc.robots,
+                sc.leader.robot_id,
+                world="anywhere" if args.world_anywhere else "loopback",
+                tls=run_tls,
+                observer=args.observer,
             )
         except OSError as exc:
             print(f"swarm secure: cannot write {out}: {exc}", file=sys.stderr)
             return cliargs.USAGE_ERROR
-    _say_commands(args, sc, files, "tls" if run_tls else "tcp")
+    _say_commands(args, sc, files, "tls" if run_tls else "tcp", world_at)
     return 0
+
+
+def _world_address(ap: cliargs.Parser, args: argparse.Namespace, given: tls.Tls | None, addresses: list[str]) -> str:
+    """Where the world connects to the router: "ROUTER" with --world-anywhere,
+    else a loopback name the router's certificate names (with --mtls, 127.0.0.1
+    is added to ``addresses``; a given --tls-cert must name one already)."""
+    if args.world_anywhere:
+        return "ROUTER"
+    if args.mtls:
+        addresses += [] if LOOPBACK in addresses else [LOOPBACK]
+        return LOOPBACK
+    names = tls.certificate_names(given.certificate) if given is not None else None
+    if names is None:  # plain TCP, or this Python cannot tell: the world's connect will
+        return LOOPBACK
+    for name in (LOOPBACK, "::1", "localhost"):
+        if name in names:
+            return f"[{name}]" if ":" in name else name
+    ap.error(
+        f"argument --tls-cert: {args.tls_cert} names {', '.join(sorted(names)) or 'no address'}, not 127.0.0.1 or "
+        "localhost: the world's login is granted over the router's loopback only, so the world connects there; "
+        "add IP:127.0.0.1 to the certificate's names, or give --world-anywhere"
+    )
 
 
 def _tls_options(ap: cliargs.Parser, args: argparse.Namespace) -> tuple[tls.Tls | None, list[str]]:
@@ -199,13 +243,14 @@ def _mtls_options(ap: cliargs.Parser, args: argparse.Namespace) -> tuple[tls.Tls
     return tls.Tls(Path(args.tls_ca), Path(args.tls_ca), Path(args.tls_ca_key)), addresses
 
 
-def _say_commands(args: argparse.Namespace, sc: Scenario, files: dict[str, Path], scheme: str) -> None:
+def _say_commands(args: argparse.Namespace, sc: Scenario, files: dict[str, Path], scheme: str, world_at: str) -> None:
     """What was written, and each process's command line with its login."""
     print(f"swarm secure: run {args.run} ({sc.name}, robots {', '.join(map(str, sc.robots))}): wrote {args.out}/")
     print(f"  router:   swarm router --listen {scheme}/0.0.0.0:7447 --auth {files['router']}")
     common = f"--scenario {args.scenario} --run {args.run}"
     print(
-        f"  world:    swarm world {common} --zenoh-mode client --connect {scheme}/ROUTER:7447 --auth {files['world']}"
+        f"  world:    swarm world {common} --zenoh-mode client --connect {scheme}/{world_at}:7447 "
+        f"--auth {files['world']}" + ("" if args.world_anywhere else "  (on the router's machine: granted there only)")
     )
     print(
         f"  logger:   swarm logger {common} --out recording.rrd --connect {scheme}/ROUTER:7447 --auth {files['logger']}"
@@ -241,10 +286,11 @@ def _hosts(ap: cliargs.Parser, args: argparse.Namespace) -> int:
         ap.error(f"argument --hosts: {exc}")
     if not names or len(set(names)) != len(names):
         ap.error(f"argument --hosts: distinct host names separated by commas, got {args.hosts!r}")
-    if args.scenario or args.run or args.tls_cert or args.tls_key or args.observer or args.mtls or args.router_address:
+    run_options = (args.scenario, args.run, args.tls_cert, args.tls_key, args.observer, args.mtls, args.router_address)
+    if any(run_options) or args.world_anywhere:
         ap.error(
-            "argument --hosts: takes no SCENARIO, --run, --observer, --tls-cert, --tls-key, --mtls or "
-            "--router-address (only --tls-ca)"
+            "argument --hosts: takes no SCENARIO, --run, --observer, --tls-cert, --tls-key, --mtls, "
+            "--router-address or --world-anywhere (only --tls-ca)"
         )
     out = Path(args.out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):

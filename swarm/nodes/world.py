@@ -167,7 +167,13 @@ def main(argv: list[str] | None = None) -> int:
                 role.complain(f"cannot write {exc.filename or args.stats}: {exc.strerror or exc}")
             return role_mod.EXIT_FAILED
         if code == role_mod.EXIT_NO_PEERS:
-            return code  # the line that gave up was the last word
+            if args.auth and args.zenoh_mode == "client" and not all(map(session.loopback, args.connect)):
+                role.complain(
+                    "a world's login from swarm secure is granted over the router's loopback only: start the "
+                    "world on the router's machine with --connect to 127.0.0.1 (or make the logins with "
+                    "--world-anywhere)"
+                )
+            return code  # the lines that gave up were the last word
         role.say(
             f"run {args.run} ended ({_why(role, world)}), exit code {code}, {world.tick.engine.tick} ticks; {written}"
         )

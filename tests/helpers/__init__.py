@@ -51,6 +51,17 @@ def wait_listening(port: int, timeout_s: float) -> None:
         time.sleep(0.05)
 
 
+def outward_address() -> str | None:
+    """This machine's address on its default route (not loopback), if any."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            s.connect(("10.255.255.255", 1))  # no packet is sent: it only picks the route
+        except OSError:
+            return None
+        address = s.getsockname()[0]
+    return None if address.startswith("127.") else address
+
+
 def processes(match: Callable[[str], bool]) -> list[tuple[int, str]]:
     """Live processes whose command line ``match`` accepts (zombies excluded)."""
     found = []

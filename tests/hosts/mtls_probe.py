@@ -4,13 +4,16 @@ tests/hosts/test_mtls_netns.py on the robots' host while the run flies.
     python mtls_probe.py PLAN.json
 
 PLAN: {"endpoint", "run", "robot", "refused": {name: settings}, "wrong":
-{name: settings}, "observer": settings, "budget_s"}. First each "refused"
-client tries to open its session (it should fail). Then the observer (its
-own certificate) and each "wrong" client stay connected until stdin closes
-or the budget ends: each wrong one subscribes to the robot's inbox, holds
-the robot's liveliness token and puts its name on the robot's command key
-every 50 ms; the observer counts the robot's observations and any of those
-puts. Prints one JSON object of counts and exits 0.
+{name: settings}, "world": settings, "observer": settings, "budget_s"}.
+First each "refused" client tries to open its session (it should fail).
+Then the observer (its own certificate), each "wrong" client and the world's
+login (its own certificate, from this host) stay connected until stdin
+closes or the budget ends: each wrong one subscribes to the robot's inbox,
+holds the robot's liveliness token and puts its name on the robot's command
+key every 50 ms; the world's subscribes to every command, holds the world's
+token, and every 50 ms puts its name on the robot's observation key and a
+"done" on the run's status. The observer counts the robot's observations
+and any of those puts. Prints one JSON object of counts and exits 0.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from typing import Any
 import zenoh
 
 from formation_swarm.protocol.keys import Keys
+from formation_swarm.protocol.messages import Status
 from formation_swarm.protocol.session import make_config
 
 PERIOD_S = 0.05
@@ -52,17 +56,40 @@ class Wrong:
         self.name, self.session = name, session
         self.mark = f"wrong:{name}".encode()
         self.puts = self.received = 0
-        session.declare_subscriber(keys.inbox(robot), self._on)
+        self.listen(keys.inbox(robot))
         session.liveliness().declare_token(keys.alive("agent", robot))
-        self.publisher = session.declare_publisher(keys.cmd(robot))
+        self.publishers = [session.declare_publisher(keys.cmd(robot))]
+
+    def listen(self, key: str) -> None:
+        self.session.declare_subscriber(key, self._on)
 
     def _on(self, sample: zenoh.Sample) -> None:
-        if sample.payload.to_bytes() != self.mark:  # a session hands its own puts to its subscribers
+        if not sample.payload.to_bytes().startswith(b"wrong:"):  # a session hands its own puts to its subscribers
             self.received += 1
 
     def put(self) -> None:
-        self.publisher.put(self.mark)
+        for publisher in self.publishers:
+            publisher.put(self.mark)
         self.puts += 1
+
+
+class FarWorld(Wrong):
+    """The world's login, with its certificate, from another host than the
+    router's: it hears the commands and says the run is done, if let."""
+
+    def __init__(self, session: zenoh.Session, keys: Keys, robot: int) -> None:
+        self.name, self.session = "world from afar", session
+        self.mark = f"wrong:{self.name}".encode()
+        self.puts = self.received = 0
+        self.listen(keys.all_cmd)
+        session.liveliness().declare_token(keys.alive("world", 0))
+        self.publishers = [session.declare_publisher(keys.obs(robot))]
+        self.status = session.declare_publisher(keys.status)
+        self.done = Status(sender=0, seq=2**62, tick=10**6, time_s=0.0, state="done", total_ticks=1).to_bytes()
+
+    def put(self) -> None:
+        super().put()
+        self.status.put(self.done)
 
 
 class Observer:
@@ -74,10 +101,10 @@ class Observer:
         session.declare_subscriber(keys.inbox(robot), self._on)  # the robot's keys, its command's too
 
     def _on(self, sample: zenoh.Sample) -> None:
-        if str(sample.key_expr) == self.obs_key:
-            self.observations += 1
-        elif sample.payload.to_bytes().startswith(b"wrong:"):
+        if sample.payload.to_bytes().startswith(b"wrong:"):
             self.wrong_puts += 1
+        elif str(sample.key_expr) == self.obs_key:
+            self.observations += 1
 
 
 def main() -> int:
@@ -94,6 +121,9 @@ def main() -> int:
         for name, settings in plan["wrong"].items():
             sessions.append(_open(plan["endpoint"], settings, 30.0))
             wrong.append(Wrong(name, sessions[-1], keys, robot))
+        if "world" in plan:
+            sessions.append(_open(plan["endpoint"], plan["world"], 30.0))
+            wrong.append(FarWorld(sessions[-1], keys, robot))
         print(json.dumps({"connected": len(sessions)}), flush=True)
         deadline = time.monotonic() + plan["budget_s"]
         while not stop.wait(PERIOD_S) and time.monotonic() < deadline:

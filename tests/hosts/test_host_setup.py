@@ -119,7 +119,7 @@ def test_a_relative_auth_path_gives_the_agents_absolute_existing_files(tmp_path:
         run,
         (1, 2),
         1,
-        world_is_router=False,
+        world="loopback",
         host_logins=trust.read_host_logins(sec / trust.HOST_LOGINS, ["a"]),
     )
     endpoint = f"tcp/127.0.0.1:{free_port()}"

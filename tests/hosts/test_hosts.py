@@ -87,7 +87,7 @@ def test_a_host_login_answers_on_its_own_key_only_and_hears_nothing_of_the_run(t
     run = f"hosts-{uuid.uuid4().hex[:8]}"
     hosts = trust.write_host_logins(tmp_path / "hosts", ["a", "b"])
     logins = trust.read_host_logins(hosts[trust.HOST_LOGINS], ["a", "b"])
-    files = trust.write_run_secrets(tmp_path / "run", run, (1, 2, 3), 1, world_is_router=False, host_logins=logins)
+    files = trust.write_run_secrets(tmp_path / "run", run, (1, 2, 3), 1, world="loopback", host_logins=logins)
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     sessions: list[zenoh.Session] = []
 

@@ -10,7 +10,10 @@ handshake; with agent 2's password and a certificate of another name (robot
 3's, or ``intruder`` from the run's own CA) they connect, hold agent 2's
 token, put on robot 2's command key every 50 ms and subscribe to its inbox,
 and none of it counts: they receive nothing, the run's observer sees none
-of their puts, and the run ends as a run without them does.
+of their puts, and the run ends as a run without them does. The world's
+own login and certificate, from the robots' host, are granted nothing
+either: its forged "done" ends nothing, and the world connects over the
+router's loopback.
 
 Needs root, iproute2 (``ip netns``) and openssl; skipped with the reason otherwise.
 """
@@ -30,7 +33,7 @@ from typing import Any
 import pytest
 
 from formation_swarm.launch import certs
-from formation_swarm.launch.launcher import free_port
+from formation_swarm.launch.launcher import Launch, free_port
 from formation_swarm.protocol import tls, trust
 from tests.helpers import ROOT, SCENARIOS, reap
 
@@ -91,7 +94,9 @@ def _read_line(proc: subprocess.Popen[str], timeout_s: float) -> str:
 @pytest.mark.slow
 def test_a_wrong_certificate_name_gets_nothing_and_the_right_ones_fly_fig11(robot_host: tuple, tmp_path: Path) -> None:
     ns, host_ip, _ns_ip = robot_host
-    router = f"tls/{host_ip}:{free_port()}"
+    port = free_port()
+    router = f"tls/{host_ip}:{port}"
+    near = f"tls/127.0.0.1:{port}"  # the world's login is granted over the router's loopback only
     run = f"mtls-{uuid.uuid4().hex[:8]}"
     scenario = tmp_path / "scenario.toml"
     shutil.copy(FIG11, scenario)
@@ -108,6 +113,7 @@ def test_a_wrong_certificate_name_gets_nothing_and_the_right_ones_fly_fig11(robo
             "agent-3's certificate": _login(secure, "agent-2", secure / "agent-3.pem"),
             "intruder of the run's CA": _login(secure, "agent-2", intruder),
         },
+        "world": _login(secure, "world"),
         "observer": _login(secure, "observer"),
         "budget_s": 600,
     }
@@ -128,7 +134,7 @@ def test_a_wrong_certificate_name_gets_nothing_and_the_right_ones_fly_fig11(robo
     robots_host = ["ip", "netns", "exec", ns]
     common = ["--scenario", str(scenario), "--run", run]
     try:
-        listen = ["--config", str(ROUTER_CONFIG), "--listen", router]
+        listen = ["--config", str(ROUTER_CONFIG), "--listen", router, "--listen", near]
         start("router", [*PY, "formation_swarm.nodes.router", *listen, *auth("router")])
         with open(tmp_path / "probe.err", "wb") as err:
             probe = subprocess.Popen(
@@ -141,9 +147,10 @@ def test_a_wrong_certificate_name_gets_nothing_and_the_right_ones_fly_fig11(robo
         procs["probe"] = probe
         # The wrong clients are connected (holding agent 2's token) before agent 2 starts.
         connected = _read_line(probe, 120)
-        assert json.loads(connected or "{}") == {"connected": 3}, (tmp_path / "probe.err").read_text()
+        assert json.loads(connected or "{}") == {"connected": 4}, (tmp_path / "probe.err").read_text()
         as_client = ["--zenoh-mode", "client", "--expect-logger", "--out", str(tmp_path / "run")]
-        start("world", [*PY, "formation_swarm.nodes.world", *common, *stats("world"), *as_client, *auth("world")])
+        world = [*common, "--stats", str(tmp_path / "world.json"), "--connect", near, *as_client, *auth("world")]
+        start("world", [*PY, "formation_swarm.nodes.world", *world])
         logger = ["--out", str(tmp_path / "recording.rrd")]
         start("logger", [*PY, "formation_swarm.nodes.logger", *common, *stats("logger"), *logger, *auth("logger")])
         for rid in (1, 2, 3):
@@ -169,6 +176,7 @@ def test_a_wrong_certificate_name_gets_nothing_and_the_right_ones_fly_fig11(robo
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["end_reason"] == "leader_finished"
     assert summary["ticks"] == world["ticks"] == FIG11_TICKS
+    assert set(seen["wrong"]) == {"agent-3's certificate", "intruder of the run's CA", "world from afar"}
     for name, got in seen["wrong"].items():
         assert got["received"] == 0, name
         assert got["puts"] > 20, name  # it kept trying, every 50 ms, the whole run long
@@ -186,3 +194,6 @@ def test_a_wrong_certificate_name_gets_nothing_and_the_right_ones_fly_fig11(robo
         last = (tmp_path / f"{name}.log").read_text().splitlines()[-1]
         assert f"run {run} ended (" in last, (name, last)
         assert "exit code 0" in last, (name, last)
+    # Every robot flew as in a local run of the scenario, without them.
+    with Launch(FIG11, out=tmp_path / "clean", logger=False, progress=lambda _l: None) as clean:
+        assert summary["robot_digests"] == clean.wait(timeout_s=240).summary["robot_digests"]

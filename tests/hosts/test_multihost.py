@@ -26,13 +26,14 @@ ROUTER_CONFIG = ROOT / "deploy" / "router.json5"
 
 
 def _tls_files(folder: Path, host_ip: str) -> tuple[Path, Path, Path]:
-    """A throw-away CA and a router certificate naming ``host_ip``."""
+    """A throw-away CA and a router certificate naming ``host_ip`` and
+    127.0.0.1 (where the world, on the router's machine, connects)."""
     if shutil.which("openssl") is None:
         pytest.skip("needs openssl to make the test's TLS certificates")
     folder.mkdir()
     ca, ca_key, cert, key = (folder / n for n in ("ca.pem", "ca.key", "router.pem", "router.key"))
     ext = folder / "ext.cnf"
-    ext.write_text(f"subjectAltName=IP:{host_ip}\n")
+    ext.write_text(f"subjectAltName=IP:{host_ip},IP:127.0.0.1\n")
     ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"]
     for argv in (
         ["req", "-x509", *ec, "-keyout", ca_key, "-out", ca, "-days", "1", "-subj", "/CN=swarm test CA"],
@@ -61,7 +62,9 @@ def _tls_files(folder: Path, host_ip: str) -> tuple[Path, Path, Path]:
 
 def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tuple, tmp_path: Path) -> None:
     ns, host_ip, _ns_ip = robot_host
-    router = f"tls/{host_ip}:{free_port()}"
+    port = free_port()
+    router = f"tls/{host_ip}:{port}"
+    near = f"tls/127.0.0.1:{port}"  # the world's login is granted over the router's loopback only
     run = f"multihost-{uuid.uuid4().hex[:8]}"
     scenario = tmp_path / "scenario.toml"
     shutil.copy(FIG11, scenario)
@@ -105,7 +108,14 @@ def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tupl
     try:
         start(
             "router",
-            [*py, "formation_swarm.nodes.router", "--config", str(ROUTER_CONFIG), "--listen", router, *auth("router")],
+            [
+                *py,
+                "formation_swarm.nodes.router",
+                "--config",
+                str(ROUTER_CONFIG),
+                *("--listen", router, "--listen", near),
+                *auth("router"),
+            ],
         )
         start(
             "world",
@@ -118,7 +128,7 @@ def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tupl
                 "--zenoh-mode",
                 "client",
                 "--connect",
-                router,
+                near,
                 "--expect-logger",
                 "--out",
                 str(tmp_path / "run"),

@@ -17,7 +17,6 @@ granted nothing.
 from __future__ import annotations
 
 import json
-import socket
 import subprocess
 import threading
 import time
@@ -34,7 +33,7 @@ from formation_swarm.protocol.hostmsg import HostReply, HostRequest
 from formation_swarm.protocol.keys import HostKeys, Keys
 from formation_swarm.protocol.messages import Status
 from formation_swarm.protocol.session import make_config
-from tests.helpers import SCENARIOS, Console
+from tests.helpers import SCENARIOS, Console, outward_address
 from tests.hosts.local_hosts import PY, Hosts
 
 pytestmark = pytest.mark.slow
@@ -151,19 +150,8 @@ def test_a_second_session_on_a_hosts_login_mid_run_is_refused_and_counted(two_ho
     assert summary["hosts"]["a"]["rejected"] == {}
 
 
-def _outward_address() -> str | None:
-    """This machine's address on its default route (not loopback), if any."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        try:
-            s.connect(("10.255.255.255", 1))  # no packet is sent: it only picks the route
-        except OSError:
-            return None
-        address = s.getsockname()[0]
-    return None if address.startswith("127.") else address
-
-
 def test_a_placed_runs_world_login_is_granted_nothing_from_another_interface(two_hosts: Hosts, tmp_path: Path) -> None:
-    outward = _outward_address()
+    outward = outward_address()
     if outward is None:
         pytest.skip("no network interface but loopback: nothing to reach the router from")
     port = two_hosts.endpoint.rsplit(":", 1)[1]

@@ -52,7 +52,7 @@ class Site:
         other = tmp_path / "other"
         other.mkdir()
         self.foreign = certs.make_certificate(other, "agent-2", certs.make_ca(other, "another CA"))
-        self.files = trust.write_run_secrets(tmp_path / "s", self.run, ROBOTS, 1, world_is_router=False, tls=made)
+        self.files = trust.write_run_secrets(tmp_path / "s", self.run, ROBOTS, 1, world="anywhere", tls=made)
         self.endpoint = f"tls/127.0.0.1:{free_port()}"
         settings = trust.read_settings(self.files["router"])
         self.session = zenoh.open(make_config("router", listen=[self.endpoint], settings=settings))
@@ -189,7 +189,8 @@ def test_swarm_secure_mtls_leaves_no_ca_key(tmp_path: Path, monkeypatch: pytest.
     )
     assert names.stdout.strip().replace(" ", "") == "subject=CN=agent-2"
     router = json.loads((out / "router.json").read_text())
-    assert router["access_control"] == acl.access_control("r1", ROBOTS, 1, mtls=True)
+    assert router["access_control"] == acl.access_control("r1", ROBOTS, 1, mtls=True, local=("world",))
+    assert tls.certificate_names(out / "router.pem") == {"10.1.2.3", "127.0.0.1"}  # the world's, on its machine
 
 
 def _start(argv: list[str]) -> subprocess.CompletedProcess[str]:

@@ -84,7 +84,7 @@ def test_secrets_are_private_and_fresh(tmp_path: Path) -> None:
     a = trust.write_run_secrets(tmp_path / "a", "r1", ROBOTS, 1)
     b = trust.write_run_secrets(tmp_path / "b", "r1", ROBOTS, 1)
     assert set(a) == {"logger", "launcher", "agent-1", "agent-2", "agent-3", "router"}  # the world is the router
-    assert "world" in trust.write_run_secrets(tmp_path / "c", "r1", ROBOTS, 1, world_is_router=False)
+    assert "world" in trust.write_run_secrets(tmp_path / "c", "r1", ROBOTS, 1, world="anywhere")
     assert stat.S_IMODE(os.stat(tmp_path / "a").st_mode) == 0o700
     for path in [*a.values(), tmp_path / "a" / "passwords.txt"]:
         assert stat.S_IMODE(os.stat(path).st_mode) == 0o600
@@ -185,7 +185,7 @@ def test_a_role_given_another_roles_login_is_refused_before_it_connects(
 ) -> None:
     """The router would let it in, and its rules keep it from every key it needs:
     an agent 2 with agent 3's login waited out the run and then said it ended well."""
-    files = trust.write_run_secrets(tmp_path / "secrets", "r1", ROBOTS, leader_id=1, world_is_router=False)
+    files = trust.write_run_secrets(tmp_path / "secrets", "r1", ROBOTS, leader_id=1, world="anywhere")
     argv = [
         sys.executable,
         "-m",

@@ -40,7 +40,7 @@ def test_the_rules_match_user_and_certificate_name_both() -> None:
 
 
 def test_a_login_and_the_router_with_mutual_tls(tmp_path: Path, made: tls.Tls) -> None:
-    files = trust.write_run_secrets(tmp_path / "s", "r1", ROBOTS, 1, world_is_router=False, tls=made)
+    files = trust.write_run_secrets(tmp_path / "s", "r1", ROBOTS, 1, world="anywhere", tls=made)
     folder = tmp_path / "s"
     for user in ("world", "logger", "launcher", "agent-1", "agent-2", "agent-3"):
         login = json.loads(files[user].read_text())
@@ -64,7 +64,7 @@ def test_a_login_and_the_router_with_mutual_tls(tmp_path: Path, made: tls.Tls) -
 def test_mutual_tls_needs_a_certificate_for_every_login(tmp_path: Path, made: tls.Tls) -> None:
     short = tls.Tls(made.ca, made.certificate, made.private_key, {"world": made.clients["world"]})
     with pytest.raises(ValueError, match="^mutual TLS: no certificate for logger, launcher, agent-1"):
-        trust.write_run_secrets(tmp_path / "s", "r1", ROBOTS, 1, world_is_router=False, tls=short)
+        trust.write_run_secrets(tmp_path / "s", "r1", ROBOTS, 1, world="anywhere", tls=short)
 
 
 def _client(made: tls.Tls, cert: Path, key: Path, ca: Path | None = None) -> dict[str, object]:

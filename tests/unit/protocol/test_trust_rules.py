@@ -279,7 +279,7 @@ def test_an_existing_folder_and_file_are_narrowed_and_rewritten(tmp_path: Path) 
     old = folder / "passwords.txt"
     old.write_text("old:" + "x" * 100 + "\n" * 100)
     os.chmod(old, 0o644)
-    files = trust.write_run_secrets(folder, "r1", ROBOTS, 1, world_is_router=False)
+    files = trust.write_run_secrets(folder, "r1", ROBOTS, 1, world="anywhere")
     assert (_mode(folder), _mode(old)) == (0o700, 0o600)
     creds = {u: json.loads(p.read_text())["transport/auth/usrpwd"] for u, p in files.items() if u != "router"}
     assert list(creds) == ["world", "logger", "launcher", "agent-1", "agent-2", "agent-3"]
