@@ -60,7 +60,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     program = argv is None
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] in DELEGATED:
-        return run_delegated(argv)
+        code = run_delegated(argv)
+        if program:  # its work is done: a signal now (a second Ctrl-C) must not kill it as it exits
+            from formation_swarm.runtime.proc import ignore_stop_signals
+
+            ignore_stop_signals()
+        return code
     handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
     interrupts.hold()  # while the first modules load (interrupts)
     try:

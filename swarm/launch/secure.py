@@ -65,7 +65,8 @@ examples:
 then, on the router's machine and on each robot's (see deploy/README.md):
   swarm router --listen tls/0.0.0.0:7447 --auth secure-field-1/router.json
   swarm world --scenario fig11_obstacles --run field-1 --zenoh-mode client \\
-      --connect tls/127.0.0.1:7447 --auth secure-field-1/world.json --expect-logger
+      --connect tls/127.0.0.1:7447 --auth secure-field-1/world.json --auth-once \\
+      --expect-logger --out runs/field-1
   swarm agent --id 2 --scenario fig11_obstacles --run field-1 \\
       --connect tls/ROUTER:7447 --auth secure-field-1/agent-2.json
 
@@ -250,7 +251,8 @@ def _say_commands(args: argparse.Namespace, sc: Scenario, files: dict[str, Path]
     common = f"--scenario {args.scenario} --run {args.run}"
     print(
         f"  world:    swarm world {common} --zenoh-mode client --connect {scheme}/{world_at}:7447 "
-        f"--auth {files['world']}" + ("" if args.world_anywhere else "  (on the router's machine: granted there only)")
+        f"--auth {files['world']} --auth-once --expect-logger --out runs/{args.run}"
+        + ("" if args.world_anywhere else "  (on the router's machine: granted there only)")
     )
     print(
         f"  logger:   swarm logger {common} --out recording.rrd --connect {scheme}/ROUTER:7447 --auth {files['logger']}"

@@ -10,13 +10,12 @@ it prints a line when it listens and one when it stops.
 from __future__ import annotations
 
 import math
-import sys
 import time
 
 from formation_swarm.protocol import session
 from formation_swarm.runtime import cliargs
 from formation_swarm.runtime import role as role_mod
-from formation_swarm.runtime.proc import wait_for
+from formation_swarm.runtime.proc import exit_after_main, wait_for
 
 DESCRIPTION = """\
 Run a Zenoh router, for runs spread over several machines: the world, the
@@ -77,4 +76,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    exit_after_main(main())

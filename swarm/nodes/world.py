@@ -167,11 +167,12 @@ def main(argv: list[str] | None = None) -> int:
                 role.complain(f"cannot write {exc.filename or args.stats}: {exc.strerror or exc}")
             return role_mod.EXIT_FAILED
         if code == role_mod.EXIT_NO_PEERS:
-            if args.auth and args.zenoh_mode == "client" and not all(map(session.loopback, args.connect)):
+            heard = world.peers.agents_seen or world.peers.logger_seen or world.peers.executor_seen
+            if args.auth and args.zenoh_mode == "client" and not heard and not all(map(session.loopback, args.connect)):
                 role.complain(
-                    "a world's login from swarm secure is granted over the router's loopback only: start the "
-                    "world on the router's machine with --connect to 127.0.0.1 (or make the logins with "
-                    "--world-anywhere)"
+                    "it heard no process of the run at all: a world's login from swarm secure is granted over "
+                    "the router's loopback only, so connect it to 127.0.0.1 on the router's machine (or make "
+                    "the logins with --world-anywhere)"
                 )
             return code  # the lines that gave up were the last word
         role.say(

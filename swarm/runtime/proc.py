@@ -76,9 +76,14 @@ def exit_after_main(code: int) -> None:
     the work done: it is ignored. Otherwise the interpreter's shutdown puts
     the default action back and such a signal would kill the process (-15)
     after it had finished cleanly."""
+    ignore_stop_signals()
+    sys.exit(code)
+
+
+def ignore_stop_signals() -> None:
+    """SIGINT and SIGTERM ignored from now on: for a process whose work is done."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    sys.exit(code)
 
 
 def unsent_bytes() -> int:

@@ -279,3 +279,36 @@ def test_git_commit_of_a_checkout_a_worktree_packed_refs_and_none(tmp_path: Path
     _git(repo, (".git/HEAD", "ref: refs/heads/gone\n"))
     assert summary_mod.git_commit(repo) is None
     assert summary_mod.git_commit(tmp_path / "nothing") is None
+
+
+def test_a_router_signalled_again_while_it_stops_still_exits_0(tmp_path: Path) -> None:
+    """Ctrl-C, then more of them while it closes (a user's impatience, or a
+    ``timeout`` passing signals on): the router stops once, with exit code 0."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    out = tmp_path / "router.out"
+    with out.open("wb") as o:
+        router = subprocess.Popen(
+            [sys.executable, "-m", "formation_swarm.cli", "router", "--listen", endpoint],
+            stdout=o,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+        )
+    try:
+        deadline = time.monotonic() + 60
+        while "listening on" not in out.read_text() and time.monotonic() < deadline:
+            assert router.poll() is None, out.read_text()
+            time.sleep(0.05)
+        assert "listening on" in out.read_text()
+        sent = 0
+        while router.poll() is None and sent < 200:  # for up to 4 s, until it has exited
+            router.send_signal(signal.SIGINT)
+            sent += 1
+            time.sleep(0.02)
+        code = router.wait(timeout=30)
+    finally:
+        if router.poll() is None:
+            router.kill()
+            router.wait()
+    assert sent >= 2, "it exited at the first signal: nothing came while it stopped"
+    assert code == 0, (code, out.read_text())
+    assert out.read_text().splitlines()[-1].startswith("router: stopped by SIGINT after")

@@ -142,8 +142,9 @@ def test_a_world_elsewhere_says_its_login_is_for_the_routers_machine(
     said = done.stderr.strip().splitlines()
     assert said[-2].startswith("world: gave up after 2 s: no agent for robots 1, 2, 3")
     assert said[-1] == (
-        "world: a world's login from swarm secure is granted over the router's loopback only: start the world "
-        "on the router's machine with --connect to 127.0.0.1 (or make the logins with --world-anywhere)"
+        "world: it heard no process of the run at all: a world's login from swarm secure is granted over the "
+        "router's loopback only, so connect it to 127.0.0.1 on the router's machine (or make the logins with "
+        "--world-anywhere)"
     )
 
 
