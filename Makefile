@@ -23,14 +23,17 @@ lint: $(STAMP)
 	$(BIN)/python tools/lint_imports.py
 	$(BIN)/ruff format --check .
 
+# The suite's files on TEST_JOBS workers (pytest-xdist; a file's tests share a worker,
+# so its module fixtures run once); TEST_JOBS=0 runs it in this one process.
+TEST_JOBS ?= 2
 test: lint browser
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(TEST_JOBS) --dist loadfile --no-loadscope-reorder
 
 # The suite beside two CPU hogs (tools/stress.sh): its retries and time bounds
 # must hold on a busy machine. PYTEST_ARGS="tests/system" runs a part of it.
 PYTEST_ARGS ?=
 test-stress: lint browser
-	sh tools/stress.sh $(BIN)/python $(PYTEST_ARGS)
+	sh tools/stress.sh $(BIN)/python -n $(TEST_JOBS) --dist loadfile --no-loadscope-reorder $(PYTEST_ARGS)
 
 # The web viewer's test (tests/system/test_web_view.py) loads it in a headless Chromium:
 # installed here when missing and this is root on apt; otherwise the test skips, saying why.

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import fcntl
 import os
 import shutil
 import subprocess
+import tempfile
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -18,6 +20,18 @@ def _ip(*args: str) -> None:
     subprocess.run(["ip", *args], check=True, capture_output=True, timeout=10)
 
 
+def _own_subnet(host_if: str) -> tuple[str, str]:
+    """(router-side, robot-side) addresses of a 10.77.N.0/24 no other test
+    holds, the router's given to ``host_if``: under a lock, as tests run in
+    parallel (pytest-xdist) may each make a namespace."""
+    with open(Path(tempfile.gettempdir()) / "formation-swarm-netns.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        taken = subprocess.run(["ip", "-o", "-4", "addr"], capture_output=True, text=True, timeout=10).stdout
+        subnet = next(n for n in range(16, 250) if f" 10.77.{n}." not in taken)
+        _ip("addr", "add", f"10.77.{subnet}.1/24", "dev", host_if)
+    return f"10.77.{subnet}.1", f"10.77.{subnet}.2"
+
+
 @pytest.fixture
 def robot_host() -> object:
     """(namespace, router-side address, robot-side address), torn down after."""
@@ -25,8 +39,6 @@ def robot_host() -> object:
         pytest.skip("needs root and iproute2 to create a network namespace")
     tag = uuid.uuid4().hex[:6]
     ns, host_if, ns_if = f"swarm-{tag}", f"sw{tag}h", f"sw{tag}n"
-    subnet = 16 + int(tag[:2], 16) % 200  # 10.77.<subnet>.0/24, one per test run
-    host_ip, ns_ip = f"10.77.{subnet}.1", f"10.77.{subnet}.2"
     try:
         _ip("netns", "add", ns)
     except (subprocess.CalledProcessError, OSError) as exc:
@@ -34,7 +46,7 @@ def robot_host() -> object:
     try:
         _ip("link", "add", host_if, "type", "veth", "peer", "name", ns_if)
         _ip("link", "set", ns_if, "netns", ns)
-        _ip("addr", "add", f"{host_ip}/24", "dev", host_if)
+        host_ip, ns_ip = _own_subnet(host_if)
         _ip("link", "set", host_if, "up")
         _ip("netns", "exec", ns, "ip", "addr", "add", f"{ns_ip}/24", "dev", ns_if)
         _ip("netns", "exec", ns, "ip", "link", "set", ns_if, "up")

@@ -37,3 +37,10 @@ def test_the_formatter_lays_out_the_product() -> None:
         if "fmt: skip" in line
     ]
     assert skips == []
+
+
+def test_the_suites_longest_first_list_names_its_files() -> None:
+    from tests.conftest import LONGEST_FIRST
+
+    assert [p for p in LONGEST_FIRST if not (ROOT / p).is_file()] == []
+    assert len(set(LONGEST_FIRST)) == len(LONGEST_FIRST)

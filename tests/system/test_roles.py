@@ -35,6 +35,7 @@ MODULES = {
     "world": "formation_swarm.nodes.world",
     "agent": "formation_swarm.nodes.agent",
     "logger": "formation_swarm.nodes.logger",
+    "router": "formation_swarm.nodes.router",
 }
 
 
@@ -102,7 +103,13 @@ def test_mismatched_run_ids_give_up_at_the_deadline_with_one_line(tmp_path: Path
     world_run, other_run = _run_id("world"), _run_id("typo")
     deadline = ["--peers-timeout", str(PEERS_TIMEOUT_S)]
     common = ["--scenario", str(_turn(tmp_path)), *deadline]
-    world = start("world", "world", *common, "--run", world_run, "--listen", endpoint, "--expect-logger")
+    # A router of its own, up first: each role then connects as soon as its
+    # imports are done, however long those take (the logger's, with Rerun,
+    # longest), and not only while the world still waits.
+    router = start("router", "router", "--listen", endpoint)
+    _first_lines(router)
+    as_client = ["--zenoh-mode", "client", "--connect", endpoint]
+    world = start("world", "world", *common, "--run", world_run, *as_client, "--expect-logger")
     agent = start("agent-2", "agent", *common, "--id", "2", "--run", other_run, "--connect", endpoint)
     logger = start(
         "logger", "logger", *common, "--run", other_run, "--connect", endpoint, "--out", str(tmp_path / "rec.rrd")
