@@ -70,7 +70,7 @@ def run() -> str:
 
 
 @pytest.fixture
-def router_of(tmp_path: Path, run: str) -> Iterator[dict[str, Router]]:
+def router_of() -> Iterator[dict[str, Router]]:
     made: dict[str, Router] = {}
     yield made
     for r in made.values():
