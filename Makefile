@@ -71,8 +71,8 @@ results: $(STAMP)
 
 # Reference documents generated from the code (a test fails when one is stale).
 docs: $(STAMP)
-	$(BIN)/python -m formation_swarm.spec.keys > docs/scenario.md
-	$(BIN)/python -m formation_swarm.common.faults docs/faults.md
+	$(BIN)/python -m formation_swarm.spec.keys_doc > docs/scenario.md
+	$(BIN)/python -m formation_swarm.common.faults.doc docs/faults.md
 
 # Mutation testing of the pure modules against their fast tests (tools/mutate.py):
 # a fixed sample of 120 mutants per module (about an hour and a half here), resumable

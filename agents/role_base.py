@@ -3,7 +3,7 @@
 A role is the robot's decisions as a plain object, with no Zenoh inside:
 decoded messages in (``take_observation``, a follower's ``take_code``),
 what to send out (``answer``: an :class:`Answer`). Its process
-(formation_swarm.nodes.agent_node) decodes what arrives, hands it over, and
+(formation_swarm.nodes.agent.node) decodes what arrives, hands it over, and
 publishes what the role returns, so the role runs under a test exactly as
 in its process. agents.leader_role and agents.follower_role are the two.
 """

@@ -3,7 +3,7 @@
 N robots in a line on fig11's path (``--straight``: a straight path), run in
 lockstep in this one process: the world's tick (world.tick.WorldTick)
 publishes each robot's encoded observation, and each robot's process code
-takes it as its loop does (nodes.agent: the inbox's router decodes it for
+takes it as its loop does (nodes.agent.main: the inbox's router decodes it for
 the role, the role answers, the outbox encodes and publishes the answer to
 stand-in publishers, the role prepares its next tick, the stats file and
 the flood watch look). The command goes back to the world encoded, the
@@ -42,9 +42,9 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from formation_swarm.nodes.agent_setup import role_for  # noqa: E402
-from formation_swarm.nodes.agent_stats import StatsFile  # noqa: E402
-from formation_swarm.nodes.agent_wire import Outbox, Router  # noqa: E402
+from formation_swarm.nodes.agent.setup import role_for  # noqa: E402
+from formation_swarm.nodes.agent.stats import StatsFile  # noqa: E402
+from formation_swarm.nodes.agent.wire import Outbox, Router  # noqa: E402
 from formation_swarm.protocol.codec import unpack_batch  # noqa: E402
 from formation_swarm.protocol.keys import Keys  # noqa: E402
 from formation_swarm.runtime.memory import FloodRelief  # noqa: E402
@@ -104,7 +104,7 @@ class Robot:
         self.tel.sent.clear()
 
     def serve(self, messages: list[tuple[str, bytes]], timed: bool) -> None:
-        """One pass of the agent's loop (nodes.agent_node.Agent._serve)."""
+        """One pass of the agent's loop (nodes.agent.node.Agent._serve)."""
         spent, clock = self.spent, time.perf_counter
         t0 = clock()
         for key, payload in messages:

@@ -173,8 +173,8 @@ MODULES = (
     Module("protocol/tls.py", (T("test_tls.py"),)),
     Module("agents/inbox.py", (T("test_inbox.py"), T("test_agent_inputs.py"), T("test_world_inputs.py"))),
     Module("swarm/common/faults.py", (T("test_fault_grammar.py"),)),
-    Module("swarm/common/fault_kinds.py", (T("test_fault_grammar.py"),)),
-    Module("swarm/common/fault_schedule.py", (T("test_fault_grammar.py"),)),
+    Module("swarm/common/faults/kinds.py", (T("test_fault_grammar.py"),)),
+    Module("swarm/common/faults/schedule.py", (T("test_fault_grammar.py"),)),
     Module("world/process_faults.py", PROCESS_FAULT_UNITS),
     Module("world/recovery.py", PROCESS_FAULT_UNITS),
     Module(

@@ -29,7 +29,7 @@ the returning follower's, or each follower's when the leader returns.
 
 No Zenoh here: world.tick feeds it the liveliness changes and the
 commands and makes the calls' messages; the world process
-(nodes.world_node) publishes them and does the waiting.
+(nodes.world.node) publishes them and does the waiting.
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ holds its clock at the next tick's start until it is re-admitted, at most
 not awaited: a process that ends takes its token within milliseconds.
 
 No Zenoh and no clock here: world.tick feeds the misses, the answers and
-the tokens; the world process (nodes.world_node) does the holding.
+the tokens; the world process (nodes.world.node) does the holding.
 """
 
 from __future__ import annotations

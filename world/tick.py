@@ -6,7 +6,7 @@ them; lockstep takes an answer only for the tick it published), what the
 command links do with them, which robots are observed, waited for, lost or
 re-admitted (world.process_faults), what the engine does each tick. It
 returns the Observations, the Truth, the Status and the FaultCalls to
-publish. The world process (formation_swarm.nodes.world_node) wraps it with
+publish. The world process (formation_swarm.nodes.world.node) wraps it with
 the session, the liveliness tokens, the inbox and a clock that says when a
 tick starts and how long its answers are waited for.
 

@@ -19,12 +19,12 @@ DELEGATED = {
         "many lockstep runs of a scenario (seeds x parameter values), in parallel",
     ),
     "results": ("formation_swarm.studies.results", "recompute the baseline comparison table of docs/results.md"),
-    "world": ("formation_swarm.nodes.world", "role: the world alone (physics, cameras, clock; a Zenoh router)"),
-    "agent": ("formation_swarm.nodes.agent", "role: one robot's agent alone, a client of a router"),
-    "logger": ("formation_swarm.nodes.logger", "role: the Rerun logger alone (to a file or a viewer)"),
+    "world": ("formation_swarm.nodes.world.main", "role: the world alone (physics, cameras, clock; a Zenoh router)"),
+    "agent": ("formation_swarm.nodes.agent.main", "role: one robot's agent alone, a client of a router"),
+    "logger": ("formation_swarm.nodes.logger.main", "role: the Rerun logger alone (to a file or a viewer)"),
     "router": ("formation_swarm.nodes.router", "role: a Zenoh router for agents on other machines"),
     "secure": ("formation_swarm.launch.secure", "credentials and access rules for a run spread over machines"),
-    "host": ("formation_swarm.nodes.host", "serve this machine to runs started elsewhere (swarm run --hosts)"),
+    "host": ("formation_swarm.nodes.host.main", "serve this machine to runs started elsewhere (swarm run --hosts)"),
     "doctor": ("formation_swarm.launch.doctor", "check that the hosts of a run spread over machines are there and fit"),
 }
 

@@ -8,7 +8,7 @@ import argparse
 from typing import Any
 
 from formation_swarm.runtime.cliargs import integer, seconds
-from formation_swarm.runtime.role import DEFAULT_PEERS_TIMEOUT_S
+from formation_swarm.runtime.process import DEFAULT_PEERS_TIMEOUT_S
 
 
 def add_outside_flags(run: argparse.ArgumentParser) -> None:

@@ -21,7 +21,7 @@ from formation_swarm.launch.words import (
     describe_stall,
 )
 from formation_swarm.launch.words import num as _num
-from formation_swarm.nodes import viewer
+from formation_swarm.nodes.logger import viewer
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.spec import scenario as scenario_mod
 

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 from formation_swarm.protocol import acl, trust
 from formation_swarm.runtime.children import log_tail
-from formation_swarm.runtime.end_reason import PEERS_TIMEOUT
+from formation_swarm.runtime.summary.end_reason import PEERS_TIMEOUT
 
 if TYPE_CHECKING:
     from formation_swarm.launch.plan import Plan

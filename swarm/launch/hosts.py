@@ -1,5 +1,5 @@
 """A run's agents on other machines (``swarm run --hosts a,b``), each started
-by that machine's ``swarm host`` (formation_swarm.nodes.host).
+by that machine's ``swarm host`` (formation_swarm.nodes.host.main).
 
 The world listens on ``listen``, an address the hosts reach, and is their
 router. The launcher waits (with a deadline) for each host's token, checks

@@ -41,13 +41,13 @@ from formation_swarm.launch.processes import Processes, wait_for_fork_server
 from formation_swarm.launch.record import Journal, StatusFeed, folder_gone, folder_identity
 from formation_swarm.launch.result import Ending, RunResult, end_reason, place_exits, processes_part
 from formation_swarm.launch.signals import stop_signals_noted
-from formation_swarm.nodes import viewer
+from formation_swarm.nodes.logger import viewer
 from formation_swarm.protocol import acl
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.session import make_config
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.runtime.children import Child, free_port
-from formation_swarm.runtime.role import DEFAULT_PEERS_TIMEOUT_S
+from formation_swarm.runtime.process import DEFAULT_PEERS_TIMEOUT_S
 
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario

@@ -16,7 +16,7 @@ from typing import Any
 from formation_swarm.common.faults import Fault
 from formation_swarm.common.version import __version__
 from formation_swarm.launch import external as external_mod
-from formation_swarm.nodes import viewer
+from formation_swarm.nodes.logger import viewer
 from formation_swarm.protocol import acl, trust
 from formation_swarm.protocol.hostmsg import HostRequest
 from formation_swarm.protocol.keys import Keys
@@ -272,7 +272,7 @@ class Plan:
             else ["--zenoh-mode", "router", "--listen", endpoint, *_auth(secrets, "router")]
         )
         return [
-            *self._py("nodes.world"),
+            *self._py("nodes.world.main"),
             *self._common(),
             "--mode",
             opts.mode,
@@ -290,7 +290,7 @@ class Plan:
             grpc, web = self.options.web_ports
             extra += ["--serve-web", "--grpc-port", str(grpc), "--web-port", str(web)]
         return [
-            *self._py("nodes.logger"),
+            *self._py("nodes.logger.main"),
             *self._common(),
             "--out",
             str(self.run_dir / "recording.rrd"),
@@ -304,7 +304,7 @@ class Plan:
 
     def _agent(self, rid: int, endpoint: str, secrets: Mapping[str, Path]) -> list[str]:
         return [
-            *self._py("nodes.agent"),
+            *self._py("nodes.agent.main"),
             "--id",
             str(rid),
             *self._common(),

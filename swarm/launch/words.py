@@ -60,7 +60,7 @@ def describe_recoveries(f: Mapping[str, Any]) -> list[str]:
     largest error in the window after the return. Below the bound at once but
     never settled is a follower whose error only passed through it. After a
     fault that ends (a link, partition, sensor or actuator fault), the same
-    from the end, to the second (runtime.window_recovery)."""
+    from the end, to the second (runtime.summary.recovery)."""
     out = []
     for rec in f.get("recoveries") or []:
         who = ", ".join(f"R{r}" for r in rec.get("watched") or [])

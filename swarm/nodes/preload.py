@@ -14,8 +14,8 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import formation_swarm.nodes.agent  # noqa: E402, F401
-import formation_swarm.nodes.world  # noqa: E402, F401
+import formation_swarm.nodes.agent.main  # noqa: E402, F401
+import formation_swarm.nodes.world.main  # noqa: E402, F401
 from formation_swarm.agents.ekf import filter_class  # noqa: E402
 
 filter_class()  # imports filterpy (and scipy.stats), which agents.ekf leaves to first use

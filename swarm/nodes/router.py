@@ -14,7 +14,7 @@ import time
 
 from formation_swarm.protocol import session
 from formation_swarm.runtime import cliargs
-from formation_swarm.runtime import role as role_mod
+from formation_swarm.runtime import process as process_mod
 from formation_swarm.runtime.proc import exit_after_main, wait_for
 
 DESCRIPTION = """\
@@ -51,12 +51,12 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if not args.listen and args.config is None:
         args.listen = [DEFAULT_LISTEN]
-    role = role_mod.Role("router", math.inf)
+    role = process_mod.Process("router", math.inf)
     started = time.monotonic()
     sess = role.connect(args)
     if isinstance(sess, int):
         # a router stopped while it opens has ended normally
-        return role_mod.EXIT_OK if role.stop.is_set() else sess
+        return process_mod.EXIT_OK if role.stop.is_set() else sess
     with sess:
         where = ", ".join(args.listen) if args.listen else f"the endpoints of {args.config}"
         role.say(f"listening on {where}; stop it with Ctrl-C or SIGTERM")
@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
             )
         wait_for(role.stop)
     role.say(f"{role.stopped_by()} after {time.monotonic() - started:.0f} s")
-    return role_mod.EXIT_OK
+    return process_mod.EXIT_OK
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
 """Fast start for many roles on one machine: import once, fork per process.
 
-A role started as ``python -m formation_swarm.nodes.agent ...`` spends about
+A role started as ``python -m formation_swarm.nodes.agent.main ...`` spends about
 0.9 s of CPU importing some 900 modules (filterpy pulls in scipy.stats) before
 it does anything, and each process then holds its own copy of them. Here the
 launcher's roles are forked instead from one server process that imported them
@@ -39,7 +39,11 @@ from formation_swarm.runtime import proc
 # import, so the logger is forked too but imports rerun itself, after the fork).
 PRELOAD = "formation_swarm.nodes.preload"
 UNREPORTED = 255  # multiprocessing's exit code when the fork server did not report one
-FORKED_ROLES = ("formation_swarm.nodes.agent", "formation_swarm.nodes.world", "formation_swarm.nodes.logger")
+FORKED_ROLES = (
+    "formation_swarm.nodes.agent.main",
+    "formation_swarm.nodes.world.main",
+    "formation_swarm.nodes.logger.main",
+)
 _LOCK = threading.Lock()
 _context: Any = None
 

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from formation_swarm.agents.follower import FollowerParams
 from formation_swarm.agents.formation import Formation
 from formation_swarm.agents.fuzzy import speed_range
-from formation_swarm.common.fault_schedule import past_the_end
+from formation_swarm.common.faults.schedule import past_the_end
 from formation_swarm.spec.checking import id_ranges
 
 if TYPE_CHECKING:

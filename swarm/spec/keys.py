@@ -1,7 +1,7 @@
 """Every key a scenario file may hold: its type, unit, default, range and
 meaning. The loader (``formation_swarm.spec.scenario``) checks files against these
 tables, and ``docs/scenario.md`` is generated from them by ``keys_doc``
-(``python -m formation_swarm.spec.keys > docs/scenario.md``; a test fails
+(``python -m formation_swarm.spec.keys_doc > docs/scenario.md``; a test fails
 when the file is stale), so the document and the checks cannot disagree.
 """
 
@@ -363,9 +363,3 @@ def type_name(types: type | tuple[type, ...]) -> str:
     return {"list": "an array", "dict": "a table", "str": "a string", "bool": "true or false", "int": "an integer"}.get(
         types.__name__, types.__name__
     )
-
-
-if __name__ == "__main__":  # make docs: docs/scenario.md
-    from formation_swarm.spec.keys_doc import markdown
-
-    print(markdown(), end="")

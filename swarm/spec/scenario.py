@@ -22,8 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from formation_swarm.agents.pilot import CORNERS, turn_room
-from formation_swarm.common.fault_schedule import check_against
 from formation_swarm.common.faults import Fault, parse_all
+from formation_swarm.common.faults.schedule import check_against
 from formation_swarm.protocol.keys import MAX_ROBOT_ID, check_host_name
 from formation_swarm.spec.caveats import path_turns
 from formation_swarm.spec.checking import check_table, id_ranges, is_point, suggest, wrapped

@@ -27,6 +27,11 @@ class Job:
         return f"{slug(self.label) or 'base'}-{digest}-s{self.seed}"
 
 
+def settings_text(settings: Mapping[str, Any]) -> str:
+    """A job's settings as its label says them: ``key=value, key=value``."""
+    return ", ".join(f"{k}={v}" for k, v in settings.items())
+
+
 def parse_set(text: str) -> tuple[str, list[Any]]:
     """``key=v1,v2`` -> (key, [v1, v2]); values are TOML (numbers, booleans,
     quoted strings) or else bare strings."""

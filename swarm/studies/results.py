@@ -27,9 +27,10 @@ from typing import Any
 from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser, integer, make_folder
 from formation_swarm.runtime.proc import interrupt_on_stop_signals
 from formation_swarm.spec.files import parse_overrides
-from formation_swarm.studies import claims, sensitivity, sensitivity_run
-from formation_swarm.studies.jobs import Job
+from formation_swarm.studies import claims, sensitivity
+from formation_swarm.studies.jobs import Job, settings_text
 from formation_swarm.studies.sections import BEGIN, END, check_markers, markers, write_all
+from formation_swarm.studies.sensitivity import run as sensitivity_run
 from formation_swarm.studies.sweep import MAX_JOBS, MAX_SEEDS, Sweep, run_sweeps
 from formation_swarm.studies.tables import aggregate
 
@@ -53,10 +54,6 @@ NOISE: dict[str, dict[str, Any]] = {
         "controller.ekf.sigma_beta_rad": 0.0436,
     },
 }
-
-
-def settings_text(settings: Mapping[str, Any]) -> str:
-    return ", ".join(f"{k}={v}" for k, v in settings.items())
 
 
 def _label(ctrl: str, noise: str, drop: float, settings: Mapping[str, Any]) -> str:

@@ -18,9 +18,9 @@ if TYPE_CHECKING:
 ROOT = Path(__file__).resolve().parent.parent.parent
 SCENARIOS = ROOT / "scenarios"
 OUR_MODULES = (
-    "formation_swarm.nodes.world",
-    "formation_swarm.nodes.agent",
-    "formation_swarm.nodes.logger",
+    "formation_swarm.nodes.world.main",
+    "formation_swarm.nodes.agent.main",
+    "formation_swarm.nodes.logger.main",
     "formation_swarm.nodes.router",
 )
 RERUN = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")

@@ -45,7 +45,7 @@ def observation(
 
 
 def answer(role: RoleBase, obs: Observation) -> Answer:
-    """One pass of the agent's loop (nodes.agent_node): the observation taken,
+    """One pass of the agent's loop (nodes.agent.node): the observation taken,
     answered, then the role prepares for the next tick."""
     role.take_observation(obs)
     got = role.answer()

@@ -1,11 +1,11 @@
 """A lockstep run replayed in one process: the world's tick (world.tick) and
 every robot's role (agents.leader_role, agents.follower_role, built by
-nodes.agent_setup as the agent process builds them), driven the way the
-world process (nodes.world_node, nodes.world_clock's LockstepClock) and the
-agent processes (nodes.agent, nodes.agent_wire) drive them, without Zenoh.
+nodes.agent.setup as the agent process builds them), driven the way the
+world process (nodes.world.node, nodes.world.clock's LockstepClock) and the
+agent processes (nodes.agent.main, nodes.agent.wire) drive them, without Zenoh.
 
 Each message crosses as bytes, as on the wire: an agent's side decodes what
-reaches its inbox with the process's own ``agent_wire.Router``, the world
+reaches its inbox with the process's own ``nodes.agent.wire.Router``, the world
 takes each command's payload with ``WorldTick.receive``. Tick k:
 
 - the fault calls of tick k, the robots whose agent is back (world side; a
@@ -42,8 +42,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from formation_swarm.nodes.agent_setup import role_for
-from formation_swarm.nodes.agent_wire import Router
+from formation_swarm.nodes.agent.setup import role_for
+from formation_swarm.nodes.agent.wire import Router
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.world.process_faults import KILL

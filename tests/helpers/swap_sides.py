@@ -8,7 +8,7 @@ from pathlib import Path
 
 from formation_swarm.agents.follower_role import FollowerRole
 from formation_swarm.agents.pilot import PathPilot
-from formation_swarm.nodes.agent_setup import role_for
+from formation_swarm.nodes.agent.setup import role_for
 from formation_swarm.protocol.messages import FormationCode
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.world.engine import WorldEngine

@@ -150,11 +150,11 @@ def test_a_wrong_certificate_name_gets_nothing_and_the_right_ones_fly_fig11(robo
         assert json.loads(connected or "{}") == {"connected": 4}, (tmp_path / "probe.err").read_text()
         as_client = ["--zenoh-mode", "client", "--expect-logger", "--out", str(tmp_path / "run")]
         world = [*common, "--stats", str(tmp_path / "world.json"), "--connect", near, *as_client, *auth("world")]
-        start("world", [*PY, "formation_swarm.nodes.world", *world])
+        start("world", [*PY, "formation_swarm.nodes.world.main", *world])
         logger = ["--out", str(tmp_path / "recording.rrd")]
-        start("logger", [*PY, "formation_swarm.nodes.logger", *common, *stats("logger"), *logger, *auth("logger")])
+        start("logger", [*PY, "formation_swarm.nodes.logger.main", *common, *stats("logger"), *logger, *auth("logger")])
         for rid in (1, 2, 3):
-            agent = [*PY, "formation_swarm.nodes.agent", "--id", str(rid), *common, *auth(f"agent-{rid}")]
+            agent = [*PY, "formation_swarm.nodes.agent.main", "--id", str(rid), *common, *auth(f"agent-{rid}")]
             start(f"agent-{rid}", [*agent, *stats(f"agent-{rid}")], robots_host)
         assert procs["world"].wait(timeout=300) == 0, (tmp_path / "world.log").read_text()
         for name in ("agent-1", "agent-2", "agent-3", "logger"):

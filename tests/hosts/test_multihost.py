@@ -121,7 +121,7 @@ def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tupl
             "world",
             [
                 *py,
-                "formation_swarm.nodes.world",
+                "formation_swarm.nodes.world.main",
                 *common,
                 "--stats",
                 str(tmp_path / "world.json"),
@@ -139,7 +139,7 @@ def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tupl
             "logger",
             [
                 *py,
-                "formation_swarm.nodes.logger",
+                "formation_swarm.nodes.logger.main",
                 *common,
                 "--out",
                 str(tmp_path / "recording.rrd"),
@@ -151,7 +151,7 @@ def test_agents_in_another_namespace_fly_fig11_through_a_router(robot_host: tupl
             ],
         )
         for rid in (1, 2, 3):
-            agent = [*py, "formation_swarm.nodes.agent", "--id", str(rid), *common, *auth(f"agent-{rid}")]
+            agent = [*py, "formation_swarm.nodes.agent.main", "--id", str(rid), *common, *auth(f"agent-{rid}")]
             start(
                 f"agent-{rid}",
                 [

@@ -24,7 +24,7 @@ import pytest
 from formation_swarm.protocol import acl, codec, keys, messages, session, trust
 from formation_swarm.protocol.codec import DecodeError, Message
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.runtime import role
+from formation_swarm.runtime import process
 from formation_swarm.spec import keys as scenario_keys
 from tests.helpers import ROOT
 
@@ -312,11 +312,11 @@ def test_the_rejection_reasons_are_the_code_s() -> None:
     documented = {r[0] for r in table(section("What a receiver rejects"))}
     src = inspect.getsource(codec)
     ours = set(re.findall(r'DecodeError\("([^"]+)"', src)) | set(re.findall(r'by_reason\["([^"]+)"\]', src))
-    agent = ("nodes.agent_wire", "agents.inbox", "agents.role_base", "agents.follower_role")
-    for mod in (*agent, "nodes.world", "nodes.logger"):
+    agent = ("nodes.agent.wire", "agents.inbox", "agents.role_base", "agents.follower_role")
+    for mod in (*agent, "nodes.world.main", "nodes.logger.main"):
         src = inspect.getsource(importlib.import_module(f"formation_swarm.{mod}"))
         ours |= set(re.findall(r'\.reject\("([^"]+)"\)', src))
-    # The world judges a command in world.commands (its process, nodes.world*, rejects nothing itself).
+    # The world judges a command in world.commands (its process, nodes.world.main*, rejects nothing itself).
     ours |= set(re.findall(r'\.reject\("([^"]+)"\)', inspect.getsource(importlib.import_module(WORLD_GATE))))
     ours |= set(
         re.findall(r'return "([^"]+)"', inspect.getsource(importlib.import_module("formation_swarm.agents.inbox")))
@@ -366,7 +366,7 @@ def test_the_clients_configuration_is_ours() -> None:
     conf = session.make_config(
         "client",
         rows["connect/endpoints"],
-        connect_timeout_s=role.DEFAULT_PEERS_TIMEOUT_S + role.CONNECT_MARGIN_S,
+        connect_timeout_s=process.DEFAULT_PEERS_TIMEOUT_S + process.CONNECT_MARGIN_S,
         settings=settings,
     )
     for path, value in rows.items():

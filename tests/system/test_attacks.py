@@ -351,7 +351,7 @@ def test_a_second_agent_for_a_flying_robot_is_refused(swarm_launch: Callable[...
     argv = [
         sys.executable,
         "-m",
-        "formation_swarm.nodes.agent",
+        "formation_swarm.nodes.agent.main",
         "--id",
         "2",
         "--scenario",
@@ -390,7 +390,7 @@ def test_a_second_world_for_a_running_run_is_refused(swarm_launch: Callable[...,
     argv = [
         sys.executable,
         "-m",
-        "formation_swarm.nodes.world",
+        "formation_swarm.nodes.world.main",
         "--scenario",
         str(launch.run_dir / "scenario.toml"),
         "--run",

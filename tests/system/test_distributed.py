@@ -153,8 +153,8 @@ from pathlib import Path
 from formation_swarm.runtime.spawner import Forked
 
 if __name__ == "__main__":
-    argv = [sys.executable, "-m", "formation_swarm.nodes.agent", "--help"]
-    print("exit", Forked("formation_swarm.nodes.agent", argv, Path(sys.argv[1]), {}).wait(60), flush=True)
+    argv = [sys.executable, "-m", "formation_swarm.nodes.agent.main", "--help"]
+    print("exit", Forked("formation_swarm.nodes.agent.main", argv, Path(sys.argv[1]), {}).wait(60), flush=True)
 """
 
 
@@ -180,11 +180,11 @@ def test_an_exit_code_the_fork_server_did_not_report_is_the_childs_own(tmp_path:
     code is then the one the child wrote itself."""
     from formation_swarm.runtime.spawner import UNREPORTED, Forked
 
-    argv = [sys.executable, "-m", "formation_swarm.nodes.agent", "--no-such-flag"]  # a usage error: exit 2
-    reported = Forked("formation_swarm.nodes.agent", argv, tmp_path / "a.log", {})
+    argv = [sys.executable, "-m", "formation_swarm.nodes.agent.main", "--no-such-flag"]  # a usage error: exit 2
+    reported = Forked("formation_swarm.nodes.agent.main", argv, tmp_path / "a.log", {})
     assert reported.wait(60) == 2
     assert not reported.unreported
-    lost = Forked("formation_swarm.nodes.agent", argv, tmp_path / "b.log", {})
+    lost = Forked("formation_swarm.nodes.agent.main", argv, tmp_path / "b.log", {})
     lost._p.join(60)
     monkeypatch.setattr(type(lost._p), "exitcode", property(lambda _p: UNREPORTED))
     assert lost.poll() == 2

@@ -110,7 +110,7 @@ def _fly(tmp_path: Path, scenario_file: Path, foreign_ids: tuple[int, ...], over
             [
                 sys.executable,
                 "-m",
-                "formation_swarm.nodes.world",
+                "formation_swarm.nodes.world.main",
                 *common,
                 "--mode",
                 "lockstep",
@@ -122,7 +122,7 @@ def _fly(tmp_path: Path, scenario_file: Path, foreign_ids: tuple[int, ...], over
         )
         start(
             "leader",
-            [sys.executable, "-m", "formation_swarm.nodes.agent", "--id", "1", *common, "--connect", endpoint],
+            [sys.executable, "-m", "formation_swarm.nodes.agent.main", "--id", "1", *common, "--connect", endpoint],
         )
         for rid in foreign_ids:
             start(f"foreign-{rid}", [sys.executable, str(FOREIGN), "--id", str(rid), *common, "--connect", endpoint])

@@ -30,8 +30,8 @@ from formation_swarm.agents.follower import Follower
 from formation_swarm.agents.follower_role import FollowerRole
 from formation_swarm.agents.formation import sights
 from formation_swarm.launch.launcher import RunResult
-from formation_swarm.nodes.agent_setup import role_for
-from formation_swarm.nodes.agent_wire import Outbox
+from formation_swarm.nodes.agent.setup import role_for
+from formation_swarm.nodes.agent.wire import Outbox
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.messages import FormationCode, Telemetry
 from formation_swarm.spec import scenario as sm

@@ -314,7 +314,7 @@ def test_a_world_started_by_hand_refuses_process_faults_it_cannot_execute(tmp_pa
     sc_file = tmp_path / "s.toml"
     src = scenario_files.resolve(FIG11).read_text()
     sc_file.write_text(src + '\n[[faults]]\nkind = "kill"\ntarget = "agent-3"\nat_s = 20\n')
-    argv = [sys.executable, "-m", "formation_swarm.nodes.world", "--scenario", str(sc_file), "--run", "r1"]
+    argv = [sys.executable, "-m", "formation_swarm.nodes.world.main", "--scenario", str(sc_file), "--run", "r1"]
     done = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
     assert done.returncode == 2
     assert done.stderr.strip().splitlines() == [

@@ -22,7 +22,7 @@ import pytest
 
 import formation_swarm
 from formation_swarm.launch.launcher import RunResult, free_port
-from formation_swarm.runtime import role as role_mod
+from formation_swarm.runtime import process as process_mod
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.spec import files as scenario_files
 from formation_swarm.spec import scenario as scenario_mod
@@ -32,9 +32,9 @@ TURN = SCENARIOS / "fig7_turn_vn_dynamic.toml"
 PEERS_TIMEOUT_S = 3.0
 HEADROOM = 3.0  # a loaded machine (2 shared cores): 3x the target
 MODULES = {
-    "world": "formation_swarm.nodes.world",
-    "agent": "formation_swarm.nodes.agent",
-    "logger": "formation_swarm.nodes.logger",
+    "world": "formation_swarm.nodes.world.main",
+    "agent": "formation_swarm.nodes.agent.main",
+    "logger": "formation_swarm.nodes.logger.main",
     "router": "formation_swarm.nodes.router",
 }
 
@@ -118,7 +118,7 @@ def test_mismatched_run_ids_give_up_at_the_deadline_with_one_line(tmp_path: Path
     # loaded machine): the wait is timed from the first line, printed then.
     printed = _first_lines(world, agent, logger)
     for p in (world, agent, logger):
-        assert p.wait(timeout_s=60) == role_mod.EXIT_NO_PEERS, p.lines("err")
+        assert p.wait(timeout_s=60) == process_mod.EXIT_NO_PEERS, p.lines("err")
         assert p.exited_at - p.started_at >= PEERS_TIMEOUT_S  # type: ignore[operator]
         waited = p.exited_at - printed[p.name]  # type: ignore[operator]
         assert waited <= PEERS_TIMEOUT_S * HEADROOM, (p.name, waited)

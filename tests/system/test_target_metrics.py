@@ -98,8 +98,8 @@ def test_the_target_error_is_against_the_formation_the_follower_flew() -> None:
     slot's true target (its telemetry says which), not metres off the old one."""
     import rerun as rr
 
-    from formation_swarm.nodes.recorder import Recorder
-    from formation_swarm.nodes.recording import Recording
+    from formation_swarm.nodes.logger.recorder import Recorder
+    from formation_swarm.nodes.logger.recording import Recording
     from formation_swarm.protocol.messages import Telemetry, Truth
     from formation_swarm.world.kinematics import Pose, from_body_frame, to_body_frame
 

@@ -22,8 +22,8 @@ import rerun.blueprint as rrb
 from formation_swarm.common.faults import Fault
 from formation_swarm.common.palette import robot_colour
 from formation_swarm.launch.launcher import Launch, RunResult, free_port
-from formation_swarm.nodes import viewer
-from formation_swarm.nodes.recording import blueprint, open_recording
+from formation_swarm.nodes.logger import viewer
+from formation_swarm.nodes.logger.recording import blueprint, open_recording
 from formation_swarm.report.build import make_report
 from formation_swarm.report.data import read_recording
 from formation_swarm.spec import scenario as scenario_mod
@@ -307,7 +307,7 @@ def test_serve_web_on_a_taken_port_is_refused_before_anything_starts(tmp_path: P
 
 
 def test_the_layout_follows_the_leader_and_draws_many_followers_means_alone() -> None:
-    from formation_swarm.nodes.blueprint import LEADER_FRAME, formation_reach_m
+    from formation_swarm.nodes.logger.blueprint import LEADER_FRAME, formation_reach_m
 
     sc = scenario_mod.load(FIG11)
     bp = blueprint(sc)

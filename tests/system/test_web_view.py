@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 
 from formation_swarm.launch.launcher import free_port
-from formation_swarm.nodes import viewer
+from formation_swarm.nodes.logger import viewer
 from tests.helpers import RERUN, SCENARIOS, wait_listening
 from tests.helpers.browser import Page, chromium, find_chromium
 

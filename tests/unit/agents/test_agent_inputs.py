@@ -10,8 +10,8 @@ import itertools
 import pytest
 
 from formation_swarm.agents.follower_role import FollowerRole
-from formation_swarm.nodes.agent_setup import role_for
-from formation_swarm.nodes.agent_wire import Router
+from formation_swarm.nodes.agent.setup import role_for
+from formation_swarm.nodes.agent.wire import Router
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Command, FormationCode
 from formation_swarm.spec import scenario as scenario_mod

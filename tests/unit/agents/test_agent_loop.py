@@ -1,4 +1,4 @@
-"""The agent process's loop (nodes.agent_node.Agent._serve) over a stand-in
+"""The agent process's loop (nodes.agent.node.Agent._serve) over a stand-in
 for its Zenoh inbox: what it takes and answers around the run's end."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from typing import Any
 import zenoh
 
 from formation_swarm.agents.role_base import Answer
-from formation_swarm.nodes.agent_node import Agent, Options
-from formation_swarm.nodes.agent_setup import role_for
+from formation_swarm.nodes.agent.node import Agent, Options
+from formation_swarm.nodes.agent.setup import role_for
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import FormationCode
 from formation_swarm.spec import scenario as scenario_mod

@@ -13,9 +13,9 @@ from formation_swarm.agents.follower import BUILT_IN, LAWS, FuzzyController, Lps
 from formation_swarm.agents.follower_role import FollowerRole
 from formation_swarm.agents.leader_role import LeaderRole
 from formation_swarm.agents.pilot import PathPilot
-from formation_swarm.nodes.agent_setup import role_for
-from formation_swarm.nodes.agent_stats import KEYS as STATS_KEYS
-from formation_swarm.nodes.agent_wire import Outbox
+from formation_swarm.nodes.agent.setup import role_for
+from formation_swarm.nodes.agent.stats import KEYS as STATS_KEYS
+from formation_swarm.nodes.agent.wire import Outbox
 from formation_swarm.protocol.messages import Command, FormationCode
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.world.kinematics import Pose

@@ -13,7 +13,7 @@ from formation_swarm.agents.controller import ControllerSetup
 from formation_swarm.agents.follower import FuzzyController, make_controller
 from formation_swarm.agents.follower_role import FollowerRole
 from formation_swarm.agents.laws import LawError, declared_params, find_class
-from formation_swarm.nodes.agent_setup import role_for
+from formation_swarm.nodes.agent.setup import role_for
 from formation_swarm.protocol.messages import MAX_EXTRAS, Telemetry
 from formation_swarm.spec import scenario as scenario_mod
 from tests.helpers import SCENARIOS

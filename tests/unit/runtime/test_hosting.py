@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 
 from formation_swarm.common.version import __version__
-from formation_swarm.nodes import hosting
+from formation_swarm.nodes.host import runs as hosting
 from formation_swarm.protocol.hostmsg import HostReply, HostRequest
 
 

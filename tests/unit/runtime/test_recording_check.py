@@ -1,11 +1,11 @@
-"""How a run says its logger was lost (runtime.recording_check) and where the
+"""How a run says its logger was lost (runtime.summary.recording) and where the
 launcher places a process that exited on its own (launch.result.place_exits):
 at the tick the world saw its token go."""
 
 from __future__ import annotations
 
 from formation_swarm.launch.result import place_exits
-from formation_swarm.runtime.recording_check import logger_lost, recording_cut
+from formation_swarm.runtime.summary.recording import logger_lost, recording_cut
 
 LOST = {"tick": 400, "time_s": 20.0, "wall_s": 3.5}
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from formation_swarm.nodes.running_mean import CentredMean
+from formation_swarm.nodes.logger.running_mean import CentredMean
 from formation_swarm.report.figures.series import moving_average
 
 

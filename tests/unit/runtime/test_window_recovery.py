@@ -9,7 +9,7 @@ from pathlib import Path
 from formation_swarm.common.faults import Fault
 from formation_swarm.launch.console import describe_fault, print_result
 from formation_swarm.launch.launcher import RunResult
-from formation_swarm.runtime.window_recovery import window_recoveries
+from formation_swarm.runtime.summary.recovery import window_recoveries
 from formation_swarm.spec import scenario as scenario_mod
 
 SC = scenario_mod.load("fig11_obstacles")  # dt 0.05 s, leader R1, followers R2 and R3

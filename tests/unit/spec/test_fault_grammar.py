@@ -10,7 +10,6 @@ from pathlib import Path
 
 import pytest
 
-from formation_swarm.common.fault_schedule import check_against
 from formation_swarm.common.faults import (
     ACTUATOR,
     KINDS,
@@ -23,7 +22,8 @@ from formation_swarm.common.faults import (
     of_robot,
     seconds,
 )
-from formation_swarm.common.faults_doc import reference
+from formation_swarm.common.faults.doc import reference
+from formation_swarm.common.faults.schedule import check_against
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.spec.scenario import ScenarioError
 from tests.helpers import ROOT
@@ -185,7 +185,7 @@ def test_a_faults_entry_that_is_not_a_table(tmp_path: Path) -> None:
 
 
 def test_summary_gathers_each_faults_ticks_events_and_counts() -> None:
-    from formation_swarm.runtime.fault_effects import fault_effects
+    from formation_swarm.runtime.summary.faults import fault_effects
 
     sc = scenario_mod.load("fig11_obstacles", faults=["restart agent-3@20s after=1", "drop obs:2@10s for=5s p=0.3"])
     parts = {
@@ -234,7 +234,7 @@ def test_a_fault_cut_by_the_runs_end_lists_its_ticks_in_the_run_and_events_of_on
     import warnings
 
     from formation_swarm.launch.console import describe_fault
-    from formation_swarm.runtime.fault_effects import fault_effects
+    from formation_swarm.runtime.summary.faults import fault_effects
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # lasting past the end is warned of
@@ -306,7 +306,7 @@ def test_the_results_line_says_why_messages_were_rejected() -> None:
 
 
 def test_a_killed_logger_says_the_recording_is_cut_short_and_a_sweep_does_not_retry_it() -> None:
-    from formation_swarm.runtime.recording_check import recording_cut, recording_gap
+    from formation_swarm.runtime.summary.recording import recording_cut, recording_gap
 
     kill = {"event": "killed", "process": "logger", "sim_time_s": 3.0, "fault": "kill logger@3s"}
     summary = {"mode": "lockstep", "events": [kill], "parts": {}, "messages": {}}
@@ -479,7 +479,7 @@ def test_at_most_256_faults() -> None:
 
 
 def test_update_doc_rewrites_between_the_markers_only(tmp_path: Path) -> None:
-    from formation_swarm.common.faults_doc import BEGIN, END, update_doc
+    from formation_swarm.common.faults.doc import BEGIN, END, update_doc
 
     doc = tmp_path / "faults.md"
     doc.write_text(f"head\n{BEGIN}\nold\n{END}\ntail\n")
@@ -530,7 +530,7 @@ def test_report_md_marks_the_counts_a_killed_agent_left_partial_or_unwritten() -
 
 
 def test_a_killed_agents_counts_are_partial_only_if_it_lived_in_the_fault_and_wrote_them_before_final() -> None:
-    from formation_swarm.runtime.link_counts import counts_cut
+    from formation_swarm.runtime.summary.links import counts_cut
 
     # A fault over ticks 600-699; counts final at 701 (two ticks after its end).
     assert counts_cut([(516, 900)], 600, 700)  # killed after it, last wrote before it

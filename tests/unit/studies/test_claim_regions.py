@@ -11,8 +11,11 @@ from __future__ import annotations
 
 import pytest
 
-from formation_swarm.studies import claims, sensitivity, sensitivity_rows, sensitivity_run, sensitivity_text
+from formation_swarm.studies import claims, sensitivity
 from formation_swarm.studies.sections import markers
+from formation_swarm.studies.sensitivity import rows as sensitivity_rows
+from formation_swarm.studies.sensitivity import run as sensitivity_run
+from formation_swarm.studies.sensitivity import text as sensitivity_text
 from tests.helpers import ROOT, SCENARIOS
 from tests.helpers.replica import replay
 

@@ -10,16 +10,12 @@ from pathlib import Path
 import pytest
 from scipy import stats
 
-from formation_swarm.studies import (
-    claims,
-    results,
-    sensitivity,
-    sensitivity_figure,
-    sensitivity_rows,
-    sensitivity_run,
-    sensitivity_text,
-)
+from formation_swarm.studies import claims, results, sensitivity
 from formation_swarm.studies.sensitivity import AXIS_NAMES, Axis, Point
+from formation_swarm.studies.sensitivity import figure as sensitivity_figure
+from formation_swarm.studies.sensitivity import rows as sensitivity_rows
+from formation_swarm.studies.sensitivity import run as sensitivity_run
+from formation_swarm.studies.sensitivity import text as sensitivity_text
 
 
 def _claims(holds: list[int], seeds: int = 10) -> list[claims.Claim]:

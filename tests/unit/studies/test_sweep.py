@@ -145,7 +145,7 @@ def _rows(values: list[object]) -> list[dict[str, object]]:
 
 
 def test_sweep_figure_draws_each_metric_with_its_interval() -> None:
-    from formation_swarm.studies.sweep_figure import figure
+    from formation_swarm.studies.sweep.figure import figure
 
     values = [0.0, 0.1, 0.3]
     jobs = [
@@ -173,7 +173,7 @@ def test_sweep_figure_draws_each_metric_with_its_interval() -> None:
 
 
 def test_a_sweep_figure_of_many_followers_draws_their_median_and_the_worst_and_one_seed_says_so() -> None:
-    from formation_swarm.studies.sweep_figure import figure
+    from formation_swarm.studies.sweep.figure import figure
 
     values = [0.0, 0.3]
     jobs = [Job(f"links.obs_drop={v}", {"links.obs_drop": v}, 0) for v in values]
@@ -198,7 +198,7 @@ def test_a_sweep_figure_of_many_followers_draws_their_median_and_the_worst_and_o
 
 
 def test_sweep_figure_puts_non_numeric_values_on_ticks() -> None:
-    from formation_swarm.studies.sweep_figure import figure
+    from formation_swarm.studies.sweep.figure import figure
 
     values = [1.5, "dynamic"]
     jobs = [Job(f"controller.vn={v}", {"controller.vn": v}, s) for v in values for s in range(3)]

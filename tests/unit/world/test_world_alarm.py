@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from formation_swarm.nodes.world_inbox import Alarm
+from formation_swarm.nodes.world.inbox import Alarm
 
 
 def test_alarm_fires_once_at_its_latest_time_and_earlier_when_moved_earlier() -> None:

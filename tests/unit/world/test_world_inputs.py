@@ -206,7 +206,7 @@ def test_wheel_speeds_beyond_the_motors_are_rejected_and_rounding_beyond_them_is
 def test_the_logger_takes_telemetry_far_ahead_of_its_truth_but_nothing_past_the_runs_end() -> None:
     from types import SimpleNamespace
 
-    from formation_swarm.nodes.logger import Logger
+    from formation_swarm.nodes.logger.main import Logger
     from formation_swarm.protocol.codec import WORLD_ID
 
     log = Logger(None, FIG11, RUN, None, FakeRole())  # type: ignore[arg-type]  # _fresh needs neither
@@ -248,14 +248,14 @@ def test_the_logger_takes_telemetry_far_ahead_of_its_truth_but_nothing_past_the_
 def test_a_role_says_each_scenario_warning_on_one_line_of_its_own(tmp_path, capsys) -> None:
     import argparse
 
-    from formation_swarm.runtime import role as role_mod
+    from formation_swarm.runtime import process as process_mod
     from formation_swarm.spec import files as scenario_files
 
     with pytest.warns(scenario_mod.ScenarioWarning):
         slow = scenario_mod.load(SCENARIOS / "fig6_turn_vn_1_5.toml", {"leader.speed_mps": 0.9})
     path = tmp_path / "slow.toml"
     path.write_text(scenario_files.dumps(slow.raw))
-    role = role_mod.Role("agent 2", 5.0)
+    role = process_mod.Process("agent 2", 5.0)
     sc = role.load(argparse.Namespace(run=RUN, scenario=str(path)))
     assert isinstance(sc, scenario_mod.Scenario)
     err = capsys.readouterr().err.splitlines()

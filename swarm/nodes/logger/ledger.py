@@ -1,7 +1,7 @@
 """The logger's bookkeeping: the ticks each sender gave (each taken once)
 and where ticks were missing, which of the run's peers are there and whose
 telemetry has ended, and the CPU its loop spent. No Zenoh, no Rerun: the
-logger process (formation_swarm.nodes.logger) feeds it."""
+logger process (formation_swarm.nodes.logger.main) feeds it."""
 
 from __future__ import annotations
 

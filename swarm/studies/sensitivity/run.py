@@ -8,8 +8,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from formation_swarm.studies import sensitivity, sensitivity_figure, sensitivity_rows, sensitivity_text
+from formation_swarm.studies import sensitivity
 from formation_swarm.studies.sections import markers, write_all
+from formation_swarm.studies.sensitivity import figure as sensitivity_figure
+from formation_swarm.studies.sensitivity import rows as sensitivity_rows
+from formation_swarm.studies.sensitivity import text as sensitivity_text
 from formation_swarm.studies.sweep import run_sweeps
 
 WHERE = markers("where the claims hold")

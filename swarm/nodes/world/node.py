@@ -5,7 +5,7 @@ liveliness tokens, the inbox and the clock.
 the logger, and the executor of process faults when promised): their
 liveliness tokens and the matching of every observation publisher, each
 change waking the loop. Then its loop runs the tick (world.tick) on its
-clock (nodes.world_clock) and publishes what the tick returns; at a process
+clock (nodes.world.clock) and publishes what the tick returns; at a process
 fault's tick it publishes the FaultCall on ``Keys.faults`` before the tick's
 observations, and in lockstep it waits at a restart for the fresh agent.
 After "done" it stays up (it may be the router) until the others have left.
@@ -22,11 +22,11 @@ from typing import Any
 
 import zenoh
 
-from formation_swarm.nodes.world_clock import CLOCKS
-from formation_swarm.nodes.world_inbox import Inbox
+from formation_swarm.nodes.world.clock import CLOCKS
+from formation_swarm.nodes.world.inbox import Inbox
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.keys import Keys
-from formation_swarm.runtime import role as role_mod
+from formation_swarm.runtime import process as process_mod
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.runtime.memory import FloodRelief
 from formation_swarm.world.process_faults import Call
@@ -89,7 +89,7 @@ class Options:
 
     run_id: str
     seed: int
-    mode: str = "lockstep"  # or "realtime" (nodes.world_clock.CLOCKS)
+    mode: str = "lockstep"  # or "realtime" (nodes.world.clock.CLOCKS)
     expect_logger: bool = False
     executor: bool = False  # a process executes the fault calls (--process-faults)
     where: str = ""  # the session's endpoints, for messages
@@ -98,7 +98,7 @@ class Options:
 class World:
     """The world process of one run."""
 
-    def __init__(self, sess: zenoh.Session, setup: WorldSetup, role: role_mod.Role, opts: Options) -> None:
+    def __init__(self, sess: zenoh.Session, setup: WorldSetup, role: process_mod.Process, opts: Options) -> None:
         self.session = sess
         self.opts = opts
         self.keys = Keys(opts.run_id)
@@ -130,13 +130,13 @@ class World:
         # A second world of the run (started twice by hand or by a service) would
         # step the same robots and say the run is its own: asked of the router first
         # (before our liveliness subscriber: with it, Zenoh 1.10 answered this query empty).
-        replies = s.liveliness().get(k.alive("world", 0), timeout=role_mod.DUPLICATE_QUERY_S)
+        replies = s.liveliness().get(k.alive("world", 0), timeout=process_mod.DUPLICATE_QUERY_S)
         if any(reply.ok is not None for reply in replies):
             self.role.complain(
                 f"run {k.run_id!r} already has a world ({self.opts.where}); two worlds would both step its robots: "
                 "not starting"
             )
-            return role_mod.EXIT_DUPLICATE
+            return process_mod.EXIT_DUPLICATE
         robots = self.tick.setup.robots
         self.out = Outbox.declare(s, k, robots, self.clock.truth_congestion, self.opts.executor)
         self.inbox = inbox = Inbox(s, k, robots, self.tick.receive, self._on_alive)
@@ -156,7 +156,7 @@ class World:
             if stop.is_set():
                 return stop.exit_code
             self.end_reason = summary_mod.PEERS_TIMEOUT
-            return role_mod.EXIT_NO_PEERS
+            return process_mod.EXIT_NO_PEERS
         tick, sc = self.tick, self.tick.setup
         out.status.put(tick.status("running").to_bytes())
         self.role.say(
@@ -225,7 +225,7 @@ class World:
             missing.append(f"agents {', '.join(map(str, deaf))} present but not subscribed to their observations")
         self.role.gave_up(
             f"{' and '.join(missing)} in run {self.keys.run_id!r} ({self.opts.where}); "
-            f"for the missing processes, {role_mod.CHECK_PEERS}"
+            f"for the missing processes, {process_mod.CHECK_PEERS}"
         )
 
     def _on_alive(self, key: str, present: bool) -> None:

@@ -1,5 +1,5 @@
 """The world's two clocks: when a tick starts, how long its answers are
-waited for, when Status "running" goes out. The loop (nodes.world_node)
+waited for, when Status "running" goes out. The loop (nodes.world.node)
 asks its clock; the tick (world.tick) decides the rest.
 
 Lockstep: tick k starts as soon as tick k - 1 is stepped; the clock waits

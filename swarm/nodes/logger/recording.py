@@ -1,7 +1,7 @@
 """Where the logger's recording goes: a stream writing the recording file
 and, with a live viewer or the served web viewer, a second stream fed the
-same data; the viewer's layout (formation_swarm.nodes.blueprint) is sent to
-each. What the messages become: formation_swarm.nodes.recorder.
+same data; the viewer's layout (formation_swarm.nodes.logger.blueprint) is sent to
+each. What the messages become: formation_swarm.nodes.logger.recorder.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING, Any
 
 import rerun as rr
 
-from formation_swarm.nodes import viewer
-from formation_swarm.nodes.blueprint import blueprint
+from formation_swarm.nodes.logger import viewer
+from formation_swarm.nodes.logger.blueprint import blueprint
 
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario

@@ -9,9 +9,9 @@ agents and the logger connect to it as clients. With ``--out`` it writes the
 run's summary.json (formation_swarm.runtime.summary, as ``swarm run`` does)
 from its own stats.
 
-This module is the command line. The process is nodes.world_node (session,
-liveliness, waiting for the peers), its inbox nodes.world_inbox, its two
-clocks nodes.world_clock; what the world decides each tick is world.tick.
+This module is the command line. The process is nodes.world.node (session,
+liveliness, waiting for the peers), its inbox nodes.world.inbox, its two
+clocks nodes.world.clock; what the world decides each tick is world.tick.
 
 Process faults of the scenario (kill, restart, freeze) are driven from here:
 at a fault's tick the world publishes a FaultCall on ``Keys.faults`` for the
@@ -31,10 +31,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-from formation_swarm.nodes.world_node import Options, World
+from formation_swarm.nodes.world.node import Options, World
 from formation_swarm.protocol import session
 from formation_swarm.runtime import cliargs, proc
-from formation_swarm.runtime import role as role_mod
+from formation_swarm.runtime import process as process_mod
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.runtime.proc import exit_after_main, write_json
 from formation_swarm.spec import files as scenario_files
@@ -64,7 +64,7 @@ def build_parser() -> cliargs.Parser:
     ap = cliargs.Parser(
         prog="swarm world",
         description=DESCRIPTION,
-        epilog=role_mod.EXIT_CODES_HELP,
+        epilog=process_mod.EXIT_CODES_HELP,
     )
     ap.add_argument(
         "--scenario",
@@ -116,14 +116,14 @@ def build_parser() -> cliargs.Parser:
         "freeze) on the world's calls: wait for its token too before the first tick. Without it the world "
         "refuses a scenario with process faults",
     )
-    role_mod.add_arguments(ap, waits_for="an agent per robot (and the logger)")
+    process_mod.add_arguments(ap, waits_for="an agent per robot (and the logger)")
     session.add_arguments(ap, default_mode="router")
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    role = role_mod.Role("world", args.peers_timeout)
+    role = process_mod.Process("world", args.peers_timeout)
     started = time.monotonic()
     sc = _scenario(args, role)
     if isinstance(sc, int):
@@ -141,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.out:
         Path(args.out).mkdir(parents=True, exist_ok=True)
         (Path(args.out) / "scenario.toml").write_text(scenario_files.dumps(sc.raw))
-    where = role_mod.describe_session(args)
+    where = process_mod.describe_session(args)
     with sess_cm as sess:
         waits = f"agents {', '.join(map(str, sc.robots))}" + (" and the logger" if args.expect_logger else "")
         role.say(f"{where}; run {args.run}: waiting up to {role.peers_timeout_s:g} s for {waits}")
@@ -155,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         world = World(sess, sc, role, opts)
         code = world.run()
-        if code == role_mod.EXIT_DUPLICATE:
+        if code == process_mod.EXIT_DUPLICATE:
             return code  # the run's stats and summary are the other world's: nothing written over them
         stats = world.stats(time.monotonic() - started)
         stats["exit_code"] = code
@@ -165,8 +165,8 @@ def main(argv: list[str] | None = None) -> int:
         except OSError as exc:  # a full disk, a folder gone: one line (its log may be on that disk too)
             with contextlib.suppress(OSError):
                 role.complain(f"cannot write {exc.filename or args.stats}: {exc.strerror or exc}")
-            return role_mod.EXIT_FAILED
-        if code == role_mod.EXIT_NO_PEERS:
+            return process_mod.EXIT_FAILED
+        if code == process_mod.EXIT_NO_PEERS:
             heard = world.peers.agents_seen or world.peers.logger_seen or world.peers.executor_seen
             if args.auth and args.zenoh_mode == "client" and not heard and not all(map(session.loopback, args.connect)):
                 role.complain(
@@ -181,7 +181,7 @@ def main(argv: list[str] | None = None) -> int:
     return code
 
 
-def _scenario(args: argparse.Namespace, role: role_mod.Role) -> scenario_mod.Scenario | int:
+def _scenario(args: argparse.Namespace, role: process_mod.Process) -> scenario_mod.Scenario | int:
     """The scenario to run, or the exit code after saying why not."""
     sc = role.load(args)
     if isinstance(sc, int):
@@ -191,11 +191,11 @@ def _scenario(args: argparse.Namespace, role: role_mod.Role) -> scenario_mod.Sce
             f"the scenario has process faults ({', '.join(procs)}) and nothing here executes them: swarm run "
             "does; by hand, remove them from [[faults]], or pass --process-faults with an executor of your own"
         )
-        return role_mod.EXIT_USAGE
+        return process_mod.EXIT_USAGE
     return sc
 
 
-def _why(role: role_mod.Role, world: World) -> str:
+def _why(role: process_mod.Process, world: World) -> str:
     """Why the run ended, for the last line."""
     if world.end_reason == summary_mod.INTERRUPTED:
         at = "before the run started" if world.ended_at_s is None else f"at t={world.ended_at_s:.2f} s"

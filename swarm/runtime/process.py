@@ -145,7 +145,7 @@ def describe_session(args: argparse.Namespace) -> str:
     return ", ".join(parts)
 
 
-class Role:
+class Process:
     """One role process: its name in what it prints, its stop signals and its
     peers deadline, which starts now."""
 

@@ -40,7 +40,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NotRequired, TypedDict, Unpack
 
 from formation_swarm.common.version import __version__
-from formation_swarm.runtime.end_reason import (
+from formation_swarm.runtime.proc import write_json
+from formation_swarm.runtime.summary.end_reason import (
     DURATION_REACHED,
     END_REASONS,
     INTERRUPTED,
@@ -55,10 +56,9 @@ from formation_swarm.runtime.end_reason import (
     describe_host_lost,
     robots_lost,
 )
-from formation_swarm.runtime.fault_effects import fault_effects
-from formation_swarm.runtime.link_counts import killed_agents, link_sums, mark_partial_counts, partial_links
-from formation_swarm.runtime.proc import write_json
-from formation_swarm.runtime.recording_check import logger_lost, recording_cut, recording_gap
+from formation_swarm.runtime.summary.faults import fault_effects
+from formation_swarm.runtime.summary.links import killed_agents, link_sums, mark_partial_counts, partial_links
+from formation_swarm.runtime.summary.recording import logger_lost, recording_cut, recording_gap
 
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
@@ -224,7 +224,7 @@ def git_commit(root: Path | None = None) -> str | None:
     package's source, so an installed copy has none), read from ``.git``
     without running git; None when there is none or it cannot be read."""
     if root is None:
-        root = Path(__file__).resolve().parents[2]
+        root = Path(__file__).resolve().parents[3]
     with contextlib.suppress(OSError, ValueError, UnicodeDecodeError):
         git = root / ".git"
         if git.is_file():  # a worktree or submodule: "gitdir: PATH"

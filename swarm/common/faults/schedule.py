@@ -8,7 +8,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from formation_swarm.common.fault_kinds import LINK, PROCESS, SENSOR
+from formation_swarm.common.faults.kinds import LINK, PROCESS, SENSOR
 
 if TYPE_CHECKING:
     from formation_swarm.common.faults import Fault

@@ -38,7 +38,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from formation_swarm.common.fault_kinds import (
+from formation_swarm.common.faults.kinds import (
     ACTUATOR,
     ALL_LINKS,
     KINDS,
@@ -318,11 +318,3 @@ def link_faults(faults: Iterable[Fault], link_class: str, robot_id: int) -> tupl
 
 def of_robot(faults: Iterable[Fault], group: str, robot_id: int) -> tuple[Fault, ...]:
     return tuple(f for f in faults if f.group == group and f.applies_to(robot_id))
-
-
-if __name__ == "__main__":  # make docs: the table of kinds in docs/faults.md
-    import sys
-
-    from formation_swarm.common.faults_doc import update_doc
-
-    update_doc(sys.argv[1] if len(sys.argv) > 1 else "docs/faults.md")

@@ -1,13 +1,13 @@
-"""One robot's agent process (``swarm agent``, nodes.agent): the thin process around its role.
+"""One robot's agent process (``swarm agent``, nodes.agent.main): the thin process around its role.
 
 The robot's decisions are its role's (agents.leader_role, agents.follower_role,
-built by nodes.agent_setup): a follower turns each observation into wheel
+built by nodes.agent.setup): a follower turns each observation into wheel
 speeds with its controller and obeys the formation codes its leader sends;
 the leader flies its path and repeats the formation code to its followers.
 This process owns the rest: the session, the subscribers and publishers
-(nodes.agent_wire decodes what arrives for the role and publishes what it
-answers), the liveliness tokens (nodes.agent_peers), the stats file
-(nodes.agent_stats) and the waits at the start and the end.
+(nodes.agent.wire decodes what arrives for the role and publishes what it
+answers), the liveliness tokens (nodes.agent.peers), the stats file
+(nodes.agent.stats) and the waits at the start and the end.
 
 The agent answers every observation it receives, even one its link layer
 loses or holds back (then with the newest reading the link did hand over,
@@ -41,14 +41,14 @@ from typing import Any
 import zenoh
 
 from formation_swarm.agents.role_base import RoleBase
-from formation_swarm.nodes.agent_peers import Peers
-from formation_swarm.nodes.agent_stats import KEYS as STATS_KEYS
-from formation_swarm.nodes.agent_stats import StatsFile
-from formation_swarm.nodes.agent_wire import Outbox, Router
+from formation_swarm.nodes.agent.peers import Peers
+from formation_swarm.nodes.agent.stats import KEYS as STATS_KEYS
+from formation_swarm.nodes.agent.stats import StatsFile
+from formation_swarm.nodes.agent.wire import Outbox, Router
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Status
-from formation_swarm.runtime import role as role_mod
+from formation_swarm.runtime import process as process_mod
 from formation_swarm.runtime.memory import FloodRelief
 from formation_swarm.runtime.proc import wait_for
 from formation_swarm.spec import scenario as scenario_mod
@@ -77,7 +77,7 @@ class Options:
 
 class Agent:
     def __init__(
-        self, sess: zenoh.Session, sc: scenario_mod.Scenario, brain: RoleBase, role: role_mod.Role, opts: Options
+        self, sess: zenoh.Session, sc: scenario_mod.Scenario, brain: RoleBase, role: process_mod.Process, opts: Options
     ) -> None:
         self.session = sess
         self.sc = sc
@@ -139,7 +139,7 @@ class Agent:
                 f"robot {rid} already has an agent in run {k.run_id!r} ({self.opts.where}); "
                 "two agents would both drive it: not starting"
             )
-            return role_mod.EXIT_DUPLICATE
+            return process_mod.EXIT_DUPLICATE
         gc.freeze()  # start-up objects (numpy, scipy, zenoh) leave the collector's scans
         token = s.liveliness().declare_token(k.alive("agent", rid))
         try:
@@ -204,7 +204,7 @@ class Agent:
                     return stop.exit_code
                 if self.role.left_s() <= 0:
                     self.end_note = "gave up waiting for its peers"
-                    return self.role.gave_up(f"{' and '.join(missing)} ({self.opts.where}); {role_mod.CHECK_PEERS}")
+                    return self.role.gave_up(f"{' and '.join(missing)} ({self.opts.where}); {process_mod.CHECK_PEERS}")
                 wait_for(changed, self.role.left_s())
                 changed.clear()
         finally:
@@ -225,7 +225,7 @@ class Agent:
         """Whether another process holds this robot's liveliness token (asked of
         the router, bounded: role.DUPLICATE_QUERY_S)."""
         key = self.keys.alive("agent", self.brain.robot_id)
-        replies = self.session.liveliness().get(key, timeout=role_mod.DUPLICATE_QUERY_S)
+        replies = self.session.liveliness().get(key, timeout=process_mod.DUPLICATE_QUERY_S)
         return any(reply.ok is not None for reply in replies)
 
     def _loop(self, outbox: Outbox) -> int:

@@ -1,11 +1,11 @@
-"""The logger process: the run's key space streamed to Rerun (formation_swarm.nodes.recorder).
+"""The logger process: the run's key space streamed to Rerun (formation_swarm.nodes.logger.recorder).
 
     swarm logger --scenario S.toml --run RUN --out recording.rrd [--live URL] [--serve-web]
                  [--stats FILE] [--peers-timeout S] --connect ENDPOINT
 
 The recording file is complete whatever live outputs are added: they are fed
 by a second Rerun stream, which is never waited on while the run lasts
-(formation_swarm.nodes.recording.Recording).
+(formation_swarm.nodes.logger.recording.Recording).
 
 It subscribes to the world's keys, to every follower's telemetry and to
 the leader's formation codes (one put every 10 ticks: the leader's switches,
@@ -17,7 +17,7 @@ within ``--peers-timeout`` and ends when the world says "done" or leaves.
 Data is buffered and sent as columns every 0.25 s of wall time (beyond 12
 robots every 0.02 s per robot: 2 s for 100) and the file is flushed every
 0.5 s; the file takes the rows in batches of 2 s of sim time
-(formation_swarm.nodes.columns), which a logger killed with SIGKILL loses.
+(formation_swarm.nodes.logger.columns), which a logger killed with SIGKILL loses.
 """
 
 from __future__ import annotations
@@ -35,16 +35,16 @@ from typing import Any
 
 import zenoh
 
-from formation_swarm.nodes.ledger import LoopCpu, Peers, TickLedger
-from formation_swarm.nodes.recorder import Recorder
-from formation_swarm.nodes.recording import open_recording
+from formation_swarm.nodes.logger.ledger import LoopCpu, Peers, TickLedger
+from formation_swarm.nodes.logger.recorder import Recorder
+from formation_swarm.nodes.logger.recording import open_recording
 from formation_swarm.protocol import session
 from formation_swarm.protocol.batch import pack_batch
 from formation_swarm.protocol.codec import WORLD_ID, Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import FaultCall, FormationCode, Status, Telemetry, Truth
 from formation_swarm.runtime import cliargs
-from formation_swarm.runtime import role as role_mod
+from formation_swarm.runtime import process as process_mod
 from formation_swarm.runtime.proc import exit_after_main, write_json
 from formation_swarm.spec import scenario as scenario_mod
 
@@ -80,7 +80,7 @@ class Logger:
         sc: scenario_mod.Scenario,
         run_id: str,
         recorder: Recorder,
-        role: role_mod.Role,
+        role: process_mod.Process,
         *,
         where: str = "",
     ) -> None:
@@ -151,7 +151,7 @@ class Logger:
                 if not self.peers.world_seen and self.role.left_s() <= 0:
                     self.end_note = "gave up waiting for the world"
                     return self.role.gave_up(
-                        f"no world of run {self.keys.run_id!r} ({self.where}); {role_mod.CHECK_PEERS}"
+                        f"no world of run {self.keys.run_id!r} ({self.where}); {process_mod.CHECK_PEERS}"
                     )
                 self.wake.wait(max(0.0, min(last_send + self.send_period_s, end_by) - time.monotonic()))
                 self.wake.clear()
@@ -223,7 +223,7 @@ class Logger:
 
     def _fresh(self, msg: Truth | Telemetry) -> bool:
         """A tick of the run the sender has not given yet, in any order
-        (formation_swarm.nodes.ledger.TickLedger); counts what is refused."""
+        (formation_swarm.nodes.logger.ledger.TickLedger); counts what is refused."""
         if self.ticks.past_end(msg.tick):
             self.rejections.reject("tick past the run's end")
             return False
@@ -280,7 +280,7 @@ def build_parser() -> cliargs.Parser:
     ap = cliargs.Parser(
         prog="swarm logger",
         description=DESCRIPTION,
-        epilog=role_mod.EXIT_CODES_HELP,
+        epilog=process_mod.EXIT_CODES_HELP,
     )
     ap.add_argument(
         "--scenario",
@@ -308,14 +308,14 @@ def build_parser() -> cliargs.Parser:
         metavar="N",
         help="lower the logger's CPU priority by this much (default 10; 0 keeps it)",
     )
-    role_mod.add_arguments(ap, waits_for="the world")
+    process_mod.add_arguments(ap, waits_for="the world")
     session.add_arguments(ap, default_mode="client")
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    role = role_mod.Role("logger", args.peers_timeout)
+    role = process_mod.Process("logger", args.peers_timeout)
     if args.nice:
         # Off the lockstep critical path: yield the cores to the world and the
         # agents; the logger buffers and catches up in their slack.
@@ -330,7 +330,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     except (OSError, RuntimeError) as exc:
         role.complain(f"cannot record to {args.out}: {exc}")
-        return role_mod.EXIT_FAILED
+        return process_mod.EXIT_FAILED
     if rec.dropped:
         role.say(f"{rec.dropped}: not streaming there; the run is recorded to {args.out} only")
     if rec.web:
@@ -338,7 +338,7 @@ def main(argv: list[str] | None = None) -> int:
     sess_cm = role.connect(args, login="logger")
     if isinstance(sess_cm, int):
         return sess_cm
-    where = role_mod.describe_session(args)
+    where = process_mod.describe_session(args)
     with sess_cm as sess:
         role.say(
             f"{where}; run {args.run}: recording to {args.out}; waiting up to {role.peers_timeout_s:g} s for the world"
@@ -347,7 +347,7 @@ def main(argv: list[str] | None = None) -> int:
         code = logger.run()
         write_json(args.stats, logger.stats())
     delivered = rec.close()
-    if code != role_mod.EXIT_NO_PEERS:
+    if code != process_mod.EXIT_NO_PEERS:
         written = f"stats in {args.stats}" if args.stats else "no --stats: counters not written"
         role.say(
             f"run {args.run} ended ({logger.end_note}), exit code {code}, {logger.counts['truth']} ticks "

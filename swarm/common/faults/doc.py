@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from formation_swarm.common.fault_kinds import ACTUATOR, KINDS, LINK, NETWORK, PROCESS, SENSOR, value_text
+from formation_swarm.common.faults.kinds import ACTUATOR, KINDS, LINK, NETWORK, PROCESS, SENSOR, value_text
 
 
 def reference() -> str:
@@ -56,3 +56,9 @@ def update_doc(path: str) -> None:
     if not (sep and sep2):
         raise SystemExit(f"{path}: no {BEGIN} ... {END} markers")
     Path(path).write_text(f"{head}{BEGIN}\n{reference()}{END}{tail}")
+
+
+if __name__ == "__main__":  # make docs: the table of kinds in docs/faults.md
+    import sys
+
+    update_doc(sys.argv[1] if len(sys.argv) > 1 else "docs/faults.md")

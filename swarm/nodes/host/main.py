@@ -6,7 +6,7 @@ A Zenoh client that holds the liveliness token ``swarmhost/NAME/alive`` and
 answers the requests of protocol.hostmsg on ``swarmhost/NAME/ctl``: who it is
 (host name, cores, free memory, package version, the robots it may run), and
 start, signal, poll, collect (the log tail and stats of an agent) and end the
-agents of a run (formation_swarm.nodes.hosting). Agents are forked from the
+agents of a run (formation_swarm.nodes.host.runs). Agents are forked from the
 spawner (formation_swarm.runtime.spawner) as ``swarm run`` forks them, each
 with the login the launcher sent for it, and connect where the host does.
 
@@ -33,7 +33,7 @@ from typing import Any
 import zenoh
 
 from formation_swarm.common.version import __version__
-from formation_swarm.nodes.hosting import LAUNCHER_WAIT_S, Host
+from formation_swarm.nodes.host.runs import LAUNCHER_WAIT_S, Host
 from formation_swarm.protocol import acl, session, tls, trust
 from formation_swarm.protocol.keys import check_host_name
 from formation_swarm.runtime import cliargs, spawner

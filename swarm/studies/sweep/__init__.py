@@ -116,7 +116,7 @@ class Sweep:
             self._write(rows)
             ordered = [rows[j.name] for j in self.jobs if j.name in rows]
             if ordered:  # interrupted too: the figure of what finished, as the tables
-                from formation_swarm.studies import sweep_figure
+                from formation_swarm.studies.sweep import figure as sweep_figure
 
                 sweep_figure.write(self.out / "aggregate.png", aggregate(ordered), self.jobs, self.scenario.stem)
         return ordered

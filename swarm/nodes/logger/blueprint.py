@@ -2,7 +2,7 @@
 data logged once at the start: the map's flip to y up, the obstacles, the
 leader's path, the formations and how each robot's entities are drawn
 (colour: formation_swarm.common.palette, size, series names). Every entity
-path here is one formation_swarm.nodes.recorder writes.
+path here is one formation_swarm.nodes.logger.recorder writes.
 
 The layout: the formation followed (a view a few metres wide whose origin is
 the leader's position, LEADER_FRAME) over the whole path; then one view per

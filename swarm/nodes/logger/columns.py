@@ -19,7 +19,7 @@ import numpy as np
 import rerun as rr
 
 if TYPE_CHECKING:
-    from formation_swarm.nodes.recording import Recording
+    from formation_swarm.nodes.logger.recording import Recording
 
 FILE_BATCH_S = 2.0  # sim time, s, of the rows in one chunk of the file
 

@@ -1,6 +1,6 @@
 """An agent's wire: what arrives, decoded and handed to its role; what the
 role answers, encoded and published. No Zenoh here: the process declares
-the subscribers and publishers (nodes.agent) and a test passes stand-ins.
+the subscribers and publishers (nodes.agent.main) and a test passes stand-ins.
 """
 
 from __future__ import annotations

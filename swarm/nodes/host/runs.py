@@ -3,7 +3,7 @@
 signals, watches and ends the agents of each run, forked from the spawner
 (formation_swarm.runtime.spawner) as ``swarm run`` forks them, each with the
 login the launcher sent for it. A start repeated while its agent runs (a
-retry) gets the first one's answer. The process around it: formation_swarm.nodes.host.
+retry) gets the first one's answer. The process around it: formation_swarm.nodes.host.main.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ CHECK_PERIOD_S = 0.5
 ROUTER_CHECK_S = 1.0  # how often a host looks whether it still has a router (said when it goes and comes back)
 LAUNCHER_WAIT_S = 60.0
 ACTIONS = {"kill": signal.SIGKILL, "freeze": signal.SIGSTOP, "thaw": signal.SIGCONT, "term": signal.SIGTERM}
-AGENT = "formation_swarm.nodes.agent"
+AGENT = "formation_swarm.nodes.agent.main"
 
 
 def free_memory_mb() -> int:

@@ -11,7 +11,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from formation_swarm.runtime.children import describe_exit
-from formation_swarm.runtime.link_counts import robot_of
+from formation_swarm.runtime.summary.links import robot_of
 
 
 def recording_cut(summary: Mapping[str, Any]) -> str | None:

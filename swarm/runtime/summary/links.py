@@ -36,7 +36,7 @@ def partial_links(processes: Mapping[str, Any], sc: Scenario) -> list[str]:
     """The links whose counts are partial: those into a robot one of whose agents
     (agent-3, agent-3.2, ...) a signal killed. Such an agent's counters are
     those of its last periodic write (up to its stats period of wall time old:
-    nodes.agent_stats.STATS_PERIOD_S, longer beyond 25 robots),
+    nodes.agent.stats.STATS_PERIOD_S, longer beyond 25 robots),
     or none when it died before its first; how many messages it had by then
     depends on the machine's speed, not on the run."""
     killed = {rid for _, rid in _signalled_agents(processes)}

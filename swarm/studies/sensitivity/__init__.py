@@ -28,7 +28,7 @@ from formation_swarm.studies import claims
 if TYPE_CHECKING:
     from formation_swarm.studies.sweep import Sweep
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 # Controllers flown beside the claims' own runs, on the path of claims a-b (the dynamic run's scenario).
 EXTRAS: dict[str, dict[str, Any]] = {
     "static 1.7": {"controller.vn": 1.7},
@@ -166,8 +166,7 @@ def plan(
     """The sweeps of one point: the claims' (one per ``claims.SWEEPS``, in ``out/<its folder>``) and the extra
     controllers' (in ``out/<scenario>-<extra>``). Every run's label names the settings and the faults,
     so the points of an axis share those folders and a point without either is the claims' own runs."""
-    from formation_swarm.studies.jobs import Job
-    from formation_swarm.studies.results import settings_text
+    from formation_swarm.studies.jobs import Job, settings_text
     from formation_swarm.studies.sweep import Sweep
 
     label = "; ".join(t for t in (settings_text(settings), ", ".join(faults)) if t)

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from formation_swarm.runtime.window_recovery import window_recoveries
+from formation_swarm.runtime.summary.recovery import window_recoveries
 
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
@@ -31,7 +31,7 @@ def fault_effects(
     return of the robot (``rejoins``: ticks and wall seconds from the "start"
     call, or the loss, to the agent's first command) and how the formation
     came back (``recoveries``, world.recovery; for the other faults that end,
-    from the error's 1 s windows: runtime.window_recovery)."""
+    from the error's 1 s windows: runtime.summary.recovery)."""
     world = parts.get("world", {})
     log = world.get("fault_log", []) or []
     launcher = [e for e in executed or [] if e.get("fault")]

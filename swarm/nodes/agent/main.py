@@ -3,18 +3,18 @@
     swarm agent --id N --scenario S.toml --run RUN [--seed N] [--stats FILE] [--peers-timeout S]
                 [--world-grace S] --connect ENDPOINT
 
-This module is the command line. The process is nodes.agent_node (its
+This module is the command line. The process is nodes.agent.node (its
 session, waits and loop); the robot's decisions are its role's
-(agents.leader_role, agents.follower_role, built by nodes.agent_setup).
+(agents.leader_role, agents.follower_role, built by nodes.agent.setup).
 """
 
 from __future__ import annotations
 
-from formation_swarm.nodes.agent_node import Agent, Options
-from formation_swarm.nodes.agent_setup import role_for
+from formation_swarm.nodes.agent.node import Agent, Options
+from formation_swarm.nodes.agent.setup import role_for
 from formation_swarm.protocol import acl, session
 from formation_swarm.runtime import cliargs
-from formation_swarm.runtime import role as role_mod
+from formation_swarm.runtime import process as process_mod
 from formation_swarm.runtime.proc import SEND_DRAIN_S, exit_after_main, wait_sent
 
 DESCRIPTION = """\
@@ -35,7 +35,7 @@ def build_parser() -> cliargs.Parser:
     ap = cliargs.Parser(
         prog="swarm agent",
         description=DESCRIPTION,
-        epilog=role_mod.EXIT_CODES_HELP,
+        epilog=process_mod.EXIT_CODES_HELP,
     )
     ap.add_argument("--id", type=int, required=True, metavar="N", help="the robot id, one of the scenario's robots")
     ap.add_argument(
@@ -58,10 +58,10 @@ def build_parser() -> cliargs.Parser:
         action="store_true",
         help="the world runs in lockstep: telemetry waits for the logger, never dropped",
     )
-    role_mod.add_arguments(ap, waits_for="the world (and, for the leader, its followers)")
+    process_mod.add_arguments(ap, waits_for="the world (and, for the leader, its followers)")
     ap.add_argument(
         "--world-grace",
-        type=role_mod.seconds,
+        type=process_mod.seconds,
         default=None,
         metavar="S",
         help="once the run started, how long to wait for the world's token to come back after it went (our "
@@ -74,18 +74,18 @@ def build_parser() -> cliargs.Parser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    role = role_mod.Role(f"agent {args.id}", args.peers_timeout)
+    role = process_mod.Process(f"agent {args.id}", args.peers_timeout)
     sc = role.load(args)
     if isinstance(sc, int):
         return sc
     if args.id not in sc.robots:
         role.complain(f"--id {args.id} is not a robot of this scenario; its robots are {list(sc.robots)}")
-        return role_mod.EXIT_USAGE
+        return process_mod.EXIT_USAGE
     sess_cm = role.connect(args, login=acl.agent_user(args.id))
     if isinstance(sess_cm, int):
         return sess_cm
     seed = sc.seed if args.seed is None else args.seed
-    where = role_mod.describe_session(args)
+    where = process_mod.describe_session(args)
     with sess_cm as sess:
         grace = args.peers_timeout if args.world_grace is None else args.world_grace
         opts = Options(run_id=args.run, where=where, world_grace_s=grace, stats_path=args.stats, lockstep=args.lockstep)
@@ -100,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
         if (unsent := wait_sent(SEND_DRAIN_S)) > 0:
             role.say(f"{unsent} bytes not yet taken by the router after {SEND_DRAIN_S:g} s; leaving anyway")
         agent.stats_file.close(agent.stats())
-        if code != role_mod.EXIT_NO_PEERS:
+        if code != process_mod.EXIT_NO_PEERS:
             written = f"stats in {args.stats}" if args.stats else "no --stats: counters not written"
             role.say(
                 f"run {args.run} ended ({agent.end_note}), exit code {code}, "

@@ -16,7 +16,7 @@ Entity paths mirror the key space::
     robots/r<id>/fis/rho, /fis/alpha, /fis/v_n, robots/r<id>/wheels/left, /wheels/right
     robots/r<id>/controller/<name>       a controller's own values (Telemetry.extras, docs/controllers.md)
     robots/r<id>/fis/v_n_1s, /wheels/left_1s, /wheels/right_1s   their 1 s centred moving means, as
-                                         the report's (formation_swarm.nodes.running_mean): given
+                                         the report's (formation_swarm.nodes.logger.running_mean): given
                                          half a second late
     leader_frame                         the leader's position, y up: the formation view's origin
     robots/r<id>/formation               formation code flown
@@ -26,12 +26,12 @@ Entity paths mirror the key space::
     events/fault_calls                   the world's calls for process faults, at their tick
 
 How each robot is drawn is static data too, and the viewer's layout names
-these paths for the scenario's robots: formation_swarm.nodes.blueprint.
+these paths for the scenario's robots: formation_swarm.nodes.logger.blueprint.
 
 Messages are kept as they arrive (cheap, per tick) and turned into Rerun
 columns with numpy when the process loop calls ``Recorder.send`` (per send,
 not per tick); the file gets them in batches of sim time
-(formation_swarm.nodes.columns). Logging errors are counted, never fatal.
+(formation_swarm.nodes.logger.columns). Logging errors are counted, never fatal.
 """
 
 from __future__ import annotations
@@ -44,13 +44,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import rerun as rr
 
-from formation_swarm.nodes.blueprint import LEADER_FRAME, MEAN_S, SMOOTHED, TIMELINE, static_entities
-from formation_swarm.nodes.columns import ColumnSink
-from formation_swarm.nodes.running_mean import CentredMean
+from formation_swarm.nodes.logger.blueprint import LEADER_FRAME, MEAN_S, SMOOTHED, TIMELINE, static_entities
+from formation_swarm.nodes.logger.columns import ColumnSink
+from formation_swarm.nodes.logger.running_mean import CentredMean
 from formation_swarm.world.kinematics import Pose, from_body_frame
 
 if TYPE_CHECKING:
-    from formation_swarm.nodes.recording import Recording
+    from formation_swarm.nodes.logger.recording import Recording
     from formation_swarm.protocol.messages import FaultCall, FormationCode, Telemetry, Truth
     from formation_swarm.spec.scenario import Scenario
 
@@ -107,7 +107,7 @@ class Recorder:
 
     def log_static(self) -> None:
         """The obstacles, the leader's path, the formations and how each robot
-        is drawn, logged once as static data (formation_swarm.nodes.blueprint)."""
+        is drawn, logged once as static data (formation_swarm.nodes.logger.blueprint)."""
         sc = self.sc
         for entity, data in static_entities(sc):
             self.guard(self.rec.log, entity, data, static=True)
