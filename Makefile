@@ -5,7 +5,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test test-stress lint browser bench results docs mutate clean
+.PHONY: run test test-fast test-stress lint browser bench results docs mutate clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +28,13 @@ lint: $(STAMP)
 TEST_JOBS ?= 2
 test: lint browser
 	$(BIN)/python -m pytest -n $(TEST_JOBS) --dist loadfile --no-loadscope-reorder
+
+# The tier to run while changing code: tests/unit and tests/packaging (no test there
+# starts a run's processes), less those marked slow; it prints its own wall time.
+test-fast: $(STAMP)
+	@start=$$(date +%s); $(BIN)/ruff check . && \
+	$(BIN)/python -m pytest -q -n $(TEST_JOBS) -m "not slow" --durations=5 tests/unit tests/packaging; \
+	status=$$?; echo "make test-fast: $$(($$(date +%s) - start)) s"; exit $$status
 
 # The suite beside two CPU hogs (tools/stress.sh): its retries and time bounds
 # must hold on a busy machine. PYTEST_ARGS="tests/system" runs a part of it.

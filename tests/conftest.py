@@ -33,9 +33,9 @@ LONGEST_FIRST = (
     "tests/hosts/test_hosts.py",
     "tests/system/test_attacks.py",
     "tests/system/test_external.py",
-    "tests/packaging/test_example_package.py",
+    "tests/system/test_example_package.py",
     "tests/system/test_leaked_logins.py",
-    "tests/packaging/test_ci_doc.py",
+    "tests/system/test_ci_doc.py",
     "tests/system/test_endings.py",
     "tests/system/test_report.py",
     "tests/hosts/test_stolen_logins_on_hosts.py",
@@ -44,7 +44,7 @@ LONGEST_FIRST = (
     "tests/hosts/test_hosts_netns.py",
     "tests/system/test_bad_input.py",
     "tests/system/test_fixture_ends.py",
-    "tests/packaging/test_packaging.py",
+    "tests/system/test_packaging.py",
 )
 
 

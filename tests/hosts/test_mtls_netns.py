@@ -38,7 +38,7 @@ from formation_swarm.protocol import tls, trust
 from tests.helpers import ROOT, SCENARIOS, reap
 
 FIG11 = SCENARIOS / "fig11_obstacles.toml"
-FIG11_TICKS = 1061  # the leader's last waypoint, seed 1 (tests/packaging/test_packaging.py)
+FIG11_TICKS = 1061  # the leader's last waypoint, seed 1 (tests/system/test_packaging.py)
 ROUTER_CONFIG = ROOT / "deploy" / "router.json5"
 PROBE = Path(__file__).with_name("mtls_probe.py")
 PY = [sys.executable, "-m"]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from formation_swarm.studies.sim import paper_turning_setup, run
 
@@ -71,6 +72,7 @@ def _line_on_a_straight_path(lookahead_m: float) -> tuple[dict[int, float], dict
     return rms, heading
 
 
+@pytest.mark.slow  # four 30-robot runs in one process: about 5 s
 def test_heading_swings_grow_down_a_chain_unless_the_follower_looks_ahead() -> None:
     """The paper's steering aims at the target, which its reference's heading
     swings sideways: each follower swings more than the one ahead of it. With

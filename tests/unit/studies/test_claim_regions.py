@@ -97,6 +97,7 @@ def test_the_leader_steers_wide_at_the_fast_end_of_the_speed_axis() -> None:
     assert end[2.0] > end[1.5]
 
 
+@pytest.mark.slow  # each a lockstep run in one process: 3-9 s
 @pytest.mark.parametrize(
     ("axis", "value", "seed"),
     [("leader_speed", 1.4, 0), ("leader_speed", 1.7, 3), ("obs_drop", 30.0, 1), ("obs_drop", 50.0, 2)],

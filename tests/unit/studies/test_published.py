@@ -51,6 +51,7 @@ def _published_cells() -> dict[tuple[str, str], list[str]]:
     return out
 
 
+@pytest.mark.slow  # ten lockstep runs in one process each: about 3 s
 @pytest.mark.parametrize("controller", list(results.CONTROLLERS))
 def test_the_no_drop_column_of_the_results_table_is_what_the_code_computes(controller: str) -> None:
     """Mean RMS, CI half-width and mean max error of the follower over seeds 0-9,
@@ -131,6 +132,7 @@ def test_the_ekf_is_told_the_cameras_noise() -> None:
     )
 
 
+@pytest.mark.slow  # 30-robot runs in one process: about 3 s
 def test_the_look_ahead_row_of_paper_md_for_fig11_is_what_the_code_computes() -> None:
     """docs/paper.md, "The steering look-ahead": `fig11_obstacles` seed 1 without
     and with `controller.lookahead_m = 1`, at the doc's precision. The run changes
