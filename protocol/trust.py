@@ -135,11 +135,7 @@ def write_run_secrets(
     logins = [*creds.values(), *(host_logins or {}).values()]
     _write_private(folder / PASSWORDS, "".join(f"{c.user}:{c.password}\n" for c in logins))
     if tls is not None:
-        for name, src in ((CA, tls.ca), (CERTIFICATE, tls.certificate), (PRIVATE_KEY, tls.private_key)):
-            _write_private(folder / name, Path(src).read_text())
-    for user in users if clients is not None else ():
-        for name, src in zip(tls_mod.client_files(user), clients[user], strict=True):
-            _write_private(folder / name, Path(src).read_text())
+        _copy_tls_files(folder, tls, users)
     out: dict[str, Path] = {}
     for user, cred in creds.items():
         out[user] = folder / f"{user}.json"
@@ -151,6 +147,16 @@ def write_run_secrets(
     router = router_settings(PASSWORDS, acl, (CERTIFICATE, PRIVATE_KEY) if tls else None, CA if mtls else None)
     _write_private(out["router"], json.dumps(router, indent=1))
     return out
+
+
+def _copy_tls_files(folder: Path, tls: Tls, users: Sequence[str]) -> None:
+    """The CA, the router's certificate and key and, with mutual TLS, each
+    user's certificate and key, copied into ``folder``."""
+    for name, src in ((CA, tls.ca), (CERTIFICATE, tls.certificate), (PRIVATE_KEY, tls.private_key)):
+        _write_private(folder / name, Path(src).read_text())
+    for user in users if tls.clients is not None else ():
+        for name, src in zip(tls_mod.client_files(user), tls.clients[user], strict=True):
+            _write_private(folder / name, Path(src).read_text())
 
 
 def forget_router_secrets(folder: Path) -> None:

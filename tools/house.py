@@ -3,6 +3,7 @@ most 400 lines, a function at most 60, a class at most 20 attributes, a test
 file at most 600 lines. Prints each breach as ``path: what``; exit 1 if any.
 
     python tools/house.py [PATH ...]   (default: the product and the tests)
+    python tools/house.py --largest N  the N largest product files, functions and classes
 """
 
 from __future__ import annotations
@@ -54,7 +55,29 @@ def files(paths: list[str]) -> list[Path]:
     return sorted(f for r in roots for f in ([r] if r.is_file() else r.rglob("*.py")))
 
 
+def largest(n: int) -> str:
+    """The ``n`` largest product files (lines), functions (lines) and classes (attributes)."""
+    sizes: dict[str, list[tuple[int, str]]] = {"files": [], "functions": [], "classes": []}
+    for path in files([str(ROOT / d) for d in PRODUCT]):
+        rel, text = path.relative_to(ROOT), path.read_text()
+        sizes["files"].append((text.count("\n"), f"{rel}"))
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                sizes["functions"].append((node.end_lineno - node.lineno + 1, f"{rel}:{node.lineno} {node.name}"))
+            elif isinstance(node, ast.ClassDef):
+                sizes["classes"].append((len(attributes(node)), f"{rel}:{node.lineno} {node.name}"))
+    limits = {"files": MAX_FILE, "functions": MAX_FUNCTION, "classes": MAX_ATTRIBUTES}
+    out = []
+    for what, found in sizes.items():
+        out.append(f"largest {what} (at most {limits[what]}):")
+        out += [f"  {size:4d}  {name}" for size, name in sorted(found, reverse=True)[:n]]
+    return "\n".join(out)
+
+
 def main(argv: list[str]) -> int:
+    if argv[:1] == ["--largest"]:
+        print(largest(int(argv[1]) if len(argv) > 1 else 3))
+        return 0
     found = [b for f in files(argv) for b in breaches(f)]
     print("\n".join(found) or "no breaches")
     return 1 if found else 0

@@ -1,21 +1,10 @@
-"""``swarm run``: one run, every robot its own process, on this machine.
+"""``swarm run``: one run, every robot its own process: start, watch, stop, reap.
 
-Starts the world (which is also the Zenoh router, listening on a free
-loopback port), the logger and one agent per robot; shows progress; stops
-them all at the end, on Ctrl-C or when the world fails, and always reaps
-them (a child also dies with the launcher: PR_SET_PDEATHSIG). The run folder
-holds the scenario as run, recording.rrd, summary.json and logs/.
-
-An agent or the logger that dies is reported and the run goes on; a world
-that dies ends the run, and so does any process that dies before tick 0. A
-process that exits with an error is named on the console with its exit code
-and the last lines of its log, and in the summary's events.
-
-The launcher executes the scenario's process faults on the world's calls
-(launch.faults; a fresh agent logs to ``logs/agent-N.2.log``). With
-``hosts`` the agents run on other machines (launch.hosts); with ``external``
-some robots are left to agents someone else starts, and ``observer_login``
-writes a read-only login for the run (launch.external).
+The world (here also the Zenoh router on a free loopback port), the logger
+and an agent per robot, or the agents on hosts (launch.hosts) and outside
+ones (launch.external). Process faults come from the world's calls
+(launch.faults). What a run's ending means: launch.result; the run folder
+and its console: docs/running.md.
 """
 
 from __future__ import annotations
@@ -285,9 +274,7 @@ class Launch:
         self._watch()
         last = self.status.last
         if last is not None and last.tick != shown and not ending.interrupted:
-            self.journal.say(
-                progress_line(last)
-            )  # where it ended: a run shorter than a line's 2 s showed only its start
+            self.journal.say(progress_line(last))  # a run shorter than a line's 2 s showed only its start
         self.stop(graceful_first=not ending.abrupt)
         if self.interrupted and not ending.interrupted:  # while the processes left
             self.journal.say("[swarm] interrupted: every process stopped")

@@ -140,6 +140,33 @@ def make_folder(what: str, path: str | Path) -> Path:
     return path
 
 
+def add_run_arguments(parser: argparse.ArgumentParser, *, seeds: str | None, stats: str) -> None:
+    """``--scenario``, ``--run``, ``--seed`` and ``--stats``, as every role of a run takes them.
+    ``seeds`` names what the seed draws (None: no ``--seed``); ``stats`` what ``--stats`` holds."""
+    parser.add_argument(
+        "--scenario",
+        required=True,
+        metavar="FILE|NAME",
+        help="the scenario: a TOML file or a shipped scenario's name (see swarm scenarios); "
+        "the same for every process of the run",
+    )
+    parser.add_argument(
+        "--run",
+        required=True,
+        metavar="ID",
+        help="run id: the same for every process of the run; every key starts with it",
+    )
+    if seeds is not None:
+        parser.add_argument(
+            "--seed",
+            type=seed,
+            default=None,
+            metavar="N",
+            help=f"random seed of {seeds} (default: the scenario's); the same for every process of the run",
+        )
+    parser.add_argument("--stats", metavar="FILE", help=f"write {stats} here at exit (JSON)")
+
+
 def add_tls_arguments(group: argparse._ArgumentGroup) -> None:
     """--tls-ca/--tls-cert/--tls-key: the TLS identity of a router that hosts
     reach on --listen tls/... (swarm run --hosts, swarm doctor); read with :func:`tls`."""

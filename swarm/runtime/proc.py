@@ -313,20 +313,6 @@ def clean_json(o: Any) -> Any:
 
 
 @contextlib.contextmanager
-def sigint_ignored() -> Iterator[None]:
-    """SIGINT ignored inside (on the main thread; elsewhere signals cannot be
-    set, and nothing changes). A program started inside inherits it."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
-@contextlib.contextmanager
 def sigint_deferred() -> Iterator[None]:
     """SIGINT and SIGTERM noted inside (on the main thread) and raised as
     KeyboardInterrupt when it ends: a Ctrl-C then interrupts what comes after,

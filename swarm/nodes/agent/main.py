@@ -38,21 +38,7 @@ def build_parser() -> cliargs.Parser:
         epilog=process_mod.EXIT_CODES_HELP,
     )
     ap.add_argument("--id", type=int, required=True, metavar="N", help="the robot id, one of the scenario's robots")
-    ap.add_argument(
-        "--scenario",
-        required=True,
-        metavar="FILE|NAME",
-        help="the scenario: a TOML file or a shipped scenario's name; the same as the world's",
-    )
-    ap.add_argument("--run", required=True, metavar="ID", help="run id: the same as the world's")
-    ap.add_argument(
-        "--seed",
-        type=cliargs.seed,
-        default=None,
-        metavar="N",
-        help="random seed of the link drops and link faults (default: the scenario's); the same as the world's",
-    )
-    ap.add_argument("--stats", metavar="FILE", help="write this agent's counters here at exit (JSON)")
+    cliargs.add_run_arguments(ap, seeds="the link drops and link faults", stats="this agent's counters")
     ap.add_argument(
         "--lockstep",
         action="store_true",

@@ -282,13 +282,7 @@ def build_parser() -> cliargs.Parser:
         description=DESCRIPTION,
         epilog=process_mod.EXIT_CODES_HELP,
     )
-    ap.add_argument(
-        "--scenario",
-        required=True,
-        metavar="FILE|NAME",
-        help="the scenario: a TOML file or a shipped scenario's name; the same as the world's",
-    )
-    ap.add_argument("--run", required=True, metavar="ID", help="run id: the same as the world's")
+    cliargs.add_run_arguments(ap, seeds=None, stats="the logger's counters")
     ap.add_argument("--out", required=True, metavar="FILE", help="the Rerun recording to write (.rrd)")
     ap.add_argument(
         "--live", metavar="URL", help="also stream to a Rerun viewer, e.g. rerun+http://127.0.0.1:9876/proxy"
@@ -300,7 +294,6 @@ def build_parser() -> cliargs.Parser:
     ap.add_argument(
         "--web-port", type=int, default=9090, metavar="PORT", help="--serve-web: the web viewer's port (default 9090)"
     )
-    ap.add_argument("--stats", metavar="FILE", help="write the logger's counters here at exit (JSON)")
     ap.add_argument(
         "--nice",
         type=int,

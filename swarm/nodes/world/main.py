@@ -66,18 +66,7 @@ def build_parser() -> cliargs.Parser:
         description=DESCRIPTION,
         epilog=process_mod.EXIT_CODES_HELP,
     )
-    ap.add_argument(
-        "--scenario",
-        required=True,
-        metavar="FILE|NAME",
-        help="the scenario: a TOML file or a shipped scenario's name (see swarm scenarios)",
-    )
-    ap.add_argument(
-        "--run",
-        required=True,
-        metavar="ID",
-        help="run id: the same for every process of the run; every key starts with it",
-    )
+    cliargs.add_run_arguments(ap, seeds="camera noise, link drops and the faults' draws", stats="the world's metrics")
     ap.add_argument(
         "--mode",
         choices=("lockstep", "realtime"),
@@ -85,14 +74,6 @@ def build_parser() -> cliargs.Parser:
         help="lockstep: each tick waits for every agent's answer; realtime: ticks follow the wall "
         "clock, 1/dt per second (default lockstep)",
     )
-    ap.add_argument(
-        "--seed",
-        type=cliargs.seed,
-        default=None,
-        metavar="N",
-        help="random seed of camera noise, link drops and the faults' draws (default: the scenario's)",
-    )
-    ap.add_argument("--stats", metavar="FILE", help="write the world's metrics here at the end (JSON)")
     ap.add_argument(
         "--out",
         metavar="DIR",
