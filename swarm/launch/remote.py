@@ -61,7 +61,6 @@ class HostClient:
         self.keys = HostKeys(name)
         self.present = threading.Event()
         self.lost = False  # its token went after it had come
-        self.lost_at: float | None = None
         self.reported = False
         self.info: HostReply | None = None
         self.codes: dict[str, int | None] = {}  # process -> exit code (None: running), from the last poll
@@ -74,7 +73,6 @@ class HostClient:
         if sample.kind == zenoh.SampleKind.PUT:
             self.present.set()
         elif self.present.is_set() and not self.lost:
-            self.lost_at = time.monotonic()
             self.lost = True
 
     def ask(self, req: HostRequest, timeout_s: float = REQUEST_TIMEOUT_S) -> HostReply:

@@ -32,7 +32,6 @@ from formation_swarm.report.data import RunData, load_run
 from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser
 
 FORMATS = ("csv", "parquet")
-INT_COLUMNS = ("robot", "tick", "formation")
 
 
 def table(run: RunData) -> dict[str, np.ndarray]:
