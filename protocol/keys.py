@@ -20,7 +20,7 @@ A machine's ``swarm host`` serves every run, so its keys are outside any run's::
 
 An agent reads its inbox ``swarm/<run>/robot/<id>/*`` with one subscriber so
 that the order in which observations and formation codes arrive is kept.
-docs/protocol.md says who publishes and who subscribes to each key
+docs/protocol/messages.md says who publishes and who subscribes to each key
 (tests/packaging/test_protocol_doc.py checks its key table against this module).
 """
 
@@ -106,7 +106,7 @@ class Keys:
         """Where the leader puts each formation code, once for all its followers:
         the router hands a copy to every inbox it matches (``robot/<id>/*``).
         One put per code, where one per follower made the leader of a large
-        swarm wait on the router at every put (docs/protocol.md)."""
+        swarm wait on the router at every put (docs/protocol/messages.md)."""
         return f"{self.prefix}/robot/*/formation"
 
     def telemetry(self, robot_id: int) -> str:

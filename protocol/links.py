@@ -32,7 +32,8 @@ arrivals of its window and the held messages whose release falls in it.
 
 What a duplicated or reordered message does is up to the receiver's own
 checks: ours take a message only if it is newer than the last one taken from
-the link, and count the others as "replayed or reordered" (docs/protocol.md).
+the link, and count the others as "replayed or reordered"
+(docs/protocol/links-and-faults.md).
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ one swapped pair away from a silent bug. The wire keeps the fields' order.
 The header, the field checkers, the decoder and the rejection counter are in
 protocol.codec; batches of logger-bound messages in protocol.batch. Their
 public names are importable from here too, so that a user of the protocol
-needs one import. docs/protocol.md describes every field for writers of
+needs one import. docs/protocol/messages.md describes every field for writers of
 agents in other languages (tests/packaging/test_protocol_doc.py keeps it true).
 """
 

@@ -12,7 +12,7 @@ from formation_swarm.runtime.process import DEFAULT_PEERS_TIMEOUT_S
 
 
 def add_outside_flags(run: argparse.ArgumentParser) -> None:
-    group = run.add_argument_group("processes started by someone else (docs/protocol.md, Joining a run from outside)")
+    group = run.add_argument_group("processes started by someone else (docs/protocol/outside-agents.md)")
     group.add_argument(
         "--external",
         action="append",

@@ -6,7 +6,8 @@ the world waits for its token before tick 0 (``--peers-timeout``) and lockstep
 waits for its answers as for any agent's. The launcher says on its console the
 one command line that starts such an agent: our ``swarm agent`` with the
 run's endpoint, run id, login file and scenario file; an agent of one's own
-takes the same four values (docs/protocol.md, "Joining a run from outside").
+takes the same four values (docs/protocol/outside-agents.md, "Joining a run
+from outside").
 
 ``swarm run S --observer-login FILE`` lets in the ``observer`` login too (it
 hears the whole run and can send nothing: protocol.trust) and writes it to

@@ -1,11 +1,15 @@
-"""docs/protocol.md stays true: its tables are checked against the code.
+"""docs/protocol.md and its pages stay true: their tables are checked against the code.
 
 A change to the wire (a key, a field, its order, type or range, a limit, a
 rejection reason, a start-up or end-of-run constant, a scenario default an
-agent reads) without the same change to the document fails here. The type
+agent reads) without the same change to the pages fails here. The type
 column of each message table is not only compared as text: each type is
 turned into values it accepts and values it rejects, with the reason the
-document gives, and the decoder must agree.
+pages give, and the decoder must agree.
+
+docs/protocol.md is the index of the pages under docs/protocol/: it links
+every page and each of its sections, and every link of these pages, and every
+link of the other docs into them, resolves to a file and a heading.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import json
 import math
 import re
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import msgpack
@@ -28,21 +33,26 @@ from formation_swarm.runtime import process
 from formation_swarm.spec import keys as scenario_keys
 from tests.helpers import ROOT
 
-DOC = ROOT / "docs" / "protocol.md"
-TEXT = DOC.read_text()
+INDEX = ROOT / "docs" / "protocol.md"
+PAGES = {path: path.read_text() for path in [INDEX, *sorted((ROOT / "docs" / "protocol").glob("*.md"))]}
+TEXT = "\n".join(PAGES.values())
 RUN, ID = "R.1", 7
 MESSAGE_TYPES = {cls.__name__: cls for cls in Message.__subclasses__()}
 
 
 def section(title: str) -> str:
-    """The text under the heading ``title`` (any level), up to the next heading
-    of the same or a higher level."""
-    m = re.search(rf"^(#+) {re.escape(title)}\s*$", TEXT, re.MULTILINE)
-    if m is None:
-        raise AssertionError(f"docs/protocol.md has no heading {title!r}")
-    level = len(m.group(1))
-    end = re.compile(rf"^#{{1,{level}}} ", re.MULTILINE).search(TEXT, m.end())
-    return TEXT[m.end() : end.start() if end else len(TEXT)]
+    """The text under the heading ``title`` (any level) of the one page that has
+    it, up to the next heading of the same or a higher level."""
+    found = []
+    for path, text in PAGES.items():
+        for m in re.finditer(rf"^(#+) {re.escape(title)}\s*$", text, re.MULTILINE):
+            level = len(m.group(1))
+            end = re.compile(rf"^#{{1,{level}}} ", re.MULTILINE).search(text, m.end())
+            found.append((path, text[m.end() : end.start() if end else len(text)]))
+    if len(found) != 1:
+        where = [str(p.relative_to(ROOT)) for p, _ in found]
+        raise AssertionError(f"the protocol pages have {len(found)} headings {title!r}, not one: {where}")
+    return found[0][1]
 
 
 def table(text: str) -> list[list[str]]:
@@ -107,8 +117,8 @@ def test_every_key_in_the_table_is_built_by_the_keys_module_and_back() -> None:
 
 
 def test_run_and_robot_id_rules() -> None:
-    assert "1 to 64" in TEXT
-    assert "letters, digits, `_`, `.` and `-`" in TEXT
+    assert "1 to 64" in section("Key expressions")
+    assert "letters, digits, `_`, `.` and `-`" in section("Key expressions")
     keys.check_run_id("a" * 64)
     for bad in ("a" * 65, "_a", "a/b", ""):
         with pytest.raises(ValueError, match="run id"):
@@ -241,12 +251,12 @@ def spec(t: str) -> Spec:
         for i, s in enumerate(items):
             bad += [([*arr[:i], v, *arr[i + 1 :]], reason) for v, reason in s.bad if v is not None]
         return Spec([arr, [s.good[-1] for s in items]], bad)
-    raise AssertionError(f"docs/protocol.md: unknown type {t!r}")
+    raise AssertionError(f"docs/protocol/messages.md: unknown type {t!r}")
 
 
 def message_rows(name: str) -> tuple[int, list[list[str]]]:
     m = re.search(rf"^### {name} \(tag (\d+)\)$", TEXT, re.MULTILINE)
-    assert m is not None, f"docs/protocol.md has no section '### {name} (tag N)'"
+    assert m is not None, f"the protocol pages have no section '### {name} (tag N)'"
     return int(m.group(1)), table(section(f"{name} (tag {m.group(1)})"))
 
 
@@ -394,7 +404,7 @@ def test_the_logins_grants_are_the_code_s() -> None:
     ours = acl.grants(RUN, robots, leader, hosts=("b",), observer=True)
     fields = ("publish", "subscribe", "receive", "tokens", "watch", "serve", "ask")
     seen = set()
-    for row in table(section("Logins and access rules")):
+    for row in table(section("What each login may do")):
         login = row[0].split(" (")[0].strip("`")  # `agent-<id>` (the leader); the table drops a lone pair
         if login == "agent-<id>":
             rid = leader if "leader" in row[0] else follower
@@ -406,3 +416,89 @@ def test_the_logins_grants_are_the_code_s() -> None:
         for name, cell in zip(fields, row[1:], strict=True):
             assert _grant_keys(cell, RUN, ids) == set(getattr(ours[user], name)), (user, name)
     assert seen == set(ours)
+
+
+# -- the index and the links ---------------------------------------------------------
+
+LINK = re.compile(r"\[[^\]]*\]\(([^)\s]+)\)")
+
+
+def headings(text: str) -> list[tuple[int, str]]:
+    """The (level, title) of every heading, fenced code left out."""
+    text = re.sub(r"^```.*?^```", "", text, flags=re.MULTILINE | re.DOTALL)
+    return [(len(m.group(1)), m.group(2).strip()) for m in re.finditer(r"^(#{1,6}) (.+)$", text, re.MULTILINE)]
+
+
+def slug(title: str) -> str:
+    """The anchor GitHub gives a heading: lower case, punctuation dropped, spaces to hyphens."""
+    return re.sub(r"[^\w\- ]", "", title.lower()).replace(" ", "-")
+
+
+def anchors(text: str) -> set[str]:
+    """The anchors of the headings of ``text``; a repeated one gets ``-1``, ``-2``."""
+    out, count = set(), dict[str, int]()
+    for _, title in headings(text):
+        n = count.get(slug(title), 0)
+        count[slug(title)] = n + 1
+        out.add(slug(title) if n == 0 else f"{slug(title)}-{n}")
+    return out
+
+
+def links(path: Path) -> list[tuple[Path, str]]:
+    """The links of a Markdown file to files of the repository: (file, anchor);
+    a link within the page is to the page itself."""
+    out = []
+    for target in LINK.findall(path.read_text()):
+        if re.match(r"[a-z]+:", target):  # https:, mailto:
+            continue
+        file, _, anchor = target.partition("#")
+        out.append(((path.parent / file if file else path).resolve(), anchor))
+    return out
+
+
+def unresolved(path: Path, into: Path | None = None) -> list[str]:
+    """The links of ``path`` (to ``into`` and the files under it, if given) whose
+    file is missing or whose anchor is no heading of it."""
+    bad = []
+    for file, anchor in links(path):
+        if into is not None and into not in (file, *file.parents):
+            continue
+        where = f"{path.relative_to(ROOT)} -> {file.relative_to(ROOT) if file.is_relative_to(ROOT) else file}"
+        if not file.exists():
+            bad.append(f"{where}: no such file")
+        elif anchor and file.suffix == ".md" and anchor not in anchors(file.read_text()):
+            bad.append(f"{where}#{anchor}: no such heading")
+    return bad
+
+
+def test_anchors_are_github_s() -> None:
+    text = "# A page\n## The client's configuration\n### Observation (tag 1)\n## Notes\n## Notes\n"
+    assert anchors(text) == {"a-page", "the-clients-configuration", "observation-tag-1", "notes", "notes-1"}
+    assert anchors("```sh\n# not a heading\n```\n## Real-time scheduling\n") == {"real-time-scheduling"}
+
+
+def test_the_index_links_every_page_and_each_of_its_sections() -> None:
+    linked = set(links(INDEX))
+    pages = [p for p in PAGES if p != INDEX]
+    assert len(pages) >= 5
+    for page in pages:
+        assert (page.resolve(), "") in linked, f"docs/protocol.md does not link {page.name}"
+        titles = headings(PAGES[page])
+        assert [level for level, _ in titles].count(1) == 1 == titles[0][0], f"{page.name}: one title, first"
+        for title in (title for level, title in titles if level == 2):
+            assert (page.resolve(), slug(title)) in linked, f"docs/protocol.md does not link {page.name}#{slug(title)}"
+
+
+def test_every_link_of_the_protocol_pages_resolves() -> None:
+    assert all(links(p) for p in PAGES), "a page without a link: the check would prove nothing"
+    assert [bad for page in PAGES for bad in unresolved(page)] == []
+
+
+def test_every_link_into_the_protocol_pages_resolves() -> None:
+    """Other docs link into the pages by file and heading: those files and headings exist."""
+    docs = [ROOT / "README.md", ROOT / "deploy" / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    docs = [d for d in [*docs, *sorted((ROOT / "examples").rglob("*.md"))] if d not in PAGES]
+    index, folder = INDEX.resolve(), (ROOT / "docs" / "protocol").resolve()
+    into = [file for doc in docs for file, _ in links(doc) if file == index or folder in file.parents]
+    assert into, "no doc links into the protocol pages: the check would prove nothing"
+    assert [bad for doc in docs for target in (index, folder) for bad in unresolved(doc, target)] == []

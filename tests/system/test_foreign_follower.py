@@ -49,9 +49,9 @@ def test_the_foreign_follower_imports_nothing_of_ours() -> None:
 
 
 def test_its_client_configuration_is_the_documents(tmp_path: Path) -> None:
-    """docs/protocol.md, "The client's configuration": the settings an outside
-    process needs, its login read from the file format the document gives."""
-    doc = (ROOT / "docs" / "protocol.md").read_text().split("### The client's configuration", 1)[1]
+    """docs/protocol/session.md, "The client's configuration": the settings an
+    outside process needs, its login read from the file format the document gives."""
+    doc = (ROOT / "docs" / "protocol" / "session.md").read_text().split("## The client's configuration", 1)[1]
     rows = dict(re.findall(r"^\| `([^`]+)` \| `([^`]+)` \|", doc, re.MULTILINE))
     files = trust.write_run_secrets(tmp_path / "secrets", "r1", (1, 2, 3), leader_id=1)
     conf = foreign.client_config(json.loads(rows["connect/endpoints"])[0], str(files["agent-2"]))
