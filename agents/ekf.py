@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from formation_swarm.agents.geometry import Point, leader_point, rotate
+from formation_swarm.agents.geometry import MarkerReading, Point, leader_point, rotate
 from formation_swarm.common.checks import finite, non_negative, positive
 from formation_swarm.world.kinematics import body_twist, wrap_angle
 
@@ -226,15 +226,15 @@ class TargetEKF:
             self._q_dt = dt
         return self._q
 
-    def update(self, reading: tuple[float, float, float] | None) -> None:
+    def update(self, reading: MarkerReading | None) -> None:
         """Eq. 19-21 with z = (rho_r, phi, beta); None only keeps the prediction."""
         if reading is None:
             if self.initialized:
                 self._kf.update(None, _h_jacobian, _hx)
             return
-        rho = non_negative("rho_m", reading[0])
-        phi = finite("phi_rad", reading[1])
-        beta = finite("beta_rad", reading[2])
+        rho = non_negative("rho_m", reading.rho_m)
+        phi = finite("phi_rad", reading.phi_rad)
+        beta = finite("beta_rad", reading.beta_rad)
         if not self.initialized:
             self._initialize(rho, phi, beta)
             return

@@ -2,9 +2,10 @@
 
 Each answered tick it finds its reference's marker in the observation's
 readings, hands its controller (agents.controller's API, made by
-agents.follower.make_controller) what the robot has, and turns what the
-controller returns into a command for the world and telemetry for the
-logger. It owns the formation codes: checked as they arrive, passed through
+agents.follower.make_controller) what the robot has, and turns the
+controller's answer into a command for the world (its wheel speeds),
+telemetry for the logger (its target and named values) and its stats (its
+stops, its count of filter restarts). It owns the formation codes: checked as they arrive, passed through
 the receiving end of the leader -> follower link, kept until their tick.
 
 The leader answers tick k with its code for k; that code can reach the
@@ -34,11 +35,15 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from formation_swarm.agents.controller import (
-    ROLE_COUNTED,
-    WIRE_TELEMETRY,
+    HOLDING,
+    STATS_VALUES,
+    WAITING,
+    WIRE_VALUES,
     FollowerController,
     FollowerInput,
+    FollowerOutput,
     MarkerReading,
+    TargetEstimate,
 )
 from formation_swarm.agents.formation import Slot
 from formation_swarm.agents.geometry import Point
@@ -48,8 +53,9 @@ from formation_swarm.protocol.messages import EXTRA_NAME, MAX_EXTRAS, Command, F
 
 PENDING_CODES = 64  # formation codes waiting for their tick
 MAX_HOLDS = 100  # holds listed in the stats (all are counted in held_ticks)
-KNOWN_NAMES = frozenset(WIRE_TELEMETRY + ROLE_COUNTED)  # any other telemetry name is an extra
-MAX_UNSENT_NOTES = 16  # telemetry names that cannot be sent, each said once in the log
+KNOWN_NAMES = frozenset(WIRE_VALUES + STATS_VALUES)  # any other value's name is an extra
+MAX_UNSENT_NOTES = 16  # value names that cannot be sent, each said once in the log
+STOPPED = FollowerOutput(left_mps=0.0, right_mps=0.0)  # a failed controller's robot, every tick
 
 
 class FollowerRole(RoleBase):
@@ -130,7 +136,7 @@ class FollowerRole(RoleBase):
         answer = self._controlled(obs, inp) if self.failure is None else None
         if answer is None:  # failed, now or before: stopped
             command = self._command(obs.tick, 0.0, 0.0)
-            answer = Answer(command=command, telemetry=self._telemetry(obs, command, {}.get, {}))
+            answer = Answer(command=command, telemetry=self._telemetry(obs, command, STOPPED, {}.get))
         self._answered(obs.tick)
         return answer
 
@@ -142,9 +148,9 @@ class FollowerRole(RoleBase):
             if not (math.isfinite(left) and math.isfinite(right)):
                 raise ValueError(f"wheel speeds must be finite numbers, got left_mps={left!r}, right_mps={right!r}")
             command = self._command(obs.tick, float(left), float(right))
-            get = _getter(out.telemetry)
-            self._count(obs.tick, get)
-            telemetry = self._telemetry(obs, command, get, out.telemetry)
+            get = _getter(out.values)
+            self._count(obs.tick, out.stop, get)
+            telemetry = self._telemetry(obs, command, out, get)
         except Exception as exc:  # noqa: BLE001 - whatever the controller does wrong stops this robot only
             self._fail(obs.tick, exc)
             return None
@@ -222,16 +228,20 @@ class FollowerRole(RoleBase):
         self._moved = self._new_reference = False
         return inp
 
-    def _count(self, tick: int, get: Getter) -> None:
-        """The counters the controller's named values feed (agents.controller.ROLE_COUNTED)."""
-        self.stops.count(tick, holding=(get("holding") or 0.0) > 0.0, waiting=(get("waiting") or 0.0) > 0.0)
+    def _count(self, tick: int, stop: str | None, get: Getter) -> None:
+        """The stats the controller's answer feeds: its stops (agents.controller.COUNTED_STOPS)
+        and the running count of STATS_VALUES."""
+        if stop is not None and not isinstance(stop, str):
+            raise TypeError(f"stop must be a string or None, got {type(stop).__name__} {stop!r}")
+        self.stops.count(tick, holding=stop == HOLDING, waiting=stop == WAITING)
         resets = get("ekf_resets")
         if resets is not None:
             self.ekf_resets = int(resets)
 
-    def _telemetry(self, obs: Observation, command: Command, get: Getter, t: Mapping[str, float]) -> Telemetry:
-        """The tick's telemetry from the controller's values ``t``, read by ``get`` (:func:`_getter`)."""
+    def _telemetry(self, obs: Observation, command: Command, out: FollowerOutput, get: Getter) -> Telemetry:
+        """The tick's telemetry from the controller's answer ``out``, its values read by ``get`` (:func:`_getter`)."""
         steering_to = int(get("steering_to") or 0)
+        estimate, cov = _target(out.target)
         return Telemetry(
             sender=self.robot_id,
             seq=self._next_seq(),
@@ -240,8 +250,8 @@ class FollowerRole(RoleBase):
             reference=self.slot.reference,
             formation=self.code,
             measured=_values(get, "measured_x_m", "measured_y_m"),
-            estimate=_values(get, "estimate_x_m", "estimate_y_m"),
-            target_cov=_values(get, "estimate_cov_xx_m2", "estimate_cov_xy_m2", "estimate_cov_yy_m2"),
+            estimate=estimate,
+            target_cov=cov,
             rho_m=get("rho_m"),
             alpha_rad=get("alpha_rad"),
             vn=get("vn_mps"),
@@ -252,7 +262,7 @@ class FollowerRole(RoleBase):
             obs_dropped=self.inbox.link.lost,
             formation_dropped=self.formation_link.lost,
             rejected=self.rejections.total,
-            extras=() if t.keys() <= KNOWN_NAMES else self._extras(t),
+            extras=() if out.values.keys() <= KNOWN_NAMES else self._extras(out.values),
         )
 
     def _extras(self, values: Mapping[str, float]) -> tuple[tuple[str, float], ...]:
@@ -340,11 +350,29 @@ def _getter(values: Mapping[str, float]) -> Getter:
 def _value(values: Mapping[str, float], name: str) -> float | None:
     """A named value; None where it is absent, NaN or infinite. A value that is no number raises."""
     v = values.get(name)
-    if v is None:
-        return None
+    return None if v is None else _finite(v)
+
+
+def _finite(v: float) -> float | None:
+    """``v`` as a float; None where it is NaN or infinite. A value that is no number raises."""
     if not isinstance(v, float):  # a float (numpy's too) as it is: no new object per value and tick
         v = float(v)
     return v if math.isfinite(v) else None
+
+
+def _target(target: TargetEstimate | None) -> tuple[tuple[float, float] | None, tuple[float, float, float] | None]:
+    """The telemetry's estimate and covariance from the controller's ``target``,
+    each None unless every number of it is finite."""
+    if target is None:
+        return None, None
+    x, y = _finite(target.x_m), _finite(target.y_m)
+    estimate = None if x is None or y is None else (x, y)
+    if target.cov_m2 is None:
+        return estimate, None
+    if len(target.cov_m2) != 3:
+        raise ValueError(f"target.cov_m2 must be (xx, xy, yy), got {target.cov_m2!r}")
+    cov = tuple(map(_finite, target.cov_m2))
+    return estimate, None if None in cov else cov  # type: ignore[return-value]
 
 
 def _values(get: Getter, *names: str) -> tuple[float, ...] | None:

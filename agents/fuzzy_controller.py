@@ -22,9 +22,9 @@ from __future__ import annotations
 
 from formation_swarm.agents import fuzzy as fz
 from formation_swarm.agents.avoidance import Choice, select_target
+from formation_swarm.agents.controller import ControllerSetup, FollowerOutput
 from formation_swarm.agents.geometry import Point, TargetErrors, errors, lookahead_bearing
-from formation_swarm.agents.params import FollowerParams
-from formation_swarm.agents.tracking import Decision, Sight, TrackingController
+from formation_swarm.agents.tracking import Sight, TrackingController
 
 
 def change_over(choice: Choice, rho_m: float, fuzzy: fz.FuzzyParams) -> bool:
@@ -43,11 +43,11 @@ def change_over(choice: Choice, rho_m: float, fuzzy: fz.FuzzyParams) -> bool:
 class FuzzyController(TrackingController):
     """One follower flying the paper's fuzzy law."""
 
-    def __init__(self, params: FollowerParams, offset: Point) -> None:
-        super().__init__(params, offset)
+    def __init__(self, setup: ControllerSetup) -> None:
+        super().__init__(setup)
         self._prev_choice = Choice.T0
 
-    def _act(self, sight: Sight, measured: Point | None, ticks: int) -> Decision:
+    def _act(self, sight: Sight, measured: Point | None, ticks: int) -> FollowerOutput:
         if not self.p.avoidance:
             self.changing = False  # straight to the new slot: eq. 11-13 skipped
         choice, goal = self._target(sight)
@@ -98,21 +98,12 @@ class FuzzyController(TrackingController):
         self.waiting = rho_m < -fzp.d0_m if self.waiting else rho_m < -fzp.dn_m
         return self.waiting
 
-    def _drive(self, err: TargetErrors, sight: Sight, measured: Point | None, choice: Choice, ticks: int) -> Decision:
+    def _drive(
+        self, err: TargetErrors, sight: Sight, measured: Point | None, choice: Choice, ticks: int
+    ) -> FollowerOutput:
         """FIS-2 (V_N) then FIS-1 (wheel speeds), paper section 4."""
         p = self.p
         vn, wheels = fz.control(err.alpha_rad, err.rho_m, err.drho_m, p.dt_s * ticks, p=p.fuzzy, mode=p.speed)
-        self._last_cmd = (wheels.left_mps, wheels.right_mps)
-        return Decision(
-            left_mps=wheels.left_mps,
-            right_mps=wheels.right_mps,
-            vn=vn,
-            alpha_rad=err.alpha_rad,
-            rho_m=err.rho_m,
-            drho_m=err.drho_m,
-            measured=measured,
-            estimate=sight.estimate,
-            estimate_cov=sight.cov,
-            steering_to=choice,
-            changing=self.changing,
+        return self._answer(
+            (wheels.left_mps, wheels.right_mps), err, sight, vn_mps=vn, measured=measured, choice=choice
         )

@@ -9,6 +9,7 @@ when the leader is rotated phi to the left of the follower.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import NamedTuple
 
 from formation_swarm.common.checks import finite, non_negative
@@ -17,6 +18,15 @@ from formation_swarm.common.checks import finite, non_negative
 class Point(NamedTuple):
     x_m: float
     y_m: float
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class MarkerReading:
+    """A camera's reading of a reference's marker (paper eq. 1)."""
+
+    rho_m: float  # distance to the marker
+    phi_rad: float  # the reference's heading relative to ours, counter-clockwise
+    beta_rad: float  # bearing of the marker, positive to the right
 
 
 class TargetErrors(NamedTuple):

@@ -13,15 +13,16 @@ from __future__ import annotations
 import math
 
 from formation_swarm.agents.avoidance import Choice
+from formation_swarm.agents.controller import FollowerOutput
 from formation_swarm.agents.geometry import Point, errors
 from formation_swarm.agents.lpsi import control
-from formation_swarm.agents.tracking import Decision, Sight, TrackingController
+from formation_swarm.agents.tracking import Sight, TrackingController
 
 
 class LpsiController(TrackingController):
     """One follower flying the l-psi law."""
 
-    def _act(self, sight: Sight, measured: Point | None, ticks: int) -> Decision:
+    def _act(self, sight: Sight, measured: Point | None, ticks: int) -> FollowerOutput:
         p = self.p
         v_ref, w_ref = (float(v) for v in self.ekf.state[3:5]) if p.use_ekf else (0.0, 0.0)
         err = errors(sight.estimate, self._prev_rho, sight.phi_rad)
@@ -29,20 +30,6 @@ class LpsiController(TrackingController):
         self._prev_rho = err.rho_m
         if self._hold(err.rho_m, err.drho_m):
             return self._stand(err, sight, measured, Choice.T0, holding=True)
-        left, right = control(
-            sight.leader, sight.phi_rad, v_ref, w_ref, offset=self.offset, width_m=p.width_m, p=p.lpsi
-        )
-        self._last_cmd = (left, right)
-        return Decision(
-            left_mps=left,
-            right_mps=right,
-            vn=math.nan,
-            alpha_rad=err.alpha_rad,
-            rho_m=err.rho_m,
-            drho_m=err.drho_m,
-            measured=measured,
-            estimate=sight.estimate,
-            estimate_cov=sight.cov,
-            steering_to=Choice.T0,
-            changing=False,
-        )
+        wheels = control(sight.leader, sight.phi_rad, v_ref, w_ref, offset=self.offset, width_m=p.width_m, p=p.lpsi)
+        # No V_N in this law.
+        return self._answer(wheels, err, sight, vn_mps=math.nan, measured=measured, choice=Choice.T0)

@@ -4,8 +4,9 @@ Each tick the reading of the reference's marker goes to the EKF of section 3
 (or, in raw mode, is used as it is); the tracker says where the reference
 and the target are, stops the robot when the reference is lost (no reading
 for ``lost_after_s``) or the filter restarts, and decides the hold at a
-standing reference. A law turns that sight into wheel speeds in ``_act``:
-agents.fuzzy_controller (the paper's) and agents.lpsi_controller.
+standing reference. A law turns that sight into its answer (wheel speeds,
+the target, named values) in ``_act``: agents.fuzzy_controller (the
+paper's) and agents.lpsi_controller.
 
 The hold is not the paper's (docs/paper.md, "Beyond the paper"). The fuzzy
 controller never drives slower than V_N - a (1 m/s), so a follower whose
@@ -25,30 +26,24 @@ from typing import NamedTuple
 import numpy as np
 
 from formation_swarm.agents.avoidance import Choice
-from formation_swarm.agents.controller import ControllerSetup, FollowerInput, FollowerOutput
+from formation_swarm.agents.controller import (
+    HOLDING,
+    LOST,
+    WAITING,
+    ControllerSetup,
+    FollowerInput,
+    FollowerOutput,
+    TargetEstimate,
+)
 from formation_swarm.agents.ekf import TargetEKF
-from formation_swarm.agents.geometry import Point, TargetErrors, leader_point, target_from_reading, target_point
-from formation_swarm.agents.params import FollowerParams
-
-Reading = tuple[float, float, float]  # (rho_r_m, phi_rad, beta_rad) of the reference's marker
-
-
-class Decision(NamedTuple):
-    """What the follower did this tick, for the command and the telemetry."""
-
-    left_mps: float
-    right_mps: float
-    vn: float
-    alpha_rad: float
-    rho_m: float
-    drho_m: float
-    measured: Point | None  # target from this tick's raw reading (eq. 1-2)
-    estimate: Point | None  # target from the EKF
-    estimate_cov: np.ndarray | None
-    steering_to: Choice
-    changing: bool
-    holding: bool = False  # stopped at its standing reference (vn is then 0)
-    waiting: bool = False  # stopped more than dn ahead of its target, for it to come (vn is then 0)
+from formation_swarm.agents.geometry import (
+    MarkerReading,
+    Point,
+    TargetErrors,
+    leader_point,
+    target_from_reading,
+    target_point,
+)
 
 
 class Sight(NamedTuple):
@@ -64,14 +59,15 @@ class TrackingController:
     """A follower's state between ticks and the controller API's ``step``;
     a subclass is one law (``_act``)."""
 
-    def __init__(self, params: FollowerParams, offset: Point) -> None:
+    def __init__(self, setup: ControllerSetup) -> None:
+        params = setup.params
         self.p = params
-        self.offset = Point(float(offset[0]), float(offset[1]))
+        self.offset = _point(setup.slot.offset)
         self.ekf = TargetEKF(params.ekf, params.marker_offset_m, params.width_m)
         self._last_cmd = (0.0, 0.0)
         self._prev_rho: float | None = None
         self._since_reading_s = math.inf
-        self._raw: Reading | None = None
+        self._raw: MarkerReading | None = None
         self._predicted = False
         self.changing = False
         # The EKF's estimates of the reference's speed over the last hold_after_s.
@@ -80,53 +76,36 @@ class TrackingController:
         self.holding = False
         self.waiting = False
 
-    @classmethod
-    def from_setup(cls, setup: ControllerSetup) -> TrackingController:
-        """The controller of agents.controller's API (its factory's signature)."""
-        return cls(setup.params, setup.slot.offset)
-
-    # -- the controller API (agents.controller) --------------------------------
-
     def step(self, inp: FollowerInput) -> FollowerOutput:
+        """One tick (agents.controller's API).
+
+        ``inp.ticks``: the ticks since the last step (1 but where the agent
+        skipped observations, in real time when it could not keep up, or was
+        frozen). The EKF then predicts over them with the command the robot
+        kept (in one step: an agent that fell behind gets no more work for
+        it), and drho (eq. 6) is taken over their time, so neither the
+        reference's speed nor the approach rate looks faster than it is.
+        A gap longer than ``lost_after_s`` restarts the filter from this
+        reading, as a lost reference does: the robot stood still for part of
+        it (the world stops a robot on a stale command), which the filter
+        cannot know."""
+        ticks = inp.ticks
+        if isinstance(ticks, bool) or not isinstance(ticks, int) or ticks < 1:
+            raise ValueError(f"ticks must be an integer >= 1, got {ticks!r}")
         if inp.new_reference:
             self.new_reference()
-        self.offset = Point(float(inp.slot.offset[0]), float(inp.slot.offset[1]))
+        self.offset = _point(inp.slot.offset)
         if inp.slot_moved:
             self.changing = True  # the collision-avoiding change (sec. 2.2) starts
-        r = inp.reading
-        d = self.decide(None if r is None else (r.rho_m, r.phi_rad, r.beta_rad), inp.ticks)
-        return FollowerOutput(left_mps=d.left_mps, right_mps=d.right_mps, telemetry=self.telemetry(d))
-
-    def telemetry(self, d: Decision) -> dict[str, float]:
-        """The decision's named values (agents.controller.WIRE_TELEMETRY, ROLE_COUNTED)."""
-        t = {
-            "rho_m": d.rho_m,
-            "alpha_rad": d.alpha_rad,
-            "vn_mps": d.vn,
-            "steering_to": float(d.steering_to),
-            "changing": float(d.changing),
-            "holding": float(d.holding),
-            "waiting": float(d.waiting),
-            "ekf_resets": float(self.ekf.resets),
-        }
-        if d.measured is not None:
-            t["measured_x_m"], t["measured_y_m"] = d.measured
-        if d.estimate is not None:
-            t["estimate_x_m"], t["estimate_y_m"] = d.estimate
-        if d.estimate_cov is not None:
-            cov = d.estimate_cov
-            t["estimate_cov_xx_m2"], t["estimate_cov_xy_m2"] = float(cov[0, 0]), float(cov[0, 1])
-            t["estimate_cov_yy_m2"] = float(cov[1, 1])
-        return t
-
-    # -- the same, driven with raw readings ---------------------------------------
-
-    def set_offset(self, offset: Point) -> None:
-        """A new formation slot: start the collision-avoiding change (sec. 2.2)."""
-        new = Point(float(offset[0]), float(offset[1]))
-        if new != self.offset:
-            self.offset = new
-            self.changing = True
+        reading = inp.reading
+        measured = self._read(reading, ticks)
+        ticks = self._bridge(ticks)
+        if self.p.use_ekf:
+            self._filter(reading, ticks)
+        sight = self._sight()
+        if sight is None:
+            return self._stop(measured)  # lost, never seen, or the EKF restarts (diverged)
+        return self._act(sight, measured, ticks)
 
     def new_reference(self) -> None:
         """The formation names another reference robot: forget the old one (its
@@ -142,48 +121,24 @@ class TrackingController:
 
     def prepare(self) -> None:
         """The EKF's prediction for the next tick (from the command just sent),
-        run now; ``decide`` then only corrects. An agent calls it while it waits
+        run now; ``step`` then only corrects. An agent calls it while it waits
         for the next observation, which takes it off the tick's critical path.
-        The result is the same as letting ``decide`` predict."""
+        The result is the same as letting ``step`` predict."""
         if self.p.use_ekf and not self._predicted:
             self.ekf.predict(self._last_cmd[0], self._last_cmd[1], self.p.dt_s)
             self._predicted = True
 
-    def decide(self, reading: Reading | None, ticks: int = 1) -> Decision:
-        """One tick. ``reading`` is the reference's (rho_r, phi, beta), or None.
-
-        ``ticks``: the ticks since the last step (1 but where the agent skipped
-        observations, in real time when it could not keep up, or was frozen).
-        The EKF then predicts over them with the command the robot kept (in
-        one step: an agent that fell behind gets no more work for it), and
-        drho (eq. 6) is taken over their time, so neither the reference's
-        speed nor the approach rate looks faster than it is.
-        A gap longer than ``lost_after_s`` restarts the filter from this
-        reading, as a lost reference does: the robot stood still for part of
-        it (the world stops a robot on a stale command), which the filter
-        cannot know."""
-        if isinstance(ticks, bool) or not isinstance(ticks, int) or ticks < 1:
-            raise ValueError(f"ticks must be an integer >= 1, got {ticks!r}")
-        measured = self._read(reading, ticks)
-        ticks = self._bridge(ticks)
-        if self.p.use_ekf:
-            self._filter(reading, ticks)
-        sight = self._sight()
-        if sight is None:
-            return self._stop(measured)  # lost, never seen, or the EKF restarts (diverged)
-        return self._act(sight, measured, ticks)
-
     # -- the steps of a tick ------------------------------------------------------
 
-    def _read(self, reading: Reading | None, ticks: int) -> Point | None:
+    def _read(self, reading: MarkerReading | None, ticks: int) -> Point | None:
         """Take this tick's reading: the target it shows (eq. 1-2), or None."""
         p = self.p
         if reading is None:
             self._since_reading_s += p.dt_s * ticks
             return None
         self._since_reading_s = 0.0
-        self._raw = (float(reading[0]), float(reading[1]), float(reading[2]))
-        return target_from_reading(reading[0], reading[1], reading[2], p.marker_offset_m, self.offset)
+        self._raw = reading
+        return target_from_reading(reading.rho_m, reading.phi_rad, reading.beta_rad, p.marker_offset_m, self.offset)
 
     def _bridge(self, ticks: int) -> int:
         """The ticks the filter predicts over: a gap longer than lost_after_s
@@ -196,7 +151,7 @@ class TrackingController:
             return 1
         return ticks
 
-    def _filter(self, reading: Reading | None, ticks: int) -> None:
+    def _filter(self, reading: MarkerReading | None, ticks: int) -> None:
         """The EKF's step (eq. 17-21), and the reference's speed it gives."""
         self.prepare()
         if ticks > 1:  # the skipped ticks, on the command the robot kept: one step, however many
@@ -219,12 +174,13 @@ class TrackingController:
             estimate, cov = self.ekf.target(self.offset)
             return Sight(leader=leader, phi_rad=phi, estimate=estimate, cov=cov)
         # Raw mode (no EKF): act on the latest reading as it is.
-        rho_r, phi, beta = self._raw
-        leader = leader_point(rho_r, phi, beta, p.marker_offset_m)
+        raw = self._raw
+        leader = leader_point(raw.rho_m, raw.phi_rad, raw.beta_rad, p.marker_offset_m)
+        phi = raw.phi_rad
         return Sight(leader=leader, phi_rad=phi, estimate=target_point(leader, phi, self.offset), cov=None)
 
-    def _act(self, sight: Sight, measured: Point | None, ticks: int) -> Decision:
-        """The law: wheel speeds from the sight of the reference."""
+    def _act(self, sight: Sight, measured: Point | None, ticks: int) -> FollowerOutput:
+        """The law: its answer from the sight of the reference."""
         raise NotImplementedError
 
     def reference_speed(self) -> float:
@@ -252,43 +208,61 @@ class TrackingController:
             )
         return self.holding
 
+    def _answer(
+        self,
+        wheels: tuple[float, float],
+        err: TargetErrors,
+        sight: Sight,
+        *,
+        vn_mps: float,
+        measured: Point | None,
+        choice: Choice,
+        stop: str | None = None,
+    ) -> FollowerOutput:
+        """The tick's answer: ``wheels`` (left, right, m/s) commanded, the rest for the telemetry."""
+        self._last_cmd = wheels
+        cov = sight.cov
+        target = TargetEstimate(
+            x_m=sight.estimate[0],
+            y_m=sight.estimate[1],
+            cov_m2=None if cov is None else (float(cov[0, 0]), float(cov[0, 1]), float(cov[1, 1])),
+        )
+        values = self._values(err.rho_m, err.alpha_rad, vn_mps, choice, measured)
+        return FollowerOutput(left_mps=wheels[0], right_mps=wheels[1], target=target, stop=stop, values=values)
+
     def _stand(
         self, err: TargetErrors, sight: Sight, measured: Point | None, choice: Choice, *, holding: bool
-    ) -> Decision:
+    ) -> FollowerOutput:
         """Stopped this tick, holding (else waiting), with the errors as they are."""
-        self._last_cmd = (0.0, 0.0)
-        return Decision(
-            left_mps=0.0,
-            right_mps=0.0,
-            vn=0.0,
-            alpha_rad=err.alpha_rad,
-            rho_m=err.rho_m,
-            drho_m=err.drho_m,
-            measured=measured,
-            estimate=sight.estimate,
-            estimate_cov=sight.cov,
-            steering_to=choice,
-            changing=self.changing,
-            holding=holding,
-            waiting=not holding,
-        )
+        stop = HOLDING if holding else WAITING
+        return self._answer((0.0, 0.0), err, sight, vn_mps=0.0, measured=measured, choice=choice, stop=stop)
 
-    def _stop(self, measured: Point | None) -> Decision:
+    def _stop(self, measured: Point | None) -> FollowerOutput:
+        """Stopped without a sight of the reference: no target, no errors."""
         self._last_cmd = (0.0, 0.0)
         self.holding = False
         self.waiting = False
         self._prev_rho = None
         nan = math.nan
-        return Decision(
-            left_mps=0.0,
-            right_mps=0.0,
-            vn=nan,
-            alpha_rad=nan,
-            rho_m=nan,
-            drho_m=nan,
-            measured=measured,
-            estimate=None,
-            estimate_cov=None,
-            steering_to=Choice.T0,
-            changing=self.changing,
-        )
+        values = self._values(nan, nan, nan, Choice.T0, measured)
+        return FollowerOutput(left_mps=0.0, right_mps=0.0, stop=LOST, values=values)
+
+    def _values(
+        self, rho_m: float, alpha_rad: float, vn_mps: float, choice: Choice, measured: Point | None
+    ) -> dict[str, float]:
+        """The tick's named values (agents.controller.WIRE_VALUES, STATS_VALUES)."""
+        values = {
+            "rho_m": rho_m,
+            "alpha_rad": alpha_rad,
+            "vn_mps": vn_mps,
+            "steering_to": float(choice),
+            "changing": float(self.changing),
+            "ekf_resets": float(self.ekf.resets),
+        }
+        if measured is not None:
+            values["measured_x_m"], values["measured_y_m"] = measured
+        return values
+
+
+def _point(offset: Point) -> Point:
+    return Point(float(offset[0]), float(offset[1]))

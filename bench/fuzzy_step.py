@@ -22,10 +22,10 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 
 import numpy as np  # noqa: E402
 
+from formation_swarm import ControllerSetup, FollowerInput, FollowerParams, MarkerReading, Point, Slot  # noqa: E402
 from formation_swarm.agents import fuzzy  # noqa: E402
 from formation_swarm.agents.ekf import EkfParams, TargetEKF  # noqa: E402
-from formation_swarm.agents.follower import FollowerParams, FuzzyController  # noqa: E402
-from formation_swarm.agents.geometry import Point  # noqa: E402
+from formation_swarm.agents.follower import FuzzyController  # noqa: E402
 
 
 def median_us(fn: Callable[[int], None], n: int, repeat: int) -> float:
@@ -35,6 +35,19 @@ def median_us(fn: Callable[[int], None], n: int, repeat: int) -> float:
         fn(n)
         per_call.append((time.perf_counter() - t0) / n * 1e6)
     return statistics.median(per_call)
+
+
+def whole_ticks(readings: list[MarkerReading]) -> Callable[[int], None]:
+    """``count`` whole follower ticks (EKF, fuzzy, geometry) on the first ``count`` readings."""
+    slot = Slot(1, Point(-1.5, -1.5))
+    fol = FuzzyController(ControllerSetup(robot_id=2, params=FollowerParams(), slot=slot, max_wheel_mps=3.0))
+    inputs = [FollowerInput(reading=r, slot=slot, dt_s=0.05) for r in readings]
+
+    def ticks(count: int) -> None:
+        for i in range(count):
+            fol.step(inputs[i])
+
+    return ticks
 
 
 def main() -> None:
@@ -54,19 +67,18 @@ def main() -> None:
             fuzzy.control(alphas[i], rhos[i], drhos[i], 0.05, p=p, mode=mode)
 
     ekf = TargetEKF(EkfParams(), 0.1, 0.5)
-    ekf.update((2.0, 0.1, 0.05))
-    readings = [(2.0 + 0.05 * float(a), 0.1, 0.05 + 0.02 * float(b)) for a, b in rng.standard_normal((n, 2))]
+    ekf.update(MarkerReading(rho_m=2.0, phi_rad=0.1, beta_rad=0.05))
+    readings = [
+        MarkerReading(rho_m=2.0 + 0.05 * float(a), phi_rad=0.1, beta_rad=0.05 + 0.02 * float(b))
+        for a, b in rng.standard_normal((n, 2))
+    ]
 
     def ekf_steps(count: int) -> None:
         for i in range(count):
             ekf.predict(1.5, 1.5, 0.05)
             ekf.update(readings[i])
 
-    fol = FuzzyController(FollowerParams(), Point(-1.5, -1.5))
-
-    def follower_ticks(count: int) -> None:
-        for i in range(count):
-            fol.decide(readings[i])
+    follower_ticks = whole_ticks(readings[:1000])
 
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}; median of {args.repeat} batches")
     print(f"fuzzy step (FIS-2 + FIS-1 both wheels): {median_us(fuzzy_steps, n, args.repeat):8.2f} us")

@@ -58,6 +58,7 @@ import threading
 import time
 import uuid
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -191,15 +192,24 @@ class _Brain:
     """A run's follower controller (agents.fuzzy_controller.FuzzyController), counting its steps."""
 
     def __init__(self) -> None:
-        from formation_swarm.agents.follower import FollowerParams, FuzzyController
-        from formation_swarm.agents.geometry import Point
+        from formation_swarm import ControllerSetup, FollowerParams, Point, Slot
+        from formation_swarm.agents.follower import FuzzyController
 
-        self.follower = FuzzyController(FollowerParams(), Point(-1.5, -1.5))
+        self.slot = Slot(1, Point(-1.5, -1.5))
+        self.params = FollowerParams()
+        setup = ControllerSetup(robot_id=2, params=self.params, slot=self.slot, max_wheel_mps=3.0)
+        self.follower = FuzzyController(setup)
         self.ticks = 0
 
-    def step(self, reading: tuple[float, float, float]) -> None:
-        self.follower.decide(reading)
+    def step(self, reading: tuple[float, float, float]) -> Any:
+        """The controller's answer (a FollowerOutput) to ``reading`` (rho_m, phi_rad, beta_rad)."""
+        from formation_swarm import FollowerInput, MarkerReading
+
+        rho_m, phi_rad, beta_rad = reading
+        marker = MarkerReading(rho_m=rho_m, phi_rad=phi_rad, beta_rad=beta_rad)
+        out = self.follower.step(FollowerInput(reading=marker, slot=self.slot, dt_s=self.params.dt_s))
         self.ticks += 1
+        return out
 
     def prepare(self) -> None:
         self.follower.prepare()

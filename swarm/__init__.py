@@ -9,8 +9,9 @@ few need any of it):
 - the pytest fixtures ``swarm_run`` and ``swarm_launch`` (the ``pytest11``
   entry point ``formation_swarm.pytest_plugin``).
 - the follower controller API: ``FollowerController`` and what it takes and
-  gives (``ControllerSetup``, ``FollowerInput``, ``MarkerReading``,
-  ``FollowerOutput``), docs/controllers.md.
+  gives (``ControllerSetup``, ``FollowerParams``, ``Slot``, ``Point``,
+  ``FollowerInput``, ``MarkerReading``, ``FollowerOutput``,
+  ``TargetEstimate``), docs/controllers.md.
 
 Everything else (``formation_swarm.spec``, ``.runtime``, ``.nodes``, ...) is
 internal: docs/architecture.md draws the layers.
@@ -29,7 +30,11 @@ if TYPE_CHECKING:
         FollowerController,
         FollowerInput,
         FollowerOutput,
+        FollowerParams,
         MarkerReading,
+        Point,
+        Slot,
+        TargetEstimate,
     )
     from formation_swarm.launch.launcher import Launch, RunResult
     from formation_swarm.report.data import RunData, load_run
@@ -39,10 +44,20 @@ _PUBLIC = {
     "RunData": "formation_swarm.report.data",
     "Launch": "formation_swarm.launch.launcher",
     "RunResult": "formation_swarm.launch.launcher",
-    **{
-        name: "formation_swarm.agents.controller"
-        for name in ("ControllerSetup", "FollowerController", "FollowerInput", "FollowerOutput", "MarkerReading")
-    },
+    **dict.fromkeys(
+        (
+            "ControllerSetup",
+            "FollowerController",
+            "FollowerInput",
+            "FollowerOutput",
+            "FollowerParams",
+            "MarkerReading",
+            "Point",
+            "Slot",
+            "TargetEstimate",
+        ),
+        "formation_swarm.agents.controller",
+    ),
 }
 
 __all__ = [
@@ -50,10 +65,14 @@ __all__ = [
     "FollowerController",
     "FollowerInput",
     "FollowerOutput",
+    "FollowerParams",
     "Launch",
     "MarkerReading",
+    "Point",
     "RunData",
     "RunResult",
+    "Slot",
+    "TargetEstimate",
     "__version__",
     "load_run",
 ]

@@ -48,7 +48,7 @@ class PurePursuit:
         self.half_width_m = setup.params.width_m / 2.0
         self.marker_offset_m = setup.params.marker_offset_m
         self.lost_after_s = setup.params.lost_after_s
-        self.max_wheel_mps = min(setup.max_wheel_mps, 1e6)
+        self.max_wheel_mps = setup.max_wheel_mps
         self.along_m: float | None = None  # the filter: how far the target is ahead, smoothed
         self.reference_mps = 0.0  # and the reference's speed
         self.unseen_s = math.inf  # since the last reading
@@ -60,6 +60,7 @@ class PurePursuit:
             self.unseen_s += inp.dt_s
             if self.unseen_s > self.lost_after_s:
                 self.last = (0.0, 0.0)  # lost: stop and wait
+                return FollowerOutput(left_mps=0.0, right_mps=0.0, stop="lost")
             return FollowerOutput(left_mps=self.last[0], right_mps=self.last[1])
         self.unseen_s = 0.0
         # The reference's heading (hx, hy) and centre in our frame (eq. 1), then the target (eq. 2).
@@ -83,7 +84,7 @@ class PurePursuit:
             "reference_mps": self.reference_mps,
             "curvature_1pm": curvature,
         }
-        return FollowerOutput(left_mps=left, right_mps=right, telemetry=values)
+        return FollowerOutput(left_mps=left, right_mps=right, values=values)
 
     def _track(self, along_m: float, cos_phi: float, dt_s: float) -> float:
         """The alpha-beta filter: the along-track distance smoothed, and the

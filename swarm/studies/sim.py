@@ -1,5 +1,6 @@
-"""One-process closed loop: leader on its path, followers on the paper's
-controller, the camera model and the kinematics, all in one Python loop.
+"""One-process closed loop: leader on its path, followers on their law
+(``controller.law``: the paper's controller unless the params name
+another), the camera model and the kinematics, all in one Python loop.
 
 This is the reference the distributed run is checked against, and the
 quickest way to try a controller change.
@@ -13,8 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from formation_swarm.agents.follower import Follower, FollowerParams
-from formation_swarm.agents.formation import Formation
+from formation_swarm.agents.controller import ControllerSetup, FollowerInput, MarkerReading
+from formation_swarm.agents.follower import FollowerParams, make_controller
+from formation_swarm.agents.formation import Formation, Slot
 from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.pilot import PathPilot
 from formation_swarm.world import kinematics
@@ -34,6 +36,7 @@ class ClosedLoopSetup:
     follower: FollowerParams = field(default_factory=FollowerParams)
     # Per-follower overrides (e.g. static vs dynamic V_N side by side).
     follower_overrides: Mapping[int, FollowerParams] = field(default_factory=dict)
+    max_wheel_mps: float = 3.0  # robot.max_wheel_mps's default
 
 
 @dataclass
@@ -77,7 +80,17 @@ def run(setup: ClosedLoopSetup) -> ClosedLoopResult:
     heading = math.atan2(wp[1][1] - wp[0][1], wp[1][0] - wp[0][0])
     poses = initial_poses(form, Pose(float(wp[0][0]), float(wp[0][1]), heading))
     pilot = PathPilot(wp, setup.leader_speed_mps, fp.width_m, max_turn_rate_rps=setup.leader_turn_rate_rps)
-    followers = {rid: Follower(setup.follower_overrides.get(rid, fp), slot.offset) for rid, slot in form.slots.items()}
+    followers = {
+        rid: make_controller(
+            ControllerSetup(
+                robot_id=rid,
+                params=setup.follower_overrides.get(rid, fp),
+                slot=slot,
+                max_wheel_mps=setup.max_wheel_mps,
+            )
+        )
+        for rid, slot in form.slots.items()
+    }
     rngs = {rid: np.random.default_rng([setup.seed, rid]) for rid in followers}
     steps = int(round(setup.duration_s / dt))
     times = np.arange(steps) * dt
@@ -94,17 +107,17 @@ def run(setup: ClosedLoopSetup) -> ClosedLoopResult:
             steps = k
             break
         for rid, fol in followers.items():
-            ref = form.slots[rid].reference
-            seen = {m.robot_id: m for m in observe(rid, poses, setup.camera, rngs[rid])}
-            m = seen.get(ref)
-            dec = fol.step(None if m is None else (m.rho_m, m.phi_rad, m.beta_rad))
-            cmds[rid] = (dec.left_mps, dec.right_mps)
+            slot = form.slots[rid]
+            m = next((m for m in observe(rid, poses, setup.camera, rngs[rid]) if m.robot_id == slot.reference), None)
+            reading = None if m is None else MarkerReading(rho_m=m.rho_m, phi_rad=m.phi_rad, beta_rad=m.beta_rad)
+            out = fol.step(FollowerInput(reading=reading, slot=slot, dt_s=dt))
+            cmds[rid] = (out.left_mps, out.right_mps)
             rec_true[rid][k] = true_target(poses, form, rid)
-            rec_vn[rid][k] = dec.vn
-            if dec.measured is not None:
-                rec_meas[rid][k] = from_body_frame(poses[rid], *dec.measured)
-            if dec.estimate is not None:
-                rec_est[rid][k] = from_body_frame(poses[rid], *dec.estimate)
+            rec_vn[rid][k] = out.values.get("vn_mps", np.nan)
+            if "measured_x_m" in out.values:
+                rec_meas[rid][k] = from_body_frame(poses[rid], out.values["measured_x_m"], out.values["measured_y_m"])
+            if out.target is not None:
+                rec_est[rid][k] = from_body_frame(poses[rid], out.target.x_m, out.target.y_m)
         for rid, pose in poses.items():
             rec_pose[rid][k] = pose
         for rid, (vl, vr) in cmds.items():
@@ -122,8 +135,6 @@ PAPER_TURNING_PATH = ((0.0, 0.0), (0.0, 20.0), (20.0, 20.0), (20.0, 40.0))
 
 
 def paper_turning_setup(seed: int = 0, **overrides: object) -> ClosedLoopSetup:
-    from formation_swarm.agents.formation import Slot
-
     form = Formation("two", {2: Slot(1, Point(-1.5, -1.5))})
     kwargs: dict[str, object] = {"waypoints": PAPER_TURNING_PATH, **overrides}
     return ClosedLoopSetup(formation=form, seed=seed, **kwargs)  # type: ignore[arg-type]

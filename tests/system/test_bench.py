@@ -50,7 +50,7 @@ def test_bare_exchange_with_the_controller_steps_the_followers_filter():
     assert brain.follower.ekf.initialized
     x, y, _phi, _v, _w = brain.follower.ekf.state
     assert 1.5 < math.hypot(x, y) < 2.5
-    decision = brain.follower.decide(bench.READINGS[40])
+    decision = brain.step(bench.READINGS[40])
     assert decision.left_mps > 0.5
     assert decision.right_mps > 0.5
     rate, cpu = bench.measure_bare(200, 5, control=True)  # four followers

@@ -26,7 +26,6 @@ from collections.abc import Callable
 
 import pytest
 
-from formation_swarm.agents.follower import Follower
 from formation_swarm.agents.follower_role import FollowerRole
 from formation_swarm.agents.formation import sights
 from formation_swarm.launch.launcher import RunResult
@@ -38,6 +37,7 @@ from formation_swarm.spec import scenario as sm
 from formation_swarm.world.engine import WorldEngine
 from formation_swarm.world.kinematics import Pose
 from tests.helpers import SCENARIOS
+from tests.helpers.controllers import ByHand
 from tests.helpers.fakes import FakePub, answer, observation
 
 TURN = SCENARIOS / "fig7_turn_vn_dynamic.toml"
@@ -79,7 +79,7 @@ def test_a_follower_given_a_new_reference_restarts_its_filter_on_it() -> None:
     observe(1)
     assert role.slot.reference == 3
     # Its filter is that of a follower that has only ever seen robot 3 (read, then predicted for tick 2).
-    fresh = Follower(sc.followers[4], sc.formations["line"].slots[4].offset)
+    fresh = ByHand(sc.followers[4], sc.formations["line"].slots[4].offset)
     fresh.step(r3[1:])
     fresh.prepare()
     assert role.controller.ekf.state.tolist() == fresh.law.ekf.state.tolist()  # type: ignore[attr-defined]
@@ -214,14 +214,14 @@ def test_an_agent_that_skipped_observations_tells_its_follower_how_many_ticks_pa
     sc = sm.load(SCENARIOS / "fig11_obstacles.toml")
     role = role_for(sc, 2, sc.seed)
     assert isinstance(role, FollowerRole)
-    by_hand = Follower(sc.followers[2], sc.formations["triangle"].slots[2].offset)
+    by_hand = ByHand(sc.followers[2], sc.formations["triangle"].slots[2].offset)
     r1 = (1, 2.1, 0.0, -0.8)  # (robot, rho_m, phi_rad, beta_rad)
     for seq, (tick, ticks) in enumerate(((0, 1), (1, 1), (4, 3)), start=1):
         answer(role, observation(tick, (r1,), dt_s=sc.dt_s, seq=seq))
         by_hand.step(r1[1:], ticks)
         by_hand.prepare()
         assert role.controller.ekf.state.tolist() == by_hand.law.ekf.state.tolist(), tick  # type: ignore[attr-defined]
-    once = Follower(sc.followers[2], sc.formations["triangle"].slots[2].offset)
+    once = ByHand(sc.followers[2], sc.formations["triangle"].slots[2].offset)
     for _ in range(3):
         once.step(r1[1:])
         once.prepare()

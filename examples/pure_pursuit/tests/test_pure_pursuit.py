@@ -8,12 +8,7 @@ import math
 
 from pure_pursuit_controller import PurePursuit
 
-from formation_swarm import ControllerSetup, FollowerInput, MarkerReading
-
-# A setup built by hand, without a scenario, takes these (formation_swarm's internal types).
-from formation_swarm.agents.formation import Slot
-from formation_swarm.agents.geometry import Point
-from formation_swarm.agents.params import FollowerParams
+from formation_swarm import ControllerSetup, FollowerInput, FollowerParams, MarkerReading, Point, Slot
 
 LAW = "pure_pursuit_controller:PurePursuit"
 FAULT = "restart agent-3@20s after=1"
@@ -46,7 +41,7 @@ def test_it_drives_up_to_its_slot_behind_a_standing_reference_and_stops_there() 
         )
     assert math.hypot(me[0] - 0.0, me[1] - 3.5) < 0.15  # at its slot
     assert abs(out.left_mps) + abs(out.right_mps) < 0.05  # and stopped there
-    assert out.telemetry["reference_mps"] < 0.05  # it found that its reference stands still
+    assert out.values["reference_mps"] < 0.05  # it found that its reference stands still
 
 
 def test_it_holds_the_formation_of_fig11_through_an_agent_restart(swarm_run) -> None:

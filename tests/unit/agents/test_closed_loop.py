@@ -28,25 +28,25 @@ def test_same_seed_same_run_other_seed_differs() -> None:
     assert not np.array_equal(a.poses[2], c.poses[2])
 
 
-def test_prepare_ahead_of_the_reading_gives_the_same_decisions() -> None:
-    """An agent runs the EKF prediction while it waits (Follower.prepare):
-    bit for bit what step() alone gives, readings lost or not, through a
-    formation change."""
-    from formation_swarm.agents.follower import Follower, FollowerParams
-    from formation_swarm.agents.geometry import Point
+def test_prepare_ahead_of_the_reading_gives_the_same_answers() -> None:
+    """An agent runs the EKF prediction while it waits (the controller's
+    prepare): bit for bit what step() alone gives, readings lost or not,
+    through a formation change."""
+    from formation_swarm.agents.follower import FollowerParams
+    from tests.helpers.controllers import ByHand
 
     rng = np.random.default_rng(3)
     readings = [
         None if rng.random() < 0.2 else (2.0 + 0.05 * rng.standard_normal(), 0.1 * rng.standard_normal(), 0.6)
         for _ in range(300)
     ]
-    plain, ahead = Follower(FollowerParams(), Point(-1.5, -1.5)), Follower(FollowerParams(), Point(-1.5, -1.5))
+    plain, ahead = ByHand(FollowerParams(), (-1.5, -1.5)), ByHand(FollowerParams(), (-1.5, -1.5))
     for k, reading in enumerate(readings):
         if k == 150:
-            plain.set_offset(Point(0.0, -2.0))
-            ahead.set_offset(Point(0.0, -2.0))
+            plain.move_slot((0.0, -2.0))
+            ahead.move_slot((0.0, -2.0))
         a, b = plain.step(reading), ahead.step(reading)
-        assert (a.left_mps, a.right_mps, a.estimate) == (b.left_mps, b.right_mps, b.estimate), k
+        assert a == b, k  # wheels, target and its covariance, stop and values
         assert np.array_equal(plain.law.ekf.covariance, ahead.law.ekf.covariance), k
         ahead.prepare()
 

@@ -8,9 +8,14 @@ import numpy as np
 import pytest
 
 from formation_swarm.agents.ekf import EkfParams, TargetEKF, _h_jacobian, _hx
-from formation_swarm.agents.follower import Follower, FollowerParams
-from formation_swarm.agents.geometry import Point
+from formation_swarm.agents.follower import FollowerParams
+from formation_swarm.agents.geometry import MarkerReading, Point
 from formation_swarm.studies.sim import paper_turning_setup, run
+from tests.helpers.controllers import ByHand
+
+
+def _z(rho_m: float, phi_rad: float, beta_rad: float) -> MarkerReading:
+    return MarkerReading(rho_m=rho_m, phi_rad=phi_rad, beta_rad=beta_rad)
 
 
 def _numeric_jacobian(f: object, x: np.ndarray, eps: float = 1e-6) -> np.ndarray:
@@ -24,7 +29,7 @@ def _numeric_jacobian(f: object, x: np.ndarray, eps: float = 1e-6) -> np.ndarray
 
 def _filter_at(state: list[float]) -> TargetEKF:
     ekf = TargetEKF(EkfParams(), marker_offset_m=0.15, width_m=0.5)
-    ekf.update((2.0, 0.1, 0.2))
+    ekf.update(_z(2.0, 0.1, 0.2))
     ekf._kf.x = np.array(state, dtype=float).reshape(5, 1)
     return ekf
 
@@ -52,7 +57,7 @@ def test_process_jacobian_matches_finite_differences() -> None:
 def test_ego_motion_of_a_still_reference() -> None:
     """A still reference 2 m ahead; the follower drives 1 m straight at it."""
     ekf = TargetEKF(EkfParams(), marker_offset_m=0.0, width_m=0.5)
-    ekf.update((2.0, 0.0, 0.0))
+    ekf.update(_z(2.0, 0.0, 0.0))
     for _ in range(20):
         ekf.predict(1.0, 1.0, 0.05)
     assert ekf.state[:3] == pytest.approx([0.0, 1.0, 0.0], abs=1e-12)
@@ -65,8 +70,8 @@ def test_ego_motion_of_a_still_reference() -> None:
 
 def test_missed_detection_only_predicts() -> None:
     ekf = TargetEKF(EkfParams(), marker_offset_m=0.1, width_m=0.5)
-    ekf.update((2.0, 0.0, 0.1))
-    ekf.update((2.0, 0.0, 0.1))
+    ekf.update(_z(2.0, 0.0, 0.1))
+    ekf.update(_z(2.0, 0.0, 0.1))
     ekf.predict(1.0, 1.0, 0.05)
     x_pred, p_pred = ekf.state, ekf.covariance
     ekf.update(None)
@@ -78,7 +83,7 @@ def test_missed_detection_only_predicts() -> None:
 
 def test_target_covariance_includes_heading_lever_arm() -> None:
     ekf = TargetEKF(EkfParams(), marker_offset_m=0.1, width_m=0.5)
-    ekf.update((2.0, 0.0, 0.0))
+    ekf.update(_z(2.0, 0.0, 0.0))
     _, near = ekf.target(Point(0.0, 0.0))
     _, far = ekf.target(Point(-3.0, 0.0))
     # A 3 m lateral offset adds 3 m * sigma_phi along the follower's y axis.
@@ -109,7 +114,7 @@ def test_ekf_error_well_below_raw_measurement(name: str, waypoints: object) -> N
 def test_bad_readings_name_the_field(reading: tuple, name: str) -> None:
     ekf = TargetEKF(EkfParams(), marker_offset_m=0.1, width_m=0.5)
     with pytest.raises(ValueError, match=name):
-        ekf.update(reading)
+        ekf.update(_z(*reading))
 
 
 def test_bad_parameters() -> None:
@@ -124,13 +129,14 @@ def test_a_reading_far_outside_the_model_resets_the_filter_instead_of_raising(rh
     """A wild reading (a spoofed or broken camera) must not crash the agent:
     the filter that diverges on it is counted and restarts from the next
     reading, exactly as a filter that never saw it would start."""
-    f = Follower(FollowerParams(), Point(-1.5, 0.0))
+    f = ByHand(FollowerParams(), (-1.5, 0.0))
     for _ in range(20):
         f.step((2.0, 0.0, 0.1))
     d = f.step((rho_m, 0.0, 0.1))
     assert f.law.ekf.resets == 1
-    assert (d.left_mps, d.right_mps) == (0.0, 0.0)  # no estimate this tick: it stops
-    fresh = Follower(FollowerParams(), Point(-1.5, 0.0))
+    assert (d.left_mps, d.right_mps, d.target, d.stop) == (0.0, 0.0, None, "lost")  # no estimate this tick: it stops
+    assert d.values["ekf_resets"] == 1.0  # the count the agent's stats report
+    fresh = ByHand(FollowerParams(), (-1.5, 0.0))
     for _ in range(40):
         d = f.step((2.0, 0.0, 0.1))
         fresh.step((2.0, 0.0, 0.1))
@@ -140,7 +146,7 @@ def test_a_reading_far_outside_the_model_resets_the_filter_instead_of_raising(rh
 
 
 def test_a_plausible_far_reading_does_not_reset_the_filter() -> None:
-    f = Follower(FollowerParams(), Point(-1.5, 0.0))
+    f = ByHand(FollowerParams(), (-1.5, 0.0))
     for _ in range(20):
         f.step((2.0, 0.0, 0.1))
     f.step((50.0, 0.0, 0.1))
@@ -169,8 +175,8 @@ def test_a_reading_across_plus_minus_pi_corrects_like_any_other(state: list[floa
     wrapped[index] -= 2 * math.pi  # ... as the camera reports it: just above -pi
     assert wrapped[index] < -math.pi + 0.1
     a, b = _filter_at(state), _filter_at(state)
-    a.update(tuple(wrapped))
-    b.update(tuple(reading))
+    a.update(_z(*wrapped))
+    b.update(_z(*reading))
     np.testing.assert_allclose(a.state, b.state, atol=1e-12)
     # A small correction: the position moves by centimetres, phi by less than the shift.
     moved = np.hypot(*(a.state[:2] - np.array(state[:2])))
@@ -198,7 +204,7 @@ def test_first_reading_sets_the_state_and_a_first_order_covariance() -> None:
     p = EkfParams(initial_speed_sigma_mps=0.7, initial_turn_sigma_rps=0.3)
     ekf = TargetEKF(p, marker_offset_m=0.1, width_m=0.5)
     rho, phi, beta = 2.5, 0.4, 0.6
-    ekf.update((rho, phi, beta))
+    ekf.update(_z(rho, phi, beta))
     assert ekf.state == pytest.approx([*leader_point(rho, phi, beta, 0.1), phi, 0.0, 0.0], abs=1e-12)
     eps = 1e-6
     cols = []
@@ -217,7 +223,7 @@ def test_first_reading_sets_the_state_and_a_first_order_covariance() -> None:
 def test_process_noise_grows_with_the_step() -> None:
     p = EkfParams(q_pos_m=0.1, q_phi_rad=0.2, q_speed_mps=0.3, q_turn_rps=0.4)
     ekf = TargetEKF(p, marker_offset_m=0.1, width_m=0.5)
-    ekf.update((2.0, 0.0, 0.0))
+    ekf.update(_z(2.0, 0.0, 0.0))
     for dt in (0.05, 0.1, 0.05):
         ekf.predict(0.0, 0.0, dt)
         assert np.diag(ekf._kf.Q) == pytest.approx(np.array([0.01, 0.01, 0.04, 0.09, 0.16]) * dt, rel=1e-12)

@@ -13,130 +13,167 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from formation_swarm import FollowerInput, FollowerOutput
 from formation_swarm.agents import fuzzy as fz
 from formation_swarm.agents.avoidance import Choice
-from formation_swarm.agents.follower import Decision, Follower, FollowerParams, FuzzyController, change_over
-from formation_swarm.agents.geometry import Point, errors, leader_point, target_from_reading, target_point
+from formation_swarm.agents.follower import FollowerParams, FuzzyController, change_over
+from formation_swarm.agents.geometry import Point, TargetErrors, errors, leader_point, target_from_reading, target_point
 from formation_swarm.agents.lpsi import control as lpsi_control
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.world import kinematics
 from formation_swarm.world.camera import CameraParams, observe
 from formation_swarm.world.kinematics import Pose, from_body_frame
 from tests.helpers import ROOT
+from tests.helpers.controllers import ByHand
 from tests.helpers.swap_sides import fly_the_change
 
 READING = (2.0, 0.2, 0.3)  # rho_r, phi, beta: the reference 2 m ahead, a little right, turned left
 OFFSET = Point(-1.5, -1.0)
 
 
+def rho(out: FollowerOutput) -> float:
+    return out.values["rho_m"]
+
+
+def vn(out: FollowerOutput) -> float:
+    return out.values["vn_mps"]
+
+
+def estimate(out: FollowerOutput) -> tuple[float, float] | None:
+    return None if out.target is None else (out.target.x_m, out.target.y_m)
+
+
+def measured(out: FollowerOutput) -> tuple[float, float] | None:
+    v = out.values
+    return (v["measured_x_m"], v["measured_y_m"]) if "measured_x_m" in v else None
+
+
 def test_no_reading_yet_means_standing_still() -> None:
-    d = Follower(FollowerParams(), OFFSET).step(None)
-    assert (d.left_mps, d.right_mps) == (0.0, 0.0)
-    assert math.isnan(d.vn)
-    assert d.estimate is None
-    assert d.measured is None
+    d = ByHand(FollowerParams(), OFFSET).step(None)
+    assert (d.left_mps, d.right_mps, d.stop) == (0.0, 0.0, "lost")
+    assert math.isnan(vn(d))
+    assert d.target is None
+    assert measured(d) is None
 
 
 def test_it_stops_once_it_has_had_no_reading_for_lost_after_s() -> None:
-    f = Follower(FollowerParams(lost_after_s=0.1, dt_s=0.05), OFFSET)
+    f = ByHand(FollowerParams(lost_after_s=0.1, dt_s=0.05), OFFSET)
     assert f.step(READING).left_mps != 0.0
     kept = [f.step(None) for _ in range(3)]
     # 0.05 s and 0.10 s without a reading: still flying on the EKF; past 0.1 s: stopped.
-    assert [d.left_mps != 0.0 for d in kept] == [True, True, False]
+    assert [(d.left_mps != 0.0, d.stop) for d in kept] == [(True, None), (True, None), (False, "lost")]
     assert (kept[2].left_mps, kept[2].right_mps) == (0.0, 0.0)
     assert f.law._last_cmd == (0.0, 0.0)  # the EKF's next prediction: the robot stood still
     assert f.step(READING).left_mps != 0.0  # a reading again: flying again
 
 
 def test_the_measured_target_is_eq_1_2_on_the_reading() -> None:
-    d = Follower(FollowerParams(), OFFSET).step(READING)
-    assert d.measured == pytest.approx(target_from_reading(*READING, 0.1, OFFSET), abs=1e-12)
+    d = ByHand(FollowerParams(), OFFSET).step(READING)
+    assert measured(d) == pytest.approx(target_from_reading(*READING, 0.1, OFFSET), abs=1e-12)
 
 
 def test_without_the_ekf_it_acts_on_the_reading_itself() -> None:
     p = FollowerParams(use_ekf=False)
-    f = Follower(p, OFFSET)
+    f = ByHand(p, OFFSET)
     d = f.step(READING)
     rho_r, phi, beta = READING
     goal = target_point(leader_point(rho_r, phi, beta, p.marker_offset_m), phi, OFFSET)
     err = errors(goal, None, phi)
-    vn, wheels = fz.control(err.alpha_rad, err.rho_m, 0.0, p.dt_s, p=p.fuzzy, mode=p.speed)
-    assert d.estimate == pytest.approx(goal, abs=1e-12)
-    assert (d.left_mps, d.right_mps, d.vn) == pytest.approx((wheels.left_mps, wheels.right_mps, vn), abs=1e-12)
-    assert d.estimate_cov is None
+    v_n, wheels = fz.control(err.alpha_rad, err.rho_m, 0.0, p.dt_s, p=p.fuzzy, mode=p.speed)
+    assert estimate(d) == pytest.approx(goal, abs=1e-12)
+    assert (d.left_mps, d.right_mps, vn(d)) == pytest.approx((wheels.left_mps, wheels.right_mps, v_n), abs=1e-12)
+    assert d.target is not None
+    assert d.target.cov_m2 is None
     again = f.step(None)  # no new reading: the last one still counts
     assert again.left_mps != 0.0
 
 
 def test_lpsi_without_the_ekf_assumes_a_still_reference() -> None:
     p = FollowerParams(use_ekf=False, law="lpsi")
-    d = Follower(p, OFFSET).step(READING)
+    d = ByHand(p, OFFSET).step(READING)
     rho_r, phi, beta = READING
     leader = leader_point(rho_r, phi, beta, p.marker_offset_m)
     want = lpsi_control(leader, phi, 0.0, 0.0, offset=OFFSET, width_m=p.width_m, p=p.lpsi)
     assert (d.left_mps, d.right_mps) == pytest.approx(want, abs=1e-12)
-    assert math.isnan(d.vn)
+    assert math.isnan(vn(d))
 
 
 def test_lpsi_has_no_avoidance_manoeuvre() -> None:
-    f = Follower(FollowerParams(law="lpsi"), OFFSET)
+    f = ByHand(FollowerParams(law="lpsi"), OFFSET)
     f.step(READING)
-    f.set_offset(Point(1.5, -1.0))
+    f.move_slot((1.5, -1.0))
     d = f.step(READING)
-    assert (d.steering_to, d.changing, f.law.changing) == (Choice.T0, False, False)
+    assert (d.values["steering_to"], d.values["changing"], f.law.changing) == (0.0, 0.0, False)
 
 
-def test_a_new_slot_starts_a_change_and_the_same_slot_does_not() -> None:
-    f = Follower(FollowerParams(), OFFSET)
+@pytest.mark.parametrize("new", [(-2.0, -1.0), (1.0, -1.0), (-1.5, -3.0), (-1.5, 0.5)])
+def test_a_moved_slot_starts_a_change(new: tuple[float, float]) -> None:
+    f = ByHand(FollowerParams(), OFFSET)
     assert f.law.offset == OFFSET
-    f.set_offset(Point(-1.5, -1.0))
-    assert not f.law.changing
-    for new in (Point(-2.0, -1.0), Point(1.0, -1.0), Point(-1.5, -3.0), Point(-1.5, 0.5)):
-        g = Follower(FollowerParams(), OFFSET)
-        g.set_offset(new)
-        assert g.law.changing, new
-        assert g.law.offset == new
+    f.move_slot(new)
+    d = f.step(None)  # nothing in sight: the change starts, and waits for a sight to end
+    assert (f.law.changing, d.values["changing"]) == (True, 1.0)
+    assert f.law.offset == new
+    same = ByHand(FollowerParams(), OFFSET)
+    same.move_slot(OFFSET)
+    assert same.step(None).values["changing"] == 0.0
 
 
 def test_a_follower_starts_on_its_slot_not_on_an_avoidance_target() -> None:
     # The reference behind-left of the follower: the follower is in zone I of eq. 13.
-    d = Follower(FollowerParams(), OFFSET).step((2.0, 0.0, -2.5))
-    assert (d.steering_to, d.changing) == (Choice.T0, False)
+    d = ByHand(FollowerParams(), OFFSET).step((2.0, 0.0, -2.5))
+    assert (d.values["steering_to"], d.values["changing"]) == (0.0, 0.0)
 
 
 def test_a_near_new_slot_ends_the_change_at_once() -> None:
-    f = Follower(FollowerParams(), Point(0.0, -2.0))
+    f = ByHand(FollowerParams(), (0.0, -2.0))
     f.step((2.0, 0.0, 0.0))  # right behind the reference, on its slot
-    f.set_offset(Point(0.0, -2.2))  # zone III, T0 nearer than T3
+    f.move_slot((0.0, -2.2))  # zone III, T0 nearer than T3
     d = f.step((2.0, 0.0, 0.0))
-    assert (d.steering_to, d.changing) == (Choice.T0, False)
+    assert (d.values["steering_to"], d.values["changing"]) == (0.0, 0.0)
 
 
-def test_drho_restarts_when_the_target_switches(tmp_path: Path) -> None:
+def _spy_errors(law: FuzzyController) -> list[TargetErrors]:
+    """The errors (eq. 4-6) ``law`` steers by from now on, one per tick it has a sight."""
+    seen: list[TargetErrors] = []
+    compute = law._errors
+
+    def spy(goal: Point, choice: Choice, phi_rad: float) -> TargetErrors:
+        seen.append(compute(goal, choice, phi_rad))
+        return seen[-1]
+
+    law._errors = spy  # type: ignore[method-assign]
+    return seen
+
+
+def test_drho_restarts_when_the_target_switches(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Eq. 6 across a change of target (T1, T3, T0): drho is 0 on the tick the
     target switches, rho_t - rho_(t-1) otherwise."""
-    decisions = []
-    original = FuzzyController.decide
+    ticks: list[tuple[Choice, TargetErrors] | None] = []  # per step: its target and errors; None: no sight
+    step, compute = FuzzyController.step, FuzzyController._errors
 
-    def spy(self: FuzzyController, reading: tuple | None, ticks: int = 1) -> Decision:
-        d = original(self, reading, ticks)
-        decisions.append(d)
-        return d
+    def step_spy(self: FuzzyController, inp: FollowerInput) -> FollowerOutput:
+        ticks.append(None)
+        return step(self, inp)
 
-    FuzzyController.decide = spy  # type: ignore[method-assign]
-    try:
-        fly_the_change(tmp_path, seed=0, avoidance=True)
-    finally:
-        FuzzyController.decide = original  # type: ignore[method-assign]
+    def errors_spy(self: FuzzyController, goal: Point, choice: Choice, phi_rad: float) -> TargetErrors:
+        err = compute(self, goal, choice, phi_rad)
+        ticks[-1] = (choice, err)
+        return err
+
+    monkeypatch.setattr(FuzzyController, "step", step_spy)
+    monkeypatch.setattr(FuzzyController, "_errors", errors_spy)
+    fly_the_change(tmp_path, seed=0, avoidance=True)
     switches = 0
-    for prev, d in zip(decisions, decisions[1:], strict=False):
-        if math.isnan(prev.rho_m):
+    for prev, now in zip(ticks, ticks[1:], strict=False):
+        if prev is None or now is None:
             continue
-        if d.steering_to != prev.steering_to:
+        (prev_choice, prev_err), (choice, err) = prev, now
+        if choice != prev_choice:
             switches += 1
-            assert d.drho_m == 0.0
+            assert err.drho_m == 0.0
         else:
-            assert d.drho_m == pytest.approx(d.rho_m - prev.rho_m, abs=1e-12)
+            assert err.drho_m == pytest.approx(err.rho_m - prev_err.rho_m, abs=1e-12)
     assert switches >= 2  # T0 -> an avoidance target -> ... -> T0
 
 
@@ -177,15 +214,15 @@ def _fly(
     start_back_m: float = 0.0,
     start_right_m: float = 0.0,
     seed: int = 0,
-) -> list[tuple[Decision, float, Pose]]:
+) -> list[tuple[FollowerOutput, float, Pose]]:
     """A reference driving north at ``ref_speed_mps(tick)``, seen by the default
     camera (noise included); the follower starts on its slot, moved back and
-    right. Per tick: the decision, the follower's distance to its true target
-    (m) and its pose."""
+    right. Per tick: the law's output, the follower's distance to its true
+    target (m) and its pose."""
     ref = Pose(0.0, 0.0, math.pi / 2)
     x, y = from_body_frame(ref, SLOT.x_m + start_right_m, SLOT.y_m - start_back_m)
     pose = Pose(x, y, math.pi / 2)
-    f = Follower(p, SLOT)
+    f = ByHand(p, SLOT)
     rng = np.random.default_rng(seed)
     out = []
     for k in range(ticks):
@@ -199,11 +236,11 @@ def _fly(
     return out
 
 
-def _holds(run: list[tuple[Decision, float, Pose]]) -> list[tuple[int, int]]:
+def _holds(run: list[tuple[FollowerOutput, float, Pose]]) -> list[tuple[int, int]]:
     """(first, last) tick of each hold."""
     spans: list[tuple[int, int]] = []
     for k, (d, _, _) in enumerate(run):
-        if d.holding:
+        if d.stop == "holding":
             spans[-1:] = [(spans[-1][0], k)] if spans and spans[-1][1] == k - 1 else [*spans[-1:], (k, k)]
     return spans
 
@@ -221,7 +258,7 @@ def test_a_follower_holds_at_its_stopped_reference_and_resumes_when_it_moves(see
     assert run[first][1] < 0.5
     held = [pose for _, _, pose in run[first : last + 1]]
     assert max(math.hypot(p.x_m - held[0].x_m, p.y_m - held[0].y_m) for p in held) == 0.0
-    assert all(d.vn == 0.0 and (d.left_mps, d.right_mps) == (0.0, 0.0) for d, _, _ in run[first : last + 1])
+    assert all(vn(d) == 0.0 and (d.left_mps, d.right_mps) == (0.0, 0.0) for d, _, _ in run[first : last + 1])
     assert 700 <= last < 700 + 8  # the reference moves from tick 700 on
     # And it flies its slot again: within 0.5 m from 3 s after (measured: 0.42-0.46 m at most).
     assert max(err for _, err, _ in run[760:]) < 0.5
@@ -284,7 +321,7 @@ def test_the_hold_needs_a_full_window_after_the_filter_starts() -> None:
     """The EKF starts with the reference's speed at 0: that prior is no
     measurement, so only hold_after_s of estimates after a (re)start of the
     filter say whether the reference stands (until then its speed is unknown, inf)."""
-    f = Follower(FollowerParams(hold_after_s=0.25), SLOT)  # a window of 5 ticks
+    f = ByHand(FollowerParams(hold_after_s=0.25), SLOT)  # a window of 5 ticks
 
     def unknown() -> list[bool]:
         out = []
@@ -325,22 +362,22 @@ def test_ahead_of_a_slow_target_it_waits_for_it_instead_of_driving_away(seed: in
     reference that moves is no standing one: it never holds."""
     paper = _fly(FollowerParams(), lambda k: 0.5, 600, seed=seed)
     assert paper[-1][1] > 10.0
-    assert not any(d.waiting for d, _, _ in paper)
+    assert not any(d.stop == "waiting" for d, _, _ in paper)
     run = _fly(FollowerParams(wait_ahead=True), lambda k: 0.5, 600, seed=seed)
     assert max(err for _, err, _ in run[100:]) < 0.7
-    waits = [k for k, (d, _, _) in enumerate(run) if d.waiting]
+    waits = [k for k, (d, _, _) in enumerate(run) if d.stop == "waiting"]
     assert len(waits) > 200  # about half the time: it drives at 1 m/s or more, the target at 0.5
-    assert all((d.left_mps, d.right_mps, d.vn) == (0.0, 0.0, 0.0) for d, _, _ in (run[k] for k in waits))
-    assert all(d.rho_m < -FollowerParams().fuzzy.d0_m for d, _, _ in (run[k] for k in waits))
-    assert not any(d.holding for d, _, _ in run)
+    assert all((d.left_mps, d.right_mps, vn(d)) == (0.0, 0.0, 0.0) for d, _, _ in (run[k] for k in waits))
+    assert all(rho(d) < -FollowerParams().fuzzy.d0_m for d, _, _ in (run[k] for k in waits))
+    assert not any(d.stop == "holding" for d, _, _ in run)
 
 
 def test_the_wait_is_the_fuzzy_laws_only() -> None:
     """l-psi slows down by itself: wait_ahead changes nothing in its run."""
     free = _fly(FollowerParams(law="lpsi"), lambda k: 0.5, 200)
     waiting = _fly(FollowerParams(law="lpsi", wait_ahead=True), lambda k: 0.5, 200)
-    assert [(d.left_mps, d.right_mps, d.waiting) for d, _, _ in waiting] == [
-        (d.left_mps, d.right_mps, False) for d, _, _ in free
+    assert [(d.left_mps, d.right_mps, d.stop) for d, _, _ in waiting] == [
+        (d.left_mps, d.right_mps, None) for d, _, _ in free
     ]
 
 
@@ -349,13 +386,12 @@ def test_a_formation_change_ends_within_d1_of_t3(from_t3_m: float, over: bool) -
     # Raw mode, the reference straight ahead: T3 = c behind its centre. The new slot, 4 m further back and
     # 1.5 m aside, is the farther, so eq. 13 picks T3; the change ends within d1 = 1 m of it, not dn = 0.5 m.
     p = FollowerParams(use_ekf=False)
-    f = Follower(p, Point(1.5, -1.5))
-    f.set_offset(Point(1.5, -4.0))
-    assert f.law.changing
+    f = ByHand(p, (1.5, -1.5))
+    f.move_slot((1.5, -4.0))
     centre_y = from_t3_m + p.clearance_m
     d = f.step((centre_y - p.marker_offset_m, 0.0, 0.0))
-    assert d.steering_to is Choice.T3
-    assert d.rho_m == pytest.approx(from_t3_m)
+    assert d.values["steering_to"] == float(Choice.T3)  # the change started: eq. 13 picks T3
+    assert rho(d) == pytest.approx(from_t3_m)
     assert f.law.changing is not over
     assert change_over(Choice.T3, from_t3_m, p.fuzzy) is over
     assert change_over(Choice.T3, -from_t3_m, p.fuzzy) is over  # past T3 the same
@@ -363,18 +399,19 @@ def test_a_formation_change_ends_within_d1_of_t3(from_t3_m: float, over: bool) -
     assert not change_over(Choice.T1, 0.0, p.fuzzy)
 
 
-@pytest.mark.parametrize(("mode", "vn", "wheels"), [("signed", 1.5, (1.0, 1.0)), ("distance", 1.7, (1.2, 1.2))])
-def test_drho_at_sign_change_distance_removes_fis2s_kick_not_fis1s_jump(mode: str, vn: float, wheels: tuple) -> None:
+@pytest.mark.parametrize(("mode", "v_n", "wheels"), [("signed", 1.5, (1.0, 1.0)), ("distance", 1.7, (1.2, 1.2))])
+def test_drho_at_sign_change_distance_removes_fis2s_kick_not_fis1s_jump(mode: str, v_n: float, wheels: tuple) -> None:
     # Raw mode, the reference straight ahead; the target 0.5 m to the right, 1 mm ahead, then 1 mm behind.
     p = FollowerParams(use_ekf=False, drho_at_sign_change=mode)
-    f = Follower(p, Point(0.5, -2.0 + 0.001))
+    f = ByHand(p, (0.5, -2.0 + 0.001))
+    seen = _spy_errors(f.law)  # type: ignore[arg-type]
     ahead = f.step((2.0 - p.marker_offset_m, 0.0, 0.0))
-    assert ahead.rho_m == pytest.approx(0.5, abs=1e-5)
+    assert rho(ahead) == pytest.approx(0.5, abs=1e-5)
     assert (ahead.left_mps, ahead.right_mps) == pytest.approx((1.7, 1.2))
     behind = f.step((2.0 - 0.002 - p.marker_offset_m, 0.0, 0.0))
-    assert behind.rho_m == pytest.approx(-0.5, abs=1e-5)
-    assert behind.drho_m == pytest.approx(-1.0 if mode == "signed" else 0.0, abs=1e-5)
-    assert behind.vn == pytest.approx(vn)
+    assert rho(behind) == pytest.approx(-0.5, abs=1e-5)
+    assert seen[-1].drho_m == pytest.approx(-1.0 if mode == "signed" else 0.0, abs=1e-5)
+    assert vn(behind) == pytest.approx(v_n)
     assert (behind.left_mps, behind.right_mps) == pytest.approx(wheels)  # Close either way: no steering
 
 
@@ -396,7 +433,7 @@ def _every(nth: int, told: bool, ticks: int = 400) -> tuple[float, float]:
     ref = Pose(0.0, 0.0, math.pi / 2)
     x, y = from_body_frame(ref, SLOT.x_m, SLOT.y_m)
     pose = Pose(x, y, math.pi / 2)
-    f = Follower(p, SLOT)
+    f = ByHand(p, SLOT)
     rng = np.random.default_rng(5)
     cmd, dist, speeds = (0.0, 0.0), [], []
     for k in range(ticks):
@@ -431,14 +468,14 @@ def test_a_step_after_skipped_ticks_predicts_over_them() -> None:
 
 
 def test_a_gap_longer_than_lost_after_s_restarts_the_filter() -> None:
-    f = Follower(FollowerParams(), SLOT)
+    f = ByHand(FollowerParams(), SLOT)
     for k in range(40):  # a reference pulling away at 1 m/s, straight ahead
         f.step((2.0 + 0.05 * k, 0.0, 0.0))
         f.prepare()
     assert f.law.ekf.speed_mps > 0.5
     reading = (4.5, 0.0, 0.0)
     f.step(reading, ticks=21)  # 1.05 s > lost_after_s: the filter starts from this reading
-    fresh = Follower(FollowerParams(), SLOT)
+    fresh = ByHand(FollowerParams(), SLOT)
     fresh.step(reading)
     assert f.law.ekf.state.tolist() == fresh.law.ekf.state.tolist()
     f.prepare()
@@ -451,7 +488,7 @@ def test_a_gap_longer_than_lost_after_s_restarts_the_filter() -> None:
 def test_no_reading_after_a_gap_longer_than_lost_after_s_stops_the_follower() -> None:
     """The gap counts toward lost_after_s, with or without the EKF."""
     for use_ekf in (True, False):
-        f = Follower(FollowerParams(use_ekf=use_ekf), SLOT)
+        f = ByHand(FollowerParams(use_ekf=use_ekf), SLOT)
         for _ in range(5):
             assert f.step((2.1, 0.0, -0.8)).left_mps > 0.0
             f.prepare()

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from formation_swarm.agents import fuzzy as fz
-from formation_swarm.agents.follower import Follower, FollowerParams
+from formation_swarm.agents.follower import FollowerParams
 from formation_swarm.agents.formation import (
     Camera,
     Formation,
@@ -30,6 +30,7 @@ from formation_swarm.launch.launcher import Launch
 from formation_swarm.spec import scenario as sm
 from formation_swarm.spec.keys import ScenarioWarning
 from tests.helpers import SCENARIOS
+from tests.helpers.controllers import ByHand
 
 MARKER_M = 0.1  # robot.marker_offset_m's default
 # The scenario's defaults: a 10 m camera all around; margins dmax_m = 2 m and gamma = 15 deg.
@@ -402,18 +403,18 @@ def test_no_shipped_scenario_is_warned_of(path: Path) -> None:
 
 
 def test_a_new_reference_restarts_the_filter() -> None:
-    f = Follower(FollowerParams(), Point(0.0, -1.5))
+    f = ByHand(FollowerParams(), (0.0, -1.5))
     for _ in range(5):
         d = f.step((1.4, 0.0, 0.0))
     assert f.law.ekf.initialized
-    assert d.rho_m == pytest.approx(0.0, abs=0.05)
-    f.new_reference()
-    assert not f.law.ekf.initialized
+    assert d.values["rho_m"] == pytest.approx(0.0, abs=0.05)
+    f.new_reference(3)
     stopped = f.step(None)  # nothing of the new reference yet: stop, not steer on the old one's estimate
-    assert (stopped.left_mps, stopped.right_mps) == (0.0, 0.0)
+    assert not f.law.ekf.initialized
+    assert (stopped.left_mps, stopped.right_mps, stopped.target, stopped.stop) == (0.0, 0.0, None, "lost")
     d = f.step((4.4, 0.0, 0.0))  # the new one, 3 m farther: the filter starts on it
     assert f.law.ekf.initialized
-    assert d.rho_m == pytest.approx(3.0, abs=1e-9)
+    assert d.values["rho_m"] == pytest.approx(3.0, abs=1e-9)
 
 
 def test_swarm_run_prints_the_loaders_warnings_with_its_console_lines() -> None:

@@ -8,7 +8,13 @@ import math
 
 import pytest
 
-from formation_swarm.agents.controller import ControllerSetup, FollowerInput, FollowerOutput, MarkerReading
+from formation_swarm import (
+    ControllerSetup,
+    FollowerInput,
+    FollowerOutput,
+    MarkerReading,
+    TargetEstimate,
+)
 from formation_swarm.agents.follower import BUILT_IN, LAWS, FuzzyController, LpsiController, make_controller
 from formation_swarm.agents.follower_role import FollowerRole
 from formation_swarm.agents.leader_role import LeaderRole
@@ -20,6 +26,7 @@ from formation_swarm.protocol.messages import Command, FormationCode
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.world.kinematics import Pose
 from tests.helpers import SCENARIOS
+from tests.helpers.controllers import ByHand
 from tests.helpers.fakes import FakePub, answer, observation
 
 FIG11 = scenario_mod.load(SCENARIOS / "fig11_obstacles.toml")  # 1 leads; triangle (code 0), line (code 1)
@@ -44,25 +51,27 @@ def _leader(sc: scenario_mod.Scenario) -> LeaderRole:
 
 def test_a_followers_command_is_its_controllers_wheel_speeds_and_its_telemetry_the_estimate() -> None:
     role = _follower(FIG11, 2)
-    by_hand = FuzzyController(FIG11.followers[2], FIG11.formations["triangle"].slots[2].offset)
+    by_hand = ByHand(FIG11.followers[2], FIG11.formations["triangle"].slots[2].offset)
     for tick in range(6):
         reading = (2.0 - 0.02 * tick, 0.01 * tick, -0.6)
         got = answer(role, observation(tick, ((3, 1.0, 0.0, 0.0), (1, *reading)), dt_s=DT))
-        d = by_hand.decide(reading)
+        d = by_hand.step(reading)
         by_hand.prepare()
-        cmd, tel = got.command, got.telemetry
+        cmd, tel, v, target = got.command, got.telemetry, d.values, d.target
         assert tel is not None
+        assert target is not None
+        assert target.cov_m2 is not None
         assert got.code is None
         assert (cmd.sender, cmd.tick, cmd.formation, cmd.done) == (2, tick, TRIANGLE, False)
         assert (cmd.left_mps, cmd.right_mps) == (d.left_mps, d.right_mps)
         assert (tel.seq, tel.tick, tel.time_s, tel.reference) == (cmd.seq + 1, tick, tick * DT, 1)
         assert (tel.left_mps, tel.right_mps) == (d.left_mps, d.right_mps)
-        assert (tel.rho_m, tel.alpha_rad, tel.vn) == (d.rho_m, d.alpha_rad, d.vn)
-        assert tel.measured == tuple(d.measured)
-        assert tel.estimate == tuple(d.estimate)
-        cov = d.estimate_cov
-        assert tel.target_cov == (cov[0, 0], cov[0, 1], cov[1, 1])
-        assert (tel.steering_to, tel.changing) == (0, False)
+        assert (tel.rho_m, tel.alpha_rad, tel.vn) == (v["rho_m"], v["alpha_rad"], v["vn_mps"])
+        assert tel.measured == (v["measured_x_m"], v["measured_y_m"])
+        assert tel.estimate == (target.x_m, target.y_m)
+        assert tel.target_cov == target.cov_m2
+        assert (tel.steering_to, tel.changing, tel.extras) == (0, False, ())
+        assert (d.stop, v["ekf_resets"], role.stats()["ekf_resets"]) == (None, 0.0, 0)
     # The numbers themselves: its target 2.38 m away, 87 deg to its left: V_N 1.7 m/s, the right wheel a faster.
     assert (tel.rho_m, tel.alpha_rad) == (pytest.approx(2.3844, abs=1e-4), pytest.approx(-1.5173, abs=1e-4))
     assert (tel.vn, cmd.left_mps, cmd.right_mps) == (pytest.approx(1.7), pytest.approx(1.7), pytest.approx(2.2))
@@ -111,15 +120,17 @@ def test_a_code_from_a_robot_other_than_the_leader_is_rejected_and_counted() -> 
 
 class Recorder:
     """A controller of agents.controller's API: it keeps what it is given,
-    drives at fixed speeds and names values of its own."""
+    drives at fixed speeds, says it holds, gives a target and names values
+    of its own."""
 
     def __init__(self) -> None:
         self.inputs: list[FollowerInput] = []
 
     def step(self, inp: FollowerInput) -> FollowerOutput:
         self.inputs.append(inp)
-        values = {"rho_m": 1.25, "vn_mps": math.nan, "holding": 1.0, "steering_to": 2.0, "its_own": 7.0}
-        return FollowerOutput(left_mps=0.5, right_mps=0.6, telemetry=values)
+        values = {"rho_m": 1.25, "vn_mps": math.nan, "steering_to": 2.0, "ekf_resets": 2.0, "its_own": 7.0}
+        target = TargetEstimate(x_m=0.5, y_m=math.inf, cov_m2=(0.01, 0.0, 0.02))
+        return FollowerOutput(left_mps=0.5, right_mps=0.6, target=target, stop="holding", values=values)
 
 
 @pytest.mark.filterwarnings("ignore::formation_swarm.spec.keys.ScenarioWarning")  # R5's chain in the line
@@ -149,10 +160,11 @@ def test_a_controller_gets_its_reading_slot_and_ticks_and_its_values_reach_the_t
         3,
         LINE,
     )
-    assert tel.extras == (("its_own", 7.0),)  # a name of its own: an extra (holding is the role's, not sent)
+    assert tel.extras == (("its_own", 7.0),)  # a name of its own: an extra (ekf_resets is the stats', not sent)
+    assert (tel.estimate, tel.target_cov) == (None, (0.01, 0.0, 0.02))  # an infinite y: no estimate sent
     assert (answers[-1].command.left_mps, answers[-1].command.right_mps) == (0.5, 0.6)
     stats = role.stats()
-    assert (stats["held_ticks"], stats["holds"], stats["waited_ticks"]) == (4, [[0, 5]], 0)
+    assert (stats["held_ticks"], stats["holds"], stats["waited_ticks"], stats["ekf_resets"]) == (4, [[0, 5]], 0, 2)
 
 
 def test_the_law_picks_the_controller() -> None:
@@ -161,7 +173,7 @@ def test_the_law_picks_the_controller() -> None:
     assert isinstance(_follower(FIG11, 2).controller, FuzzyController)
     assert isinstance(_follower(lpsi, 2).controller, LpsiController)
     slot = lpsi.formations["triangle"].slots[3]
-    made = make_controller(ControllerSetup(robot_id=3, params=lpsi.followers[3], slot=slot))
+    made = make_controller(ControllerSetup(robot_id=3, params=lpsi.followers[3], slot=slot, max_wheel_mps=3.0))
     assert isinstance(made, LpsiController)
     assert made.offset == slot.offset
 

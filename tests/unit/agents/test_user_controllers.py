@@ -9,7 +9,7 @@ import math
 
 import pytest
 
-from formation_swarm.agents.controller import ControllerSetup
+from formation_swarm import ControllerSetup, FollowerOutput
 from formation_swarm.agents.follower import FuzzyController, make_controller
 from formation_swarm.agents.follower_role import FollowerRole
 from formation_swarm.agents.laws import LawError, declared_params, find_class
@@ -100,10 +100,21 @@ def test_a_class_declares_its_parameters_in_params() -> None:
 def test_make_controller_builds_a_users_class_with_its_setup() -> None:
     sc = _load(**{"controller.law": f"{LAW}:Paper"})
     slot = sc.formations["triangle"].slots[3]
-    made = make_controller(ControllerSetup(robot_id=3, params=sc.followers[3], slot=slot, law_params={"scale": 3.0}))
+    setup = ControllerSetup(robot_id=3, params=sc.followers[3], slot=slot, max_wheel_mps=2.5, law_params={"scale": 3.0})
+    made = make_controller(setup)
     assert isinstance(made, Paper)
     assert made.params["scale"] == 3.0
     assert made.params["fail_at_step"] == -1
+
+
+def test_a_controllers_wheel_limit_is_its_robots() -> None:
+    role = _role(_load(**{"controller.law": f"{LAW}:Chatty", "robot.max_wheel_mps": 2.0}))
+    assert role.controller.setup.max_wheel_mps == 2.0
+    slot = _load().formations["triangle"].slots[2]
+    with pytest.raises(TypeError, match="max_wheel_mps"):
+        ControllerSetup(robot_id=2, params=_load().followers[2], slot=slot)  # type: ignore[call-arg]
+    with pytest.raises(ValueError, match="max_wheel_mps must be finite, got inf"):
+        ControllerSetup(robot_id=2, params=_load().followers[2], slot=slot, max_wheel_mps=math.inf)
 
 
 # -- what the role does with it ------------------------------------------------------
@@ -178,17 +189,25 @@ def test_a_controller_whose_class_raises_when_built_fails_at_the_first_tick() ->
     assert "in __init__" in role.notes[0]  # the traceback of the constructor
 
 
-def test_non_numbers_in_the_telemetry_are_the_controllers_failure() -> None:
+@pytest.mark.parametrize(
+    ("out", "error"),
+    [
+        (FollowerOutput(left_mps=0.1, right_mps=0.1, values={"rho_m": "far"}), "ValueError: could not convert"),  # type: ignore[dict-item]
+        (FollowerOutput(left_mps=0.1, right_mps=0.1, stop=1), "TypeError: stop must be a string or None, got int 1"),  # type: ignore[arg-type]
+    ],
+)
+def test_non_numbers_in_the_values_or_a_stop_that_is_no_word_are_the_controllers_failure(
+    out: FollowerOutput, error: str
+) -> None:
     class Odd:
-        def step(self, inp: object) -> object:
-            from formation_swarm.agents.controller import FollowerOutput
-
-            return FollowerOutput(left_mps=0.1, right_mps=0.1, telemetry={"rho_m": "far"})  # type: ignore[dict-item]
+        def step(self, inp: object) -> FollowerOutput:
+            return out
 
     sc = _load()
     role = role_for(sc, 2, sc.seed, Odd())  # type: ignore[arg-type]
     assert isinstance(role, FollowerRole)
-    _fly(role, range(2))
+    answers = _fly(role, range(2))
     assert role.failure is not None
-    assert role.failure["error"].startswith("ValueError: could not convert string to float")
-    assert math.isfinite(role.stats()["controller_failure"]["tick"])
+    assert role.failure["error"].startswith(error)
+    assert role.failure["tick"] == 0
+    assert [(a.command.left_mps, a.command.right_mps) for a in answers] == [(0.0, 0.0)] * 2
