@@ -7,6 +7,7 @@ import json
 import math
 import os
 import queue
+import re
 import signal
 import subprocess
 import sys
@@ -37,6 +38,9 @@ def fig11_run(tmp_path_factory: pytest.TempPathFactory) -> RunResult:
     """Fig. 11 once, lockstep, with the logger; shared by several tests."""
     with Launch(FIG11, out=tmp_path_factory.mktemp("fig11"), progress=lambda _l: None) as launch:
         return launch.wait(timeout_s=300)
+
+
+PROGRESS = re.compile(r"\[swarm\] tick (\d+)/(\d+) \((\d+)%\), sim ([\d.]+) s")  # a progress line
 
 
 def _events(summary: dict, robot: int) -> list[tuple[str, float]]:
@@ -201,9 +205,11 @@ def test_a_run_shorter_than_a_progress_line_still_shows_where_it_ended(
     said: list[str] = []
     res = swarm_run(FIG11, overrides={"run.duration_s": 1.5}, logger=False, progress=said.append)
     assert res.exit_code == 0
-    ticks = [line for line in said if line.startswith("[swarm] tick ")]
-    assert ticks[0] == "[swarm] tick 0/30 (0%), sim 0.0 s"
-    assert ticks[-1] == "[swarm] tick 30/30 (100%), sim 1.5 s"
+    # (tick, of, percent, sim s) of each progress line
+    ticks = [m.groups() for line in said if (m := PROGRESS.fullmatch(line))]
+    assert len(ticks) == len([line for line in said if line.startswith("[swarm] tick ")])  # every one has the shape
+    assert ticks[0] == ("0", "30", "0", "0.0")
+    assert ticks[-1] == ("30", "30", "100", "1.5")
 
 
 def test_runs_with_observation_and_formation_code_drops_are_reproducible(
