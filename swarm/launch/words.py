@@ -5,6 +5,7 @@ did, how the formation came back, the robots that fell silent. The console
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from formation_swarm.runtime import summary as summary_mod
@@ -104,54 +105,109 @@ ROBOT_EFFECT_WORDS = {
 }
 
 
-def describe_counts(counts: Mapping[str, Any]) -> str:
-    """``{"dropped": 12}`` -> "12 messages dropped"; ``{"R2 ticks": 40,
-    "R2 blacked_out": 38}`` -> "R2: on for 40 ticks, 38 readings blacked out";
-    a key it does not know is kept as it is."""
-    out, robots = [], {}
+@dataclass(frozen=True)
+class Counts:
+    """A fault's counts as describe_counts says them: the plain ones, ``(key,
+    n)`` in the summary's order; then each robot's, ``(robot, ((key, n),
+    ...))`` by number, its ticks first."""
+
+    plain: tuple[tuple[str, Any], ...] = ()
+    robots: tuple[tuple[int, tuple[tuple[str, Any], ...]], ...] = ()
+
+
+def counts_of(counts: Mapping[str, Any]) -> Counts:
+    """A fault's counts (``{"dropped": 12, "R2 ticks": 40, ...}``) grouped as ``Counts``."""
+    plain, robots = [], {}
     for key, n in counts.items():
         robot, _, what = key.partition(" ")
         if what and robot.startswith("R") and robot[1:].isdigit():
             robots.setdefault(int(robot[1:]), {})[what] = n
-        elif key in LINK_EFFECT_WORDS:
-            out.append(f"{n} message{'s' if n != 1 else ''} {LINK_EFFECT_WORDS[key]}")
         else:
-            out.append(f"{key} {n}")
+            plain.append((key, n))
+    grouped = []
     for rid in sorted(robots):
         said = robots[rid]
-        words = [f"on for {said.pop('ticks')} ticks"] if "ticks" in said else []
-        words += [f"{n} {ROBOT_EFFECT_WORDS.get(k, k)}" for k, n in said.items()]
+        ticks = [("ticks", said.pop("ticks"))] if "ticks" in said else []
+        grouped.append((rid, (*ticks, *said.items())))
+    return Counts(tuple(plain), tuple(grouped))
+
+
+def describe_counts(counts: Mapping[str, Any]) -> str:
+    """``{"dropped": 12}`` -> "12 messages dropped"; ``{"R2 ticks": 40,
+    "R2 blacked_out": 38}`` -> "R2: on for 40 ticks, 38 readings blacked out";
+    a key it does not know is kept as it is (``counts_of``)."""
+    return _say_counts(counts_of(counts))
+
+
+def _say_counts(grouped: Counts) -> str:
+    out = [
+        f"{n} message{'s' if n != 1 else ''} {LINK_EFFECT_WORDS[key]}" if key in LINK_EFFECT_WORDS else f"{key} {n}"
+        for key, n in grouped.plain
+    ]
+    for rid, said in grouped.robots:
+        words = [f"on for {n} ticks" if k == "ticks" else f"{n} {ROBOT_EFFECT_WORDS.get(k, k)}" for k, n in said]
         out.append(f"R{rid}: {', '.join(words)}")
     return "; ".join(out)
 
 
-def describe_fault(f: Mapping[str, Any], ticks: Any = None) -> str:
-    """One scheduled fault of the summary, with what it did, as a line; one
-    whose start the run never reached (it ended early: the leader's path was
-    done) says so."""
+@dataclass(frozen=True)
+class FaultSaid:
+    """One scheduled fault of the summary as describe_fault says it: ``ended``,
+    the run's ticks when it ended at or before the fault's ``start`` tick
+    (None: it started); its events, ``(robot, tick, (event, ...))`` for the
+    events of one robot at one tick; its counts; the robots whose killed agent
+    left its counts partial (or unwritten, with no counts)."""
+
+    fault: Any
+    start: Any = None
+    ended: int | None = None
+    events: tuple[tuple[Any, Any, tuple[str, ...]], ...] = ()
+    counts: Counts = Counts()
+    partial_for: tuple[Any, ...] = ()
+
+
+def fault_said(f: Mapping[str, Any], ticks: Any = None) -> FaultSaid:
+    """One scheduled fault of the summary (and the run's ``ticks``) as a ``FaultSaid``."""
     start = f.get("start_tick")
     if isinstance(ticks, int) and isinstance(start, int) and start >= ticks:
-        return f"{f.get('fault')}: never started: the run ended at tick {ticks}, before its tick {start}"
-    parts = []
+        return FaultSaid(f.get("fault"), start, ended=ticks)
     said: list[tuple[Any, Any, list[str]]] = []  # events of one robot at one tick: one phrase
     for e in f.get("events") or []:
         if said and said[-1][:2] == (e.get("robot"), e.get("tick")):
             said[-1][2].append(str(e.get("event")))
         else:
             said.append((e.get("robot"), e.get("tick"), [str(e.get("event"))]))
-    for robot, tick, events in said:
+    cut = f.get("counts_partial_for")
+    return FaultSaid(
+        f.get("fault"),
+        start,
+        events=tuple((robot, tick, tuple(events)) for robot, tick, events in said),
+        counts=counts_of(f.get("counts") or {}),
+        partial_for=tuple(cut) if cut else (),
+    )
+
+
+def describe_fault(f: Mapping[str, Any], ticks: Any = None) -> str:
+    """One scheduled fault of the summary, with what it did, as a line; one
+    whose start the run never reached (it ended early: the leader's path was
+    done) says so (``fault_said``)."""
+    it = fault_said(f, ticks)
+    if it.ended is not None:
+        return f"{it.fault}: never started: the run ended at tick {it.ended}, before its tick {it.start}"
+    parts = []
+    for robot, tick, events in it.events:
         what = events[0] if len(events) == 1 else f"{', '.join(events[:-1])} and {events[-1]}"
         parts.append(f"{what}{f' R{robot}' if robot is not None else ''} at tick {tick}")
-    counts = describe_counts(f.get("counts") or {})
-    if cut := f.get("counts_partial_for"):
-        who = ", ".join(f"R{r}" for r in cut)
+    counts = _say_counts(it.counts)
+    if it.partial_for:
+        who = ", ".join(f"R{r}" for r in it.partial_for)
         if counts:
             counts += f" (at least: {who}'s agent was killed, and its counts end at its last stats write)"
         else:
             counts = f"not counted: {who}'s agent was killed before it wrote its counts of this fault"
     parts += describe_recoveries(f)
     said = "; ".join(x for x in ("; ".join(parts), counts) if x)
-    return f"{f.get('fault')}" + (f": {said}" if said else "")
+    return f"{it.fault}" + (f": {said}" if said else "")
 
 
 STALL_WORDS = {

@@ -151,8 +151,18 @@ def write_csv(path: Path, rows: Sequence[Mapping[str, Any]]) -> None:
 BRIEF_FOLLOWERS = 4  # beyond, a progress line gives the followers' median and worst RMS, not each
 
 
+def brief_rms(row: Mapping[str, Any]) -> tuple[tuple[str, float], ...]:
+    """The followers' RMS (m) of a run's row for its progress line: (follower
+    number, RMS) each, in the row's order, those with a number only."""
+    return tuple(
+        (k[1:-6], float(row[k])) for k in row if k.endswith("_rms_m") and k.count("_") == 2 and _is_number(row[k])
+    )
+
+
 def brief(row: Mapping[str, Any]) -> str:
-    rms = [(k[1:-6], float(row[k])) for k in row if k.endswith("_rms_m") and k.count("_") == 2 and _is_number(row[k])]
+    """A run's row for a progress line: each follower's RMS (``brief_rms``), or
+    beyond BRIEF_FOLLOWERS their median and the worst."""
+    rms = brief_rms(row)
     if len(rms) > BRIEF_FOLLOWERS:
         values = sorted(v for _, v in rms)
         worst = max(rms, key=lambda kv: kv[1])

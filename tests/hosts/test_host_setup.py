@@ -8,6 +8,7 @@ import contextlib
 import json
 import os
 import queue
+import re
 import shutil
 import signal
 import subprocess
@@ -16,6 +17,7 @@ import threading
 import time
 import uuid
 from pathlib import Path
+from typing import Any
 
 import msgpack
 import pytest
@@ -30,6 +32,18 @@ from formation_swarm.protocol.session import make_config
 from tests.helpers import processes
 
 PY = [sys.executable, "-m", "formation_swarm.cli"]
+
+
+def _start(**fields: Any) -> HostRequest:
+    """A request of this version to start agent-2 of run r1, under its own login; ``fields`` override these."""
+    defaults: dict[str, Any] = {
+        "run": "r1",
+        "process": "agent-2",
+        "scenario": "x = 1",
+        "user": "agent-2",
+        "password": "p" * 24,
+    }
+    return HostRequest("start", __version__, **(defaults | fields))
 
 
 def test_a_host_refuses_another_version_bad_requests_and_robots_it_may_not_run(tmp_path: Path) -> None:
@@ -67,13 +81,11 @@ def test_a_host_refuses_another_version_bad_requests_and_robots_it_may_not_run(t
         bad = ask(msgpack.packb({"op": "start"}))
         assert not bad.ok
         assert bad.error.startswith("bad request: missing field")
-        start = HostRequest(
-            "start", __version__, run="r1", process="agent-1", scenario="x = 1", user="agent-1", password="p" * 24
-        )
-        assert ask(start.to_bytes()).error == "host a may run robots 2, 3, not 1"
-        wrong_login = HostRequest(
-            "start", __version__, run="r1", process="agent-2", scenario="x = 1", user="agent-3", password="p" * 24
-        )
+        start = _start(process="agent-1", user="agent-1")
+        refused = ask(start.to_bytes()).error
+        assert refused.startswith("host a may run robots ")
+        assert re.findall(r"\d+", refused) == ["2", "3", "1"]  # its robots, then the one asked for
+        wrong_login = _start(user="agent-3")
         assert "must be agent-2" in ask(wrong_login.to_bytes()).error
         assert "started" not in (tmp_path / "host.log").read_text()
     finally:
@@ -146,15 +158,7 @@ def test_a_relative_auth_path_gives_the_agents_absolute_existing_files(tmp_path:
     launcher = zenoh.open(make_config("client", [endpoint], settings=trust.read_settings(files["launcher"])))
     try:
         agent = trust.read_settings(files["agent-2"])["transport/auth/usrpwd"]
-        start = HostRequest(
-            "start",
-            __version__,
-            run=run,
-            process="agent-2",
-            scenario="x = 1",
-            user="agent-2",
-            password=agent["password"],
-        )
+        start = _start(run=run, password=agent["password"])
         reply = None
         deadline = time.monotonic() + 60
         while reply is None and time.monotonic() < deadline:
@@ -236,7 +240,9 @@ def test_a_host_says_when_its_router_goes_and_comes_back(tmp_path: Path) -> None
             "the router of swarm run --hosts, its launcher, goes when its run ends)"
         )
         router = zenoh.open(make_config("router", listen=[endpoint]))
-        assert said("connected again").strip() == f"host b: connected again to a router at {endpoint}"
+        again = said("connected again")
+        assert again.startswith("host b: connected again ")
+        assert again.strip().endswith(f" at {endpoint}")
     finally:
         host.terminate()
         host.wait(timeout=20)
@@ -250,9 +256,11 @@ def test_a_lost_host_and_its_agents_are_told_in_sentences_and_name_the_failure()
 
     lost = {"event": "host lost", "host": "c", "robots": [2], "sim_time_s": 5.300000000000001, "wall_s": 8.33}
     assert describe_event(lost) == "host c lost at sim t=5.30 s: robot 2 counted dead"
-    assert describe_event({**lost, "robots": [2, 3]}) == "host c lost at sim t=5.30 s: robots 2, 3 counted dead"
+    assert describe_event({**lost, "robots": [2, 3]}).endswith(": robots 2, 3 counted dead")
     agent = {"event": "exited", "process": "agent-2", "sim_time_s": 5.3, "host_lost": "c"}
-    assert describe_event(agent) == "agent-2 lost with host c at sim t=5.30 s"
+    with_host = describe_event(agent)
+    assert with_host.startswith("agent-2 lost with host c ")  # not an exit code: it stayed on that host
+    assert with_host.endswith(" at sim t=5.30 s")
     events = [lost, agent]
     summary = summary_mod.build(
         run_id="r1",
@@ -268,7 +276,7 @@ def test_a_lost_host_and_its_agents_are_told_in_sentences_and_name_the_failure()
         events=events,
         recording=None,
     )
-    assert summary["failure"] == "host c lost at sim t=5.30 s: robot 2 counted dead"
+    assert summary["failure"] == describe_event(lost)
     assert "255" not in summary["ended"]
 
 

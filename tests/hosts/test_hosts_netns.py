@@ -276,7 +276,8 @@ def test_one_command_spreads_fig11_over_two_hosts_and_survives_losing_one(site: 
         # The doctor, the hosts' router as the run was: it hears both, then with host b's link down names b.
         code, lines, _ = _doctor(site, tmp_path)
         assert code == 0, "\n".join(lines)
-        assert lines[-1] == "verdict: OK: a run on hosts a, b would start"
+        assert lines[-1].startswith("verdict: OK: ")
+        assert "hosts a, b" in lines[-1]
         for h in ("a", "b"):
             assert 0 < _round_trip_ms(lines, h) < 1000, h
         b_end = f"sw{site.tag}bh"
@@ -290,7 +291,8 @@ def test_one_command_spreads_fig11_over_two_hosts_and_survives_losing_one(site: 
             "  host b: NOT HEARD: its token did not reach the router (check its --connect, the network and its login)"
         )
         assert not_heard in lines, "\n".join(lines)
-        assert lines[-1] == "verdict: FAIL: host b not heard"
+        assert lines[-1].startswith("verdict: FAIL: ")
+        assert "host b not heard" in lines[-1]
         assert 0 < _round_trip_ms(lines, "a") < 1000
         assert DOCTOR_TIMEOUT_S <= took < DOCTOR_TIMEOUT_S + 10  # the wait, plus starting and closing the session
         deadline = time.monotonic() + 20  # host b back: it reconnects on its own

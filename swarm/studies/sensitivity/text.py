@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 from formation_swarm.studies import claims
 from formation_swarm.studies.sensitivity import LINES, METRICS, SHORT, Axis, Point, Stat
@@ -26,31 +27,64 @@ def _ranges(axis: Axis, values: Sequence[float]) -> str:
     return f"{', '.join(parts)} {axis.unit}".strip()
 
 
-def band(axis: Axis, counts: Sequence[tuple[float, int, int]], verb: str = "holds") -> str:
-    """``(value, seeds where it is so, seeds)`` along the axis, said with the seeds:
-    where it is so in every seed, in some (each value with its count), in none."""
-    seeds = counts[0][2]
-    every = [v for v, k, n in counts if k == n]
-    none = [v for v, k, _n in counts if k == 0]
-    some = [(v, k, n) for v, k, n in counts if 0 < k < n]
-    if len(every) == len(counts):
-        return f"{verb} in {seeds}/{seeds} seeds at every value tried ({_ranges(axis, every)})"
-    if len(none) == len(counts):
-        return f"{verb} in 0/{seeds} seeds at every value tried ({_ranges(axis, none)})"
+@dataclass(frozen=True)
+class Band:
+    """Where something is so along an axis: of the ``tried`` values, those where
+    it is so in every seed, those where in some (``(value, seeds where it is
+    so, seeds)`` each) and those where in none; ``seeds``: the first value's
+    seeds, said with every and none."""
+
+    seeds: int
+    tried: int
+    every: tuple[float, ...] = ()
+    some: tuple[tuple[float, int, int], ...] = ()
+    none: tuple[float, ...] = ()
+
+
+def band_of(counts: Sequence[tuple[float, int, int]]) -> Band:
+    """``(value, seeds where it is so, seeds)`` along an axis, as a ``Band``."""
+    return Band(
+        seeds=counts[0][2],
+        tried=len(counts),
+        every=tuple(v for v, k, n in counts if k == n),
+        some=tuple((v, k, n) for v, k, n in counts if 0 < k < n),
+        none=tuple(v for v, k, _n in counts if k == 0),
+    )
+
+
+def say_band(axis: Axis, b: Band, verb: str = "holds") -> str:
+    """A ``Band`` said with the seeds: where it is so in every seed, in some
+    (each value with its count), in none."""
+    seeds = b.seeds
+    if len(b.every) == b.tried:
+        return f"{verb} in {seeds}/{seeds} seeds at every value tried ({_ranges(axis, b.every)})"
+    if len(b.none) == b.tried:
+        return f"{verb} in 0/{seeds} seeds at every value tried ({_ranges(axis, b.none)})"
     parts = []
-    if every:
-        parts.append(f"{verb} in {seeds}/{seeds} seeds at {_ranges(axis, every)}")
-    if some:
-        said = ", ".join(f"{k}/{n} at {axis.label(v)}" for v, k, n in some)
-        parts.append(f"in {said}" if every else f"{verb} in {said}")
-    if none:
-        parts.append(f"0/{seeds} at {_ranges(axis, none)}")
+    if b.every:
+        parts.append(f"{verb} in {seeds}/{seeds} seeds at {_ranges(axis, b.every)}")
+    if b.some:
+        said = ", ".join(f"{k}/{n} at {axis.label(v)}" for v, k, n in b.some)
+        parts.append(f"in {said}" if b.every else f"{verb} in {said}")
+    if b.none:
+        parts.append(f"0/{seeds} at {_ranges(axis, b.none)}")
     return "; ".join(parts)
 
 
+def band(axis: Axis, counts: Sequence[tuple[float, int, int]], verb: str = "holds") -> str:
+    """``(value, seeds where it is so, seeds)`` along the axis, said with the seeds
+    (``band_of``, ``say_band``)."""
+    return say_band(axis, band_of(counts), verb)
+
+
+def holds(points: Sequence[Point], k: int) -> Band:
+    """Where claim ``k`` holds along the points of an axis."""
+    return band_of([(p.value, p.claims[k].holds, p.claims[k].seeds) for p in points])
+
+
 def holds_for(axis: Axis, points: Sequence[Point], k: int) -> str:
-    """Claim ``k`` along the axis, with its seeds (``band``)."""
-    return band(axis, [(p.value, p.claims[k].holds, p.claims[k].seeds) for p in points])
+    """Claim ``k`` along the axis, with its seeds (``holds``, ``say_band``)."""
+    return say_band(axis, holds(points, k))
 
 
 def touch_without(axis: Axis, points: Sequence[Point], scenario: str) -> str:

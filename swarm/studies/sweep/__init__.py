@@ -23,7 +23,7 @@ import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -208,17 +208,33 @@ def _load_done(run_dir: Path) -> dict[str, Any] | None:
     return s if isinstance(s, dict) and s.get("exit_code") == 0 and summary_mod.recording_gap(s) is None else None
 
 
+@dataclass(frozen=True)
+class Unfit:
+    """A run that may not enter the table: its name, its exit code (not 0: it
+    failed) and its lockstep misses (not 0: it missed a tick)."""
+
+    run: Any
+    exit_code: Any
+    lockstep_misses: Any
+
+
+def unfit_of(rows: Sequence[Mapping[str, Any]]) -> list[Unfit]:
+    """The runs that may not enter the table: a run that failed, and a lockstep
+    run that missed a tick (the world stopped a robot for want of its answer:
+    neither the controller's figure nor reproducible)."""
+    return [
+        Unfit(r.get("run"), r.get("exit_code"), r.get("lockstep_misses"))
+        for r in rows
+        if r.get("exit_code") != 0 or r.get("lockstep_misses") != 0
+    ]
+
+
 def unfit_runs(rows: Sequence[Mapping[str, Any]]) -> list[str]:
-    """The runs that may not enter the table, each with the reason: a run that
-    failed, and a lockstep run that missed a tick (the world stopped a robot for
-    want of its answer: neither the controller's figure nor reproducible)."""
-    out = []
-    for r in rows:
-        if r.get("exit_code") != 0:
-            out.append(f"{r.get('run')}: exit code {r.get('exit_code')}")
-        elif r.get("lockstep_misses") != 0:
-            out.append(f"{r.get('run')}: {r.get('lockstep_misses')} lockstep misses")
-    return out
+    """The runs that may not enter the table (``unfit_of``), each with the reason."""
+    return [
+        f"{u.run}: exit code {u.exit_code}" if u.exit_code != 0 else f"{u.run}: {u.lockstep_misses} lockstep misses"
+        for u in unfit_of(rows)
+    ]
 
 
 def run_sweeps(sweeps: Mapping[str, Sweep], out: Path) -> dict[str, list[dict[str, Any]]] | None:

@@ -84,11 +84,8 @@ def test_link_faults_by_link() -> None:
             "partition 2@1s for=1s",
         )
     ]
-    assert [str(f) for f in link_faults(faults, "obs", 2)] == [
-        "drop obs:2@1s p=0.1",
-        "delay links:*@1s ticks=1",
-        "partition 2@1s for=1s",
-    ]
+    drop, _leader, delay, partition = faults
+    assert link_faults(faults, "obs", 2) == (drop, delay, partition)
     assert [f.kind for f in link_faults(faults, "obs", 3)] == ["delay"]
     assert [f.kind for f in link_faults(faults, "formation", 3)] == ["partition", "delay"]
 
@@ -141,10 +138,10 @@ def test_scenario_faults_from_tables_and_the_command_line(tmp_path: Path) -> Non
     path = tmp_path / "s.toml"
     path.write_text(src + TOML_FAULTS)
     sc = scenario_mod.load(path, faults=["freeze agent-2@1s for=2s"])
-    assert [str(f) for f in sc.faults] == [
-        "freeze agent-2@1s for=2s",
-        "drop obs:2@5s for=2.5s p=0.4",
-        "kill agent-3@20s",
+    assert list(sc.faults) == [  # the command line's, then the tables' in their order
+        Fault.make("freeze", "agent-2", 1, for_s=2),
+        Fault.make("drop", "obs:2", 5, for_s=2.5, p=0.4),
+        Fault.make("kill", "agent-3", 20),
     ]
     # The scenario as run holds every fault, so each process reads the same schedule.
     from formation_swarm.spec.files import dumps
@@ -187,53 +184,73 @@ def test_a_faults_entry_that_is_not_a_table(tmp_path: Path) -> None:
 def test_summary_gathers_each_faults_ticks_events_and_counts() -> None:
     from formation_swarm.runtime.summary.faults import fault_effects
 
-    sc = scenario_mod.load("fig11_obstacles", faults=["restart agent-3@20s after=1", "drop obs:2@10s for=5s p=0.3"])
+    restart, drop = "restart agent-3@20s after=1", "drop obs:2@10s for=5s p=0.3"  # as the summary names them
+    sc = scenario_mod.load("fig11_obstacles", faults=[restart, drop])
     parts = {
         "world": {
             "fault_log": [
-                {"tick": 400, "time_s": 20.0, "fault": "restart agent-3@20s after=1", "event": "killed", "robot": 3},
-                {"tick": 420, "time_s": 21.0, "fault": "restart agent-3@20s after=1", "event": "rejoined", "robot": 3},
+                {"tick": 400, "time_s": 20.0, "fault": restart, "event": "killed", "robot": 3},
+                {"tick": 420, "time_s": 21.0, "fault": restart, "event": "rejoined", "robot": 3},
             ]
         },
     }
     # The link layer's per-fault counts, summed over the fault's links (summary._link_sums).
-    link_faults = {"0": {"fault": "drop obs:2@10s for=5s p=0.3", "dropped": 30}}
+    link_faults = {"0": {"fault": drop, "dropped": 30}}
     out = fault_effects(sc, parts, link_faults=link_faults)
-    assert [(f["fault"], f["start_tick"], f["end_tick"]) for f in out] == [
-        ("drop obs:2@10s for=5s p=0.3", 200, 300),
-        ("restart agent-3@20s after=1", 400, 420),
-    ]
+    assert [(f["fault"], f["start_tick"], f["end_tick"]) for f in out] == [(drop, 200, 300), (restart, 400, 420)]
     assert out[0]["counts"] == {"dropped": 30}
     assert [e["event"] for e in out[1]["events"]] == ["killed", "rejoined"]
 
 
-def test_a_faults_counts_read_as_words_on_the_console() -> None:
-    from formation_swarm.launch.console import describe_counts, describe_fault
+def test_a_faults_counts_are_grouped_by_robot_each_with_its_ticks_first() -> None:
+    from formation_swarm.launch.words import Counts, counts_of
 
-    assert describe_counts({"dropped": 1, "partitioned": 40}) == "1 message dropped; 40 messages lost to the partition"
-    counts = {"R3 ticks": 40, "R3 moving_ticks": 38, "R2 ticks": 40, "R2 moving_ticks": 0, "held": 2}
-    assert describe_counts(counts) == (
-        "held 2; R2: on for 40 ticks, 0 of them with the robot told to move; "
+    counts = {"R3 ticks": 40, "R3 moving_ticks": 38, "dropped": 1, "R2 moving_ticks": 0, "R2 ticks": 40, "held": 2}
+    assert counts_of(counts) == Counts(
+        plain=(("dropped", 1), ("held", 2)),
+        robots=((2, (("ticks", 40), ("moving_ticks", 0))), (3, (("ticks", 40), ("moving_ticks", 38)))),
+    )
+    assert counts_of({}) == Counts()
+
+
+def test_a_faults_counts_read_as_words_on_the_console() -> None:
+    from formation_swarm.launch.console import describe_counts
+
+    counts = {"dropped": 1, "partitioned": 40, "held": 2, "R3 ticks": 40, "R3 moving_ticks": 38, "R2 ticks": 40}
+    assert describe_counts({**counts, "R2 moving_ticks": 0}) == (
+        "1 message dropped; 40 messages lost to the partition; held 2; "
+        "R2: on for 40 ticks, 0 of them with the robot told to move; "
         "R3: on for 40 ticks, 38 of them with the robot told to move"
     )
+
+
+def test_a_faults_line_says_its_counts_and_whose_killed_agent_left_them_partial_or_unwritten() -> None:
+    from formation_swarm.launch.console import describe_counts, describe_fault
+    from formation_swarm.launch.words import Counts, FaultSaid, fault_said
+
     fault = {"fault": "partition 2@5s for=2s", "start_tick": 100, "events": [], "counts": {"partitioned": 40}}
-    assert describe_fault(fault, ticks=400) == "partition 2@5s for=2s: 40 messages lost to the partition"
+    assert fault_said(fault, ticks=400) == FaultSaid(fault["fault"], 100, counts=Counts((("partitioned", 40),)))
+    assert describe_fault(fault, ticks=400) == f"{fault['fault']}: {describe_counts(fault['counts'])}"
     # The receiving agent was killed inside the window: a lower bound, or nothing it wrote.
     fault["counts_partial_for"] = [2]
+    assert fault_said(fault, ticks=400).partial_for == (2,)
     assert describe_fault(fault, ticks=400) == (
         "partition 2@5s for=2s: 40 messages lost to the partition"
         " (at least: R2's agent was killed, and its counts end at its last stats write)"
     )
     fault["counts"] = {}
-    assert describe_fault(fault, ticks=400) == (
-        "partition 2@5s for=2s: not counted: R2's agent was killed before it wrote its counts of this fault"
-    )
+    assert fault_said(fault, ticks=400) == FaultSaid(fault["fault"], 100, partial_for=(2,))
+    unwritten = describe_fault(fault, ticks=400)
+    assert unwritten.startswith(f"{fault['fault']}: not counted: ")
+    assert "R2's agent was killed before it wrote" in unwritten
+    assert "messages" not in unwritten
 
 
 def test_a_fault_cut_by_the_runs_end_lists_its_ticks_in_the_run_and_events_of_one_tick_read_as_one() -> None:
     import warnings
 
     from formation_swarm.launch.console import describe_fault
+    from formation_swarm.launch.words import fault_said
     from formation_swarm.runtime.summary.faults import fault_effects
 
     with warnings.catch_warnings():
@@ -246,9 +263,11 @@ def test_a_fault_cut_by_the_runs_end_lists_its_ticks_in_the_run_and_events_of_on
         {"event": "readmitted", "robot": 2, "tick": 260},
         {"event": "rejoined", "robot": 2, "tick": 260},
     ]
-    assert describe_fault({"fault": "restart agent-2@12s after=1", "events": events, "counts": {}}) == (
-        "restart agent-2@12s after=1: killed R2 at tick 240; started, readmitted and rejoined R2 at tick 260"
-    )
+    restart = {"fault": "restart agent-2@12s after=1", "events": events, "counts": {}}
+    assert fault_said(restart).events == ((2, 240, ("killed",)), (2, 260, ("started", "readmitted", "rejoined")))
+    said = describe_fault(restart)
+    assert said.startswith(f"{restart['fault']}: killed R2 at tick 240; ")
+    assert said.endswith("; started, readmitted and rejoined R2 at tick 260")
 
 
 def test_report_md_says_partition_losses_rejection_reasons_and_a_killed_followers_error_until_then() -> None:
@@ -415,11 +434,9 @@ def test_link_faults_take_only_faults_on_that_link() -> None:
             "partition 2@1s for=1s from=world",
         )
     ]
-    assert [str(f) for f in link_faults(faults, "obs", 2)] == ["partition 2@1s for=1s from=world"]
-    assert [str(f) for f in link_faults(faults, "cmd", 2)] == [
-        "drop cmd:2@1s p=0.1",
-        "partition 2@1s for=1s from=world",
-    ]
+    drop, _blackout, _stuck, _kill, partition = faults
+    assert link_faults(faults, "obs", 2) == (partition,)
+    assert link_faults(faults, "cmd", 2) == (drop, partition)
     assert link_faults(faults, "formation", 2) == ()
     assert link_faults(faults, "cmd", 3) == ()
 
@@ -484,7 +501,8 @@ def test_update_doc_rewrites_between_the_markers_only(tmp_path: Path) -> None:
     doc = tmp_path / "faults.md"
     doc.write_text(f"head\n{BEGIN}\nold\n{END}\ntail\n")
     update_doc(str(doc))
-    assert doc.read_text() == f"head\n{BEGIN}\n{reference()}{END}\ntail\n"
+    assert doc.read_text().splitlines() == ["head", BEGIN, *reference().splitlines(), END, "tail"]
+    assert reference().endswith("\n")  # END on a line of its own
     for text in (f"head\n{BEGIN}\nold\n", f"head\nold\n{END}\n"):
         doc.write_text(text)
         with pytest.raises(SystemExit, match="no .* markers"):
@@ -525,8 +543,9 @@ def test_report_md_marks_the_counts_a_killed_agent_left_partial_or_unwritten() -
         "(killed agents' counts end at their last stats write) |"
     ]
     fault["counts"] = {}
-    rows = [line for line in faults_markdown({"faults": [fault]}) if line.startswith("| `")]
-    assert rows == ["| `partition 2@5s for=2s` | 100-139 | - | not counted: R2's agent killed before it wrote them |"]
+    (row,) = [_cells(line) for line in faults_markdown({"faults": [fault]}) if line.startswith("| `")]
+    assert row[:3] == [f"`{fault['fault']}`", "100-139", "-"]
+    assert row[3].startswith("not counted: R2's agent")
 
 
 def test_a_killed_agents_counts_are_partial_only_if_it_lived_in_the_fault_and_wrote_them_before_final() -> None:
@@ -549,5 +568,12 @@ def test_report_md_says_a_fault_the_run_never_reached_never_started() -> None:
     from formation_swarm.report.faults import faults_markdown
 
     fault = {"fault": "freeze agent-2@54s for=1s", "start_tick": 1080, "end_tick": 1100, "events": [], "counts": {}}
-    rows = [line for line in faults_markdown({"ticks": 1061, "faults": [fault]}) if line.startswith("| `")]
-    assert rows == ["| `freeze agent-2@54s for=1s` | 1080- | never started: the run ended at tick 1061 | - |"]
+    (row,) = [_cells(line) for line in faults_markdown({"ticks": 1061, "faults": [fault]}) if line.startswith("| `")]
+    assert [row[0], row[1], row[3]] == [f"`{fault['fault']}`", "1080-", "-"]
+    assert row[2].startswith("never started")
+    assert row[2].endswith(" 1061")  # the run's last tick
+
+
+def _cells(row: str) -> list[str]:
+    """A markdown table's row, its cells."""
+    return [c.strip() for c in row.strip().strip("|").split("|")]

@@ -21,7 +21,6 @@ from formation_swarm.protocol.codec import (
 )
 from formation_swarm.protocol.keys import MAX_ROBOT_ID
 from formation_swarm.protocol.messages import (
-    WORLD_ID,
     Command,
     FaultCall,
     FormationCode,
@@ -31,63 +30,38 @@ from formation_swarm.protocol.messages import (
     Truth,
 )
 from formation_swarm.spec.keys import MAX_OBSTACLES, MAX_ROBOTS
+from tests.helpers.messages import command, fault_call, observation, telemetry
 
 EXAMPLES = [
-    Observation(
-        sender=WORLD_ID,
-        seq=7,
-        tick=3,
-        time_s=0.15,
-        pose=(1.0, -2.0, 0.5),
-        readings=((1, 2.0, 0.1, -0.2),),
-        obstacles=(),
-    ),
-    Observation(
-        sender=WORLD_ID, seq=8, tick=3, time_s=0.15, pose=(0.0, 0.0, 0.0), readings=(), obstacles=((5.5, 0.3, 1.0),)
-    ),
-    Command(sender=2, seq=9, tick=3, left_mps=0.4, right_mps=-0.1, formation=1, done=False),
+    observation(seq=7, tick=3, time_s=0.15, pose=(1.0, -2.0, 0.5), readings=((1, 2.0, 0.1, -0.2),)),
+    observation(seq=8, tick=3, time_s=0.15, obstacles=((5.5, 0.3, 1.0),)),
+    command(seq=9, tick=3, left_mps=0.4, right_mps=-0.1, formation=1),
     FormationCode(sender=1, seq=10, tick=3, code=2),
-    Telemetry(
-        sender=2,
+    telemetry(
         seq=11,
         tick=3,
         time_s=0.15,
-        reference=1,
-        formation=0,
         measured=(0.1, 1.2),
-        estimate=None,
-        target_cov=None,
-        rho_m=None,
         alpha_rad=0.2,
         vn=1.5,
         left_mps=0.5,
         right_mps=0.6,
-        steering_to=0,
         changing=True,
         obs_dropped=4,
         formation_dropped=1,
-        rejected=0,
     ),
-    Telemetry(
-        sender=2,
+    telemetry(
         seq=12,
         tick=3,
         time_s=0.15,
-        reference=1,
-        formation=0,
         measured=(0.1, 1.2),
         estimate=(0.1, 1.1),
         target_cov=(0.01, 0.0, 0.02),
         rho_m=1.1,
         alpha_rad=0.2,
-        vn=None,
         left_mps=0.5,
         right_mps=0.6,
         steering_to=2,
-        changing=False,
-        obs_dropped=0,
-        formation_dropped=0,
-        rejected=0,
     ),
     Truth(
         sender=0,
@@ -97,7 +71,7 @@ EXAMPLES = [
         robots=((1, 0.0, 0.0, 1.57, True), (2, -1.5, -1.5, 1.57, False)),
         targets=((2, -1.5, -1.4),),
     ),
-    FaultCall(sender=0, seq=15, tick=3, time_s=0.15, action="freeze", process="agent-2", index=1),
+    fault_call(seq=15, tick=3, time_s=0.15, action="freeze", index=1),
     Status(sender=0, seq=14, tick=3, time_s=0.15, state="running", total_ticks=1120),
 ]
 
@@ -111,7 +85,7 @@ def _raw(msg: object) -> list:
     return msgpack.unpackb(msg.to_bytes())
 
 
-CMD = Command(sender=2, seq=9, tick=3, left_mps=0.4, right_mps=-0.1, formation=1, done=False)
+CMD = command(seq=9, tick=3, left_mps=0.4, right_mps=-0.1, formation=1)
 
 
 @pytest.mark.parametrize(
@@ -125,11 +99,11 @@ CMD = Command(sender=2, seq=9, tick=3, left_mps=0.4, right_mps=-0.1, formation=1
         (msgpack.packb(_raw(CMD)[:-1]), "wrong length"),  # a field missing
         (msgpack.packb([*_raw(CMD), 1]), "wrong length"),  # one too many
         (
-            Command(sender=2, seq=9, tick=3, left_mps=math.nan, right_mps=0.0, formation=1, done=False).to_bytes(),
+            replace(CMD, left_mps=math.nan, right_mps=0.0).to_bytes(),
             "not finite",
         ),
         (
-            Command(sender=2, seq=9, tick=3, left_mps=0.0, right_mps=-math.inf, formation=1, done=False).to_bytes(),
+            replace(CMD, left_mps=0.0, right_mps=-math.inf).to_bytes(),
             "not finite",
         ),
         (msgpack.packb([2, VERSION, 2, 9, 3, "fast", 0.0, 1, False]), "wrong type"),
@@ -189,13 +163,9 @@ def test_the_largest_messages_a_scenario_allows_fit() -> None:
         sender=0, seq=big, tick=big, time_s=f(0), robots=robots, targets=tuple((r, f(r), f(r + 3)) for r in ids)
     )
     readings = tuple((r, f(r), f(r + 1), f(r + 2)) for r in ids[1:])
-    seen = Observation(
-        sender=WORLD_ID, seq=big, tick=big, time_s=f(0), pose=(f(1), f(2), f(3)), readings=readings, obstacles=()
-    )
+    seen = observation(seq=big, tick=big, time_s=f(0), pose=(f(1), f(2), f(3)), readings=readings)
     obstacles = tuple((f(i), f(i + 1), f(i + 2)) for i in range(MAX_OBSTACLES))
-    sensed = Observation(
-        sender=WORLD_ID, seq=big, tick=big, time_s=f(0), pose=(f(1), f(2), f(3)), readings=(), obstacles=obstacles
-    )
+    sensed = observation(seq=big, tick=big, time_s=f(0), pose=(f(1), f(2), f(3)), obstacles=obstacles)
     for msg in (truth, seen, sensed):
         payload = msg.to_bytes()
         assert len(payload) <= MAX_PAYLOAD_BYTES, (type(msg).__name__, len(payload))
@@ -256,27 +226,7 @@ def test_header_bounds_are_inclusive() -> None:
 
 
 def test_field_ranges_are_inclusive_and_named() -> None:
-    ok = Telemetry(
-        sender=2,
-        seq=1,
-        tick=1,
-        time_s=0.0,
-        reference=1,
-        formation=0,
-        measured=None,
-        estimate=None,
-        target_cov=None,
-        rho_m=None,
-        alpha_rad=None,
-        vn=None,
-        left_mps=0.0,
-        right_mps=0.0,
-        steering_to=3,
-        changing=False,
-        obs_dropped=0,
-        formation_dropped=0,
-        rejected=0,
-    )
+    ok = telemetry(steering_to=3)
     assert Telemetry.from_bytes(ok.to_bytes()).steering_to == 3
     raw = _raw(ok)
     for bad in (4, -1):
@@ -337,27 +287,7 @@ def test_a_list_of_only_non_finite_numbers_is_rejected() -> None:
 
 def test_the_payload_limit_and_who_sends_telemetry() -> None:
     assert MAX_PAYLOAD_BYTES == 32 * 1024  # under the routed size filter of protocol.session (~40 KiB)
-    tel = Telemetry(
-        sender=1,
-        seq=1,
-        tick=1,
-        time_s=0.0,
-        reference=2,
-        formation=0,
-        measured=None,
-        estimate=None,
-        target_cov=None,
-        rho_m=None,
-        alpha_rad=None,
-        vn=None,
-        left_mps=0.0,
-        right_mps=0.0,
-        steering_to=0,
-        changing=False,
-        obs_dropped=0,
-        formation_dropped=0,
-        rejected=0,
-    )
+    tel = telemetry(sender=1, reference=2)
     assert Telemetry.from_bytes(tel.to_bytes()).sender == 1  # robot 1 may follow (when another robot leads)
     with pytest.raises(DecodeError, match="sender=0 not in"):  # the world flies no robot
         Telemetry.from_bytes(replace(tel, sender=0).to_bytes())
@@ -466,23 +396,19 @@ def test_an_int_subclass_is_taken_up_to_both_bounds() -> None:
 
 @pytest.mark.parametrize("process", ["logger", "agent-1", f"agent-{MAX_ROBOT_ID}"])
 def test_a_fault_call_hits_the_logger_or_an_agent(process: str) -> None:
-    call = FaultCall(sender=0, seq=1, tick=1, time_s=0.05, action="kill", process=process, index=0)
+    call = fault_call(process=process)
     assert FaultCall.from_bytes(call.to_bytes()).process == process
 
 
 @pytest.mark.parametrize("process", ["world", "router", "zzz", "agent-0", f"agent-{MAX_ROBOT_ID + 1}", "logger2"])
 def test_a_fault_call_for_any_other_process_is_refused(process: str) -> None:
     with pytest.raises(DecodeError, match="is neither logger nor agent"):
-        FaultCall.from_bytes(
-            FaultCall(sender=0, seq=1, tick=1, time_s=0.05, action="kill", process=process, index=0).to_bytes()
-        )
+        FaultCall.from_bytes(fault_call(process=process).to_bytes())
 
 
 def test_a_refused_process_name_is_quoted_to_40_characters() -> None:
     with pytest.raises(DecodeError) as info:
-        FaultCall.from_bytes(
-            FaultCall(sender=0, seq=1, tick=1, time_s=0.05, action="kill", process="x" * 39 + "yz", index=0).to_bytes()
-        )
+        FaultCall.from_bytes(fault_call(process="x" * 39 + "yz").to_bytes())
     assert str(info.value).endswith(f"process={'x' * 39 + 'y'!r} is neither logger nor agent-<robot id>")
 
 

@@ -257,12 +257,14 @@ def test_a_message_larger_than_max_bytes_still_leaves_at_once() -> None:
 def test_zenoh_errors_lose_their_rust_source_places() -> None:
     from formation_swarm.protocol.session import zenoh_reason
 
-    raw = (
-        "Can not create a new TCP listener bound to tcp/127.0.0.1:24473: [Address already in use (os error 98)"
-        " at /root/.cargo/registry/src/zenoh-link-tcp-1.0.0/src/unicast.rs:61.] at"
-        " /root/.cargo/git/checkouts/zenoh/src/net/runtime/orchestrator.rs:388."
+    said, inner = (
+        "Can not create a new TCP listener bound to tcp/127.0.0.1:24473: [",
+        "Address already in use (os error 98)",
     )
-    assert zenoh_reason(Exception(raw)) == (
-        "Can not create a new TCP listener bound to tcp/127.0.0.1:24473: [Address already in use (os error 98)]"
+    places = (
+        " at /root/.cargo/registry/src/zenoh-link-tcp-1.0.0/src/unicast.rs:61.",
+        " at /root/.cargo/git/checkouts/zenoh/src/net/runtime/orchestrator.rs:388.",
     )
+    raw = f"{said}{inner}{places[0]}]{places[1]}"
+    assert zenoh_reason(Exception(raw)) == f"{said}{inner}]"  # Zenoh's words, without the places
     assert zenoh_reason(Exception("Timeout!")) == "Timeout!"

@@ -25,16 +25,16 @@ def test_a_logger_killed_outside_the_schedule_is_placed_at_the_tick_the_world_sa
     said = "the logger was killed by SIGKILL at sim t=20.00 s (tick 400), outside the fault schedule"
     assert logger_lost({"logger_lost": LOST}, events) == said
     summary = {"mode": "realtime", "events": events, "parts": {"world": {"logger_lost": LOST}}}
-    assert recording_cut(summary) == (
-        f"{said}: the recording ends there, without what the logger had not yet written (up to its last second "
-        "of wall time); its file has no end (rerun rrd verify fails on it, what it holds still reads)"
-    )
+    cut = recording_cut(summary)
+    assert cut.startswith(f"{said}: the recording ends there, ")  # where, as logger_lost says it
+    assert "(up to its last second of wall time); " in cut  # real time: no word of lockstep's ticks
+    assert "its file has no end" in cut  # lost, not killed by design: the recording was not closed
 
 
 def test_a_logger_whose_token_went_without_an_exit_is_lost_too() -> None:
-    assert logger_lost({"logger_lost": LOST}, []) == (
-        "the logger's token went at sim t=20.00 s (tick 400), outside the fault schedule"
-    )
+    said = logger_lost({"logger_lost": LOST}, [])
+    assert said.startswith("the logger's token went ")  # no exit of it known: how the world saw it go
+    assert "at sim t=20.00 s (tick 400)" in said  # when, as an exit's
 
 
 def test_a_logger_killed_by_its_fault_is_a_cut_by_design_not_a_loss() -> None:

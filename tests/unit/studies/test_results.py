@@ -107,7 +107,8 @@ def test_write_into_replaces_only_between_the_markers(tmp_path: Path) -> None:
     doc = tmp_path / "doc.md"
     doc.write_text(f"before\n{results.BEGIN}\nold\n{results.END}\nafter\n")
     sections.write_into(doc, "new table")
-    assert doc.read_text() == f"before\n{results.BEGIN}\nnew table\n{results.END}\nafter\n"
+    assert doc.read_text().splitlines() == ["before", results.BEGIN, "new table", results.END, "after"]
+    assert doc.read_text().endswith("after\n")
     for text in ("no markers", f"only {results.BEGIN}", f"only {results.END}"):
         (tmp_path / "none.md").write_text(text)
         with pytest.raises(ValueError, match="markers"):
@@ -119,8 +120,18 @@ def test_failed_runs_and_runs_with_lockstep_misses_are_unfit() -> None:
     rows[1]["exit_code"] = 1
     rows[2]["lockstep_misses"] = 3
     del rows[3]["lockstep_misses"]  # a run that does not say: not trusted either
-    assert sweep.unfit_runs(rows) == ["r1: exit code 1", "r2: 3 lockstep misses", "r3: None lockstep misses"]
-    assert sweep.unfit_runs(_rows([1.0, 2.0])) == []
+    assert sweep.unfit_of(rows) == [
+        sweep.Unfit(run="r1", exit_code=1, lockstep_misses=0),
+        sweep.Unfit(run="r2", exit_code=0, lockstep_misses=3),
+        sweep.Unfit(run="r3", exit_code=0, lockstep_misses=None),
+    ]
+    assert sweep.unfit_of(_rows([1.0, 2.0])) == []
+    # Each with its reason: a failed run's exit code, else its misses.
+    whys = sweep.unfit_runs(rows)
+    assert [why.partition(": ")[0] for why in whys] == ["r1", "r2", "r3"]
+    assert whys[0].endswith("exit code 1")
+    assert whys[1].endswith("3 lockstep misses")
+    assert whys[2].endswith("None lockstep misses")
 
 
 class _FakeSweep:
@@ -190,11 +201,12 @@ def test_a_setting_goes_into_every_run_its_labels_and_its_own_markers(tmp_path: 
     with pytest.raises(ValueError, match="--set links.obs_drop: the table varies that key itself"):
         results.jobs(range(2), {"links.obs_drop": 0.5})
     begin, end = results.markers("claims", "robot.wheel_noise_mps=0.1")
-    assert begin == "<!-- claims (robot.wheel_noise_mps=0.1): begin -->"
+    assert (begin.split()[:3], end.split()[:3]) == (["<!--", "claims", "(robot.wheel_noise_mps=0.1):"],) * 2
+    assert (begin, end) != results.markers("claims")  # its own: not the baseline's
     doc = tmp_path / "doc.md"
     doc.write_text(f"{results.BEGIN}\nbaseline\n{results.END}\n{begin}\nold\n{end}\n")
     sections.write_into(doc, "noisy claims", begin, end)
-    assert doc.read_text() == f"{results.BEGIN}\nbaseline\n{results.END}\n{begin}\nnoisy claims\n{end}\n"
+    assert doc.read_text().splitlines() == [results.BEGIN, "baseline", results.END, begin, "noisy claims", end]
 
 
 def _claim_rows(n: int = 3) -> dict[str, list[dict]]:
@@ -227,6 +239,11 @@ def _claim_rows(n: int = 3) -> dict[str, list[dict]]:
     }
 
 
+def test_a_claims_verdict_says_in_how_many_seeds_it_holds() -> None:
+    assert [claims.Claim("a", "", holds, 3).verdict for holds in (3, 0)] == ["yes", "no"]
+    assert claims.Claim("a", "", 2, 3).verdict == "in 2 of 3 seeds"
+
+
 def test_the_claims_hold_seed_by_seed_on_the_criteria_of_test_claims() -> None:
     rows = _claim_rows()
     assert [c.verdict for c in claims.measure(rows)] == ["yes"] * 6
@@ -239,17 +256,17 @@ def test_the_claims_hold_seed_by_seed_on_the_criteria_of_test_claims() -> None:
     rows["dynamic"][0] = {**rows["dynamic"][0], "r2_rms_m": 0.70}
     rows["dynamic"][2] = {**rows["dynamic"][2], "r2_rms_m": 0.74}
     got = {c.name[:12]: c for c in claims.measure(rows)}
-    assert got["a. dynamic V"].verdict == "in 2 of 3 seeds"
+    assert (got["a. dynamic V"].holds, got["a. dynamic V"].seeds) == (2, 3)
     assert "Both lower in 2 of 3 seeds" in got["a. dynamic V"].measured
     assert "dynamic 1.350-2.000 m" in got["a. dynamic V"].measured
-    assert got["b. static 1."].verdict == "in 2 of 3 seeds"
+    assert (got["b. static 1."].holds, got["b. static 1."].seeds) == (2, 3)
     assert "ahead by up to 0.000-0.010 m" in got["b. static 1."].measured
-    assert got["c. the EKF's"].verdict == "no"
+    assert (got["c. the EKF's"].holds, got["c. the EKF's"].verdict) == (0, "no")
     assert "ratio 0.87" in got["c. the EKF's"].measured
-    assert got["d. the obsta"].verdict == "in 2 of 3 seeds"
+    assert (got["d. the obsta"].holds, got["d. the obsta"].seeds) == (2, 3)
     rows["rank swap"][1] = {**rows["rank swap"][1], "min_distance_m": 0.39}  # a graze with eq. 11-13
     swap = next(c for c in claims.measure(rows) if c.name.startswith("d. with eq. 11-13"))
-    assert swap.verdict == "in 2 of 3 seeds"
+    assert (swap.holds, swap.seeds) == (2, 3)
     assert "Without eq. 11-13 (`controller.avoidance = false`): two robots touch in 3 of 3 seeds (6 contacts)" in (
         swap.measured
     )

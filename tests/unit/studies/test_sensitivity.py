@@ -4,18 +4,21 @@ with the claims' own, where a claim is said to hold, and the figure."""
 from __future__ import annotations
 
 import math
+import re
 import statistics
 from pathlib import Path
 
 import pytest
 from scipy import stats
 
+from formation_swarm.common.faults import Fault
 from formation_swarm.studies import claims, results, sensitivity
 from formation_swarm.studies.sensitivity import AXIS_NAMES, Axis, Point
 from formation_swarm.studies.sensitivity import figure as sensitivity_figure
 from formation_swarm.studies.sensitivity import rows as sensitivity_rows
 from formation_swarm.studies.sensitivity import run as sensitivity_run
 from formation_swarm.studies.sensitivity import text as sensitivity_text
+from formation_swarm.studies.sensitivity.text import Band
 
 
 def _claims(holds: list[int], seeds: int = 10) -> list[claims.Claim]:
@@ -26,20 +29,35 @@ def _points(axis: sensitivity.Axis, holds_a: list[int]) -> list[Point]:
     return [Point(v, _claims([h, 10, 0, 5, 10, 10])) for v, h in zip(axis.values, holds_a, strict=True)]
 
 
-def test_holds_for_states_each_claims_band_with_its_seeds() -> None:
-    speed = Axis("s", "leader speed", "m/s", (1.0, 1.25, 1.5, 1.75, 2.0), 1.5, lambda v: {"leader.speed_mps": v})
-    pts = _points(speed, [0, 3, 10, 10, 10])
+SPEED = Axis("s", "leader speed", "m/s", (1.0, 1.25, 1.5, 1.75, 2.0), 1.5, lambda v: {"leader.speed_mps": v})
+
+
+def test_holds_finds_each_claims_band_with_its_seeds() -> None:
+    pts = _points(SPEED, [0, 3, 10, 10, 10])
+    assert sensitivity_text.holds(pts, 0) == Band(
+        seeds=10, tried=5, every=(1.5, 1.75, 2.0), some=((1.25, 3, 10),), none=(1.0,)
+    )
+    assert sensitivity_text.holds(pts, 1) == Band(seeds=10, tried=5, every=SPEED.values)
+    assert sensitivity_text.holds(pts, 2) == Band(seeds=10, tried=5, none=SPEED.values)
+    assert sensitivity_text.holds(pts, 3) == Band(seeds=10, tried=5, some=tuple((v, 5, 10) for v in SPEED.values))
+    gaps = _points(SPEED, [10, 0, 10, 0, 10])
+    assert sensitivity_text.holds(gaps, 0) == Band(seeds=10, tried=5, every=(1.0, 1.5, 2.0), none=(1.25, 1.75))
+
+
+def test_holds_for_says_each_claims_band_with_its_seeds() -> None:
+    pts = _points(SPEED, [0, 3, 10, 10, 10])
     assert (
-        sensitivity_text.holds_for(speed, pts, 0)
+        sensitivity_text.holds_for(SPEED, pts, 0)
         == "holds in 10/10 seeds at 1.5-2 m/s; in 3/10 at 1.25 m/s; 0/10 at 1 m/s"
     )
-    assert sensitivity_text.holds_for(speed, pts, 1) == "holds in 10/10 seeds at every value tried (1-2 m/s)"
-    assert sensitivity_text.holds_for(speed, pts, 2) == "holds in 0/10 seeds at every value tried (1-2 m/s)"
-    assert sensitivity_text.holds_for(speed, pts, 3) == (
-        "holds in 5/10 at 1 m/s, 5/10 at 1.25 m/s, 5/10 at 1.5 m/s, 5/10 at 1.75 m/s, 5/10 at 2 m/s"
-    )
-    gaps = _points(speed, [10, 0, 10, 0, 10])
-    assert sensitivity_text.holds_for(speed, gaps, 0) == "holds in 10/10 seeds at 1, 1.5, 2 m/s; 0/10 at 1.25, 1.75 m/s"
+    said = {k: sensitivity_text.holds_for(SPEED, pts, k) for k in (1, 2, 3)}
+    assert said[1].startswith("holds in 10/10 seeds at every value tried")
+    assert said[1].endswith(" (1-2 m/s)")  # the values tried
+    assert said[2] == said[1].replace("10/10", "0/10")  # in none, the same way
+    assert said[3].startswith("holds in 5/10 at 1 m/s, ")  # in some seeds only: each value with its count
+    assert re.findall(r"(\d+)/(\d+) at ([\d.]+) m/s", said[3]) == [("5", "10", f"{v:g}") for v in SPEED.values]
+    gaps = _points(SPEED, [10, 0, 10, 0, 10])
+    assert sensitivity_text.holds_for(SPEED, gaps, 0).endswith(" at 1, 1.5, 2 m/s; 0/10 at 1.25, 1.75 m/s")
 
 
 def test_the_speed_axis_is_fine_where_claims_a_and_b_change_and_drops_go_to_half() -> None:
@@ -71,9 +89,11 @@ def test_the_shipped_value_is_the_claims_own_runs() -> None:
 def test_a_bias_is_a_fault_on_every_left_wheel_and_the_camera_noise_is_told_to_the_ekf() -> None:
     bias = AXIS_NAMES["wheel_bias"]
     assert bias.point(0.0) == ({}, [])
-    assert bias.point(3.0) == ({}, ["wheel_bias *@0s left=0.03"])
-    sweep = sensitivity.plan(range(1), *bias.point(3.0), Path("/nonexistent"), workers=1)["dynamic"]
-    assert sweep.faults == ["wheel_bias *@0s left=0.03"]
+    settings, faults = bias.point(3.0)
+    left = Fault.make("wheel_bias", "*", 0, left=0.03)  # every robot's left wheel, from the start: 3 %
+    assert (settings, [Fault.parse(f) for f in faults]) == ({}, [left])
+    sweep = sensitivity.plan(range(1), settings, faults, Path("/nonexistent"), workers=1)["dynamic"]
+    assert [Fault.parse(f) for f in sweep.faults] == [left]
     cam, faults = AXIS_NAMES["camera_noise"].point(0.1)  # Fig. 9's camera
     assert faults == []
     assert cam["camera.sigma_rho_m"] == cam["controller.ekf.sigma_rho_m"] == 0.1
@@ -176,12 +196,8 @@ def test_the_section_and_the_figure_of_an_axis(tmp_path: Path) -> None:
     panels = fig.axes
     assert len(panels) == 6
     assert [len(ax.lines) > 0 for ax in panels] == [True] * 6
-    assert [t.get_text() for t in panels[0].get_legend().get_texts()] == [
-        "fuzzy, dynamic V_N",
-        "fuzzy, V_N = 1.5",
-        "fuzzy, V_N = 2",
-        "l-psi",
-    ]
+    legend = [t.get_text() for t in panels[0].get_legend().get_texts()]
+    assert legend == [sensitivity.LINES[name] for name in ("dynamic", "static 1.5", "static 2", "l-psi")]
     path = sensitivity_figure.write_figure(tmp_path / "s.png", axis, pts)
     assert path.stat().st_size > 20_000
 
@@ -233,16 +249,19 @@ def test_where_each_claim_holds_is_written_from_the_csv(tmp_path: Path) -> None:
     text = sensitivity_run.where_text(path)
     lines = text.splitlines()
     assert lines[0].startswith("From the sensitivity runs below (seeds 0-2 at every value")
+    speed, drops = AXIS_NAMES["leader_speed"], AXIS_NAMES["obs_drop"]
+    say = sensitivity_text.say_band
     a = lines.index("- **a. dynamic V_N has lower RMS and max error than static 1.5 and 2.**")
-    assert lines[a + 1 : a + 3] == [
-        "  - leader speed: holds in 3/3 seeds at 1.5 m/s; in 1/3 at 1 m/s.",  # the axes in AXES' order
-        "  - observation drops: holds in 3/3 seeds at 0 %; in 1/3 at 50 %.",
+    assert lines[a + 1 : a + 3] == [  # the axes in AXES' order; claim a held in every seed at the low error only
+        f"  - {speed.title}: {say(speed, Band(seeds=3, tried=2, every=(1.5,), some=((1.0, 1, 3),)))}.",
+        f"  - {drops.title}: {say(drops, Band(seeds=3, tried=2, every=(0.0,), some=((50.0, 1, 3),)))}.",
     ]
     d = lines.index("- **d. with eq. 11-13 a rank swaps sides and back without collision.**")
-    assert lines[d + 3 : d + 6] == [
-        "  - `fig11_rank_swap` without eq. 11-13 (`controller.avoidance = false`), the same seeds:",
-        "    - leader speed: two robots touch in 3/3 seeds at every value tried (1, 1.5 m/s).",
-        "    - observation drops: two robots touch in 3/3 seeds at every value tried (0, 50 %).",
+    assert lines[d + 3].startswith("  - `fig11_rank_swap` without eq. 11-13 (`controller.avoidance = false`)")
+    touch = "two robots touch"  # without eq. 11-13, in every seed at every value
+    assert lines[d + 4 : d + 6] == [
+        f"    - {speed.title}: {say(speed, Band(seeds=3, tried=2, every=(1.0, 1.5)), touch)}.",
+        f"    - {drops.title}: {say(drops, Band(seeds=3, tried=2, every=(0.0, 50.0)), touch)}.",
     ]
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import hashlib
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pytest
@@ -23,6 +24,12 @@ FIG11 = "fig11_obstacles"  # three robots in a triangle: 1 leads 2, 2 leads 3; c
 
 def _engine(faults: Sequence[str] = (), seed: int = 1, **overrides: object) -> WorldEngine:
     return WorldEngine(sm.load(FIG11, dict(overrides), faults), seed)
+
+
+def _wheels(faults: Sequence[Fault], **fields: Any) -> Wheels:
+    """Robot 2's wheels at 0.05 s a tick, seed 0, no noise, 3 m/s at most; ``fields`` override these."""
+    defaults: dict[str, Any] = {"seed": 0, "robot_id": 2, "dt_s": 0.05, "noise_sigma_mps": 0.0, "max_wheel_mps": 3.0}
+    return Wheels(faults, **(defaults | fields))
 
 
 def _readings(eng: WorldEngine, rid: int) -> list[tuple[int, float, float, float]]:
@@ -236,7 +243,7 @@ def test_a_wheel_bias_scales_each_wheel() -> None:
 def test_wheel_noise_has_the_standard_deviation_asked_for(source: str) -> None:
     sigma, n = 0.1, 10_000
     faults = [Fault.parse(f"wheel_noise 2@0s sigma_mps={sigma}")] if source == "fault" else []
-    wheels = Wheels(faults, seed=4, robot_id=2, dt_s=0.05, noise_sigma_mps=0.0 if faults else sigma, max_wheel_mps=3.0)
+    wheels = _wheels(faults, seed=4, noise_sigma_mps=0.0 if faults else sigma)
     speeds = np.array([wheels.turn(k, 1.0, 1.5) for k in range(n)])
     for wheel, commanded in ((0, 1.0), (1, 1.5)):
         assert abs(speeds[:, wheel].mean() - commanded) < 4 * sigma / math.sqrt(n)
@@ -262,7 +269,7 @@ def test_wheel_noise_moves_a_moving_robot_and_not_a_resting_one() -> None:
 
 
 def test_noise_is_clamped_to_the_motors_limit() -> None:
-    wheels = Wheels([], seed=0, robot_id=2, dt_s=0.05, noise_sigma_mps=0.5, max_wheel_mps=3.0)
+    wheels = _wheels([], noise_sigma_mps=0.5)
     speeds = np.array([wheels.turn(k, 2.9, -2.9) for k in range(2000)])
     assert speeds[:, 0].max() == 3.0
     assert speeds[:, 1].min() == -3.0
@@ -340,14 +347,7 @@ def test_outliers_are_exactly_the_documented_draws_scaled_to_range_and_view() ->
 
 
 def test_a_robot_turning_on_one_wheel_backwards_is_moving() -> None:
-    wheels = Wheels(
-        [Fault.parse("wheel_bias 2@0s right=0.5")],
-        seed=0,
-        robot_id=2,
-        dt_s=0.05,
-        noise_sigma_mps=0.0,
-        max_wheel_mps=3.0,
-    )
+    wheels = _wheels([Fault.parse("wheel_bias 2@0s right=0.5")])
     assert wheels.turn(0, 0.0, -1.0) == (0.0, -1.5)
     assert wheels.turn(1, 0.0, 0.0) == (0.0, 0.0)
     assert [(e.ticks, e.effect) for e in wheels.effects] == [(2, 1)]
@@ -355,9 +355,7 @@ def test_a_robot_turning_on_one_wheel_backwards_is_moving() -> None:
 
 def test_wheel_noise_adds_the_documented_draws() -> None:
     f = Fault.parse("wheel_noise 2@0s sigma_mps=0.1")
-    wheels = Wheels(
-        [f, Fault.parse("stuck 3@0s")], seed=3, robot_id=2, dt_s=0.05, noise_sigma_mps=0.0, max_wheel_mps=3.0
-    )
+    wheels = _wheels([f, Fault.parse("stuck 3@0s")], seed=3)
     rng = _key_rng(3, 2, 0x41435455, f, 0)
     for k in range(5):
         n_l, n_r = rng.standard_normal(2).tolist()

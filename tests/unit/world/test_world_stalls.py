@@ -5,11 +5,13 @@ they answer again; lost after a stall, awaited for LOST_WAIT_S."""
 
 from __future__ import annotations
 
-from formation_swarm.protocol.messages import Command
+import re
+
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.world.stalls import LOST_WAIT_S, STALL_AFTER_MISSES, STALLED_OBS_PERIOD_S
 from formation_swarm.world.tick import WorldTick
 from tests.helpers import SCENARIOS
+from tests.helpers.messages import command
 
 FIG11 = scenario_mod.load(SCENARIOS / "fig11_obstacles.toml")
 
@@ -24,6 +26,11 @@ class Wall:
         return self.s
 
 
+def _numbers(line: str) -> list[str]:
+    """The numbers of a line the world prints, in order."""
+    return re.findall(r"\d+(?:\.\d+)?", line)
+
+
 def _world(wall: Wall) -> WorldTick:
     world = WorldTick(FIG11, FIG11.seed, lockstep=True, wall_s=wall)
     for rid in FIG11.robots:
@@ -33,7 +40,7 @@ def _world(wall: Wall) -> WorldTick:
 
 def _answer(world: WorldTick, rid: int, seq: int, tick: int | None = None) -> None:
     tick = world.engine.tick if tick is None else tick
-    world.command(Command(sender=rid, seq=seq, tick=tick, left_mps=0.5, right_mps=0.5, formation=0, done=False))
+    world.command(command(sender=rid, seq=seq, tick=tick, left_mps=0.5, right_mps=0.5))
 
 
 def _tick(world: WorldTick, answering: tuple[int, ...], seq: int) -> tuple[list[int], list[str]]:
@@ -113,10 +120,10 @@ def test_a_robot_lost_after_a_stall_is_awaited_until_readmitted_or_its_wait_ends
     for n in range(1, STALL_AFTER_MISSES + 1):
         _tick(world, (1,), seq=n)
     wall.s = 10.0  # the session's lease ends
-    assert world.agent_token(2, False) == (
-        f"robot 2 lost its agent at t={STALL_AFTER_MISSES * FIG11.dt_s:.2f} s; stopped until it returns; "
-        f"it had stalled: awaited up to {LOST_WAIT_S:g} s (the clock holds)"
-    )
+    lost = world.agent_token(2, False)
+    assert _numbers(lost) == ["2", f"{STALL_AFTER_MISSES * FIG11.dt_s:.2f}", f"{LOST_WAIT_S:g}"]  # who, when, wait
+    assert "; it had stalled: " in lost
+    assert lost.endswith("(the clock holds)")
     assert world.awaited() == [2]
     assert world.agent_token(3, False).endswith("(the clock holds)")
     assert world.awaited() == [2, 3]
@@ -126,7 +133,9 @@ def test_a_robot_lost_after_a_stall_is_awaited_until_readmitted_or_its_wait_ends
     wall.s = 10.0 + LOST_WAIT_S - 0.1
     assert world.overdue() == []
     wall.s = 10.0 + LOST_WAIT_S
-    assert world.overdue() == [f"robot 3 not back within {LOST_WAIT_S:g} s of its loss; the run goes on without it"]
+    (late,) = world.overdue()
+    assert _numbers(late) == ["3", f"{LOST_WAIT_S:g}"]  # the robot, its wait
+    assert late.endswith("; the run goes on without it")
     assert world.awaited() == []
     events = [(e["robot"], e["event"]) for e in world.stalls.events]
     assert events == [
@@ -141,7 +150,9 @@ def test_a_robot_lost_after_a_stall_is_awaited_until_readmitted_or_its_wait_ends
 def test_a_robot_whose_token_goes_while_it_answers_is_not_awaited() -> None:
     world = _world(Wall())
     _tick(world, (1, 2, 3), seq=1)
-    assert world.agent_token(2, False) == "robot 2 lost its agent at t=0.05 s; stopped until it returns"
+    lost = world.agent_token(2, False)
+    assert _numbers(lost) == ["2", "0.05"]
+    assert "stalled" not in lost
     assert world.awaited() == []
 
 

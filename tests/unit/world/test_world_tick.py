@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import pytest
 
-from formation_swarm.protocol.messages import Command, Observation, Truth
+from formation_swarm.protocol.messages import Observation, Truth
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.world.tick import WorldTick
 from tests.helpers import SCENARIOS
+from tests.helpers.messages import command
 
 FIG11 = scenario_mod.load(SCENARIOS / "fig11_obstacles.toml")  # 1 leads 2 and 3; dt 0.05 s, stale after 0.5 s
 
@@ -31,15 +32,15 @@ def test_a_lockstep_tick_advances_once_every_live_robot_answered() -> None:
     assert {o.tick for o in sent.values()} == {0}
     assert [o.seq for o in sent.values()] == [1, 1, 1]  # one stream per robot
     assert world.waiting() == [1, 2, 3]
-    world.command(Command(sender=2, seq=1, tick=0, left_mps=0.5, right_mps=0.5, formation=0, done=False))
-    world.command(Command(sender=1, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=0, done=False))
+    world.command(command(sender=2, seq=1, tick=0, left_mps=0.5, right_mps=0.5))
+    world.command(command(sender=1, seq=1, tick=0, left_mps=1.0, right_mps=1.0))
     assert world.waiting() == [3]
     world.command(
-        Command(sender=3, seq=1, tick=1, left_mps=0.5, right_mps=0.5, formation=0, done=False)
+        command(sender=3, seq=1, tick=1, left_mps=0.5, right_mps=0.5)
     )  # for a tick not published: not an answer
     assert world.waiting() == [3]
     assert world.rejected() == {"tick ahead of the world": 1}
-    world.command(Command(sender=3, seq=2, tick=0, left_mps=0.7, right_mps=0.7, formation=0, done=False))
+    world.command(command(sender=3, seq=2, tick=0, left_mps=0.7, right_mps=0.7))
     assert world.waiting() == []
     world.close()
     world.step()
@@ -57,20 +58,16 @@ def test_a_lockstep_answer_for_a_past_tick_is_late_and_counted_not_taken() -> No
     world = _tick()
     _publish(world)
     for rid in (1, 2, 3):
-        world.command(Command(sender=rid, seq=1, tick=0, left_mps=0.5, right_mps=0.5, formation=0, done=False))
+        world.command(command(sender=rid, seq=1, tick=0, left_mps=0.5, right_mps=0.5))
     world.close()
     world.step()
     _publish(world)
-    world.command(
-        Command(sender=2, seq=2, tick=0, left_mps=2.0, right_mps=2.0, formation=0, done=False)
-    )  # tick 0 again, a newer seq: late
+    world.command(command(sender=2, seq=2, tick=0, left_mps=2.0, right_mps=2.0))  # tick 0 again, a newer seq: late
     assert world.late_answers == 1
     assert world.rejected() == {}
     assert world.engine.robots[2].command == (0.5, 0.5)
     assert world.waiting() == [1, 2, 3]
-    world.command(
-        Command(sender=2, seq=2, tick=0, left_mps=2.0, right_mps=2.0, formation=0, done=False)
-    )  # the same again: a replay now
+    world.command(command(sender=2, seq=2, tick=0, left_mps=2.0, right_mps=2.0))  # the same again: a replay now
     assert world.rejected() == {"replayed or reordered": 1}
     assert world.late_answers == 1
 
@@ -78,8 +75,8 @@ def test_a_lockstep_answer_for_a_past_tick_is_late_and_counted_not_taken() -> No
 def test_a_robot_that_misses_the_deadline_is_counted_and_stopped_for_the_step() -> None:
     world = _tick()
     _publish(world)
-    world.command(Command(sender=1, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=0, done=False))
-    world.command(Command(sender=3, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=0, done=False))
+    world.command(command(sender=1, seq=1, tick=0, left_mps=1.0, right_mps=1.0))
+    world.command(command(sender=3, seq=1, tick=0, left_mps=1.0, right_mps=1.0))
     world.engine.robots[2].command = (1.0, 1.0)  # its last tick's command
     before, other = world.engine.robots[2].pose, world.engine.robots[3].pose
     waiting = world.waiting()
@@ -97,7 +94,7 @@ def test_a_realtime_command_goes_stale_after_stale_after_s_of_wall_time_and_stop
     world = _tick(lockstep=False)
     dt, stale = FIG11.dt_s, FIG11.stale_after_s
     world.start(0.0)
-    world.command(Command(sender=2, seq=1, tick=0, left_mps=1.0, right_mps=1.0, formation=0, done=False))
+    world.command(command(sender=2, seq=1, tick=0, left_mps=1.0, right_mps=1.0))
     assert world.engine.robots[2].command_time_s == 0.0  # stamped with the tick's wall time
     poses = []
     k = 0
@@ -118,11 +115,11 @@ def test_a_realtime_command_goes_stale_after_stale_after_s_of_wall_time_and_stop
 def test_a_realtime_world_stamps_commands_with_the_wall_time_its_tick_started() -> None:
     world = _tick(lockstep=False)
     world.start(3.25)
-    world.command(Command(sender=3, seq=1, tick=0, left_mps=0.2, right_mps=0.3, formation=0, done=False))
+    world.command(command(sender=3, seq=1, tick=0, left_mps=0.2, right_mps=0.3))
     assert world.engine.robots[3].command_time_s == 3.25
     lock = _tick()
     lock.start(3.25)  # lockstep: sim time, whatever the wall clock says
-    lock.command(Command(sender=3, seq=1, tick=0, left_mps=0.2, right_mps=0.3, formation=0, done=False))
+    lock.command(command(sender=3, seq=1, tick=0, left_mps=0.2, right_mps=0.3))
     assert lock.engine.robots[3].command_time_s == 0.0
 
 
@@ -134,16 +131,12 @@ def test_a_lost_agent_stops_its_robot_and_a_fresh_one_is_readmitted_when_heard()
     assert lost == "robot 3 lost its agent at t=0.00 s; stopped until it returns"
     assert 3 not in dict(world.observations())
     assert world.waiting() == [1, 2]
-    world.command(
-        Command(sender=3, seq=5, tick=0, left_mps=1.0, right_mps=1.0, formation=0, done=False)
-    )  # its last command, arriving late
+    world.command(command(sender=3, seq=5, tick=0, left_mps=1.0, right_mps=1.0))  # its last command, arriving late
     assert world.engine.robots[3].command == (0.0, 0.0)  # a dead robot does not move
     world.agent_token(3, True)  # a fresh agent
     assert world.readmit(hears=lambda rid: False) == []  # lockstep: its observations would be lost
     assert world.readmit(hears=lambda rid: True) == [3]
-    world.command(
-        Command(sender=3, seq=1, tick=0, left_mps=0.4, right_mps=0.4, formation=0, done=False)
-    )  # it counts from 1 again: taken
+    world.command(command(sender=3, seq=1, tick=0, left_mps=0.4, right_mps=0.4))  # it counts from 1 again: taken
     assert world.engine.robots[3].command == (0.4, 0.4)
     assert world.rejected() == {}
     assert [d["cause"] for d in world.faults.deaths] == ["lost"]
@@ -187,14 +180,14 @@ def test_a_second_answer_to_a_tick_is_a_second_agents_refused_and_counted(lockst
     newer one for the same tick (another agent flying it) changes nothing."""
     world = _tick(lockstep=lockstep)
     _publish(world)
-    first = Command(sender=2, seq=7, tick=0, left_mps=0.5, right_mps=0.5, formation=0, done=False)
+    first = command(sender=2, seq=7, tick=0, left_mps=0.5, right_mps=0.5)
     world.command(first)
-    world.command(Command(sender=2, seq=1, tick=0, left_mps=2.0, right_mps=2.0, formation=0, done=False))
-    world.command(Command(sender=2, seq=9, tick=0, left_mps=2.0, right_mps=-2.0, formation=1, done=False))
+    world.command(command(sender=2, seq=1, tick=0, left_mps=2.0, right_mps=2.0))
+    world.command(command(sender=2, seq=9, tick=0, left_mps=2.0, right_mps=-2.0, formation=1))
     assert world.engine.robots[2].command == (0.5, 0.5)
     assert world.engine.robots[2].formation == 0
     assert world.rejected() == {"replayed or reordered": 1}  # older than the first: refused by the gate
     assert world.duplicate_agents == {2: 1}
     assert world.late_answers == 0
-    world.command(Command(sender=3, seq=1, tick=0, left_mps=0.5, right_mps=0.5, formation=0, done=False))
+    world.command(command(sender=3, seq=1, tick=0, left_mps=0.5, right_mps=0.5))
     assert world.duplicate_agents == {2: 1}  # one answer each: none
