@@ -21,6 +21,7 @@ pytestmark = pytest.mark.slow
 
 SWARM = Path(sys.executable).parent / "swarm"
 COMMAND = [str(SWARM)] if SWARM.exists() else [sys.executable, "-m", "formation_swarm.cli"]
+SCENARIO = "fig7_turn_vn_dynamic"
 MOMENTS_S = [2.0 * i / 19 for i in range(20)]  # after its code starts: importing, preparing, starting, running
 EXIT_WITHIN_S = 60.0
 GONE_WITHIN_S = 30.0  # a fork server still importing the roles' modules leaves once it is done
@@ -62,11 +63,17 @@ def _alive(pid: int) -> bool:
 def _command_started(pid: int) -> bool:
     """The command's own code runs: its first act is to hold SIGINT back (SigBlk).
     Before, Python starts (site, .pth files: on a loaded machine 0.1 s and
-    more), and a SIGINT then ends in Python's own traceback: none of ours."""
+    more), and a SIGINT then ends in Python's own traceback: none of ours.
+    Before that again, the child of Popen has every signal blocked until it
+    execs, and has no process group of its own yet (a SIGINT to its group
+    would go nowhere): only the exec'd command counts."""
     try:
         status = Path(f"/proc/{pid}/status").read_text()
+        exec_done = SCENARIO.encode() in Path(f"/proc/{pid}/cmdline").read_bytes() and os.getpgid(pid) == pid
     except OSError:
         return True  # gone already
+    if not exec_done:
+        return False
     blocked = next((line.split()[1] for line in status.splitlines() if line.startswith("SigBlk:")), "0")
     return bool(int(blocked, 16) & (1 << (signal.SIGINT - 1)))
 
@@ -77,7 +84,7 @@ def _interrupt_at(moment_s: float, out: Path) -> tuple[int | None, Console, floa
     before), its console, when the signal went, its children then."""
     console = Console()
     proc = subprocess.Popen(
-        [*COMMAND, "run", "fig7_turn_vn_dynamic", "--out", str(out)],
+        [*COMMAND, "run", SCENARIO, "--out", str(out)],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
