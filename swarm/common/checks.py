@@ -11,6 +11,19 @@ import numpy as np
 # A run's seed keys numpy's SeedSequence (non-negative integers only) and the
 # link layer's drop hash (packed as a signed 64-bit integer): both take this range.
 SEED_MAX = 2**63 - 1
+# The most ticks a run may count: a message's tick and a Status's total_ticks
+# are refused past protocol.codec.MAX_TICK, this number (common sits below
+# protocol, so it is repeated here; tests/unit/common/test_limits.py keeps the two equal).
+# A scenario's times (its duration, a fault's start and length) stay within it.
+MAX_TICKS = 2**53
+
+
+def tick_limit(dt_s: float) -> str:
+    """MAX_TICKS as an error says it: in ticks of the run's step and in seconds."""
+    return (
+        f"2**53 ticks of run.dt_s = {dt_s:g} s (about {MAX_TICKS * dt_s:.4g} s, the most a message's tick count "
+        "carries)"
+    )
 
 
 def finite(name: str, value: object) -> float:

@@ -15,7 +15,7 @@ from formation_swarm.agents.follower import LAWS, FollowerParams, law_class
 from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode
 from formation_swarm.agents.laws import LawError, declared_params
 from formation_swarm.agents.lpsi import LpsiParams
-from formation_swarm.spec.checking import check_table, wrapped
+from formation_swarm.spec.checking import check_table, check_times, wrapped
 from formation_swarm.spec.keys import CONTROLLER_KEYS, EKF_KEYS, NUM, Key, ScenarioError
 
 
@@ -25,7 +25,7 @@ def parse_followers(
     """Each follower's controller: ``[controller]`` with its ``[followers.ID]``
     table over it; ``robot`` is the checked [robot] table."""
     # [controller] is validated on its own too, even when every follower overrides it.
-    check_table(raw.get("controller"), "controller", CONTROLLER_KEYS)
+    check_times("controller", check_table(raw.get("controller"), "controller", CONTROLLER_KEYS), CONTROLLER_KEYS, dt)
     per = raw.get("followers", {})
     if not isinstance(per, dict):
         raise ScenarioError("[followers] must be a table of robot ids")
@@ -43,7 +43,9 @@ def parse_followers(
             continue
         merged = with_override(raw.get("controller") or {}, override)
         where = f"followers.{rid}" if override else "controller"
-        out[rid] = follower_params(where, check_table(merged, where, CONTROLLER_KEYS), robot, dt)
+        table = check_table(merged, where, CONTROLLER_KEYS)
+        check_times(where, table, CONTROLLER_KEYS, dt)
+        out[rid] = follower_params(where, table, robot, dt)
         if not override:
             shared = out[rid]
     return out
@@ -55,6 +57,8 @@ def follower_params(where: str, t: Mapping[str, Any], robot: Mapping[str, Any], 
         if vn != "dynamic":
             raise ScenarioError(f"{where}.vn must be 'dynamic' or a number, got {vn!r}")
         mode = SpeedMode()
+    elif vn <= 0:  # SpeedMode's own check would name its field, static_vn
+        raise ScenarioError(f"{where}.vn must be 'dynamic' or a number > 0, got {vn!r}", key=f"{where}.vn", value=vn)
     else:
         mode = wrapped(f"{where}.vn", SpeedMode, vn)
     fz = wrapped(

@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import difflib
 import importlib.resources
+import re
 import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from formation_swarm.spec.keys import ScenarioError
+from formation_swarm.spec.keys import MAX_DEPTH, ScenarioError
 
 
 def shipped() -> dict[str, Path]:
@@ -52,11 +53,24 @@ def resolve(spec: str | Path) -> Path:
 
 def parse_value(text: str) -> Any:
     """A value given on the command line: TOML (numbers, booleans, quoted
-    strings, arrays), or else the text itself as a string."""
+    strings, arrays), or else the text itself as a string. ScenarioError for
+    TOML no scenario holds: nested too deep, an integer of thousands of digits."""
     try:
         return tomllib.loads(f"v = {text.strip()}")["v"]
     except tomllib.TOMLDecodeError:
         return text.strip()
+    except RecursionError:  # tomllib recurses once per level of arrays and inline tables
+        raise ScenarioError(
+            f"the value {_short(text)}: arrays or inline tables nested more than {MAX_DEPTH} deep"
+        ) from None
+    except ValueError as exc:  # Python reads no integer of more than 4300 digits
+        raise ScenarioError(f"the value {_short(text)}: {exc}") from None
+
+
+def _short(text: str) -> str:
+    """A value as an error quotes it: its start, if it is long."""
+    text = text.strip()
+    return repr(text) if len(text) <= 40 else f"{text[:30]!r}... ({len(text)} characters)"
 
 
 def parse_override(text: str) -> tuple[str, Any]:
@@ -64,7 +78,14 @@ def parse_override(text: str) -> tuple[str, Any]:
     key, sep, value = text.partition("=")
     if not sep or not key.strip() or not value.strip():
         raise ScenarioError(f"--set takes KEY=VALUE (e.g. leader.speed_mps=1.6), got {text!r}")
-    return key.strip(), parse_value(value)
+    if key.count(".") >= MAX_DEPTH:  # each part a table inside the one before
+        raise ScenarioError(
+            f"--set {_short(key)}: a key of at most {MAX_DEPTH} parts, got {key.count('.') + 1}", key=key.strip()
+        )
+    try:
+        return key.strip(), parse_value(value)
+    except ScenarioError as exc:
+        raise ScenarioError(f"--set {key.strip()}: {exc}", key=key.strip()) from None
 
 
 def parse_overrides(texts: Sequence[str]) -> dict[str, Any]:
@@ -92,23 +113,53 @@ def deep_set(raw: Mapping[str, Any], path: tuple[str, ...], value: Any) -> dict[
 
 
 def dumps(raw: Mapping[str, Any]) -> str:
-    """The scenario as run, as TOML (the subset scenarios use)."""
+    """The scenario as run, as TOML (the subset scenarios use): every process
+    reads it back, so any text, names and keys included, is written so that
+    tomllib reads back what was written."""
     lines: list[str] = []
     _write_table(lines, "", raw)
     return "\n".join(lines)
+
+
+# A basic string's escapes: the quote, the backslash and every control character.
+_ESCAPES = {i: f"\\u{i:04X}" for i in (*range(0x20), 0x7F)} | {
+    ord('"'): '\\"',
+    ord("\\"): "\\\\",
+    ord("\b"): "\\b",
+    ord("\t"): "\\t",
+    ord("\n"): "\\n",
+    ord("\f"): "\\f",
+    ord("\r"): "\\r",
+}
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")  # TOML's bare keys: ASCII only
+
+
+def _toml_string(text: str) -> str:
+    return '"' + text.translate(_ESCAPES) + '"'
+
+
+def _toml_key(key: Any, identifiers_only: bool = False) -> str:
+    """A key as TOML writes it: bare where TOML allows (``identifiers_only``:
+    where it is an ASCII identifier, as a table's values have always been
+    written), else quoted."""
+    k = str(key)
+    bare = k.isascii() and k.isidentifier() if identifiers_only else _BARE_KEY.fullmatch(k) is not None
+    return k if bare else _toml_string(k)
 
 
 def _toml_value(v: Any) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, (int, float)):
-        return repr(v)
+        return _toml_string(v)
+    if isinstance(v, int):
+        return str(int(v))
+    if isinstance(v, float):
+        return repr(float(v))  # a numpy float's repr is not TOML
     if isinstance(v, list):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     if isinstance(v, dict):
-        return "{ " + ", ".join(f'"{k}" = {_toml_value(x)}' for k, x in v.items()) + " }"
+        return "{ " + ", ".join(f"{_toml_string(str(k))} = {_toml_value(x)}" for k, x in v.items()) + " }"
     raise TypeError(f"cannot write {type(v).__name__} to TOML")
 
 
@@ -120,15 +171,15 @@ def _write_table(lines: list[str], prefix: str, t: Mapping[str, Any]) -> None:
     if prefix and (scalars or not subs):
         lines.append(f"[{prefix}]")
     for k, v in scalars.items():
-        lines.append(f'"{k}" = {_toml_value(v)}' if not k.isidentifier() else f"{k} = {_toml_value(v)}")
+        lines.append(f"{_toml_key(k, identifiers_only=True)} = {_toml_value(v)}")
     if scalars:
         lines.append("")
     for k, v in subs.items():
-        _write_table(lines, f"{prefix}.{k}" if prefix else k, v)
+        _write_table(lines, f"{prefix}.{_toml_key(k)}" if prefix else _toml_key(k), v)
     for k, v in arrays.items():
         for item in v:
-            lines.append(f"[[{prefix + '.' if prefix else ''}{k}]]")
-            lines += [f"{ik} = {_toml_value(iv)}" for ik, iv in item.items()]
+            lines.append(f"[[{prefix + '.' if prefix else ''}{_toml_key(k)}]]")
+            lines += [f"{_toml_key(ik, identifiers_only=True)} = {_toml_value(iv)}" for ik, iv in item.items()]
             lines.append("")
 
 

@@ -22,7 +22,7 @@ from formation_swarm.agents.formation import (
     wedge,
 )
 from formation_swarm.agents.geometry import Point
-from formation_swarm.spec.checking import check_table, id_ranges, is_point, suggest, wrapped
+from formation_swarm.spec.checking import check_name, check_table, id_ranges, is_point, suggest, wrapped
 from formation_swarm.spec.keys import FORMATION_KEYS, SHAPES, SLOT_KEYS, ScenarioError
 from formation_swarm.world.camera import CameraParams
 
@@ -37,6 +37,8 @@ def parse_formations(raw: Any, robots: tuple[int, ...], leader: Mapping[str, Any
         raise ScenarioError("[formations] must hold at least one named formation")
     if len(raw) > MAX_FORMATIONS:
         raise ScenarioError(f"at most {MAX_FORMATIONS} formations, got {len(raw)}")
+    for name in raw:  # any other text is a name: the scenario as run writes it back quoted
+        check_name("a formation's name", name, key=f"formations.{name}")
     formations = {name: _formation(name, spec, robots) for name, spec in raw.items()}
     for key in ("formation", "avoid_formation"):
         val = leader[key]

@@ -22,10 +22,20 @@ from formation_swarm.common.checks import SEED_MAX
 # (tests/unit/protocol/test_messages.py encodes the largest ones).
 MAX_ROBOTS = 500
 MAX_OBSTACLES = 500
+# Tables and arrays inside each other, the file itself the first: a scenario
+# needs 6 (formations.NAME.slots.ID.offset); TOML's reader recurses per level.
+MAX_DEPTH = 32
 
 
 class ScenarioError(ValueError):
-    """A scenario that cannot run; the message names the key."""
+    """A scenario that cannot run; the message names the key. ``key`` (dotted,
+    as the file writes it) and ``value``: the key at fault and its value, where
+    the check that refused it gives them (None where it does not)."""
+
+    def __init__(self, message: str, key: str | None = None, value: Any = None) -> None:
+        super().__init__(message)
+        self.key = key
+        self.value = value
 
 
 class ScenarioWarning(UserWarning):

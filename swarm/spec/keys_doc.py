@@ -5,7 +5,7 @@ a test fails when the document is stale).
 
 from __future__ import annotations
 
-from formation_swarm.spec.keys import SECTIONS, Key, type_name
+from formation_swarm.spec.keys import MAX_DEPTH, SECTIONS, Key, type_name
 
 
 def _default_text(key: Key) -> str:
@@ -37,6 +37,12 @@ def markdown() -> str:
         "override keys by their dotted name (`leader.speed_mps=1.6`) with the same checks.",
         "Deeper checks (for example `d0_m < dn_m <= d1_m < dmax_m`) are made by the objects the",
         "scenario builds, and their errors name the section.",
+        "Everywhere in the file, a number must be finite (TOML's `nan` and `inf` are refused) and an",
+        "integer must fit 64 bits; a time (a key in s) must be at most 2**53 ticks of `run.dt_s`, the",
+        "most a message's tick count carries, and so must a fault's `for` and `after` (its start comes",
+        f"before the run's end); tables and arrays nest at most {MAX_DEPTH} deep. A formation's name may be",
+        'any text on one line (TOML quotes `[formations."triángulo"]`); `run.name` writes its letters and',
+        "digits in ASCII, since the run's id and folder are made of them.",
         "A scenario that runs but likely not as meant gets a warning (`ScenarioWarning`; `swarm run` prints",
         "`[swarm] warning: ...`): so far, a `leader.speed_mps` outside the speeds its fuzzy followers hold",
         "steadily (vm -+ a_mps, or a static vn -+ a_mps: 1.2-2.2 m/s by default; docs/paper.md).",

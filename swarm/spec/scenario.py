@@ -26,7 +26,16 @@ from formation_swarm.common.faults import Fault, parse_all
 from formation_swarm.common.faults.schedule import check_against
 from formation_swarm.protocol.keys import MAX_ROBOT_ID, check_host_name
 from formation_swarm.spec.caveats import path_turns
-from formation_swarm.spec.checking import check_table, id_ranges, is_point, suggest, wrapped
+from formation_swarm.spec.checking import (
+    check_name,
+    check_table,
+    check_times,
+    check_values,
+    id_ranges,
+    is_point,
+    suggest,
+    wrapped,
+)
 from formation_swarm.spec.controllers import check_wheel_limit, parse_followers
 from formation_swarm.spec.files import deep_set, resolve
 from formation_swarm.spec.formations import check_in_sight, parse_formations
@@ -34,6 +43,7 @@ from formation_swarm.spec.keys import (
     CAMERA_KEYS,
     LEADER_KEYS,
     LINK_KEYS,
+    MAX_DEPTH,
     MAX_OBSTACLES,
     OBSTACLE_KEYS,
     ROBOT_KEYS,
@@ -64,11 +74,13 @@ __all__ = [
 def from_dict(raw: Mapping[str, Any]) -> Scenario:
     """A scenario from its TOML tables, each checked in the order it is read."""
     _check_sections(raw)
+    check_values(raw)
     run = _run(raw.get("run"))
     dt = float(run["dt_s"])
     robot = check_table(raw.get("robot"), "robot", ROBOT_KEYS)
     camera = _camera(raw.get("camera"), robot)
     ld = _leader(raw.get("leader"), run["robots"])
+    check_times("leader", ld, LEADER_KEYS, dt)
     robots = tuple(range(ld["id"], ld["id"] + run["robots"]))
     formations = parse_formations(raw.get("formations"), robots, ld)
     followers = parse_followers(raw, [r for r in robots if r != ld["id"]], robot, dt)
@@ -121,11 +133,28 @@ def _check_sections(raw: Any) -> None:
 
 
 def _run(raw: Any) -> dict[str, Any]:
-    """``[run]``, with at least one tick."""
+    """``[run]``, with at least one tick and no more than a message counts; a
+    name the run's id and folder are made of."""
     run = check_table(raw, "run", RUN_KEYS)
     dt, duration = float(run["dt_s"]), float(run["duration_s"])
     if round(duration / dt) < 1:  # no tick at all: a run with nothing to measure
-        raise ScenarioError(f"run.duration_s: at least one control step (run.dt_s = {dt:g} s), got {duration:g}")
+        raise ScenarioError(
+            f"run.duration_s: at least one control step (run.dt_s = {dt:g} s), got {duration:g}",
+            key="run.duration_s",
+            value=run["duration_s"],
+        )
+    check_times("run", run, RUN_KEYS, dt)
+    name = run["name"]
+    check_name("run.name", name)
+    # launch.plan makes the run's id of the name's letters, digits, '-' and '_' (any other
+    # character a '-'), and the id names the run's Zenoh keys (protocol.keys): ASCII only.
+    if any(ch.isalnum() and not ch.isascii() for ch in name):
+        raise ScenarioError(
+            f"run.name must write its letters and digits in ASCII (the run's id and folder are made of them;"
+            f" other characters become '-'), got {name!r}",
+            key="run.name",
+            value=name,
+        )
     return run
 
 
@@ -232,11 +261,15 @@ def load(
     p = resolve(path)
     try:
         raw = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"{p}: not valid TOML: {exc}") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioError(f"{p}: cannot read the scenario: {exc}") from None
+    except RecursionError:  # tomllib recurses once per level of arrays and inline tables
+        raise ScenarioError(f"{p}: arrays or inline tables nested more than {MAX_DEPTH} deep") from None
+    except ValueError as exc:  # TOMLDecodeError, or an integer of more digits than Python reads
+        raise ScenarioError(f"{p}: not valid TOML: {exc}") from None
     for dotted, value in (overrides or {}).items():
+        if dotted.count(".") >= MAX_DEPTH:  # each part a table inside the one before
+            raise ScenarioError(f"{p}: {dotted[:40]!r}...: a key of at most {MAX_DEPTH} parts", key=dotted)
         raw = deep_set(raw, tuple(dotted.split(".")), value)
     if faults:
         try:
@@ -249,5 +282,14 @@ def load(
         return from_dict(raw)
     except ScenarioError as exc:
         # The values given beside the file (--set) are named: the error may be theirs.
-        given = ", ".join(f"{k} = {json.dumps(v)}" for k, v in (overrides or {}).items())
-        raise ScenarioError(f"{p}{f' (with {given})' if given else ''}: {exc}") from None
+        given = ", ".join(f"{k} = {_given(v)}" for k, v in (overrides or {}).items())
+        raise ScenarioError(f"{p}{f' (with {given})' if given else ''}: {exc}", key=exc.key, value=exc.value) from None
+
+
+def _given(value: Any) -> str:
+    """A value given beside the file as an error quotes it: as JSON, its start if it is long."""
+    try:
+        text = json.dumps(value, ensure_ascii=False)
+    except (RecursionError, TypeError, ValueError):  # too deep, not JSON, an integer of too many digits
+        return f"a {type(value).__name__}"
+    return text if len(text) <= 200 else f"{text[:100]}... ({len(text)} characters)"

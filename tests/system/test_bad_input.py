@@ -25,6 +25,7 @@ from formation_swarm.report import build as report
 from formation_swarm.report import compare, export
 from formation_swarm.runtime import cliargs
 from formation_swarm.studies import results, sweep
+from tests.helpers import SCENARIOS
 
 SWARM = Path(sys.executable).parent / "swarm"
 COMMAND = [str(SWARM)] if SWARM.exists() else [sys.executable, "-m", "formation_swarm.cli"]
@@ -34,6 +35,12 @@ LIVE = "rerun+http://127.0.0.1:9876/proxy"
 RUN = ["run", "fig11_obstacles"]
 SWEEP = ["sweep", "fig11_obstacles", "--seeds", "2"]
 SEED_RANGE = "must be an integer in [0, 2**63 - 1]"
+TICKS = "must be at most 2**53 ticks of run.dt_s = 0.05 s (about 4.504e+14 s, the most a message's tick count carries)"
+# Files a case reads, made in its folder when its argv names them.
+INPUT_FILES = {
+    "deep_arrays.toml": "[run]\nname = " + "[" * 100_000 + "]" * 100_000 + "\n",
+    "deep_tables.toml": "x = " + "{a = " * 5_000 + "1" + "}" * 5_000 + "\n",
+}
 # id: (argv, a fragment of the one line on stderr); {tmp} is the test's folder, which holds a_file.
 REJECTED = {
     "run: negative seed": ([*RUN, "--seed", "-3"], f"argument --seed: {SEED_RANGE}, got '-3'"),
@@ -103,6 +110,46 @@ REJECTED = {
     "run: unknown mode": ([*RUN, "--mode", "fast"], "argument --mode: invalid choice: 'fast'"),
     "run: unknown scenario key": ([*RUN, "--set", "run.sede=1"], "unknown key run.sede; did you mean 'seed'?"),
     "run: --set without a value": ([*RUN, "--set", "nonsense"], "--set takes KEY=VALUE"),
+    "run: a waypoint of NaN": (
+        [*RUN, "--set", "leader.waypoints=[[0.0,0.0],[nan,80.0]]"],
+        "leader.waypoints[1][0] must be a finite number, got nan",
+    ),
+    "run: a duration of more ticks than a message counts": (
+        [*RUN, "--set", "run.duration_s=1e300"],
+        f"run.duration_s {TICKS}, got 1e+300",
+    ),
+    "run: a duration of 400 digits": (
+        [*RUN, "--set", "run.duration_s=1" + "0" * 400],
+        "run.duration_s must be an integer in [-2**63, 2**63 - 1] (64 bits), got one of 1329 bits",
+    ),
+    "run: a hold window of more ticks than a run counts": (
+        [*RUN, "--set", "controller.hold_after_s=1e300"],
+        f"controller.hold_after_s {TICKS}, got 1e+300",
+    ),
+    "run: a negative static V_N": (
+        [*RUN, "--set", "controller.vn=-3"],
+        "(with controller.vn = -3): controller.vn must be 'dynamic' or a number > 0, got -3",
+    ),
+    "run: a run name in letters beyond ASCII": (
+        [*RUN, "--set", "run.name=café"],
+        "run.name must write its letters and digits in ASCII (the run's id and folder are made of them;",
+    ),
+    "run: a file of arrays 100,000 deep": (
+        ["run", "{tmp}/deep_arrays.toml"],
+        "{tmp}/deep_arrays.toml: arrays or inline tables nested more than 32 deep",
+    ),
+    "run: a file of inline tables 5,000 deep": (
+        ["run", "{tmp}/deep_tables.toml"],
+        "{tmp}/deep_tables.toml: arrays or inline tables nested more than 32 deep",
+    ),
+    "run: a kill at 1e308 s": (
+        [*RUN, "--fault", "kill agent-3@1e308s"],
+        "fault 'kill agent-3@1e+308s': starts at 1e+308 s, at or after the run's end (56 s;",
+    ),
+    "run: a fault lasting more ticks than a run counts": (
+        [*RUN, "--fault", "drop obs:2@1s for=1e308s p=0.5"],
+        f"for {TICKS}, got 1e+308 s",
+    ),
     "run: a duration under one tick": (
         [*RUN, "--set", "run.duration_s=0.01"],
         "run.duration_s: at least one control step (run.dt_s = 0.05 s), got 0.01",
@@ -139,7 +186,7 @@ REJECTED = {
     "sweep: --set run.seed": ([*SWEEP, "--set", "run.seed=5,6"], "use --seeds N and --seed-start S"),
     "sweep: bad --set value": (
         [*SWEEP, "--set", "controller.vn=1.5,0"],
-        "controller.vn: static_vn must be > 0, got 0.0",
+        "(with controller.vn = 0): controller.vn must be 'dynamic' or a number > 0, got 0",
     ),
     "export: a missing folder": (["export", "{tmp}/nowhere"], "{tmp}/nowhere: no such folder"),
     "export: unknown format": (["export", "{tmp}", "--format", "xls"], "argument --format: invalid choice: 'xls'"),
@@ -222,6 +269,9 @@ def rejected(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Outcome]:
         argv, _ = REJECTED[case]
         folder = tmp_path_factory.mktemp("bad")
         (folder / "a_file").write_text("not a folder\n")
+        for name, text in INPUT_FILES.items():
+            if any(f"{{tmp}}/{name}" in a for a in argv):
+                (folder / name).write_text(text)
         (folder / "old_run").mkdir()
         (folder / "old_run" / "summary.json").write_text("{}\n")
         before = files(folder)
@@ -295,6 +345,21 @@ def test_a_role_that_crashes_is_named_with_its_code_and_its_log(tmp_path: Path) 
         rep.stdout
     )
     assert "Traceback" not in rep.stdout + rep.stderr
+
+
+def test_a_formation_named_in_any_script_flies(tmp_path: Path) -> None:
+    """A name TOML must quote: the launcher writes the scenario as run so that
+    the world and the agents read it back (they could not: exit 1 after 35 s)."""
+    text = (SCENARIOS / "fig11_obstacles.toml").read_text()
+    text = text.replace("[formations.triangle]", '[formations."triángulo ▲"]').replace('"triangle"', '"triángulo ▲"')
+    (tmp_path / "tri.toml").write_text(text)
+    out = tmp_path / "run"
+    argv = ["run", "tri.toml", "--set", "run.duration_s=1", "--no-logger", "--out", str(out)]
+    proc = swarm(argv, cwd=tmp_path, timeout_s=120.0)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert '[formations."triángulo ▲"]\n' in (out / "scenario.toml").read_text()
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["exit_code"], summary["ticks"]) == (0, 20)
 
 
 def test_report_on_a_recording_it_cannot_read(tmp_path: Path) -> None:

@@ -40,7 +40,7 @@ class Param:
             return str(value)
         if isinstance(value, str):  # a duration as the fault's times are written: 1, 1s or 500ms
             value = seconds(where, value) if self.unit == "s" else _number(where, value, self.unit)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not _finite(value):
             raise ValueError(f"{where} must be a finite number, got {value!r}")
         low_ok = value > self.low if self.open_low else value >= self.low
         if not low_ok or value > self.high:
@@ -179,10 +179,18 @@ def seconds(where: str, value: Any) -> float:
     elif isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ValueError(f"{where} must be a time in s, got {value!r}")
     else:
-        out = float(value)
+        out = float(value) if _finite(value) else math.inf
     if not (math.isfinite(out) and out >= 0.0):
         raise ValueError(f"{where} must be a time >= 0 s, got {value!r}")
     return out
+
+
+def _finite(value: float) -> bool:
+    """Whether a number is a finite float (an integer too large for a float is not)."""
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
 
 
 def value_text(v: float | str) -> str:

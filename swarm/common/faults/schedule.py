@@ -8,6 +8,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+from formation_swarm.common.checks import MAX_TICKS, tick_limit
 from formation_swarm.common.faults.kinds import LINK, PROCESS, SENSOR
 
 if TYPE_CHECKING:
@@ -28,12 +29,7 @@ def check_against(
     busy: dict[str, list[tuple[int, int | None, Fault]]] = {}
     for f in faults:
         where = f"fault '{f}'"
-        if f.start_tick(dt_s) >= (ticks := int(round(duration_s / dt_s))):  # ticks 0 .. ticks - 1 are run
-            last = (ticks - 1) * dt_s
-            raise ValueError(
-                f"{where}: starts at {f.at_s:g} s, at or after the run's end ({duration_s:g} s; its "
-                f"last tick is at {last:g} s)"
-            )
+        _check_times(f, where, duration_s, dt_s)
         named = f.robots
         if named is not None and (unknown := sorted(set(named) - known)):
             raise ValueError(
@@ -62,6 +58,22 @@ def check_against(
                 if (e2 is None or start < e2) and (end is None or s2 < end):
                     raise ValueError(f"{where} overlaps '{other}' on the same process")
             busy.setdefault(f.target, []).append((start, end, f))
+
+
+def _check_times(f: Fault, where: str, duration_s: float, dt_s: float) -> None:
+    """A start before the run's end; a length (for, a restart's after) of ticks a run can count."""
+    ticks = int(round(duration_s / dt_s))  # ticks 0 .. ticks - 1 are run
+    # A start a tick or more past the end is past it without a tick count made (1e308 s has none).
+    if f.at_s >= duration_s + dt_s or f.start_tick(dt_s) >= ticks:
+        last = (ticks - 1) * dt_s
+        raise ValueError(
+            f"{where}: starts at {f.at_s:g} s, at or after the run's end ({duration_s:g} s; its "
+            f"last tick is at {last:g} s)"
+        )
+    for name, length in (("for", f.for_s), ("after", f.param("after") if f.kind == "restart" else None)):
+        # A length past the end is cut there (past_the_end), but its ticks are counted.
+        if length is not None and length / dt_s > MAX_TICKS:
+            raise ValueError(f"{where}: {name} must be at most {tick_limit(dt_s)}, got {length:g} s")
 
 
 def past_the_end(faults: Sequence[Fault], duration_s: float, dt_s: float) -> list[str]:
