@@ -284,23 +284,60 @@ class Camera(NamedTuple):
     fov_margin_rad: float
 
 
-def _sight_error(cam: Camera, rho_m: float, beta_rad: float) -> tuple[str, str] | None:
-    """Where a marker at (rho_m, beta_rad) is and why it is out of the camera's
-    sight with its margins, or None."""
+RANGE, FOV = "range", "fov"  # the limits of a camera's sight a marker may break
+
+
+def _broken_limit(cam: Camera, rho_m: float, beta_rad: float) -> str | None:
+    """The limit of the camera's sight with its margins a marker at (rho_m,
+    beta_rad) breaks: RANGE, else FOV; None if it breaks neither."""
     reach = cam.range_m - non_negative("range_margin_m", cam.range_margin_m)
     half = 0.5 * cam.fov_rad - non_negative("fov_margin_rad", cam.fov_margin_rad)
     if rho_m > reach:
+        return RANGE
+    if cam.fov_rad < 2.0 * math.pi and abs(beta_rad) > half:
+        return FOV
+    return None
+
+
+def _sight_error(cam: Camera, rho_m: float, beta_rad: float) -> tuple[str, str] | None:
+    """Where a marker at (rho_m, beta_rad) is and why it is out of the camera's
+    sight with its margins, or None."""
+    limit = _broken_limit(cam, rho_m, beta_rad)
+    if limit == RANGE:
+        reach = cam.range_m - cam.range_margin_m
         return (
             f"{rho_m:.1f} m away",
             f"beyond the camera's {cam.range_m:g} m range (margin {cam.range_margin_m:g} m: at most {reach:g} m)",
         )
-    if cam.fov_rad < 2.0 * math.pi and abs(beta_rad) > half:
+    if limit == FOV:
+        half = 0.5 * cam.fov_rad - cam.fov_margin_rad
         return (
             f"at a bearing of {math.degrees(beta_rad):.1f} deg",
             f"outside the camera's {math.degrees(cam.fov_rad):g} deg field of view"
             f" (margin {math.degrees(cam.fov_margin_rad):g} deg: at most {math.degrees(half):g} deg either side)",
         )
     return None
+
+
+class SightFailure(NamedTuple):
+    """A follower that does not see its reference's marker from its slot
+    (``sight_failures``): the marker as seen there, and the limit it breaks."""
+
+    robot: int
+    reference: int
+    rho_m: float
+    beta_rad: float
+    limit: str  # RANGE or FOV
+
+
+def sight_failures(form: Formation, cam: Camera) -> list[SightFailure]:
+    """Every follower that does not see its reference from its slot, by id:
+    the record ``check_sight``'s error says in words."""
+    return [
+        SightFailure(rid, form.slots[rid].reference, sight.rho_m, sight.beta_rad, limit)
+        for rid, sight in sights(form, cam.marker_offset_m).items()
+        if (limit := _broken_limit(cam, sight.rho_m, sight.beta_rad)) is not None
+    ]
 
 
 SIGHT_LISTED = 8  # followers named per limit in check_sight's error
@@ -316,11 +353,7 @@ def check_sight(form: Formation, cam: Camera) -> None:
     see it. The field of view is not checked when it is a full circle. The
     error names every follower that does not (SIGHT_LISTED per limit).
     """
-    bad = [
-        (rid, why)
-        for rid, sight in sights(form, cam.marker_offset_m).items()
-        if (why := _sight_error(cam, sight.rho_m, sight.beta_rad)) is not None
-    ]
+    bad = [(f.robot, why) for f in sight_failures(form, cam) if (why := _sight_error(cam, f.rho_m, f.beta_rad))]
     if len(bad) == 1:
         rid, (where, limit) = bad[0]
         raise ValueError(

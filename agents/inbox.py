@@ -43,6 +43,9 @@ ANGLE_LIMIT_RAD = math.pi + 1e-9
 # How far past the agent's own last observation a code may be stamped: the
 # leader may be ahead of a slow follower in real time (ticks of 5 s of sim).
 CODE_AHEAD_S = 5.0
+# The reasons of the order checks' rejections, as the agent counts them.
+REPLAYED = "replayed or reordered"  # not newer than the last one taken (or handed over)
+TICK_AHEAD = "tick ahead of the world"  # a code stamped past the agent's clock by more than CODE_AHEAD_S
 
 
 class InboxChecks:
@@ -65,7 +68,7 @@ class InboxChecks:
 
     def observation(self, obs: Observation) -> str | None:
         if obs.tick <= self.last_tick:
-            return "replayed or reordered"
+            return REPLAYED
         if not self._readings_plausible(obs.readings) and (why := self._reading_rejected(obs.readings)) is not None:
             return why
         for dist, bearing, radius in obs.obstacles:
@@ -101,23 +104,23 @@ class InboxChecks:
 
     def code(self, fc: FormationCode) -> str | None:
         if (fc.tick, fc.seq) <= self.last_code:
-            return "replayed or reordered"
+            return REPLAYED
         if fc.tick > self.last_tick + self.code_ahead_ticks:
-            return "tick ahead of the world"
+            return TICK_AHEAD
         self.last_code = (fc.tick, fc.seq)
         return None
 
     def reading(self, obs: Observation) -> str | None:
         """An observation the link layer hands over (already taken on arrival)."""
         if obs.tick <= self.last_reading_tick:
-            return "replayed or reordered"
+            return REPLAYED
         self.last_reading_tick = obs.tick
         return None
 
     def handed_code(self, fc: FormationCode) -> str | None:
         """A formation code the link layer hands over (already taken on arrival)."""
         if (fc.tick, fc.seq) <= self.last_handed_code:
-            return "replayed or reordered"
+            return REPLAYED
         self.last_handed_code = (fc.tick, fc.seq)
         return None
 

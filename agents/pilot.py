@@ -35,6 +35,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from formation_swarm.common.checks import positive, vector
 from formation_swarm.world.kinematics import Pose, to_body_frame, wrap_angle
@@ -182,7 +183,18 @@ def round_corners(
     return out
 
 
-def turn_room(waypoints: Sequence[Sequence[float]], radius_m: float) -> list[str]:
+class NoRoom(NamedTuple):
+    """Where a robot turning on circles cannot fly a path (``no_room``): a
+    segment from ``start`` to ``end``, ``length_m`` long, shorter than its
+    corners take (``need_m``), or, with ``need_m`` infinite, a reversal at ``end``."""
+
+    start: tuple[float, float]
+    end: tuple[float, float]
+    length_m: float
+    need_m: float
+
+
+def no_room(waypoints: Sequence[Sequence[float]], radius_m: float) -> list[NoRoom]:
     """Why a robot turning on circles of ``radius_m`` cannot fly these waypoints.
 
     A corner that turns the path by theta, flown on a circle of radius R
@@ -190,7 +202,7 @@ def turn_room(waypoints: Sequence[Sequence[float]], radius_m: float) -> list[str
     corner. Each segment must hold what its two corners take from it (the
     first and the last segment, one corner each); a reversal (theta = 180
     deg) fits no circle. Empty when every corner fits. Zero-length segments
-    are skipped.
+    are skipped. The reversals first, then the segments, in path order.
     """
     pts = [(float(p[0]), float(p[1])) for p in waypoints]
     segs = [(a, b) for a, b in zip(pts[:-1], pts[1:], strict=True) if a != b]
@@ -201,15 +213,23 @@ def turn_room(waypoints: Sequence[Sequence[float]], radius_m: float) -> list[str
     take = []
     for i, theta in enumerate(turns):
         if theta >= math.pi - 1e-9:
-            problems.append(f"the path reverses at {segs[i][1]}: no turn circle fits a 180 deg turn")
+            problems.append(NoRoom(*segs[i], lengths[i], math.inf))
             take.append(math.inf)
         else:
             take.append(radius_m * math.tan(0.5 * theta))
     for j, length in enumerate(lengths):
         need = (take[j - 1] if j >= 1 else 0.0) + (take[j] if j < len(take) else 0.0)
         if need > length + 1e-9 and math.isfinite(need):
-            problems.append(
-                f"segment {segs[j][0]} -> {segs[j][1]} is {length:.4g} m long, its corners take {need:.4g} m"
-                f" (R tan(theta / 2) per corner, R = {radius_m:.4g} m)"
-            )
+            problems.append(NoRoom(*segs[j], length, need))
     return problems
+
+
+def turn_room(waypoints: Sequence[Sequence[float]], radius_m: float) -> list[str]:
+    """``no_room`` in words, one line per place."""
+    return [
+        f"the path reverses at {p.end}: no turn circle fits a 180 deg turn"
+        if math.isinf(p.need_m)
+        else f"segment {p.start} -> {p.end} is {p.length_m:.4g} m long, its corners take {p.need_m:.4g} m"
+        f" (R tan(theta / 2) per corner, R = {radius_m:.4g} m)"
+        for p in no_room(waypoints, radius_m)
+    ]

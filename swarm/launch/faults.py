@@ -21,6 +21,7 @@ if TYPE_CHECKING:
 
 SIGNALS = {"kill": signal.SIGKILL, "freeze": signal.SIGSTOP, "thaw": signal.SIGCONT}
 DONE = {"kill": "killed", "start": "started", "freeze": "frozen", "thaw": "thawed"}
+RUN_END = "the run's end"  # why a process still frozen when the world says "done" is thawed
 
 
 class FaultExecutor:
@@ -122,7 +123,7 @@ class FaultExecutor:
                 "thawed",
                 process=name,
                 fault=procs.frozen_by.get(name),
-                why="the run's end",
+                why=RUN_END,
                 sim_time_s=st.time_s,
                 tick=st.tick,
                 wall_s=self.journal.wall_s(),

@@ -35,9 +35,10 @@ def paper_figures(scenario_toml: Path) -> dict[str, str]:
     return {}
 
 
-def paper_changes(scenario_toml: Path) -> str | None:
-    """For a run of a paper's scenario that was changed, what was: e.g.
-    "fig11_obstacles with [[faults]], run.robots changed" (None: not one)."""
+def paper_changed(scenario_toml: Path) -> tuple[str, list[str]] | None:
+    """For a run of a paper's scenario that was changed, which one and the
+    keys that were, sorted: e.g. ("fig11_obstacles", ["[[faults]]",
+    "run.robots"]) (None: not one)."""
     from formation_swarm.spec.files import shipped
 
     try:
@@ -49,11 +50,18 @@ def paper_changes(scenario_toml: Path) -> str | None:
         if stem in PAPER and (orig.get("run") or {}).get("name") == (raw.get("run") or {}).get("name"):
             was, now = _flat(orig), _flat(raw)
             changed = sorted(was.keys() ^ now.keys() | {k for k, v in was.items() if k in now and now[k] != v})
-            if not changed:
-                return None
-            shown = ", ".join(changed[:6]) + (f" and {len(changed) - 6} more" if len(changed) > 6 else "")
-            return f"{stem} with {shown} changed"
+            return (stem, changed) if changed else None
     return None
+
+
+def paper_changes(scenario_toml: Path) -> str | None:
+    """``paper_changed`` in words: e.g. "fig11_obstacles with [[faults]],
+    run.robots changed" (None: not one)."""
+    if (found := paper_changed(scenario_toml)) is None:
+        return None
+    stem, changed = found
+    shown = ", ".join(changed[:6]) + (f" and {len(changed) - 6} more" if len(changed) > 6 else "")
+    return f"{stem} with {shown} changed"
 
 
 def _flat(raw: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:

@@ -67,8 +67,11 @@ def test_the_workflow_sets_up_python_3_11_with_pips_cache_installs_and_runs_pyte
     assert (setup["with.python-version"], setup["with.cache"]) == ("3.11", "pip")
     # setup-python keys its cache on a file it must find in the user's repository.
     assert setup["with.cache-dependency-path"] == ".github/workflows/fixture-tests.yml"
-    runs = [s["run"] for s in steps if "run" in s]
-    assert runs == ['python -m pip install "$FORMATION_SWARM" pytest', "python -m pytest --basetemp=pytest-runs"]
+    runs = [s["run"].split() for s in steps if "run" in s]  # word by word, quotes kept: the requirement has spaces
+    assert runs == [
+        ["python", "-m", "pip", "install", '"$FORMATION_SWARM"', "pytest"],
+        ["python", "-m", "pytest", "--basetemp=pytest-runs"],
+    ]
     assert steps.index(setup) < min(i for i, s in enumerate(steps) if "run" in s)
 
 

@@ -13,6 +13,7 @@ from typing import Any
 import pytest
 
 from formation_swarm.common.faults import Fault
+from formation_swarm.launch.faults import RUN_END
 from formation_swarm.launch.launcher import RunResult
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.spec import files as scenario_files
@@ -105,11 +106,12 @@ def test_a_lost_agent_stops_its_robot_and_is_readmitted_when_it_returns() -> Non
     assert pf.returned() == [1]
     pf.readmit(1, wall_s=21.0)
     pf.answered(1, wall_s=21.05)
+    freeze = str(Fault.parse("freeze agent-1@1s for=20s"))  # each event names the fault, as its spec
     assert [(e["event"], e["fault"]) for e in pf.fault_log] == [
-        ("frozen", "freeze agent-1@1s for=20s"),
-        ("lost", "freeze agent-1@1s for=20s"),  # a loss while frozen is the freeze's doing
-        ("readmitted", "freeze agent-1@1s for=20s"),
-        ("rejoined", "freeze agent-1@1s for=20s"),
+        ("frozen", freeze),
+        ("lost", freeze),  # a loss while frozen is the freeze's doing
+        ("readmitted", freeze),
+        ("rejoined", freeze),
     ]
     # The leader came back: each follower's formation error is watched from then on.
     assert [(r.robot, r.watched) for r in eng.recoveries] == [(1, (2,)), (1, (3,))]
@@ -219,7 +221,7 @@ def test_calls_skip_faults_of_other_groups_and_a_call_is_frozen() -> None:
 def test_active_fault_is_the_process_fault_on_that_process_at_that_tick() -> None:
     eng, pf = _world("freeze agent-2@1s for=1s", "kill agent-3@5s", "blackout 2@0s")
     f2 = pf.faults[1]
-    assert str(f2) == "freeze agent-2@1s for=1s"
+    assert f2 == Fault.parse("freeze agent-2@1s for=1s")
     assert [pf.active_fault("agent-2", t) for t in (19, 20, 39, 40)] == [None, f2, f2, None]
     assert pf.active_fault("agent-1", 30) is None  # another process
     assert pf.active_fault("agent-3", 30) is None  # before its kill
@@ -284,7 +286,7 @@ def test_not_back_names_the_restart_it_gave_up_on() -> None:
     pf.not_back(3, wall_s=9.0)
     pf.not_back(3, wall_s=9.5)  # no "start" pending any more
     assert [(e["event"], e["fault"]) for e in pf.fault_log][-2:] == [
-        ("not back", "restart agent-3@1s after=0.5"),
+        ("not back", str(pf.faults[0])),
         ("not back", None),
     ]
     assert 3 not in pf.starting
@@ -479,7 +481,9 @@ def test_a_killed_leaders_followers_stop_near_their_slots(swarm_run: Callable[..
     drove on, 12.2 m and 9.1 m from their targets at 25 s."""
     s = _hold_runs(swarm_run, "kill agent-1@5s")
     assert s["exit_code"] == 1
-    assert s["failure"] == "the leader (robot 1) lost its agent at t=5.00 s"
+    world, sc = s["parts"]["world"], scenario_mod.load(FIG11)
+    assert summary_mod.lost_agents(world, sc) == summary_mod.LostAgents(leader=True, robots=(1,), time_s=5.0)
+    assert s["failure"] == summary_mod.robots_lost(world, sc)  # that, and nothing else, failed the run
     for agent, started_by in (("agent-2", 100 + 30), ("agent-3", 100 + 45)):
         ((first, last),) = s["parts"][agent]["holds"]  # one hold, to the end
         assert 100 < first < started_by, agent
@@ -560,9 +564,8 @@ def test_a_freeze_that_outlasts_the_run_is_thawed_at_its_end(swarm_run: Callable
     res = swarm_run("fig9_ekf_noise", faults=["freeze logger@43s for=4s"])
     assert res.exit_code == 0
     ends = [e for e in res.summary["events"] if e["event"] == "thawed"]
-    assert [(e["process"], e["fault"], e["why"], e["tick"]) for e in ends] == [
-        ("logger", "freeze logger@43s for=4s", "the run's end", 880)
-    ]
+    freeze = str(Fault.parse("freeze logger@43s for=4s"))
+    assert [(e["process"], e["fault"], e["why"], e["tick"]) for e in ends] == [("logger", freeze, RUN_END, 880)]
     assert res.summary["parts"]["logger"]["messages"]["truth"] == 880
     assert res.summary["parts"]["logger"]["messages"]["telemetry"] == 880
     assert res.summary["recording_gap"] is None

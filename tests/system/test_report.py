@@ -271,7 +271,7 @@ def test_formats_dpi_and_the_events_listed(swarm_run: Callable[..., RunResult]) 
 
 
 def test_a_changed_paper_scenario_is_named_with_what_changed(tmp_path: Path) -> None:
-    from formation_swarm.report.paper import paper_changes, paper_figures
+    from formation_swarm.report.paper import paper_changed, paper_changes, paper_figures
     from formation_swarm.spec.files import dumps
 
     raw = tomllib.loads((SCENARIOS / "fig11_obstacles.toml").read_text())
@@ -283,7 +283,7 @@ def test_a_changed_paper_scenario_is_named_with_what_changed(tmp_path: Path) -> 
     faulted = {**raw, "run": {**raw["run"], "robots": 5}, "faults": [kill]}
     run.write_text(dumps(faulted))
     assert paper_figures(run) == {}
-    assert paper_changes(run) == "fig11_obstacles with [[faults]], run.robots changed"
+    assert paper_changed(run) == ("fig11_obstacles", ["[[faults]]", "run.robots"])  # report.md says it in words
     run.write_text(dumps({**raw, "run": {**raw["run"], "name": "mine"}}))
     assert paper_changes(run) is None  # not a paper's scenario: nothing to compare with
 

@@ -251,9 +251,9 @@ def test_world_by_hand_with_out_writes_the_summary_of_swarm_run(
     assert started.startswith(f"world: run {run} started"), started
     assert f"run {run} ended (the leader reached its last waypoint at t=" in ended, ended
     assert str(out / "summary.json") in ended
-    for r, p in zip((1, 2), agents, strict=True):
+    for r, p, role in zip((1, 2), agents, ("leader", "follower of robot 1"), strict=True):
         connected, started, ended = p.lines("out")
-        assert connected.startswith(f"agent {r}: connected to {endpoint}; run {run}"), connected
+        assert connected.startswith(f"agent {r}: connected to {endpoint}; run {run}, {role}: waiting up to "), connected
         assert started == f"agent {r}: run {run} started"
         assert f"ended (the world said done), exit code 0, {hand['ticks']} observations answered" in ended, ended
         assert str(tmp_path / f"agent-{r}.json") in ended

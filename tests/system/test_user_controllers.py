@@ -31,6 +31,7 @@ import pytest
 
 from formation_swarm.launch.console import print_result
 from formation_swarm.launch.launcher import RunResult
+from formation_swarm.runtime.summary.end_reason import describe_controller_failures
 from tests.helpers import ROOT, rrd_rows
 from tests.helpers.controllers import LAW
 
@@ -114,13 +115,11 @@ def test_a_controller_that_raises_at_tick_100_stops_its_robot_and_the_run_fails(
     assert s["exit_code"] == 1
     assert s["end_reason"] == "duration_reached"  # the run went on to its end
     assert s["controller_failures"] == [{"robot": 3, "tick": 100, "error": error, "law": PAPER}]
-    assert (
-        s["failure"] == f"a controller failed, its robot stopped: robot 3's controller ({PAPER}) at tick 100: {error}"
-    )
+    assert s["failure"] == describe_controller_failures(s["controller_failures"])  # that, and nothing else
     out = io.StringIO()
     print_result(res, out)
     assert (
-        f"  failed: a controller failed, its robot stopped: robot 3's controller ({PAPER}) at tick 100"
+        f"  failed: a controller failed, its robot stopped: robot 3's controller ({PAPER}) at tick 100: {error}\n"
         in out.getvalue()
     )
     log = (res.run_dir / "logs" / "agent-3.log").read_text()

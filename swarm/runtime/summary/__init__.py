@@ -50,10 +50,12 @@ from formation_swarm.runtime.summary.end_reason import (
     ROLE_FAILED,
     START_FAILED,
     TIMED_OUT,
+    LostAgents,
     controller_failures,
     describe_controller_failures,
     describe_end,
     describe_host_lost,
+    lost_agents,
     robots_lost,
 )
 from formation_swarm.runtime.summary.faults import fault_effects
@@ -74,6 +76,7 @@ __all__ = [
     "START_FAILED",
     "TIMED_OUT",
     "Ending",
+    "LostAgents",
     "build",
     "controller_failures",
     "describe_end",
@@ -81,6 +84,7 @@ __all__ = [
     "fault_effects",
     "git_commit",
     "logger_lost",
+    "lost_agents",
     "partial_links",
     "read_parts",
     "recording_cut",

@@ -7,7 +7,7 @@ follower's controller that failed.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from formation_swarm.runtime.children import describe_exit
 
@@ -65,7 +65,16 @@ def describe_host_lost(ev: Mapping[str, Any]) -> str:
     return f"host {ev.get('host')} lost {when}: {dead}"
 
 
-def robots_lost(world: Mapping[str, Any], sc: Scenario) -> str | None:
+class LostAgents(NamedTuple):
+    """Whose agents a run lost for good (``lost_agents``): the leader's
+    (``robots`` its id, ``time_s`` when), or every follower's (``time_s`` None)."""
+
+    leader: bool
+    robots: tuple[int, ...]
+    time_s: float | None
+
+
+def lost_agents(world: Mapping[str, Any], sc: Scenario) -> LostAgents | None:
     """Why a run that ran to its end still failed: its leader lost its agent
     (the formation could not fly its path), or every follower did, for good
     (a robot whose agent came back, after a restart say, is not lost). None if not."""
@@ -73,10 +82,19 @@ def robots_lost(world: Mapping[str, Any], sc: Scenario) -> str | None:
     deaths = {d.get("robot"): d for d in world.get("deaths", []) if dead is None or d.get("robot") in dead}
     leader = sc.leader.robot_id
     if leader in deaths:
-        return f"the leader (robot {leader}) lost its agent at t={deaths[leader].get('time_s', 0.0):.2f} s"
+        return LostAgents(True, (leader,), deaths[leader].get("time_s", 0.0))
     if sc.follower_ids and all(rid in deaths for rid in sc.follower_ids):
-        return f"every follower ({', '.join(map(str, sc.follower_ids))}) lost its agent"
+        return LostAgents(False, tuple(sc.follower_ids), None)
     return None
+
+
+def robots_lost(world: Mapping[str, Any], sc: Scenario) -> str | None:
+    """``lost_agents`` in words; None if the run lost neither."""
+    if (lost := lost_agents(world, sc)) is None:
+        return None
+    if lost.leader:
+        return f"the leader (robot {lost.robots[0]}) lost its agent at t={lost.time_s:.2f} s"
+    return f"every follower ({', '.join(map(str, lost.robots))}) lost its agent"
 
 
 def controller_failures(parts: Mapping[str, Any]) -> list[dict[str, Any]]:

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from formation_swarm.agents.inbox import ANGLE_LIMIT_RAD, InboxChecks
+from formation_swarm.agents.inbox import ANGLE_LIMIT_RAD, REPLAYED, TICK_AHEAD, InboxChecks
 from formation_swarm.protocol.messages import WORLD_ID, FormationCode, Observation
 
 RANGE_M, SIGMA_M, SENSING_M, DT_S = 10.0, 0.05, 6.0, 0.05
@@ -31,8 +31,8 @@ def obs(tick: int, readings: tuple = ((1, 2.0, 0.1, 0.2),), obstacles: tuple = (
 def test_observations_must_be_newer_than_the_last_taken() -> None:
     c = checks()
     assert c.observation(obs(5)) is None
-    assert c.observation(obs(5)) == "replayed or reordered"
-    assert c.observation(obs(4)) == "replayed or reordered"
+    assert c.observation(obs(5)) == REPLAYED
+    assert c.observation(obs(4)) == REPLAYED
     assert c.observation(obs(7)) is None  # a gap is fine: the agent may have missed some
     assert c.last_tick == 7
 
@@ -103,28 +103,24 @@ def test_the_leaders_first_code_is_taken_and_a_coarse_tick_still_allows_two_ahea
     assert (
         slow.code(FormationCode(sender=1, seq=1, tick=1, code=1)) is None
     )  # no observation yet (tick -1): tick 1 is two ahead
-    assert slow.code(FormationCode(sender=1, seq=2, tick=2, code=1)) == "tick ahead of the world"
+    assert slow.code(FormationCode(sender=1, seq=2, tick=2, code=1)) == TICK_AHEAD
 
 
 def test_codes_must_be_newer_by_tick_then_seq_and_not_far_ahead_of_the_agents_clock() -> None:
     c = checks()
     ahead = math.ceil(5.0 / DT_S)  # CODE_AHEAD_S of ticks
     assert c.code(FormationCode(sender=1, seq=10, tick=3, code=1)) is None
-    assert c.code(FormationCode(sender=1, seq=10, tick=3, code=1)) == "replayed or reordered"  # the same code again
-    assert (
-        c.code(FormationCode(sender=1, seq=9, tick=3, code=1)) == "replayed or reordered"
-    )  # the same tick, an older seq
-    assert (
-        c.code(FormationCode(sender=1, seq=50, tick=2, code=1)) == "replayed or reordered"
-    )  # an older tick, whatever its seq
+    assert c.code(FormationCode(sender=1, seq=10, tick=3, code=1)) == REPLAYED  # the same code again
+    assert c.code(FormationCode(sender=1, seq=9, tick=3, code=1)) == REPLAYED  # the same tick, an older seq
+    assert c.code(FormationCode(sender=1, seq=50, tick=2, code=1)) == REPLAYED  # an older tick, whatever its seq
     assert c.code(FormationCode(sender=1, seq=11, tick=3, code=0)) is None  # the same tick, a newer seq
     assert (
         c.code(FormationCode(sender=1, seq=1, tick=4, code=1)) is None
     )  # a restarted leader: seq 1 again, at a later tick
     assert c.observation(obs(20)) is None
     assert c.code(FormationCode(sender=1, seq=2, tick=20 + ahead, code=1)) is None
-    assert c.code(FormationCode(sender=1, seq=3, tick=20 + ahead + 1, code=1)) == "tick ahead of the world"
-    assert c.code(FormationCode(sender=1, seq=4, tick=2**53, code=1)) == "tick ahead of the world"
+    assert c.code(FormationCode(sender=1, seq=3, tick=20 + ahead + 1, code=1)) == TICK_AHEAD
+    assert c.code(FormationCode(sender=1, seq=4, tick=2**53, code=1)) == TICK_AHEAD
     assert c.last_code == (20 + ahead, 2)  # refused codes move nothing
 
 
@@ -136,13 +132,13 @@ def test_what_the_link_layer_hands_over_must_be_newer_than_what_it_handed_over_b
     for t in (5, 6, 7):
         assert c.observation(obs(t)) is None  # arrivals: answered
     assert c.reading(obs(5)) is None  # released late by a delay: taken, stale
-    assert c.reading(obs(5)) == "replayed or reordered"  # its duplicate
+    assert c.reading(obs(5)) == REPLAYED  # its duplicate
     assert c.reading(obs(7)) is None
-    assert c.reading(obs(6)) == "replayed or reordered"  # held behind 7 by a reorder
+    assert c.reading(obs(6)) == REPLAYED  # held behind 7 by a reorder
     assert (c.last_tick, c.last_reading_tick) == (7, 7)
     assert c.code(FormationCode(sender=1, seq=3, tick=0, code=1)) is None
     assert c.code(FormationCode(sender=1, seq=4, tick=0, code=1)) is None
     assert c.handed_code(FormationCode(sender=1, seq=4, tick=0, code=1)) is None
-    assert c.handed_code(FormationCode(sender=1, seq=3, tick=0, code=1)) == "replayed or reordered"
-    assert c.handed_code(FormationCode(sender=1, seq=4, tick=0, code=1)) == "replayed or reordered"
+    assert c.handed_code(FormationCode(sender=1, seq=3, tick=0, code=1)) == REPLAYED
+    assert c.handed_code(FormationCode(sender=1, seq=4, tick=0, code=1)) == REPLAYED
     assert c.last_handed_code == (0, 4)

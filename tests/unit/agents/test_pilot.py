@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from formation_swarm.agents.pilot import PathPilot, round_corners, turn_room
+from formation_swarm.agents.pilot import NoRoom, PathPilot, no_room, round_corners, turn_room
 from formation_swarm.studies.sim import PAPER_TURNING_PATH
 from formation_swarm.world.kinematics import Pose, step
 
@@ -246,11 +246,9 @@ def test_a_leader_that_would_circle_steers_wide_and_finishes() -> None:
 def test_turn_room_says_which_segment_is_too_short() -> None:
     # 90 deg corners take R tan(45 deg) = R from each side; the middle segment (20 m) holds two.
     assert turn_room(PAPER_TURNING_PATH, 10.0) == []
-    (why,) = turn_room(PAPER_TURNING_PATH, 12.5)
-    assert why == (
-        "segment (0.0, 20.0) -> (20.0, 20.0) is 20 m long, its corners take 25 m"
-        " (R tan(theta / 2) per corner, R = 12.5 m)"
-    )
+    # The middle segment, 20 m long, and its two corners' 12.5 m each (the loader's error says it in words).
+    assert no_room(PAPER_TURNING_PATH, 12.5) == [NoRoom((0.0, 20.0), (20.0, 20.0), 20.0, pytest.approx(25.0))]
+    assert len(turn_room(PAPER_TURNING_PATH, 12.5)) == 1
     assert turn_room(((0.0, 0.0), (0.0, 5.0), (0.0, 0.0)), 1.0) == [
         "the path reverses at (0.0, 5.0): no turn circle fits a 180 deg turn"
     ]

@@ -102,7 +102,7 @@ def test_a_code_is_flown_from_the_tick_after_the_one_it_is_stamped_with() -> Non
     role.take_code(FormationCode(sender=1, seq=1, tick=1, code=LINE))  # arrives before observation 0
     flown = [answer(role, observation(k, ((2, 2.0, 0.0, 0.0),), dt_s=DT)).command.formation for k in range(4)]
     assert flown == [TRIANGLE, TRIANGLE, LINE, LINE]
-    assert role.describe() == "follower of robot 2"  # in the line too: R3 follows R2
+    assert role.slot.reference == 2  # in the line too: R3 follows R2 (an agent's first line says whom)
 
 
 def test_a_code_from_a_robot_other_than_the_leader_is_rejected_and_counted() -> None:
