@@ -6,6 +6,9 @@ few need any of it):
 - ``load_run(folder) -> RunData``: a run folder as numpy arrays.
 - ``Launch(scenario, ...)``: start a run's processes, watch them, ``wait()``
   for its ``RunResult``.
+- ``Engine(scenario, ...)``: the same run in this process, lockstep, no
+  Zenoh: ``step()``, ``run() -> EngineResult``, ``reset(seed)``; its
+  trajectory digest is the distributed run's.
 - the pytest fixtures ``swarm_run`` and ``swarm_launch`` (the ``pytest11``
   entry point ``formation_swarm.pytest_plugin``).
 - the follower controller API: ``FollowerController`` and what it takes and
@@ -36,6 +39,7 @@ if TYPE_CHECKING:
         Slot,
         TargetEstimate,
     )
+    from formation_swarm.engine import Engine, EngineResult
     from formation_swarm.launch.launcher import Launch, RunResult
     from formation_swarm.report.data import RunData, load_run
 
@@ -44,6 +48,8 @@ _PUBLIC = {
     "RunData": "formation_swarm.report.data",
     "Launch": "formation_swarm.launch.launcher",
     "RunResult": "formation_swarm.launch.launcher",
+    "Engine": "formation_swarm.engine",
+    "EngineResult": "formation_swarm.engine",
     **dict.fromkeys(
         (
             "ControllerSetup",
@@ -62,6 +68,8 @@ _PUBLIC = {
 
 __all__ = [
     "ControllerSetup",
+    "Engine",
+    "EngineResult",
     "FollowerController",
     "FollowerInput",
     "FollowerOutput",

@@ -1,9 +1,12 @@
-"""One-process closed loop: leader on its path, followers on their law
+"""The bare closed loop: a leader on its path, followers on their law
 (``controller.law``: the paper's controller unless the params name
-another), the camera model and the kinematics, all in one Python loop.
+another), the camera model and the kinematics, in one Python loop, with
+every tick's true, measured and estimated target kept as arrays.
 
-This is the reference the distributed run is checked against, and the
-quickest way to try a controller change.
+No world, roles or links: no obstacles, faults or formation changes. The
+agents' unit tests use it (the EKF, l-psi, the closed loop). A run as
+``swarm run`` flies it, in one process and with its digest, is the
+engine's (formation_swarm.engine, ``swarm sim``).
 """
 
 from __future__ import annotations

@@ -99,6 +99,7 @@ def test_the_pages_code_imports_only_the_public_names() -> None:
     }
     assert imported == {
         "ControllerSetup",
+        "Engine",
         "FollowerInput",
         "FollowerOutput",
         "FollowerParams",
