@@ -10,18 +10,9 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from formation_swarm.agents.follower import FollowerParams
-from formation_swarm.agents.formation import (
-    Camera,
-    Formation,
-    Slot,
-    abreast,
-    check_sight,
-    check_switch,
-    grid,
-    line,
-    wedge,
-)
+from formation_swarm.agents.formation import Formation, Slot, abreast, grid, line, wedge
 from formation_swarm.agents.geometry import Point
+from formation_swarm.agents.sight import Camera, check_sight, check_switch
 from formation_swarm.spec.checking import check_name, check_table, id_ranges, is_point, suggest, wrapped
 from formation_swarm.spec.keys import FORMATION_KEYS, SHAPES, SLOT_KEYS, ScenarioError
 from formation_swarm.world.camera import CameraParams

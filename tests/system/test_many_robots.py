@@ -27,7 +27,7 @@ from collections.abc import Callable
 import pytest
 
 from formation_swarm.agents.follower_role import FollowerRole
-from formation_swarm.agents.formation import sights
+from formation_swarm.agents.sight import sights
 from formation_swarm.launch.launcher import RunResult
 from formation_swarm.nodes.agent.setup import role_for
 from formation_swarm.nodes.agent.wire import Outbox

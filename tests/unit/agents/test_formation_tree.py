@@ -13,23 +13,18 @@ import pytest
 
 from formation_swarm.agents import fuzzy as fz
 from formation_swarm.agents.follower import FollowerParams
-from formation_swarm.agents.formation import (
+from formation_swarm.agents.formation import Formation, Slot, abreast, grid, line, wedge
+from formation_swarm.agents.geometry import Point
+from formation_swarm.agents.sight import (
     FOV,
     RANGE,
     Camera,
-    Formation,
     SightFailure,
-    Slot,
-    abreast,
     check_sight,
     check_switch,
-    grid,
-    line,
     sight_failures,
     sights,
-    wedge,
 )
-from formation_swarm.agents.geometry import Point
 from formation_swarm.launch.launcher import Launch
 from formation_swarm.spec import scenario as sm
 from formation_swarm.spec.keys import ScenarioWarning
