@@ -130,8 +130,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"swarm run: {conflict} (see swarm run --help)", file=sys.stderr)
         return USAGE_ERROR
     interrupts.exit_at_once()  # nothing runs yet
-    from formation_swarm.launch.console import print_result
+    from formation_swarm.launch.console import describe_laws, print_result
     from formation_swarm.runtime.proc import interrupt_on_stop_signals
+    from formation_swarm.spec.laws import laws
     from formation_swarm.spec.scenario import ScenarioError
 
     try:
@@ -142,7 +143,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     interrupt_on_stop_signals()  # from here Ctrl-C and SIGTERM stop the run cleanly
     print(
         f"[swarm] run {launch.run_id}: {launch.sc.name}, {len(launch.sc.robots)} robots, {args.mode}, "
-        f"seed {launch.sc.seed}, folder {launch.run_dir}",
+        f"seed {launch.sc.seed}, {describe_laws(laws(launch.sc))}, folder {launch.run_dir}",
         flush=True,
     )
     if (code := _start(launch)) is not None:

@@ -17,6 +17,7 @@ from formation_swarm.launch.words import (
     describe_counts,
     describe_event,
     describe_fault,
+    describe_laws,
     describe_recoveries,
     describe_stall,
 )
@@ -35,6 +36,7 @@ __all__ = [
     "describe_counts",
     "describe_event",
     "describe_fault",
+    "describe_laws",
     "describe_recoveries",
     "describe_stall",
     "losses",

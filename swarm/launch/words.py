@@ -1,6 +1,6 @@
-"""What a run's summary says, in words: its events, each fault and what it
-did, how the formation came back, the robots that fell silent. The console
-(launch.console) and the report (report.faults) print these."""
+"""What a run's summary says, in words: the laws it flew, its events, each
+fault and what it did, how the formation came back, the robots that fell
+silent. The console (launch.console) and the report (report.faults) print these."""
 
 from __future__ import annotations
 
@@ -16,6 +16,32 @@ from formation_swarm.world.recovery import HOLD_S
 def num(value: Any, fmt: str = ".3f") -> str:
     """A number for the console, or "-" for a metric the run did not produce."""
     return format(value, fmt) if isinstance(value, (int, float)) and not isinstance(value, bool) else "-"
+
+
+def describe_laws(laws: Mapping[str, Any]) -> str:
+    """The leader's policy and the followers' laws (spec.laws) in a phrase:
+    "leader path, law fuzzy (V_N dynamic)" when every follower flies one law,
+    else each law with its followers, "leader path, laws R2,R3 lpsi; R4 pkg.mod:Ctl"."""
+    by_law: dict[str, list[int]] = {}
+    for rid, law in (laws.get("followers") or {}).items():
+        if str(rid).isdigit():
+            by_law.setdefault(str(law), []).append(int(rid))
+    leader = f"leader {laws.get('leader')}"
+    if len(by_law) <= 1:
+        return leader + "".join(f", law {law}" for law in by_law)
+    groups = sorted(by_law.items(), key=lambda kv: min(kv[1]))
+    return f"{leader}, laws " + "; ".join(f"{robot_ids(ids)} {law}" for law, ids in groups)
+
+
+def robot_ids(ids: list[int]) -> str:
+    """Robot ids in short, three or more consecutive ones as a range: "R2-R4,R7,R8"."""
+    runs: list[list[int]] = []
+    for rid in sorted(ids):
+        if runs and rid == runs[-1][-1] + 1:
+            runs[-1].append(rid)
+        else:
+            runs.append([rid])
+    return ",".join(f"R{r[0]}-R{r[-1]}" if len(r) > 2 else ",".join(f"R{x}" for x in r) for r in runs)
 
 
 def describe_event(ev: Mapping[str, Any]) -> str:

@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import sys
 import tempfile
+import tomllib
 import traceback
 import warnings
 from collections.abc import Callable, Mapping
@@ -36,6 +37,7 @@ from formation_swarm.report.paper import paper_changes, paper_figures
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser, integer
 from formation_swarm.spec.keys import ScenarioWarning
+from formation_swarm.spec.laws import run_laws
 
 NO_FIGURES = "no-figures.txt"  # in RUN_DIR/report/ when it could draw none: why
 FORMATS = ("png", "svg", "pdf")
@@ -125,6 +127,8 @@ def _context(
         ctx.cut = f"recording cut at {ctx.t_end:.1f} s: the logger was killed"
     ctx.formation_events = [e for e in summary.get("formation_events") or [] if isinstance(e, Mapping)]
     ctx.switches = figures.switches(ctx.formation_events)
+    if (as_run := _as_run(run_dir / "scenario.toml")) or summary.get("laws"):  # else not known: not said
+        ctx.laws = run_laws(summary, as_run, followers)
     try:
         with warnings.catch_warnings():  # the loader's warnings are the run's: report.md lists them
             warnings.simplefilter("ignore", ScenarioWarning)
@@ -144,6 +148,14 @@ def _context(
         ctx.paper = {}
         ctx.changes = f"the run did not end as the scenario does: {summary.get('ended') or summary.get('end_reason')}"
     return ctx
+
+
+def _as_run(scenario_toml: Path) -> dict[str, Any]:
+    """The scenario as run, its tables unchecked ({} when it cannot be read)."""
+    try:
+        return tomllib.loads(scenario_toml.read_text())
+    except (OSError, ValueError):
+        return {}
 
 
 def _one_line(exc: BaseException, run_dir: str) -> str:

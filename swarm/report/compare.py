@@ -2,13 +2,14 @@
 formation error over time, run against run.
 
 Each run has its colour, each robot its line style; the legend names each run
-by its folder, scenario, seed and control law, and, for runs of one
-scenario, the keys whose values differ between them. Reads each RUN_DIR's
-recording.rrd and summary.json (formation_swarm.load_run).
+by its folder, scenario, seed, the leader's policy and the followers' laws,
+and, for runs of one scenario, the keys whose values differ between them.
+Reads each RUN_DIR's recording.rrd and summary.json (formation_swarm.load_run).
 """
 
 from __future__ import annotations
 
+import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,26 +26,28 @@ STYLES = ("-", "--", ":", "-.")  # per robot, in the order of their ids (cycled)
 
 
 def law(run: RunData) -> str:
-    """The run's control law in words, from its scenario as run."""
-    from formation_swarm.spec.keys import CONTROLLER_KEYS
+    """The leader's policy and each follower's law in words (launch.words.describe_laws):
+    the run's summary's ``laws``, or for an older summary, from its scenario as run."""
+    from formation_swarm.launch.words import describe_laws
+    from formation_swarm.spec.laws import run_laws
 
-    ctl = run.config.get("controller") or {}
-    if ctl.get("law", CONTROLLER_KEYS["law"].default) == "lpsi":
-        return "l-psi"
-    return f"fuzzy, V_N {ctl.get('vn', CONTROLLER_KEYS['vn'].default)}"
+    return describe_laws(run_laws(run.summary, run.config, run.followers))
 
 
 def label(run: RunData, differ: Sequence[str] = ()) -> str:
-    """The run's folder, scenario, seed and law, and its values of ``differ``
-    (the scenario keys whose values differ between the runs compared)."""
+    """The run's folder, scenario, seed and laws, and its values of ``differ``
+    (the scenario keys whose values differ between the runs compared) but
+    the laws' keys, which the laws say."""
     flat = _flat(run.config)
-    keys = [_said(k, flat.get(k)) for k in differ[:DIFFER_SHOWN]]
-    more = f", {len(differ) - DIFFER_SHOWN} more keys differ" if len(differ) > DIFFER_SHOWN else ""
+    shown = [k for k in differ if not LAW_KEY.fullmatch(k)]
+    keys = [_said(k, flat.get(k)) for k in shown[:DIFFER_SHOWN]]
+    more = f", {len(shown) - DIFFER_SHOWN} more keys differ" if len(shown) > DIFFER_SHOWN else ""
     return f"{run.run_dir.name}: {run.scenario}, seed {run.seed}, {law(run)}" + "".join(f", {k}" for k in keys) + more
 
 
 DIFFER_SHOWN = 3  # a run's legend entry names at most this many of the keys that differ between the runs
-IN_LABEL = ("run.seed", "run.name", "run.description", "controller.law", "controller.vn")  # said by label() already
+IN_LABEL = ("run.seed", "run.name", "run.description")  # said by label() already
+LAW_KEY = re.compile(r"(controller|followers\.\d+)\.(law|vn)")  # a differing key that law() says in the label
 
 
 def _said(key: str, value: object) -> str:
@@ -69,7 +72,8 @@ def _flat(table: object, prefix: str = "") -> dict[str, object]:
 
 def differing(runs: Sequence[RunData]) -> list[str]:
     """The scenario keys (run.seed and the scenario's name aside: the label has them)
-    whose values differ between runs of one scenario, sorted (none between scenarios)."""
+    whose values differ between runs of one scenario, sorted (none between scenarios):
+    ``controller.law`` and ``followers.N.law`` among them when the laws differ."""
     if len({run.scenario for run in runs}) > 1:
         return []  # different scenarios: their names tell them apart
     flats = [_flat(run.config) for run in runs]

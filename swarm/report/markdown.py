@@ -1,6 +1,7 @@
-"""report.md of one run: how it ran and ended, the followers' metrics, the
-collisions and links, the scenario's warnings, the formation events, the
-faults and processes, and the figures (or why there are none)."""
+"""report.md of one run: how it ran and ended, the laws it flew, the
+followers' metrics, the collisions and links, the scenario's warnings, the
+formation events, the faults and processes, and the figures (or why there
+are none)."""
 
 from __future__ import annotations
 
@@ -52,9 +53,18 @@ def _header(summary: Mapping[str, Any], ctx: Context | None) -> list[str]:
         f"({_num(summary.get('sim_time_s'), '.1f')} s simulated), exit code {summary.get('exit_code')}. "
         f"Ended: {summary.get('ended') or describe_end(summary.get('end_reason'), summary.get('ended_at_s'))}.",
         "",
+        *_control(summary, ctx),
         f"Reproduces: {paper}." if paper else f"Reproduces no figure of the paper as it is ({why_not}).",
         "",
     ]
+
+
+def _control(summary: Mapping[str, Any], ctx: Context | None) -> list[str]:
+    """The leader's policy and the followers' laws (spec.laws), when known."""
+    from formation_swarm.launch.console import describe_laws
+
+    laws = (ctx.laws if ctx else None) or summary.get("laws")
+    return [f"Control: {describe_laws(laws)}.", ""] if isinstance(laws, Mapping) else []
 
 
 def _metrics_table(summary: Mapping[str, Any], followers: list[int]) -> list[str]:

@@ -112,7 +112,7 @@ def test_clear_errors_for_folders_it_cannot_use(tmp_path: Path, capsys: pytest.C
 
 
 def test_compare_draws_a_line_per_robot_per_run(runs: tuple[Path, Path], tmp_path: Path) -> None:
-    from formation_swarm.report.compare import figure, main
+    from formation_swarm.report.compare import figure, label, main
 
     a, b = load_run(runs[0]), load_run(runs[1])
     fig = figure([a, b])
@@ -121,10 +121,16 @@ def test_compare_draws_a_line_per_robot_per_run(runs: tuple[Path, Path], tmp_pat
     assert len(err.lines) == 2 + 1  # every follower of each run
     assert err.lines[2].get_ydata().tolist() == b.formation_error_m[b.index(2)].tolist()
     labels = [t.get_text() for t in fig.legends[0].get_texts()]
-    assert labels == [
-        "fig11-s3: fig11-obstacles, seed 3, fuzzy, V_N dynamic",
-        "fig7-s5: turn-vn-dynamic, seed 5, fuzzy, V_N dynamic",
+    assert labels == [label(a), label(b)]  # two scenarios: no key differs
+    assert [text.split(", ")[:2] for text in labels] == [
+        ["fig11-s3: fig11-obstacles", "seed 3"],
+        ["fig7-s5: turn-vn-dynamic", "seed 5"],
     ]
+    assert [run.summary["laws"] for run in (a, b)] == [
+        {"leader": "path", "followers": {"2": "fuzzy (V_N dynamic)", "3": "fuzzy (V_N dynamic)"}},
+        {"leader": "path", "followers": {"2": "fuzzy (V_N dynamic)"}},
+    ]
+    assert all(text.endswith(", leader path, law fuzzy (V_N dynamic)") for text in labels)
     assert main([str(runs[0]), str(runs[1]), "--out", str(tmp_path / "c.png")]) == 0
     assert (tmp_path / "c.png").stat().st_size > 10_000
 
@@ -136,7 +142,9 @@ def test_compare_names_what_differs_between_runs_of_one_scenario() -> None:
 
     def run(name: str, speed: float, seed: int, **more: object) -> SimpleNamespace:
         config = {"run": {"name": "fig11-obstacles", "seed": seed}, "leader": {"speed_mps": speed, **more}}
-        return SimpleNamespace(config=config, scenario="fig11-obstacles", seed=seed, run_dir=Path(name))
+        return SimpleNamespace(
+            config=config, scenario="fig11-obstacles", seed=seed, run_dir=Path(name), summary={}, followers=(2, 3)
+        )
 
     a, b = run("a", 1.5, 1), run("b", 2.0, 2, formation="line")
     assert differing([a, b]) == ["leader.formation", "leader.speed_mps"]  # the seed is in the label already
@@ -148,6 +156,12 @@ def test_compare_names_what_differs_between_runs_of_one_scenario() -> None:
     assert label(a, ["faults"]).endswith(", faults: none")  # type: ignore[arg-type]
     other = SimpleNamespace(**{**vars(b), "scenario": "turn-vn-dynamic"})
     assert differing([a, other]) == []  # different scenarios: their names tell them apart
+    # A law that differs is a key that differs; the label says the laws themselves, not the keys.
+    own = SimpleNamespace(
+        **{**vars(a), "config": {**a.config, "controller": {"vn": 1.5}, "followers": {"3": {"law": "lpsi"}}}}
+    )
+    assert differing([a, own]) == ["controller.vn", "followers.3.law"]
+    assert label(own, differing([a, own])).endswith(", laws R2 fuzzy (V_N 1.5 m/s); R3 lpsi")  # type: ignore[arg-type]
 
 
 def test_the_documented_example_runs(runs: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

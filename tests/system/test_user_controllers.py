@@ -21,11 +21,13 @@ import csv
 import io
 import json
 import os
+import re
 import subprocess
 import sys
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -166,6 +168,8 @@ def test_swarm_run_flies_the_example_controller_and_two_lockstep_runs_give_one_d
         )
         assert proc.returncode == 0, proc.stdout + proc.stderr
         assert "follower R3: formation error RMS" in proc.stdout
+        (header,) = [line for line in proc.stdout.splitlines() if line.startswith("[swarm] run ")]
+        assert f", leader path, law {PURE_PURSUIT}, folder " in header  # what flew, before it flies
         summaries.append(json.loads((tmp_path / f"r{i}" / "summary.json").read_text()))
     a, b = summaries
     assert a["trajectory_digest"] is not None
@@ -187,3 +191,50 @@ def test_a_sweep_over_the_controllers_parameters(tmp_path: Path) -> None:
     assert {r["exit_code"] for r in rows} == {"0"}
     slow, quick = (float(r["r2_rms_m"]) for r in rows)
     assert quick < slow  # a stiffer gain keeps it nearer its slot (measured: 0.11 vs 0.19 m over 15 s)
+
+
+# -- one's own law beside the paper's ---------------------------------------------------------
+
+
+def test_compare_and_the_report_name_ones_law_and_the_papers(
+    swarm_run: Callable[..., RunResult], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """fig11 for 3 s as shipped, then with docs/controllers.md's Proportional:
+    compare's legend names both laws and lists controller.law as differing;
+    the report's text and every figure's title name the law flown."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from formation_swarm.report.build import FIGURES, make_report
+    from formation_swarm.report.compare import differing, figure
+    from formation_swarm.report.data import load_run
+    from formation_swarm.report.figures import drawing
+
+    doc = (ROOT / "docs" / "controllers.md").read_text()
+    (tmp_path / "law").mkdir()
+    (tmp_path / "law" / "doc_proportional.py").write_text(re.findall(r"^```python\n(.*?)^```$", doc, re.M | re.S)[0])
+    mine = "doc_proportional:Proportional"
+    paper = swarm_run("fig11_obstacles", overrides={"run.duration_s": 3.0})
+    # On the launcher's path, which each agent it forks takes (the fork server, started before, keeps its own).
+    monkeypatch.syspath_prepend(str(tmp_path / "law"))
+    own = swarm_run("fig11_obstacles", overrides={"run.duration_s": 3.0, "controller.law": mine})
+    assert (paper.exit_code, own.exit_code) == (0, 0)
+    assert [paper.summary["laws"], own.summary["laws"]] == [
+        {"leader": "path", "followers": {"2": "fuzzy (V_N dynamic)", "3": "fuzzy (V_N dynamic)"}},
+        {"leader": "path", "followers": {"2": mine, "3": mine}},
+    ]
+    runs = [load_run(paper.run_dir), load_run(own.run_dir)]
+    fig = figure(runs)
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert labels[0].endswith(", leader path, law fuzzy (V_N dynamic)")  # the paper's, with its V_N
+    assert labels[1].endswith(f", leader path, law {mine}")
+    assert "controller.law" in differing(runs)
+    saved: list[Any] = []
+    monkeypatch.setattr(drawing, "save", lambda fig, path, dpi: saved.append(fig))
+    out = make_report(own.run_dir)
+    titles = [f._suptitle.get_text() for f in saved]
+    assert len(titles) == 4
+    assert all(f"leader path, law {mine}" in title.splitlines() for title in titles)
+    vn_note = [t.get_text() for t in saved[FIGURES.index("vn")].axes[0].texts]
+    assert any(mine in note and "no V_N" in note for note in vn_note)  # it sent no V_N: said by its name
+    assert f"Control: leader path, law {mine}." in (out / "report.md").read_text().splitlines()

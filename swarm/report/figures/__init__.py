@@ -18,7 +18,8 @@ Choices a reader should know, also said on the figures themselves:
   to the 99.5th percentile with a margin, and says where a larger value was
   cut off.
 - Titles name the scenario and the seed, and "cf. Fig. N" only when the run
-  is a shipped scenario of the paper as shipped (any seed).
+  is a shipped scenario of the paper as shipped (any seed); under them, the
+  leader's policy and the followers' laws (the summary's ``laws``).
 - A line is not drawn across a gap in its series (an agent killed, frozen
   or restarted; a follower holding, which has no V_N), nor is a moving
   average taken across one.

@@ -1,5 +1,5 @@
 """What every figure of one run needs besides the recording: the run's
-robots, times, faults, formations and obstacles, and its title."""
+robots, times, faults, formations, obstacles and laws, and its title."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from formation_swarm.common.palette import robot_colour
+from formation_swarm.launch.words import describe_laws
 
 Mark = tuple[float, "float | None", str]
 
@@ -38,11 +39,20 @@ class Context:
     start_formation: str | None = None
     obstacles: list[tuple[float, float, float]] = field(default_factory=list)
     diameter_m: float = 0.4
+    # The leader's policy and each follower's law (spec.laws: the summary's "laws"); {}: not known.
+    laws: Mapping[str, Any] = field(default_factory=dict)
 
     def title(self, stem: str, what: str) -> str:
+        """The scenario, seed and what the figure shows; under it the laws flown."""
         cf = f" (cf. paper {self.paper[stem]})" if stem in self.paper else ""
         cut = f" [{self.cut}]" if self.cut else ""
-        return f"{self.scenario}, seed {self.seed}: {what}{cf}{cut}"
+        flown = f"\n{describe_laws(self.laws)}" if self.laws else ""
+        return f"{self.scenario}, seed {self.seed}: {what}{cf}{cut}{flown}"
+
+    def laws_of_followers(self) -> list[str]:
+        """The laws the followers flew, each once, in the order of their first follower."""
+        said = self.laws.get("followers") or {}
+        return list(dict.fromkeys(str(said[str(r)]) for r in self.followers if str(r) in said))
 
     @property
     def many(self) -> bool:

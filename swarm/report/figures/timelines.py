@@ -82,7 +82,7 @@ def vn(path: Any, data: Mapping[str, Series], ctx: Context, dpi: int) -> None:
     )
     drawn, averages, held = _vn_lines(ax, data, ctx)
     if not drawn:
-        ax.text(0.5, 0.5, "no V_N in this run (l-psi followers have none)", ha="center", transform=ax.transAxes)
+        ax.text(0.5, 0.5, _no_vn(ctx), ha="center", transform=ax.transAxes)
         hist.axis("off")
     else:
         lo = min(float(np.min(v)) for _, v in drawn)
@@ -112,6 +112,14 @@ def vn(path: Any, data: Mapping[str, Series], ctx: Context, dpi: int) -> None:
     )
     drawing.time_marks(ax, ctx, beside=[hist])
     drawing.save(fig, path, dpi)
+
+
+def _no_vn(ctx: Context) -> str:
+    """Why the V_N figure has no line: the followers' laws sent none."""
+    flown = ctx.laws_of_followers()
+    if not flown:
+        return "no V_N in this run: its followers sent none"
+    return f"no V_N in this run: law{'s' if len(flown) > 1 else ''} {', '.join(flown)} sent none"
 
 
 def _vn_lines(

@@ -7,6 +7,10 @@ Besides the metrics it says which code made the run and why the run ended:
 ``version``, ``git_commit``
     ``formation_swarm.__version__``, and the commit checked out in the source
     tree when the package runs from a git checkout (None otherwise).
+``laws``
+    the leader's policy and each follower's law by its id, named as
+    ``spec.laws`` names them: ``{"leader": "path", "followers": {"2":
+    "fuzzy (V_N dynamic)", "3": "pkg.module:Class"}}``.
 ``end_reason``, ``ended_at_s``, ``ended``
     one of ``END_REASONS`` and the sim time (s) the run had reached then,
     None when it never started; and the two in words (for a failed run, with
@@ -61,6 +65,7 @@ from formation_swarm.runtime.summary.end_reason import (
 from formation_swarm.runtime.summary.faults import fault_effects
 from formation_swarm.runtime.summary.links import killed_agents, link_sums, mark_partial_counts, partial_links
 from formation_swarm.runtime.summary.recording import logger_lost, recording_cut, recording_gap
+from formation_swarm.spec.laws import laws
 
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
@@ -130,6 +135,7 @@ def build(
         "scenario": sc.name,
         "mode": mode,
         "seed": sc.seed,
+        "laws": laws(sc),
         "version": __version__,
         "git_commit": git_commit(),
         **_ending(ending, parts, sc, events),
