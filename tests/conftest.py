@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import signal
+import threading
+
 import pytest
 
 from tests.helpers import processes
@@ -17,6 +20,19 @@ def _no_process_left_behind(tmp_path_factory: pytest.TempPathFactory) -> object:
     yield
     left = [(pid, cmd) for pid, cmd in processes(lambda cmd: base in cmd) if pid not in before]
     assert not left, f"processes left behind by the suite: {left}"
+
+
+@pytest.fixture(autouse=True)
+def _stop_signals_as_they_were() -> object:
+    # A role's main() run in the test process ignores SIGINT and SIGTERM once it
+    # returns (runtime.proc.exit_after_main); left so, every process the
+    # worker starts later would inherit SIGINT ignored.
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    if threading.current_thread() is threading.main_thread():
+        for sig, handler in before.items():
+            if handler is not None and signal.getsignal(sig) != handler:
+                signal.signal(sig, handler)
 
 
 # The longest files first (in that order: seconds of a serial run, 21 s to 87 s),

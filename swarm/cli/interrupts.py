@@ -22,9 +22,14 @@ INTERRUPTED = 130  # 128 + SIGINT, as a shell reports it
 
 
 def hold() -> None:
-    """Block SIGINT in this thread (and the threads it starts from now on)."""
+    """Block SIGINT in this thread (and the threads it starts from now on).
+    A process started with SIGINT ignored (a shell's background job, a parent
+    that ignores it) takes it as Python's KeyboardInterrupt from here, as it
+    does later on: one that comes while held would otherwise be dropped."""
     if threading.current_thread() is threading.main_thread():
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def release() -> None:

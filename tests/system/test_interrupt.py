@@ -78,7 +78,9 @@ def _command_started(pid: int) -> bool:
     return bool(int(blocked, 16) & (1 << (signal.SIGINT - 1)))
 
 
-def _interrupt_at(moment_s: float, out: Path) -> tuple[int | None, Console, float, list[int]]:
+def _interrupt_at(
+    moment_s: float, out: Path, ignore_sigint: bool = False
+) -> tuple[int | None, Console, float, list[int]]:
     """Start ``swarm run``, send its process group a SIGINT (a terminal's Ctrl-C)
     ``moment_s`` after its code started; its exit code (None: it had ended
     before), its console, when the signal went, its children then."""
@@ -89,6 +91,7 @@ def _interrupt_at(moment_s: float, out: Path) -> tuple[int | None, Console, floa
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        preexec_fn=(lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)) if ignore_sigint else None,  # noqa: PLW1509
     )
     deadline = time.monotonic() + EXIT_WITHIN_S
     while not _command_started(proc.pid) and time.monotonic() < deadline:
@@ -141,3 +144,12 @@ def test_ctrl_c_at_any_moment_of_swarm_run(tmp_path: Path) -> None:
             time.sleep(0.05)
         assert left() == [], where
     assert hit >= len(MOMENTS_S) // 2, f"only {hit} of the moments came while swarm run ran"
+
+
+def test_ctrl_c_at_the_start_of_a_run_started_with_sigint_ignored(tmp_path: Path) -> None:
+    """A background job of a shell, or a child of a parent that ignores SIGINT,
+    starts with it ignored: swarm run still takes a Ctrl-C that comes while
+    its first modules load, as it does later on."""
+    code, console, _sent, _children = _interrupt_at(0.0, tmp_path / "run", ignore_sigint=True)
+    assert code == 130, console.text("out") + console.text("err")
+    assert [line for _, s, line in console.lines if s == "err"] == ["interrupted"]
