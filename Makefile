@@ -60,7 +60,7 @@ bench: $(STAMP)
 
 # The generated tables and figures of docs/results.md: the baseline (180 lockstep
 # runs), the same under wheel noise (180), the paper's claims over 30 seeds as
-# shipped (with the rows tests/unit/studies/test_claims.py checks, and claim d's
+# shipped (with the rows tests/system/test_claims.py checks, and claim d's
 # ablation of the avoidance), under wheel noise, with the EKF told it (3 x 240),
 # and the claims at every value of one setting at a time (10 seeds per value:
 # 2,720 runs beyond the claims' own, which it shares; their rows, and the list of

@@ -1,7 +1,7 @@
 """The paper's claims a-d measured over seeds, under chosen scenario settings
 (``swarm results --claims --set robot.wheel_noise_mps=0.1``).
 
-The claims and their criteria are those of tests/unit/studies/test_claims.py (the claims
+The claims and their criteria are those of tests/system/test_claims.py (the claims
 themselves, not fitted margins); here they are evaluated seed by seed and
 said in a table: the figures (min-max over the seeds) and in how many seeds
 each holds. Claim d is judged twice: on the paper's Fig. 11 run, and on a
@@ -219,7 +219,7 @@ def table(rows: Rows, settings: str) -> str:
     n = len(rows["dynamic"])
     lines = [
         f"The paper's claims with {settings or 'the scenarios as shipped'}: lockstep runs, seeds 0-{n - 1}; "
-        "the criteria of tests/unit/studies/test_claims.py, evaluated seed by seed.",
+        "the criteria of tests/system/test_claims.py, evaluated seed by seed.",
         "",
         f"| claim | measured (min-max over {n} seeds; mean ± 95% confidence half-width) | holds |",
         "|---|---|---|",

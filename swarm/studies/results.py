@@ -167,14 +167,14 @@ def _add_study_arguments(ap: Parser) -> None:
         "--claims",
         action="store_true",
         help=f"measure the paper's claims a-d instead ({len(claims.SWEEPS)} runs per seed, of the "
-        "scenarios of tests/unit/studies/test_claims.py)",
+        "scenarios of tests/system/test_claims.py)",
     )
     ap.add_argument(
         "--rows",
         metavar="CSV",
         default=None,
         help="with --claims: also write every run's row (sweep, seed and its metrics) to this CSV, "
-        "the data tests/unit/studies/test_claims.py checks the claims over; with --sensitivity: put the "
+        "the data tests/system/test_claims.py checks the claims over; with --sensitivity: put the "
         "rows of the axes run into this CSV (axis, value, sweep, seed, metrics; the other axes' rows are "
         "kept) and write the summary of every claim along every axis in it between "
         f"{sensitivity_run.WHERE[0]} ... markers",

@@ -3,7 +3,7 @@ value of one setting at a time (``swarm results --sensitivity``).
 
 The settings are the leader's speed, the observations' drops, the camera's
 noise, and the wheels' noise and speed bias; at each value the claims' own runs are repeated
-(the scenarios and criteria of tests/unit/studies/test_claims.py, formation_swarm.studies.claims),
+(the scenarios and criteria of tests/system/test_claims.py, formation_swarm.studies.claims),
 with, beside the paper's controllers, the l-psi baseline on every axis and
 the static V_N values 1.7 and 1.8 on the leader-speed axis. The shipped value
 of an axis is the claims' own runs (no setting changed), so those runs are

@@ -175,7 +175,7 @@ def markdown(axis: Axis, points: Sequence[Point], figure_path: str) -> str:
     seeds = points[0].claims[0].seeds
     lines = [
         f"**{axis.title}** ({axis.note}); lockstep runs, seeds 0-{seeds - 1} per value, the criteria "
-        "of tests/unit/studies/test_claims.py "
+        "of tests/system/test_claims.py "
         "evaluated seed by seed; mean ± 95% confidence half-width over the seeds.",
         "",
     ]
