@@ -122,24 +122,31 @@ MODULES = (
         for path in ("agents/tracking.py", "agents/fuzzy_controller.py", "agents/lpsi_controller.py")
     ),
     *(
-        Module(path, (T("test_roles.py"), T("test_agent_inputs.py"), PUBLISHED))
+        Module(path, (T("unit/agents/test_roles.py"), T("test_agent_inputs.py"), PUBLISHED))
         for path in ("agents/follower_role.py", "agents/leader_role.py", "agents/leader_policy.py")
     ),
     Module(
         "agents/formation.py", (T("test_formation_tree.py"), T("test_geometry.py"), T("test_scenario.py"), PUBLISHED)
     ),
+    Module("agents/sight.py", (T("test_formation_tree.py"), T("test_scenario.py"))),
     Module("agents/leader.py", (T("test_leader.py"), PUBLISHED)),
     Module("agents/lpsi.py", (T("test_lpsi.py"), T("test_follower.py"), PUBLISHED)),
     Module("agents/pilot.py", (T("test_pilot.py"), T("test_closed_loop.py"), PUBLISHED)),
     Module(
         "world/kinematics.py",
-        (T("test_kinematics.py"), T("test_camera.py"), T("test_geometry.py"), T("test_engine.py"), PUBLISHED),
+        (
+            T("test_kinematics.py"),
+            T("test_camera.py"),
+            T("test_geometry.py"),
+            T("unit/world/test_engine.py"),
+            PUBLISHED,
+        ),
     ),
     Module("world/camera.py", (T("test_camera.py"), T("test_camera_frame.py"), T("test_geometry.py"), PUBLISHED)),
     Module(
         "world/engine.py",
         (
-            T("test_engine.py"),
+            T("unit/world/test_engine.py"),
             T("test_world_engine.py"),
             T("test_camera_frame.py"),
             T("test_sensor_actuator_faults.py"),
@@ -172,7 +179,7 @@ MODULES = (
     Module("protocol/trust.py", (T("test_trust_rules.py"),)),
     Module("protocol/tls.py", (T("test_tls.py"),)),
     Module("agents/inbox.py", (T("test_inbox.py"), T("test_agent_inputs.py"), T("test_world_inputs.py"))),
-    Module("swarm/common/faults.py", (T("test_fault_grammar.py"),)),
+    Module("swarm/common/faults/__init__.py", (T("test_fault_grammar.py"),)),
     Module("swarm/common/faults/kinds.py", (T("test_fault_grammar.py"),)),
     Module("swarm/common/faults/schedule.py", (T("test_fault_grammar.py"),)),
     Module("world/process_faults.py", PROCESS_FAULT_UNITS),

@@ -77,7 +77,9 @@ def _check_shorthands(args: argparse.Namespace, overrides: dict[str, Any]) -> st
 
 def _cmd_sim(args: argparse.Namespace) -> int:
     from formation_swarm.engine import Engine
+    from formation_swarm.launch.words import describe_laws
     from formation_swarm.spec.keys import ScenarioWarning
+    from formation_swarm.spec.laws import laws
 
     try:
         with warnings.catch_warnings(record=True) as said:
@@ -91,7 +93,11 @@ def _cmd_sim(args: argparse.Namespace) -> int:
         print(f"swarm sim: {exc}", file=sys.stderr)
         return USAGE_ERROR
     sc = engine.scenario
-    print(f"[swarm] sim: {sc.name}, {len(sc.robots)} robots, lockstep in this process, seed {sc.seed}", flush=True)
+    print(
+        f"[swarm] sim: {sc.name}, {len(sc.robots)} robots, lockstep in this process, seed {sc.seed}, "
+        f"{describe_laws(laws(sc))}",
+        flush=True,
+    )
     for warning in dict.fromkeys(str(w.message) for w in said if issubclass(w.category, ScenarioWarning)):
         print(f"[swarm] warning: {warning}")
     result = engine.run()

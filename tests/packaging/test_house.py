@@ -120,3 +120,15 @@ def test_planted():
     assert n == 3
 """
     assert sentence_asserts(planted) == [3, 4, 5]
+
+
+def test_mutation_testing_names_modules_and_test_files_that_exist() -> None:
+    """tools/mutate.py finds each test file it names by its name alone (it stops
+    at import when two share one) and mutates modules that exist."""
+    res = subprocess.run([sys.executable, str(ROOT / "tools" / "mutate.py"), "--help"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    sys.path.insert(0, str(ROOT / "tools"))
+    import mutate
+
+    assert [m.path for m in mutate.MODULES if not (ROOT / m.path).is_file()] == []
+    assert [t for m in mutate.MODULES for t in m.tests if not (ROOT / t.split("::")[0]).is_file()] == []

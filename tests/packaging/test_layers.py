@@ -74,6 +74,15 @@ def test_no_import_loop_even_through_imports_inside_functions(tmp_path: Path) ->
     assert import_loops(graph) == []
 
 
+def test_a_loop_through_a_relative_import_inside_a_function_is_found(tmp_path: Path) -> None:
+    lint_imports.lay_out(tmp_path)
+    ekf = tmp_path / "formation_swarm" / "agents" / "ekf.py"
+    ekf.write_text(ekf.read_text() + "\n\ndef _late():\n    from . import tracking  # noqa: F401\n")
+    loops = import_loops(import_graph(tmp_path))
+    assert [loop for loop in loops if "formation_swarm.agents.ekf" in loop] != []
+    assert "formation_swarm.agents.tracking" in next(loop for loop in loops if "formation_swarm.agents.ekf" in loop)
+
+
 def test_the_loop_finder_finds_a_loop_made_inside_a_function() -> None:
     graph = {"a": {"b"}, "b": {"c"}, "c": set(), "d": {"d"}}
     assert import_loops(graph) == []
@@ -105,12 +114,23 @@ def import_graph(tree: Path) -> dict[str, set[str]]:
                 continue
             if isinstance(node, ast.Import):
                 out |= {a.name for a in node.names if a.name in files}
-            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            elif isinstance(node, ast.ImportFrom):
+                source = _absolute(node, module, is_package=path.name == "__init__.py")
                 for a in node.names:
-                    sub = f"{node.module}.{a.name}"
-                    out.add(sub if sub in files else node.module)
+                    sub = f"{source}.{a.name}"
+                    out.add(sub if sub in files else source)
         graph[module] = {m for m in out if m in files and m != module}
     return graph
+
+
+def _absolute(node: ast.ImportFrom, module: str, is_package: bool) -> str:
+    """The module ``from X import ...`` names, ``from . import`` and ``from ..x import`` too."""
+    if node.level == 0:
+        return node.module or ""
+    package = module if is_package else module.rsplit(".", 1)[0]
+    for _ in range(node.level - 1):
+        package = package.rsplit(".", 1)[0]
+    return f"{package}.{node.module}" if node.module else package
 
 
 def import_loops(graph: dict[str, set[str]]) -> list[list[str]]:

@@ -23,7 +23,7 @@ def test_it_prints_swarm_runs_result_block_and_the_engines_digest(capsys: pytest
     code, lines, err = sim(capsys, *argv, *(a for f in FAULTS for a in ("--fault", f)))
     res = Engine("fig11_obstacles", seed=2, overrides={"controller.law": "lpsi"}, faults=FAULTS).run()
     assert (code, err) == (0, "")
-    assert lines[0] == "[swarm] sim: fig11-obstacles, 3 robots, lockstep in this process, seed 2"
+    assert lines[0] == "[swarm] sim: fig11-obstacles, 3 robots, lockstep in this process, seed 2, leader path, law lpsi"
     assert lines[1] == "sim fig11-obstacles: exit 0, 1061 ticks, sim 53.05 s"
     assert lines[2] == "  ended: the leader reached its last waypoint at t=53.05 s"
     assert lines[3] == f"  follower R2: formation error RMS {res.followers['2']['rms_m']:.3f} m, max " + (
