@@ -31,7 +31,8 @@ def parse_followers(
         raise ScenarioError("[followers] must be a table of robot ids")
     for key in per:
         if not str(key).isdigit() or int(key) not in followers:
-            raise ScenarioError(f"followers.{key}: not a follower id; followers are {followers}")
+            message = f"followers.{key}: not a follower id; followers are {followers}"
+            raise ScenarioError(message, key=f"followers.{key}", value=per[key])
     out: dict[int, FollowerParams] = {}
     shared: FollowerParams | None = None  # the [controller] table's, made once for every follower without its own
     for rid in followers:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.hosts.local_hosts import Hosts
+from tests.hosts.local_hosts import Hosts, make_tls
 
 
 def _ip(*args: str) -> None:
@@ -60,6 +60,18 @@ def robot_host() -> object:
 @pytest.fixture
 def two_hosts(tmp_path: Path) -> Iterator[Hosts]:
     hosts = Hosts(tmp_path, ["a", "b"])
+    try:
+        yield hosts
+    finally:
+        hosts.close()
+
+
+@pytest.fixture
+def two_tls_hosts(tmp_path: Path) -> Iterator[Hosts]:
+    """``two_hosts``, their router's link over TLS."""
+    if shutil.which("openssl") is None:
+        pytest.skip("needs openssl to make the test's TLS certificates")
+    hosts = Hosts(tmp_path, ["a", "b"], tls=make_tls(tmp_path / "tls"))
     try:
         yield hosts
     finally:

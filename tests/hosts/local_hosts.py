@@ -14,13 +14,16 @@ PY = [sys.executable, "-m", "formation_swarm.cli"]
 
 
 class Hosts:
-    """``swarm host`` processes on this machine, each with its login and folder."""
+    """``swarm host`` processes on this machine, each with its login and folder
+    (with ``tls``, a folder of :func:`make_tls`'s files: over TLS)."""
 
-    def __init__(self, tmp_path: Path, names: list[str]) -> None:
+    def __init__(self, tmp_path: Path, names: list[str], tls: Path | None = None) -> None:
         self.tmp = tmp_path
-        self.endpoint = f"tcp/127.0.0.1:{free_port()}"
+        self.tls = tls
+        self.endpoint = f"{'tcp' if tls is None else 'tls'}/127.0.0.1:{free_port()}"
+        ca = [] if tls is None else ["--tls-ca", str(tls / "ca.pem")]
         made = subprocess.run(
-            [*PY, "secure", "--hosts", ",".join(names), "--out", str(tmp_path / "sec")],
+            [*PY, "secure", "--hosts", ",".join(names), "--out", str(tmp_path / "sec"), *ca],
             capture_output=True,
             text=True,
             timeout=60,
@@ -67,6 +70,7 @@ class Hosts:
             self.endpoint,
             "--host-logins",
             str(self.tmp / "sec" / "hosts.txt"),
+            *([] if self.tls is None else [f"--tls-{n}={self.tls / f}" for n, f in TLS_FILES.items()]),
         ]
 
     def log(self, name: str) -> str:
@@ -82,6 +86,25 @@ class Hosts:
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
+
+
+TLS_FILES = {"ca": "ca.pem", "cert": "router.pem", "key": "router.key"}  # swarm run's --tls-NAME: make_tls's
+
+
+def make_tls(folder: Path) -> Path:
+    """A CA and the router's certificate for 127.0.0.1 and key, in ``folder``
+    (the guide's openssl commands, deploy/README.md "Steps")."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "ext.cnf").write_text("subjectAltName=IP:127.0.0.1\n")
+    ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"]
+    sign = ["-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial", "-days", "1", "-extfile", "ext.cnf"]
+    for argv in (
+        ["req", "-x509", *ec, "-keyout", "ca.key", "-out", "ca.pem", "-days", "1", "-subj", "/CN=swarm test CA"],
+        ["req", *ec, "-keyout", "router.key", "-out", "router.csr", "-subj", "/CN=router"],
+        ["x509", "-req", "-in", "router.csr", "-out", "router.pem", *sign],
+    ):
+        subprocess.run(["openssl", *argv], cwd=folder, check=True, capture_output=True, timeout=30)
+    return folder
 
 
 def summary_placement(out: Path) -> dict[str, str]:

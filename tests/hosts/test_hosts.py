@@ -243,7 +243,11 @@ def test_process_faults_on_a_remote_agent_are_executed_by_its_host(two_hosts: Ho
 
 
 @pytest.mark.slow
-def test_the_hosts_stop_a_run_s_agents_when_its_launcher_dies(two_hosts: Hosts, tmp_path: Path) -> None:
+@pytest.mark.parametrize("hosts", ["two_hosts", "two_tls_hosts"])
+def test_the_hosts_stop_a_run_s_agents_when_its_launcher_dies(
+    hosts: str, tmp_path: Path, request: pytest.FixtureRequest
+) -> None:
+    two_hosts: Hosts = request.getfixturevalue(hosts)
     out = tmp_path / "orphan"
     argv = [*two_hosts.run_argv(out, "a,b"), "--mode", "realtime"]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -271,11 +275,16 @@ def test_the_hosts_stop_a_run_s_agents_when_its_launcher_dies(two_hosts: Hosts, 
         assert "its launcher's token went" in two_hosts.log(n), two_hosts.log(n)
         assert two_hosts.procs[n].poll() is None  # still serving
     # The killed launcher could not remove the run's secrets; what outlasts the run
-    # (the hosts' logins in the router's password list) was gone once the router read it.
+    # (the hosts' logins in the router's password list, the copy of its TLS key)
+    # was gone once the router read it.
     left = sorted(p.name for p in (out / "secrets").iterdir())
     assert "passwords.txt" not in left, left
+    assert "router.key" not in left, left
+    assert ("router.pem" in left) == (two_hosts.tls is not None), left  # a TLS run's, and its key is gone
     lasting = [line.split(":", 1)[1] for line in (two_hosts.tmp / "sec" / "hosts.txt").read_text().splitlines()]
     assert len(lasting) == 2
+    if two_hosts.tls is not None:
+        lasting.append((two_hosts.tls / "router.key").read_text())
     assert not any(pw in p.read_text() for p in (out / "secrets").iterdir() for pw in lasting), left
 
 

@@ -9,9 +9,9 @@ sent an agent's login) and its robots fly on the other hosts; once a host
 has answered, another session's answers are refused and counted, and the
 run flies as without it.
 
-The world's login of such a run is granted its keys over loopback only (its
-world runs beside the launcher, the router): from another interface it is
-granted nothing.
+The world's and the logger's logins of such a run are granted their keys
+over loopback only (both run beside the launcher, the router): from another
+interface they are granted nothing.
 """
 
 from __future__ import annotations
@@ -150,7 +150,9 @@ def test_a_second_session_on_a_hosts_login_mid_run_is_refused_and_counted(two_ho
     assert summary["hosts"]["a"]["rejected"] == {}
 
 
-def test_a_placed_runs_world_login_is_granted_nothing_from_another_interface(two_hosts: Hosts, tmp_path: Path) -> None:
+def test_a_placed_runs_world_and_logger_logins_are_granted_nothing_from_another_interface(
+    two_hosts: Hosts, tmp_path: Path
+) -> None:
     outward = outward_address()
     if outward is None:
         pytest.skip("no network interface but loopback: nothing to reach the router from")
@@ -163,22 +165,25 @@ def test_a_placed_runs_world_login_is_granted_nothing_from_another_interface(two
         "overrides": {"run.duration_s": 120.0, "leader.waypoints": [[0.0, 0.0], [0.0, 1000.0]]},
     }
     fig11 = SCENARIOS / "fig11_obstacles.toml"
-    heard: dict[str, list[str]] = {"loopback": [], "outward": []}
+    heard: dict[str, list[str]] = {"loopback": [], "outward": [], "logger loopback": [], "logger outward": []}
     with Launch(fig11, out=tmp_path / "run", progress=lambda _l: None, **options) as launch:
         assert launch.wait_until(lambda: launch.sim_time() >= 1.0, timeout_s=120)
-        world = launch.login("world")
         k = Keys(launch.run_id)
         sessions = {
-            where: zenoh.open(make_config("client", [f"tcp/{address}:{port}"], connect_timeout_s=10.0, settings=world))
-            for where, address in (("loopback", "127.0.0.1"), ("outward", outward))
+            f"{prefix}{where}": zenoh.open(
+                make_config("client", [f"tcp/{address}:{port}"], connect_timeout_s=10.0, settings=launch.login(user))
+            )
+            for prefix, user in (("", "world"), ("logger ", "logger"))  # the logger's login, though no logger runs
+            for where, address in (("outward", outward), ("loopback", "127.0.0.1"))  # outward heard first, if at all
         }
         try:
             for where, sess in sessions.items():
-                sess.declare_subscriber(k.all_cmd, lambda s, w=where: heard[w].append(str(s.key_expr)))
+                key = k.world_all if where.startswith("logger") else k.all_cmd  # what each hears of the run
+                sess.declare_subscriber(key, lambda s, w=where: heard[w].append(str(s.key_expr)))
             done = Status(sender=0, seq=2**62, tick=10**6, time_s=0.0, state="done", total_ticks=1).to_bytes()
             pub = sessions["outward"].declare_publisher(k.status)
             deadline = time.monotonic() + 10
-            while not heard["loopback"] and time.monotonic() < deadline:
+            while not (heard["loopback"] and len(heard["logger loopback"]) >= 20) and time.monotonic() < deadline:
                 pub.put(done)  # the run's end, forged: from here it reaches no one
                 time.sleep(0.05)
             assert launch.sim_time() < 119.0, "the run was over before the forgeries"
@@ -188,6 +193,8 @@ def test_a_placed_runs_world_login_is_granted_nothing_from_another_interface(two
         res = launch.wait(timeout_s=240)
     assert heard["loopback"], "over loopback the world's login hears the commands"
     assert heard["outward"] == []
+    assert heard["logger loopback"], "over loopback the logger's login hears the world"
+    assert heard["logger outward"] == []
     assert res.exit_code == 0, res.summary.get("events")
     assert res.summary["ticks"] == 2400
     assert res.summary["end_reason"] == "duration_reached"

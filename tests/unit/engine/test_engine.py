@@ -13,6 +13,7 @@ import pytest
 
 from formation_swarm import Engine, EngineResult
 from formation_swarm.common.faults import Fault
+from formation_swarm.nodes.agent.setup import role_for
 
 SHORT = {"run.duration_s": 5.0}  # fig7's turning run, its first 100 ticks
 RESTART = "restart agent-3@20s after=1s"
@@ -135,3 +136,23 @@ def test_poses_are_the_worlds_and_finite() -> None:
     final = engine.run().world["final_poses"]
     assert {str(rid): list(p) for rid, p in engine.poses.items()} == final
     assert all(math.isfinite(v) for p in engine.poses.values() for v in p)
+
+
+def test_every_role_starts_in_the_formation_leader_formation_names() -> None:
+    # fig11 starts in its first formation, the triangle; told to fly its line, no role ever holds the triangle.
+    engine = Engine("fig11_obstacles", overrides={"leader.formation": "line", "run.duration_s": 2.0})
+    sc = engine.scenario
+    line = sc.code_of("line")
+    assert line != 0
+    roles = {rid: role_for(sc, rid, sc.seed) for rid in sc.robots}
+    assert {rid: role.code for rid, role in roles.items()} == dict.fromkeys(sc.robots, line)
+    slots = sc.formation_by_code(line).slots
+    assert {rid: (role.slot.reference, *role.slot.offset) for rid, role in roles.items() if rid in slots} == {
+        rid: (slot.reference, *map(float, slot.offset)) for rid, slot in slots.items()
+    }
+    s = engine.run().summary
+    assert s["formation_events"] == []  # not the triangle at tick 0, then the line at tick 1
+    agents = {name: part for name, part in s["parts"].items() if name.startswith("agent-")}
+    assert {name: (part["formation"], part["formation_changes"]) for name, part in agents.items()} == {
+        f"agent-{rid}": ("line", []) for rid in sc.robots
+    }

@@ -329,6 +329,44 @@ def test_tls_files_are_copied_private_and_named_relative_to_the_folder(tmp_path:
     assert router["transport/link/tls/listen_private_key"] == str(folder / "router.key")
 
 
+@pytest.mark.parametrize(
+    ("world", "hosts", "bound"),
+    [
+        ("loopback", {"a": Credential("host-a", "p" * 24)}, ["world", "logger"]),  # placed: the logger by the router
+        ("loopback", None, ["world"]),
+        ("anywhere", {"a": Credential("host-a", "p" * 24)}, []),
+        ("router", None, []),
+    ],
+)
+def test_the_logins_bound_to_the_routers_loopback(
+    tmp_path: Path, world: str, hosts: dict[str, Credential] | None, bound: list[str]
+) -> None:
+    files = trust.write_run_secrets(tmp_path / "s", "r1", ROBOTS, 1, world=world, host_logins=hosts)
+    subjects = json.loads(files["router"].read_text())["access_control"]["subjects"]
+    assert [s["id"] for s in subjects if "interfaces" in s] == bound
+    assert all(s["interfaces"] == acl.loopback_interfaces() for s in subjects if "interfaces" in s)
+
+
+def test_forgetting_a_routers_secrets_leaves_neither_its_passwords_nor_its_tls_key(tmp_path: Path) -> None:
+    """What swarm run placed on hosts removes once its router has read them: a
+    launcher killed later leaves neither in the run folder."""
+    src = tmp_path / "pki"
+    src.mkdir()
+    for name, text in (("my-ca.pem", "CA"), ("host.pem", "CERT"), ("host.key", "THE ROUTER'S PRIVATE KEY")):
+        (src / name).write_text(text)
+    tls = trust.Tls(ca=src / "my-ca.pem", certificate=src / "host.pem", private_key=src / "host.key")
+    folder = tmp_path / "secrets"
+    logins = {"a": Credential("host-a", "p" * 24)}
+    files = trust.write_run_secrets(folder, "r1", ROBOTS, 1, world="loopback", tls=tls, host_logins=logins)
+    before = {p.name for p in folder.iterdir()}
+    assert {"passwords.txt", "router.key"} <= before
+    trust.forget_router_secrets(folder)
+    assert sorted(before - {p.name for p in folder.iterdir()}) == ["passwords.txt", "router.key"]
+    assert not any("p" * 24 in p.read_text() or "PRIVATE KEY" in p.read_text() for p in folder.iterdir())
+    assert files["router"].exists()  # the settings the router read stay, naming the files gone
+    trust.forget_router_secrets(folder)  # once more: nothing left to remove
+
+
 # -- reading settings -----------------------------------------------------------------------
 
 

@@ -142,6 +142,13 @@ def test_a_static_vn_out_of_range_names_the_key_as_written(vn: float) -> None:
     assert (err.key, err.value) == ("followers.2.vn", vn)
 
 
+@pytest.mark.parametrize("rid", ["9", "1", "x"])  # no robot of the run; the leader (robot 1); no id at all
+def test_a_followers_table_of_no_follower_is_refused(rid: str) -> None:
+    err = refused({f"followers.{rid}.vn": 1.0})
+    assert (err.key, err.value) == (f"followers.{rid}", {"vn": 1.0})
+    assert "not a follower id" in str(err)
+
+
 # Names every process reads back from the scenario as run: accepted, whatever their script.
 NAMES = ["triángulo", "日本語の隊形", "🚀", "a b", "a.b", 'a"b', "a\\b", "x = 1", "[line]", "#1", "Ünïcödé-line_2"]
 
