@@ -32,7 +32,7 @@ test: lint browser
 # The tier to run while changing code: tests/unit and tests/packaging (no test there
 # starts a run's processes), less those marked slow; it prints its own wall time.
 test-fast: $(STAMP)
-	@start=$$(date +%s); $(BIN)/ruff check . && \
+	@start=$$(date +%s); $(BIN)/ruff check . && $(BIN)/ruff format --check --quiet . && \
 	$(BIN)/python -m pytest -q -n $(TEST_JOBS) -m "not slow" --durations=5 tests/unit tests/packaging; \
 	status=$$?; echo "make test-fast: $$(($$(date +%s) - start)) s"; exit $$status
 
