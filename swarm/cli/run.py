@@ -37,7 +37,7 @@ line on stderr, nothing started); 124 --timeout; 130 interrupted (Ctrl-C).
 examples:
   swarm run fig11_obstacles
   swarm run fig7_turn_vn_dynamic --seed 3 --set controller.vn=1.5 --out runs/static
-  swarm run fig11_obstacles --mode realtime --serve-web     (then open http://127.0.0.1:9090)
+  swarm run fig11_obstacles --mode realtime --serve-web     (then open the address it prints)
   swarm run fig11_obstacles --fault "kill agent-3@20s"
   swarm run fig11_obstacles --fault "restart agent-2@20s after=1s" --fault "drop obs:3@10s for=5s p=0.5"
   (every fault kind: docs/faults.md)
