@@ -5,8 +5,9 @@ readings, hands its controller (agents.controller's API, made by
 agents.follower.make_controller) what the robot has, and turns the
 controller's answer into a command for the world (its wheel speeds),
 telemetry for the logger (its target and named values) and its stats (its
-stops, its count of filter restarts). It owns the formation codes: checked as they arrive, passed through
-the receiving end of the leader -> follower link, kept until their tick.
+stops, its count of filter restarts, its step times: agents.step_times). It
+owns the formation codes: checked as they arrive, passed through the
+receiving end of the leader -> follower link, kept until their tick.
 
 The leader answers tick k with its code for k; that code can reach the
 follower before or after its own observation k (the world publishes them
@@ -143,7 +144,7 @@ class FollowerRole(RoleBase):
     def _controlled(self, obs: Observation, inp: FollowerInput) -> Answer | None:
         """The controller's answer to ``inp``; None when it fails (recorded)."""
         try:
-            out = self.controller.step(inp)
+            out = self._step(obs.tick, inp)
             left, right = out.left_mps, out.right_mps
             if not (math.isfinite(left) and math.isfinite(right)):
                 raise ValueError(f"wheel speeds must be finite numbers, got left_mps={left!r}, right_mps={right!r}")
@@ -155,6 +156,16 @@ class FollowerRole(RoleBase):
             self._fail(obs.tick, exc)
             return None
         return Answer(command=command, telemetry=telemetry)
+
+    def _step(self, tick: int, inp: FollowerInput) -> FollowerOutput:
+        """The controller's step, timed (agents.step_times); the first one longer
+        than the tick is said in the process's log."""
+        self.step_times.start(tick)
+        try:
+            return self.controller.step(inp)
+        finally:
+            if (note := self.step_times.first_slow(f"controller {self.law}", tick)) is not None:
+                self.notes.append(note)
 
     def _command(self, tick: int, left_mps: float, right_mps: float) -> Command:
         return Command(
@@ -169,10 +180,13 @@ class FollowerRole(RoleBase):
 
     def prepare(self) -> None:
         if self._prepare is not None and self.failure is None:
+            self.step_times.start(self.last_tick or 0, "prepare")  # watched, not counted
             try:
                 self._prepare()  # the next tick's EKF prediction, before its observation comes
             except Exception as exc:  # noqa: BLE001 - as in step: this robot stops
                 self._fail(self.last_tick or 0, exc)
+            finally:
+                self.step_times.stop(counted=False)
 
     def _fail(self, tick: int, exc: Exception) -> None:
         """The controller failed at ``tick``: the robot stops for the rest of the run."""

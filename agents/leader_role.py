@@ -32,7 +32,11 @@ class LeaderRole(RoleBase):
             return None
         obs, reading = got
         sensed = None if reading is None else LeaderSensing(pose=Pose(*reading.pose), obstacles=reading.obstacles)
-        move = self.policy.step(sensed)
+        self.step_times.start(obs.tick)
+        try:
+            move = self.policy.step(sensed)
+        finally:
+            self.step_times.stop()
         self.code = move.formation
         code = None
         if move.send_code:

@@ -16,6 +16,7 @@ from typing import Any, ClassVar
 
 from formation_swarm.agents.formation import Formation
 from formation_swarm.agents.inbox import InboxChecks, ObservationInbox
+from formation_swarm.agents.step_times import StepTimes
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.links import Link
 from formation_swarm.protocol.messages import Command, FormationCode, Observation, Telemetry
@@ -63,6 +64,7 @@ class RoleBase:
         self.answered = 0
         self.last_tick: int | None = None  # of the newest observation answered
         self.notes: list[str] = []  # lines for the process's log, taken by it (a role does no I/O)
+        self.step_times = StepTimes(setup.dt_s)  # its controller's or policy's steps
 
     @property
     def links(self) -> tuple[Link[Any], ...]:
@@ -96,6 +98,7 @@ class RoleBase:
             "superseded": self.inbox.superseded,
             "formation": self.formations[self.code].name,
             "links": {lk.name: lk.stats() for lk in self.links},
+            "step_time": self.step_times.stats(),
         }
 
     def _next_seq(self) -> int:

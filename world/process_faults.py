@@ -157,6 +157,11 @@ class ProcessFaults:
                         self.thawing.add(rid)
                     self._watch(rid, "thawed", str(f))
 
+    def returning(self, rid: int) -> bool:
+        """Whether ``rid`` was just thawed, or re-admitted after a scheduled fault, and has not answered since."""
+        back = self.rejoining.get(rid)
+        return rid in self.thawing or (back is not None and back["fault"] is not None)
+
     def observed(self, rid: int) -> bool:
         """Whether a live robot gets this tick's observation (and is waited for)."""
         return rid not in self.frozen

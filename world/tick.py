@@ -31,6 +31,7 @@ from formation_swarm.protocol.messages import WORLD_ID, Command, FaultCall, Obse
 from formation_swarm.world.commands import CommandGate
 from formation_swarm.world.engine import WorldEngine
 from formation_swarm.world.kinematics import Pose
+from formation_swarm.world.misses import Misses
 from formation_swarm.world.process_faults import START, Call, ProcessFaults
 from formation_swarm.world.setup import WorldSetup
 from formation_swarm.world.stalls import LOST_WAIT_S, STALL_AFTER_MISSES, Stalls
@@ -74,6 +75,7 @@ class WorldTick:
         self.counts = {"obs_sent": 0, "cmd_received": 0, "truth_sent": 0}
         self.tick_wall_s = 0.0  # real time: the wall time the current tick started at
         self.misses = 0
+        self.robot_misses = Misses(setup.faults, setup.dt_s)  # each robot's, and those a fault explains
         self.late_answers = 0
         # Per robot, answers refused because it had answered their tick already: a second agent's.
         self.duplicate_agents: collections.Counter[int] = collections.Counter()
@@ -300,6 +302,7 @@ class WorldTick:
         self.misses += len(waiting)
         thawed = []
         for rid in waiting:
+            self.robot_misses.count(rid, self.engine.tick, returning=self.faults.returning(rid))
             self.engine.robots[rid].command = (0.0, 0.0)  # missed: stopped this tick
             if rid in self.faults.thawing:
                 self.faults.thawing.discard(rid)

@@ -24,6 +24,7 @@ from formation_swarm.launch.words import (
 from formation_swarm.launch.words import num as _num
 from formation_swarm.nodes.logger import viewer
 from formation_swarm.runtime import summary as summary_mod
+from formation_swarm.runtime.summary.slow import describe_slow
 from formation_swarm.spec import scenario as scenario_mod
 
 if TYPE_CHECKING:
@@ -267,6 +268,9 @@ def _metrics(w: Any, s: Mapping[str, Any]) -> None:
     else:
         w(f"  lockstep misses {s.get('lockstep_misses')}, {losses(s)}, ")
     w(f"rejected {s.get('rejected_total')}{rejected_why(s)}\n")
+    for slow in s.get("slow_controllers") or []:  # real time: steps longer than the tick
+        if isinstance(slow, Mapping):
+            w(f"  slow controller: {describe_slow(slow)}\n")
     if s.get("recording_gap"):
         w(f"  RECORDING INCOMPLETE: {s['recording_gap']}\n")
     if s.get("recording_cut"):
@@ -294,9 +298,10 @@ def _faults_and_events(w: Any, s: Mapping[str, Any]) -> None:
             w(f"  stall: {describe_stall(e)}\n")
     events = s.get("events") or []
     killed = {ev.get("process") for ev in events if ev.get("event") == "killed"}
+    hung = {h.get("process") for h in s.get("hung_controllers") or [] if isinstance(h, Mapping)}
     for ev in events:
-        if ev.get("fault"):
-            continue  # carried out for a fault: its line above says it
+        if ev.get("fault") or ev.get("process") in hung:
+            continue  # carried out for a fault, or a hung controller's: the lines above say it
         if not (ev.get("event") == "exited" and ev.get("process") in killed):  # the kill said it
             w(f"  event: {describe_event(ev)}\n")
 

@@ -286,7 +286,7 @@ class Launch:
         world_stats = parts.get("world", {})
         place_exits(self.journal.events, world_stats)
         events = self.journal.events
-        lost = summary_mod.run_failed(parts, self.sc) or summary_mod.logger_lost(world_stats, events)
+        lost = summary_mod.run_failed(parts, self.sc, events) or summary_mod.logger_lost(world_stats, events)
         if self.plan.external and (line := external_mod.gave_up(world_stats, events, self.plan)):
             self.journal.say(line)
         if code == 0 and lost:

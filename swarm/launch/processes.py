@@ -13,7 +13,8 @@ from collections.abc import Callable, Sequence
 from formation_swarm.launch.record import Journal
 from formation_swarm.launch.remote import RemoteChild
 from formation_swarm.runtime import spawner
-from formation_swarm.runtime.children import Child, describe_exit, log_tail
+from formation_swarm.runtime.children import KILLED_AT_STOP_TIMEOUT, Child, describe_exit, log_tail
+from formation_swarm.runtime.process import EXIT_HUNG
 
 END_GRACE_S = 3.0  # at the end, the processes' time to leave on the world's "done"
 STOP_GRACE_S = 2.0  # after SIGTERM, before SIGKILL (plus a second)
@@ -101,6 +102,8 @@ class Processes:
             return
         tail = log_tail(child.log_path)
         self.journal.add("exited", process=child.name, code=code, sim_time_s=t, log_tail=tail)
+        if code == EXIT_HUNG and child.name.startswith("agent-"):
+            return  # it left at the run's end without its hung controller: the summary's failure says it
         # Seen now; the world's last status lags (by seconds of sim time in lockstep):
         # the summary places it at the tick the world saw it go (result.place_exits).
         when = f"during the run (the world's last status: sim t={t:.2f} s)" if started else "before the run started"
@@ -122,7 +125,7 @@ class Processes:
         self._wait_exit(STOP_GRACE_S + 1.0)
         for c in self.children.values():
             if c.poll() is None:
-                self.journal.add("killed after stop timeout", process=c.name)
+                self.journal.add(KILLED_AT_STOP_TIMEOUT, process=c.name)
                 c.signal(signal.SIGKILL)
         for c in self.children.values():
             if c.proc is not None:

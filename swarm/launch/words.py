@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from formation_swarm.runtime import summary as summary_mod
-from formation_swarm.runtime.children import describe_exit
+from formation_swarm.runtime.children import KILLED_AT_STOP_TIMEOUT, describe_exit
 from formation_swarm.world.recovery import HOLD_S
 
 
@@ -58,6 +58,8 @@ def describe_event(ev: Mapping[str, Any]) -> str:
         return f"{ev.get('process')} lost with host {ev['host_lost']} {when}"
     if ev.get("event") == "not fetched":  # a remote agent's log and stats, at the run's end
         return f"{ev.get('process')}'s log and stats were not fetched: {ev.get('why')}"
+    if ev.get("event") == KILLED_AT_STOP_TIMEOUT:
+        return f"{ev.get('process')} did not leave within the stop timeout: killed (SIGKILL)"
     if ev.get("event") == "exit code not reported by the fork server":
         return f"{ev.get('process')}'s exit code {ev.get('code')} is its own record: the fork server did not report it"
     if ev.get("event") == "exited" and isinstance(ev.get("code"), int):

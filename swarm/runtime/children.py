@@ -25,6 +25,7 @@ CHILD_ZENOH_RUNTIME = (
     "rx: (worker_threads: 1), net: (worker_threads: 1))"
 )
 TAIL_LINES = 8  # of a failed child's log, on the console and in its "exited" event
+KILLED_AT_STOP_TIMEOUT = "killed after stop timeout"  # the event of a child SIGKILLed at the end of the stop
 TAIL_BYTES = 16384  # read from the end of the log for them
 
 

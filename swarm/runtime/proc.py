@@ -265,15 +265,17 @@ class JsonWriter:
         if path:
             self._thread.start()
 
-    def offer(self, data: dict[str, Any]) -> None:
+    def offer(self, data: dict[str, Any]) -> dict[str, Any] | None:
         """Hand over ``data``, copied here (its lists and dicts, which the
-        caller may go on changing while the thread writes)."""
+        caller may go on changing while the thread writes); the copy (None:
+        no path, nothing written)."""
         if not self.path:
-            return
-        snapshot = clean_json(data)
+            return None
+        snapshot: dict[str, Any] = clean_json(data)
         with self._cond:
             self._pending = snapshot
             self._cond.notify()
+        return snapshot
 
     def close(self, last: dict[str, Any] | None = None, timeout_s: float = 5.0) -> None:
         snapshot = None if last is None or not self.path else clean_json(last)

@@ -39,6 +39,7 @@ EXIT_FAILED = 1  # the Zenoh session (or the logger's recording) could not be op
 EXIT_USAGE = 2  # bad flags or scenario (argparse's own code for bad flags)
 EXIT_NO_PEERS = 3  # the router or the peers did not appear within --peers-timeout
 EXIT_DUPLICATE = 4  # an agent for this robot, or a world, is already in the run
+EXIT_HUNG = 5  # (agent) its controller's call had not returned after the run's end: it left (nodes.agent.watch)
 # Stopped by a signal: 128 + its number (130 SIGINT, 143 SIGTERM), the code a
 # shell reports for a process that signal kills. A signal that comes while the
 # process still imports its modules (its first second or so, before main()
@@ -52,6 +53,8 @@ exit codes:
   3    the router or the peers did not appear within --peers-timeout
   4    (agent) this robot already has an agent in the run;
        (world) the run already has a world
+  5    (agent) its controller hung: a call of it had not returned 2 s after
+       the run's end (nor in twice its longest step); it left without it
   130  stopped by SIGINT (Ctrl-C)
   143  stopped by SIGTERM"""
 DUPLICATE_QUERY_S = 1.0  # how long the start-up check for another agent or world of the run waits

@@ -102,7 +102,10 @@ RUN_KEYS = {
     "dt_s": positive("the tick: the world's integration step and the agents' control period", 0.05, "s"),
     "duration_s": positive("the run's length in sim time", unit="s"),
     "lockstep_deadline_s": positive(
-        "lockstep: how long the world waits for an agent's answer before counting a miss and stopping it", 2.0, "s"
+        "lockstep: how long the world waits for an agent's answer before counting a miss and stopping it; a miss "
+        "no scheduled fault explains makes the run not reproducible (it fails)",
+        2.0,
+        "s",
     ),
     "stale_after_s": positive("a robot whose latest command is older than this is stopped", 0.5, "s"),
 }

@@ -7,7 +7,8 @@ the leader flies its path and repeats the formation code to its followers.
 This process owns the rest: the session, the subscribers and publishers
 (nodes.agent.wire decodes what arrives for the role and publishes what it
 answers), the liveliness tokens (nodes.agent.peers), the stats file
-(nodes.agent.stats) and the waits at the start and the end.
+(nodes.agent.stats), a watchdog for a step that does not return
+(nodes.agent.watch) and the waits at the start and the end.
 
 The agent answers every observation it receives, even one its link layer
 loses or holds back (then with the newest reading the link did hand over,
@@ -33,6 +34,8 @@ from __future__ import annotations
 import contextlib
 import gc
 import math
+import os
+import signal
 import threading
 import time
 from dataclasses import dataclass
@@ -44,6 +47,7 @@ from formation_swarm.agents.role_base import RoleBase
 from formation_swarm.nodes.agent.peers import Peers
 from formation_swarm.nodes.agent.stats import KEYS as STATS_KEYS
 from formation_swarm.nodes.agent.stats import StatsFile
+from formation_swarm.nodes.agent.watch import StepWatch
 from formation_swarm.nodes.agent.wire import Outbox, Router
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
@@ -236,8 +240,11 @@ class Agent:
         # thread must not wait for this recv.
         channel = inbox.handler
         cpu0 = time.process_time()
+        if threading.current_thread() is threading.main_thread():  # a freeze's SIGCONT: its step's time is no step's
+            signal.signal(signal.SIGCONT, lambda _sig, _frame: self.brain.step_times.continued())
         try:
-            self._serve(channel, outbox)
+            with StepWatch(self.brain.step_times, self.stats_file, self):
+                self._serve(channel, outbox)
         finally:
             self.loop_cpu_s = time.process_time() - cpu0
         return self._exit_code()
@@ -276,6 +283,33 @@ class Agent:
             self.stats_file.after(None if answer is None else answer.command.tick, self.stats, now=noted)
             self.relief.check(brain.rejections.total)  # a flood's memory, given back once it ends
 
+    def over(self) -> bool:
+        """Whether the run is over for this agent: the world said done, or a stop signal came."""
+        return self.done or self.role.stop.is_set()
+
+    def who(self) -> str:
+        """What decides the robot's steps, for the log: "controller pkg.mod:Cls"."""
+        law = getattr(self.brain, "law", None)  # a follower's
+        return f"controller {law}" if law else f"the {self.brain.NAME}'s policy"
+
+    def complain(self, text: str) -> None:
+        self.role.complain(text)
+
+    def leave_hung(self, call: dict[str, Any]) -> None:
+        """The run is over and ``call`` (nodes.agent.watch) has not returned:
+        the controller hung. Say so, write the last stats with it, and end
+        the process (on the watchdog's thread: the loop's is held by the call)."""
+        self.end_note = f"{self.who()} hung in its {call['call']} of tick {call['tick']}"
+        self.role.complain(
+            f"{self.who()} hung: still in its {call['call']} of tick {call['tick']} after {call['for_s']:.1f} s, "
+            "past the run's end; leaving without it"
+        )
+        ident = {"robot": self.brain.robot_id, "role": self.brain.NAME}
+        self.stats_file.close({**ident, **(self.stats_file.last or {}), "in_step": {**call, "left": True}})
+        code = process_mod.EXIT_HUNG
+        self.role.say(f"run {self.keys.run_id} ended ({self.end_note}), exit code {code}")
+        os._exit(code)
+
     def _say_notes(self) -> bool:
         """Print what the role noted (a controller's failure and its traceback,
         telemetry it cannot send) in this process's log; True."""
@@ -296,6 +330,7 @@ class Agent:
             "busy_s": self.busy_s,
             "cpu_s": time.process_time(),  # the process's CPU time so far (user + system, all threads)
             "loop_cpu_s": self.loop_cpu_s,
+            "in_step": self.brain.step_times.in_call(),  # a call under way (nodes.agent.watch)
             "world_back_after_s": self.peers.world_back_after_s,  # per loss of the world's token mid-run (None: never)
             "rejected": dict(self.brain.rejections.by_reason + self.status_rejections.by_reason),
             "memory_given_back": self.relief.given_back,

@@ -340,6 +340,7 @@ class World:
                 "answer_wait_s": clock.wait_s,
                 "ticks_per_s": tick.engine.tick / self.loop_wall_s if self.loop_wall_s > 0 else math.nan,
                 "lockstep_misses": tick.misses,
+                "robot_misses": tick.robot_misses.stats(),  # by robot: misses, by_faults, first_tick (world.misses)
                 "late_answers": tick.late_answers,
                 "duplicate_agents": {str(rid): n for rid, n in sorted(tick.duplicate_agents.items())},
                 "late_ticks": clock.late_ticks,

@@ -28,6 +28,11 @@ Besides the metrics it says which code made the run and why the run ended:
 ``controller_failures``
     every follower controller that raised or gave a speed that is no finite
     number: robot, tick, error, law (docs/controllers.md); any fails the run.
+``step_times``, ``not_reproducible``, ``slow_controllers``, ``hung_controllers``
+    each robot's step times; the robots whose lockstep misses no scheduled
+    fault explains, the controllers slower than the tick in real time and
+    those that hung (runtime.summary.slow); a robot not reproducible or hung
+    fails the run.
 
 Its parts are made beside it: why the run ended (``end_reason``), the links'
 counts (``link_counts``), what each fault did (``fault_effects``) and what the
@@ -39,7 +44,7 @@ from __future__ import annotations
 import contextlib
 import json
 import re
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NotRequired, TypedDict, Unpack
 
@@ -65,6 +70,14 @@ from formation_swarm.runtime.summary.end_reason import (
 from formation_swarm.runtime.summary.faults import fault_effects
 from formation_swarm.runtime.summary.links import killed_agents, link_sums, mark_partial_counts, partial_links
 from formation_swarm.runtime.summary.recording import logger_lost, recording_cut, recording_gap
+from formation_swarm.runtime.summary.slow import (
+    describe_hung,
+    describe_not_reproducible,
+    hung_controllers,
+    not_reproducible,
+    slow_controllers,
+    step_times,
+)
 from formation_swarm.spec.laws import laws
 
 if TYPE_CHECKING:
@@ -139,7 +152,7 @@ def build(
         "version": __version__,
         "git_commit": git_commit(),
         **_ending(ending, parts, sc, events),
-        **_controllers(parts),
+        **_controllers(parts, sc, events),
         **_world_metrics(world, sc),
         "faults": fault_effects(sc, parts, events, link_faults),
         "messages": world.get("messages", {}),
@@ -172,8 +185,7 @@ def _ending(ending: Ending, parts: Mapping[str, Any], sc: Scenario, events: list
     world = parts.get("world", {})
     hosts_lost = [describe_host_lost(e) for e in events if e.get("event") == "host lost"]
     failure = "; ".join(hosts_lost) or robots_lost(world, sc)  # a lost host fails the run, its robots with it
-    if failed := describe_controller_failures(controller_failures(parts)):
-        failure = f"{failure}; {failed}" if failure else failed
+    failure = "; ".join(w for w in (failure, *_controllers_failed(parts, sc, events)) if w) or None
     if reason == START_FAILED:
         failure = describe_end(reason, None, events)
     return {
@@ -187,17 +199,33 @@ def _ending(ending: Ending, parts: Mapping[str, Any], sc: Scenario, events: list
     }
 
 
-def _controllers(parts: Mapping[str, Any]) -> dict[str, Any]:
-    """The controllers that failed, and the run's failure with them in words."""
-    return {"controller_failures": controller_failures(parts)}
+def _controllers(parts: Mapping[str, Any], sc: Scenario, events: list[dict[str, Any]]) -> dict[str, Any]:
+    """The controllers that failed, hung or were too slow, and each robot's step times."""
+    world = parts.get("world", {})
+    return {
+        "controller_failures": controller_failures(parts),
+        "step_times": step_times(parts),
+        "not_reproducible": not_reproducible(world, parts, sc),
+        "slow_controllers": slow_controllers(world, parts, sc),
+        "hung_controllers": hung_controllers(parts, events, sc),
+    }
 
 
-def run_failed(parts: Mapping[str, Any], sc: Scenario) -> str | None:
+def _controllers_failed(parts: Mapping[str, Any], sc: Scenario, events: Iterable[Mapping[str, Any]]) -> list[str]:
+    """Why the controllers fail the run, in words: one raised, hung, or missed
+    a lockstep deadline no scheduled fault explains (none: they do not)."""
+    hung = hung_controllers(parts, events, sc)
+    late = describe_not_reproducible(not_reproducible(parts.get("world", {}), parts, sc), (h["robot"] for h in hung))
+    return [w for w in (describe_controller_failures(controller_failures(parts)), *describe_hung(hung), late) if w]
+
+
+def run_failed(parts: Mapping[str, Any], sc: Scenario, events: Iterable[Mapping[str, Any]] = ()) -> str | None:
     """Why a run that ran to its end still failed (None: it did not): its
-    leader or every follower lost its agent, or a controller failed."""
+    leader or every follower lost its agent, or a controller failed, hung
+    or missed a lockstep deadline no scheduled fault explains (``events``:
+    the launcher's, which say the agents killed at the stop timeout)."""
     lost = robots_lost(parts.get("world", {}), sc)
-    failed = describe_controller_failures(controller_failures(parts))
-    return "; ".join(w for w in (lost, failed) if w) or None
+    return "; ".join(w for w in (lost, *_controllers_failed(parts, sc, list(events))) if w) or None
 
 
 def _world_metrics(world: Mapping[str, Any], sc: Scenario) -> dict[str, Any]:

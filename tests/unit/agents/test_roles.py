@@ -225,6 +225,7 @@ def test_the_roles_and_their_process_fill_the_stats_file_between_them() -> None:
         "busy_s",
         "cpu_s",
         "loop_cpu_s",
+        "in_step",
         "world_back_after_s",
         "rejected",
         "memory_given_back",
