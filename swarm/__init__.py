@@ -14,7 +14,8 @@ few need any of it):
 - the follower controller API: ``FollowerController`` and what it takes and
   gives (``ControllerSetup``, ``FollowerParams``, ``Slot``, ``Point``,
   ``FollowerInput``, ``MarkerReading``, ``FollowerOutput``,
-  ``TargetEstimate``), docs/controllers.md.
+  ``TargetEstimate``), docs/controllers.md, and ``check_controller``, which
+  tries a controller as ``swarm check-controller`` does.
 
 Everything else (``formation_swarm.spec``, ``.runtime``, ``.nodes``, ...) is
 internal: docs/architecture.md draws the layers.
@@ -40,6 +41,7 @@ if TYPE_CHECKING:
         TargetEstimate,
     )
     from formation_swarm.engine import Engine, EngineResult
+    from formation_swarm.engine.check import check_controller
     from formation_swarm.launch.launcher import Launch, RunResult
     from formation_swarm.report.data import RunData, load_run
 
@@ -50,6 +52,7 @@ _PUBLIC = {
     "RunResult": "formation_swarm.launch.launcher",
     "Engine": "formation_swarm.engine",
     "EngineResult": "formation_swarm.engine",
+    "check_controller": "formation_swarm.engine.check",
     **dict.fromkeys(
         (
             "ControllerSetup",
@@ -82,6 +85,7 @@ __all__ = [
     "Slot",
     "TargetEstimate",
     "__version__",
+    "check_controller",
     "load_run",
 ]
 

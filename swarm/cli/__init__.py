@@ -32,6 +32,7 @@ if TYPE_CHECKING:
 def build_parser() -> Parser:
     # Imported here, not with this module: they bring numpy (formation_swarm.common.checks),
     # which a Ctrl-C must not cut in the middle (see main).
+    from formation_swarm.cli.check import add_check
     from formation_swarm.cli.run import add_run
     from formation_swarm.cli.scenarios import add_scenarios
     from formation_swarm.cli.sim import add_sim
@@ -48,6 +49,7 @@ def build_parser() -> Parser:
     for name in ("report", "export", "compare", "sweep", "results"):
         sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
     add_sim(sub)
+    add_check(sub)
     for name in ("world", "agent", "logger", "router", "secure", "host", "doctor"):
         sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
     return parser
