@@ -13,30 +13,32 @@ recording and gets report.md alone):
 What each figure shows and why: formation_swarm.report.figures; what
 report.md says: formation_swarm.report.markdown. A title says "cf. paper
 Fig. N" only when the run is a shipped scenario as shipped
-(formation_swarm.report.paper).
+(formation_swarm.report.paper). The folder's files are checked before
+anything is written (formation_swarm.report.inputs); what it refuses and
+what it prints: docs/report.md.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import os
+import shutil
 import sys
 import tempfile
-import tomllib
 import traceback
-import warnings
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
 
 from formation_swarm.report import figures
-from formation_swarm.report.data import Series, read_folder, robots_in
+from formation_swarm.report.data import RunFolder, read_folder, robots_in
 from formation_swarm.report.faults import fault_marks
 from formation_swarm.report.figures import FIGURES
-from formation_swarm.report.markdown import ended_early, no_recording, report_markdown
+from formation_swarm.report.markdown import ended_early, no_recording, report_markdown, stopped_early
 from formation_swarm.report.paper import paper_changes, paper_figures
+from formation_swarm.report.progress import Progress, quiet, say_progress
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser, integer
-from formation_swarm.spec.keys import ScenarioWarning
 from formation_swarm.spec.laws import run_laws
 
 NO_FIGURES = "no-figures.txt"  # in RUN_DIR/report/ when it could draw none: why
@@ -51,47 +53,65 @@ class UsageError(ValueError):
     """An argument or a run folder that swarm report cannot use (exit code 2)."""
 
 
-def make_report(run_dir: str | Path, snapshots: int = 6, fmt: str = "png", dpi: int = DEFAULT_DPI) -> Path:
+def make_report(
+    run_dir: str | Path, snapshots: int = 6, fmt: str = "png", dpi: int = DEFAULT_DPI, progress: Progress | None = None
+) -> Path:
     """Writes RUN_DIR/report/ and returns it (a folder without recording.rrd:
     report.md alone, saying why). Raises UsageError for an argument or a
-    folder it cannot use (not a run folder, a summary or recording it cannot
-    read) and OSError when it cannot write the report; any other error is
-    its own, with a note saying what it was writing."""
+    folder it cannot use (not a run folder; a summary, scenario or recording
+    it cannot read or refuses: report.inputs), before writing anything, and
+    OSError when it cannot write the report; any other error is its own,
+    with a note saying what it was writing. The files are made in a
+    temporary folder beside report/ and moved into it once all are made."""
     run_dir = Path(run_dir)
     if not 0 <= snapshots <= MAX_SNAPSHOTS:
         raise UsageError(f"snapshots must be in [0, {MAX_SNAPSHOTS}], got {snapshots!r}")
     if fmt not in FORMATS:
         raise UsageError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
     try:
-        run_dir, summary, data = read_folder(run_dir, need_recording=False)
+        folder = read_folder(run_dir, need_recording=False)
     except ValueError as exc:  # the folder's own problem, said by the reader
         raise UsageError(str(exc)) from None
     except OSError as exc:  # a file of it this user may not read, say
         raise UsageError(f"cannot read {run_dir}: {exc}") from None
-    rrd = run_dir / "recording.rrd"
+    out = run_dir / "report"
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(errno.ENOTDIR, "not a folder", str(out))
+    work = Path(tempfile.mkdtemp(prefix=".report-", dir=run_dir))
+    try:
+        made = _write(work, folder, snapshots=snapshots, fmt=fmt, dpi=dpi, progress=progress or quiet)
+        out.mkdir(exist_ok=True)
+        for name in made:
+            os.replace(work / name, out / name)
+        if NO_FIGURES not in made:
+            with contextlib.suppress(FileNotFoundError):
+                (out / NO_FIGURES).unlink()
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return out
+
+
+def _write(work: Path, folder: RunFolder, *, snapshots: int, fmt: str, dpi: int, progress: Progress) -> list[str]:
+    """The report's files written into ``work``; their names."""
+    run_dir, summary, data = folder.run_dir, folder.summary, folder.data
     robots = robots_in(data)
     if not robots:  # no recording, or one with nothing in it: the summary's tables alone
-        out = run_dir / "report"
-        out.mkdir(exist_ok=True)
         followers = sorted(int(r) for r in summary.get("followers") or {} if str(r).isdigit())
-        ctx = _context(run_dir, summary, {}, [], followers)  # what the scenario reproduces of the paper
+        ctx = _context(folder, [], followers)  # what the scenario reproduces of the paper
         why = no_recording(summary)  # no logger, or its file gone
         if summary.get("recording") is not None and not summary.get("ticks"):
-            why = f"nothing was recorded: {ended_early(summary)}"
-        elif rrd.is_file():
-            why = f"its recording holds no robot poses: {ended_early(summary)}"
-        (out / "report.md").write_text(report_markdown(summary, followers, ctx=ctx, without=why))
-        (out / NO_FIGURES).write_text(why + "\n")
-        return out
-    with contextlib.suppress(FileNotFoundError):
-        (run_dir / "report" / NO_FIGURES).unlink()
+            why = f"nothing was recorded: {ended_early(summary, run_dir)}"
+        elif (run_dir / "recording.rrd").is_file():
+            why = f"its recording holds no robot poses: {ended_early(summary, run_dir)}"
+        progress("report.md (no figures)")
+        (work / "report.md").write_text(report_markdown(summary, followers, ctx=ctx, without=why))
+        (work / NO_FIGURES).write_text(why + "\n")
+        return ["report.md", NO_FIGURES]
     followers = [r for r in robots if f"/robots/r{r}/error/formation" in data]
     import matplotlib
 
     matplotlib.use("Agg")
-    out = run_dir / "report"
-    out.mkdir(exist_ok=True)
-    ctx = _context(run_dir, summary, data, robots, followers)
+    ctx = _context(folder, robots, followers)
     rms = {r: ((summary.get("followers") or {}).get(str(r)) or {}).get("rms_m") for r in followers}
     errs = ((summary.get("parts") or {}).get("logger") or {}).get("target_errors") or {}
     errors = {r: errs.get(str(r)) or {} for r in followers}
@@ -101,39 +121,38 @@ def make_report(run_dir: str | Path, snapshots: int = 6, fmt: str = "png", dpi: 
         "vn": lambda path: figures.vn(path, data, ctx, dpi),
         "targets": lambda path: figures.targets(path, data, ctx, errors, dpi=dpi, rms=rms),
     }
-    for stem in FIGURES:
-        path = out / f"{stem}.{fmt}"
+    for k, stem in enumerate(FIGURES, start=1):
+        name = f"{stem}.{fmt}"
+        progress(f"figure {k}/{len(FIGURES)} {name}")
         try:
-            draw[stem](path)
+            draw[stem](work / name)
         except Exception as exc:
-            exc.add_note(f"drawing {path.name}")
+            exc.add_note(f"drawing {name}")
             raise
-    (out / "report.md").write_text(report_markdown(summary, followers, fmt, ctx))
-    return out
+    progress("report.md")
+    (work / "report.md").write_text(report_markdown(summary, followers, fmt, ctx))
+    return [*(f"{stem}.{fmt}" for stem in FIGURES), "report.md"]
 
 
-def _context(
-    run_dir: Path, summary: Mapping[str, Any], data: Mapping[str, Series], robots: list[int], followers: list[int]
-) -> figures.Context:
-    """What the figures need from the summary and the scenario as run."""
-    from formation_swarm.spec import scenario as scenario_mod
-
+def _context(folder: RunFolder, robots: list[int], followers: list[int]) -> figures.Context:
+    """What the figures need from the summary, the scenario as run and the recording."""
+    run_dir, summary, sc, data = folder.run_dir, folder.summary, folder.scenario, folder.data
     ctx = figures.Context(
         scenario=str(summary.get("scenario")), seed=summary.get("seed"), robots=robots, followers=followers
     )
     ctx.t_end = max((float(s.t[-1]) for e, s in data.items() if e.endswith("/pose") and len(s)), default=0.0)
     ctx.fault_marks = fault_marks(summary)
+    notes = [stopped_early(summary)]  # said in every title: the lines end early
     if summary_mod.recording_cut(summary):  # the lines end there; the legends' RMS are the whole run's
-        ctx.cut = f"recording cut at {ctx.t_end:.1f} s: the logger was killed"
+        events = [e for e in summary.get("events") or [] if e.get("process") == "logger"]
+        how = "killed" if any(e.get("event") == "killed" for e in events) else "lost"
+        notes.append(f"recording cut at {ctx.t_end:.1f} s: the logger was {how}")
+    ctx.cut = "; ".join(n for n in notes if n)
     ctx.formation_events = [e for e in summary.get("formation_events") or [] if isinstance(e, Mapping)]
     ctx.switches = figures.switches(ctx.formation_events)
-    if (as_run := _as_run(run_dir / "scenario.toml")) or summary.get("laws"):  # else not known: not said
-        ctx.laws = run_laws(summary, as_run, followers)
-    try:
-        with warnings.catch_warnings():  # the loader's warnings are the run's: report.md lists them
-            warnings.simplefilter("ignore", ScenarioWarning)
-            sc = scenario_mod.load(run_dir / "scenario.toml")
-    except (OSError, ValueError):
+    if folder.config or summary.get("laws"):  # else not known: not said
+        ctx.laws = run_laws(summary, folder.config, followers)
+    if sc is None:
         return ctx
     ctx.dt_s, ctx.diameter_m = sc.dt_s, sc.diameter_m
     ctx.obstacles = [(o.x_m, o.y_m, o.radius_m) for o in sc.obstacles]
@@ -148,14 +167,6 @@ def _context(
         ctx.paper = {}
         ctx.changes = f"the run did not end as the scenario does: {summary.get('ended') or summary.get('end_reason')}"
     return ctx
-
-
-def _as_run(scenario_toml: Path) -> dict[str, Any]:
-    """The scenario as run, its tables unchecked ({} when it cannot be read)."""
-    try:
-        return tomllib.loads(scenario_toml.read_text())
-    except (OSError, ValueError):
-        return {}
 
 
 def _one_line(exc: BaseException, run_dir: str) -> str:
@@ -184,9 +195,14 @@ def _log_traceback(exc: BaseException, folder: Path) -> Path:
 
 
 EPILOG = """\
+Progress goes to stderr, a line per figure. A summary.json, scenario.toml or
+recording.rrd that cannot be read, or that holds what no run writes (wrong
+types, NaN or infinite numbers, nesting past 32 levels, a file over the size
+limit), is refused before anything is written.
+
 exit codes: 0 the report was written; 1 it could not be (one line on stderr,
-the traceback in RUN_DIR/report/report-error.log); 2 a bad command line or a
-folder that is not a run folder, or whose summary or recording cannot be read.
+the traceback in RUN_DIR/report/report-error.log); 2 a bad command line, or a
+folder that is not a run folder or whose files are refused (one line).
 
 example:
   swarm run fig11_obstacles --out runs/fig11
@@ -219,7 +235,7 @@ def build_parser() -> Parser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        out = make_report(args.run_dir, args.snapshots, args.format, args.dpi)
+        out = make_report(args.run_dir, args.snapshots, args.format, args.dpi, say_progress("report"))
     except UsageError as exc:
         print(f"swarm report: {exc}", file=sys.stderr)
         return USAGE_ERROR

@@ -4,24 +4,31 @@ formation error over time, run against run.
 Each run has its colour, each robot its line style; the legend names each run
 by its folder, scenario, seed, the leader's policy and the followers' laws,
 and, for runs of one scenario, the keys whose values differ between them.
-Reads each RUN_DIR's recording.rrd and summary.json (formation_swarm.load_run).
+Reads each RUN_DIR's recording.rrd, summary.json and scenario.toml
+(formation_swarm.load_run: a file it refuses is one line, exit 2, and no
+figure); progress goes to stderr, a line per run read. A run stopped before
+its end (Ctrl-C, its timeout) says so in its legend entry.
 """
 
 from __future__ import annotations
 
+import os
 import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from formation_swarm.report.data import RunData, load_run
+from formation_swarm.report.data import RunData, load_run, read_files
+from formation_swarm.report.markdown import stopped_early
+from formation_swarm.report.progress import Progress, quiet, say_progress
 from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 MAX_RUNS = 10  # one colour each
+FORMATS = ("png", "pdf", "svg")  # the figure's, by --out's suffix
 STYLES = ("-", "--", ":", "-.")  # per robot, in the order of their ids (cycled)
 
 
@@ -42,7 +49,9 @@ def label(run: RunData, differ: Sequence[str] = ()) -> str:
     shown = [k for k in differ if not LAW_KEY.fullmatch(k)]
     keys = [_said(k, flat.get(k)) for k in shown[:DIFFER_SHOWN]]
     more = f", {len(shown) - DIFFER_SHOWN} more keys differ" if len(shown) > DIFFER_SHOWN else ""
-    return f"{run.run_dir.name}: {run.scenario}, seed {run.seed}, {law(run)}" + "".join(f", {k}" for k in keys) + more
+    stopped = f" ({early})" if (early := stopped_early(run.summary)) else ""
+    said = f"{run.run_dir.name}{stopped}: {run.scenario}, seed {run.seed}, {law(run)}"
+    return said + "".join(f", {k}" for k in keys) + more
 
 
 DIFFER_SHOWN = 3  # a run's legend entry names at most this many of the keys that differ between the runs
@@ -145,13 +154,29 @@ def _obstacles(ax: object, runs: Sequence[RunData]) -> None:
                 ax.add_patch(matplotlib.patches.Circle(key[:2], key[2], color=OBSTACLE, alpha=0.35, lw=0))  # type: ignore[attr-defined]
 
 
-def compare(run_dirs: Sequence[str | Path], out: str | Path) -> Path:
+def compare(run_dirs: Sequence[str | Path], out: str | Path, progress: Progress | None = None) -> Path:
     """Reads the runs, draws them into ``out`` (PNG, PDF or SVG by its suffix) and returns its path.
-    ValueError for a folder it cannot use, OSError when it cannot write."""
-    runs = [load_run(d) for d in run_dirs]
-    fig = figure(runs)
+    ValueError for a folder it cannot use or a suffix it cannot draw, before anything is written;
+    OSError when it cannot write. The figure is written beside ``out`` and renamed to it at the end."""
     path = Path(out)
-    fig.savefig(path, dpi=110)
+    fmt = path.suffix.lower().lstrip(".")
+    if fmt not in FORMATS:
+        raise ValueError(f"--out {out}: the figure's file ends in {', '.join(f'.{f}' for f in FORMATS)}")
+    for d in run_dirs:  # each summary and scenario checked before the first progress line
+        read_files(d)
+    say = progress or quiet
+    runs = []
+    for k, d in enumerate(run_dirs, start=1):
+        say(f"run {k}/{len(run_dirs)} {d}")
+        runs.append(load_run(d))
+    say(f"drawing {path.name}")
+    fig = figure(runs)
+    part = path.with_name(f".{path.name}.part")
+    try:
+        fig.savefig(part, dpi=110, format=fmt)
+        os.replace(part, path)
+    finally:
+        part.unlink(missing_ok=True)
     return path
 
 
@@ -184,7 +209,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"swarm compare: at most {MAX_RUNS} runs, got {len(args.run_dirs)}", file=sys.stderr)
         return USAGE_ERROR
     try:
-        path = compare(args.run_dirs, args.out)
+        path = compare(args.run_dirs, args.out, say_progress("compare"))
     except ValueError as exc:
         print(f"swarm compare: {exc}", file=sys.stderr)
         return USAGE_ERROR

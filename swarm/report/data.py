@@ -6,6 +6,9 @@ fixture) holds ``recording.rrd``, written by the logger, and ``summary.json``.
 quantity, indexed ``[robot, tick]``, robots in the order of ``RunData.robots``.
 What a run did not record is NaN (a leader has no target, no V_N and no
 wheel telemetry; an l-psi follower has no V_N; a tick the logger missed).
+``RunData.controller`` holds the followers' controllers' named values by
+name. The summary and the scenario as run are checked before anything is
+read from them (report.inputs): a file that fails is a ValueError naming it.
 
 The recording stores positions as float32 (Rerun's 2-D points): poses and
 target points are exact to about 1e-6 of their size; the errors and V_N are
@@ -16,22 +19,38 @@ float64, computed in float64 by the logger from the messages themselves.
 
 from __future__ import annotations
 
-import json
 import math
-import tomllib
 import warnings
 from collections import defaultdict
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
+
+from formation_swarm.agents.controller import STATS_VALUES, WIRE_VALUES
+from formation_swarm.protocol.messages import EXTRA_NAME
+from formation_swarm.report.inputs import read_scenario, read_summary
+
+if TYPE_CHECKING:
+    from formation_swarm.spec.scenario import Scenario
 
 # The components read from a recording, first one present in a chunk wins:
 # points (poses, targets), scalars (errors, V_N, wheels, codes), arrows (headings).
 COLUMNS = ("Points2D:positions", "Scalars:scalars", "Arrows2D:vectors")
 TIME_TOLERANCE_S = 1e-6  # a row belongs to the tick whose sim time is this close
+MAX_OWN_VALUES = 256  # names of a controller's own values (at most 16 a tick, protocol.messages.MAX_EXTRAS)
+KNOWN_NAMES = frozenset(WIRE_VALUES + STATS_VALUES)  # the role sends these in the message's own fields
+# The wire's named values and where the logger records them; the first two are
+# always columns (NaN where a law sends none), the others when a recording has them.
+WIRE_ENTITIES = {
+    "rho_m": "fis/rho",
+    "alpha_rad": "fis/alpha",
+    "steering_to": "fis/steering_to",
+    "changing": "fis/changing",
+}
+ALWAYS = ("rho_m", "alpha_rad")
 
 
 class Series:
@@ -84,9 +103,7 @@ class RunData:
     the run recorded nothing (see the module's docstring)."""
 
     run_dir: Path
-    scenario: str  # the scenario's name (run.name)
-    seed: int | None
-    summary: Mapping[str, Any]  # summary.json as written by the run
+    summary: Mapping[str, Any]  # summary.json as written by the run (its fields checked: report.schema)
     config: Mapping[str, Any]  # scenario.toml as run, its tables as read ({} if the folder has none)
     dt_s: float  # s per tick
     robots: tuple[int, ...]  # robot ids
@@ -103,6 +120,20 @@ class RunData:
     v_n_mps: np.ndarray  # (R, T) m/s: FIS-2's normal speed V_N
     wheels_mps: np.ndarray  # (R, T, 2) m/s: commanded left and right wheel speeds
     formation: np.ndarray  # (R, T) int: formation code flown, -1 where unknown (leaders)
+    # (R, T) each: the followers' controllers' named values (FollowerOutput.values) the recording
+    # holds: rho_m and alpha_rad (eq. 4-5), steering_to and changing when recorded (WIRE_ENTITIES),
+    # and each law's own, by name (docs/controllers.md).
+    controller: Mapping[str, np.ndarray]
+
+    @property
+    def scenario(self) -> str:
+        """The scenario's name (run.name)."""
+        return str(self.summary.get("scenario") or (self.config.get("run") or {}).get("name", ""))
+
+    @property
+    def seed(self) -> int | None:
+        seed = self.summary.get("seed")
+        return seed if isinstance(seed, int) and not isinstance(seed, bool) else None
 
     def index(self, robot: int) -> int:
         """The row of ``robot`` (its id) in the arrays."""
@@ -112,26 +143,43 @@ class RunData:
             raise ValueError(f"robot must be one of {list(self.robots)}, got {robot!r}") from None
 
 
-def read_folder(run_dir: str | Path, need_recording: bool = True) -> tuple[Path, dict[str, Any], dict[str, Series]]:
-    """A run folder's path, summary and recording; ValueError naming what is missing
-    (``need_recording=False``: a folder without recording.rrd gives no series)."""
+class RunFolder(NamedTuple):
+    """A run folder's files as read and checked (report.inputs)."""
+
+    run_dir: Path
+    summary: dict[str, Any]
+    config: dict[str, Any]  # scenario.toml's tables ({}: the folder has none)
+    scenario: Scenario | None  # the same, as the loader reads it
+    data: dict[str, Series]  # the recording's series ({}: none, with need_recording=False)
+
+
+def read_files(run_dir: str | Path) -> RunFolder:
+    """A run folder's summary and scenario, checked (report.inputs), without
+    its recording; ValueError naming what is missing or which file is wrong."""
     run_dir = Path(run_dir)
-    summary_path, rrd = run_dir / "summary.json", run_dir / "recording.rrd"
     if not run_dir.is_dir():
         what = "a file, not a run folder" if run_dir.exists() else "no such folder"
         raise ValueError(f"{run_dir}: {what}")
-    if not summary_path.is_file():
+    if not (run_dir / "summary.json").exists():
         raise ValueError(f"{run_dir} is not a run folder: no summary.json")
-    try:
-        summary = json.loads(summary_path.read_text())
-    except ValueError as exc:
-        raise ValueError(f"{summary_path} is not valid JSON: {exc}") from None
-    if not isinstance(summary, dict) or not isinstance(summary.get("run_id"), str):
-        raise ValueError(f"{summary_path} is not a run summary (a JSON object with the run's run_id)")
+    summary = read_summary(run_dir / "summary.json")
+    config, scenario = read_scenario(run_dir / "scenario.toml") or ({}, None)
+    return RunFolder(run_dir, summary, config, scenario, {})
+
+
+def read_folder(run_dir: str | Path, need_recording: bool = True) -> RunFolder:
+    """A run folder's summary, scenario and recording, each checked before
+    anything is drawn or written; ValueError naming what is missing or what
+    is wrong with which file (``need_recording=False``: a folder without
+    recording.rrd gives no series)."""
+    folder = read_files(run_dir)
+    rrd, summary = folder.run_dir / "recording.rrd", folder.summary
     if not rrd.is_file():
         if not need_recording:
-            return run_dir, summary, {}
-        raise ValueError(f"{run_dir} has no recording.rrd: run it with its logger (without --no-logger)")
+            return folder
+        if summary.get("recording") is None:
+            raise ValueError(f"{folder.run_dir} has no recording.rrd: run it with its logger (without --no-logger)")
+        raise ValueError(f"{folder.run_dir} has no recording.rrd, though its summary names one: the file is missing")
     try:
         data = read_recording(rrd)
         runs = {entry.recording_id for entry in _entries(rrd) if entry.kind == "recording"}
@@ -142,7 +190,7 @@ def read_folder(run_dir: str | Path, need_recording: bool = True) -> tuple[Path,
             f"{rrd} is the recording of run {', '.join(sorted(runs))}, not of {summary['run_id']} (summary.json): "
             "the two come from different runs"
         )
-    return run_dir, summary, data
+    return folder._replace(data=data)
 
 
 def _entries(rrd: Path) -> list[Any]:
@@ -158,11 +206,10 @@ def load_run(run_dir: str | Path) -> RunData:
     """Reads RUN_DIR/recording.rrd and summary.json into a :class:`RunData`.
     Raises ValueError for a folder it cannot use (missing, not a run folder,
     no recording, a recording without a robot pose)."""
-    run_dir, summary, data = read_folder(run_dir)
+    run_dir, summary, config, _, data = read_folder(run_dir)
     robots = robots_in(data)
     if not robots:
         raise ValueError(f"{run_dir / 'recording.rrd'} holds no robot poses (did the run reach its first tick?)")
-    config = _config(run_dir)
     times = np.unique(np.concatenate([data[f"/robots/r{r}/pose"].t for r in robots]))
     dt_s = _dt(config, times)
     n_r, n_t = len(robots), len(times)
@@ -184,10 +231,15 @@ def load_run(run_dir: str | Path) -> RunData:
         known = ~np.isnan(codes[i])
         last = np.maximum.accumulate(np.where(known, np.arange(n_t), -1))
         formation[i] = np.where(last >= 0, codes[i][np.maximum(last, 0)], -1)
+    recorded = {e.rpartition("/robots/r")[2].partition("/")[2] for e in data}  # "fis/rho", ...
+    controller = {name: grid(entity) for name, entity in WIRE_ENTITIES.items() if name in ALWAYS or entity in recorded}
+    try:
+        own = own_values(data, robots)
+    except ValueError as exc:
+        raise ValueError(f"{run_dir / 'recording.rrd'} {exc}") from None
+    controller |= {name: grid(f"controller/{name}") for name in own}
     return RunData(
         run_dir=run_dir,
-        scenario=str(summary.get("scenario") or config.get("run", {}).get("name", "")),
-        seed=summary.get("seed") if isinstance(summary.get("seed"), int) else None,
         summary=summary,
         config=config,
         dt_s=dt_s,
@@ -205,7 +257,21 @@ def load_run(run_dir: str | Path) -> RunData:
         v_n_mps=grid("fis/v_n"),
         wheels_mps=np.stack([grid("wheels/left"), grid("wheels/right")], axis=-1),
         formation=formation,
+        controller=controller,
     )
+
+
+def own_values(data: Mapping[str, Series], robots: list[int]) -> list[str]:
+    """The names of the controllers' own values in a recording
+    (robots/r<id>/controller/<name>), sorted; a name the wire could not
+    carry (protocol.messages.EXTRA_NAME) is not one. ValueError beyond
+    MAX_OWN_VALUES names: more than a controller sends."""
+    prefixes = tuple(f"/robots/r{r}/controller/" for r in robots)
+    names = {e.rpartition("/")[2] for e in data if e.startswith(prefixes)}
+    names = {n for n in names if EXTRA_NAME.fullmatch(n) and n not in KNOWN_NAMES}
+    if len(names) > MAX_OWN_VALUES:
+        raise ValueError(f"holds {len(names)} names of controllers' own values, more than {MAX_OWN_VALUES}")
+    return sorted(names)
 
 
 def _ticks_of(t: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -214,14 +280,6 @@ def _ticks_of(t: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     before = np.clip(at - 1, 0, len(times) - 1)
     at = np.where(np.abs(times[before] - t) < np.abs(times[at] - t), before, at)
     return at, np.abs(times[at] - t) <= TIME_TOLERANCE_S
-
-
-def _config(run_dir: Path) -> dict[str, Any]:
-    """The scenario as run, as its TOML tables; {} when the folder has none or it does not parse."""
-    try:
-        return tomllib.loads((run_dir / "scenario.toml").read_text())
-    except (OSError, ValueError):
-        return {}
 
 
 def _dt(config: Mapping[str, Any], times: np.ndarray) -> float:

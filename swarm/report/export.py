@@ -15,19 +15,25 @@ rows robot by robot, tick by tick. Columns and units:
     v_n_mps                       FIS-2's normal speed V_N
     left_mps, right_mps           commanded wheel speeds (followers)
     formation                     formation code flown (followers)
+    rho_m, alpha_rad              the controller's distance and heading errors (eq. 5, 4)
+    steering_to, changing         eq. 13's target and a formation change under way, when recorded
+    controller_<name>             each of the controller's own values (docs/controllers.md)
 
-A value the run did not record is empty in CSV and null in Parquet.
+A value the run did not record is empty in CSV and null in Parquet. The
+table is written beside its file and renamed to it once complete.
 """
 
 from __future__ import annotations
 
 import csv
 import math
+import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from formation_swarm.agents.controller import WIRE_VALUES
 from formation_swarm.report.data import RunData, load_run
 from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser
 
@@ -61,7 +67,15 @@ def table(run: RunData) -> dict[str, np.ndarray]:
         "left_mps": flat(run.wheels_mps[..., 0]),
         "right_mps": flat(run.wheels_mps[..., 1]),
         "formation": flat(run.formation),
+        **{column(name): flat(values) for name, values in run.controller.items()},
     }
+
+
+def column(name: str) -> str:
+    """A controller value's column: its own name for the values the wire
+    carries in its own fields (rho_m, alpha_rad, ...), else
+    ``controller_<name>``, apart from the other columns."""
+    return name if name in WIRE_VALUES else f"controller_{name}"
 
 
 def write_csv(columns: dict[str, np.ndarray], path: Path) -> None:
@@ -102,7 +116,12 @@ def export(run_dir: str | Path, fmt: str = "csv", out: str | Path | None = None)
     run = load_run(run_dir)
     path = Path(out) if out is not None else run.run_dir / f"run.{fmt}"
     columns = table(run)
-    (write_csv if fmt == "csv" else write_parquet)(columns, path)
+    part = path.with_name(f".{path.name}.part")
+    try:
+        (write_csv if fmt == "csv" else write_parquet)(columns, part)
+        os.replace(part, path)
+    finally:
+        part.unlink(missing_ok=True)
     return path
 
 

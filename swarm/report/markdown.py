@@ -6,6 +6,7 @@ are none)."""
 from __future__ import annotations
 
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 from formation_swarm.report.faults import faults_markdown
@@ -174,13 +175,39 @@ def no_recording(summary: Mapping[str, Any]) -> str:
     return "its recording.rrd is missing from the folder"
 
 
-def ended_early(summary: Mapping[str, Any]) -> str:
-    """Why a run has nothing to draw, from its summary."""
+def ended_early(summary: Mapping[str, Any], run_dir: Path) -> str:
+    """Why a run has nothing to draw, from its summary, pointing to the
+    logs that ``run_dir`` holds (or saying what it holds)."""
     if not summary.get("ticks"):
-        return f"{_no_ticks(summary)} (exit code {summary.get('exit_code')}); see its logs/"
+        return f"{_no_ticks(summary)} (exit code {summary.get('exit_code')}); {_see_logs(run_dir)}"
     if cut := summary_mod.recording_cut(summary):
         return cut
-    return "the logger recorded none (see logs/logger.log)"
+    log = run_dir / "logs" / "logger.log"
+    return "the logger recorded none" + (" (see logs/logger.log)" if log.is_file() else f"; {_see_logs(run_dir)}")
+
+
+def _see_logs(run_dir: Path) -> str:
+    """Where to look: its logs/, or, when it has none, what the folder holds."""
+    if (run_dir / "logs").is_dir():
+        return "see its logs/"
+    mine = [p for p in run_dir.iterdir() if p.name != "report" and not p.name.startswith(".")]  # not the report's
+    held = sorted(p.name + ("/" if p.is_dir() else "") for p in mine)
+    return f"it has no logs/ (the folder holds {', '.join(held[:8]) or 'nothing'}{', ...' if len(held) > 8 else ''})"
+
+
+def stopped_early(summary: Mapping[str, Any]) -> str | None:
+    """A run stopped from outside before its end (Ctrl-C, a signal, its
+    timeout), as every figure's title says it: "interrupted at 3.0 s"."""
+    reason = summary.get("end_reason")
+    if reason == summary_mod.TIMED_OUT or (reason is None and summary.get("timed_out")):
+        what = "stopped by its timeout"
+    elif reason == summary_mod.INTERRUPTED or (reason is None and summary.get("interrupted")):
+        what = "interrupted"
+    else:
+        return None
+    at = summary.get("ended_at_s")
+    at = at if isinstance(at, (int, float)) else summary.get("sim_time_s")
+    return f"{what} at {at:.1f} s" if isinstance(at, (int, float)) and not isinstance(at, bool) else what
 
 
 def _no_ticks(summary: Mapping[str, Any]) -> str:
@@ -188,6 +215,8 @@ def _no_ticks(summary: Mapping[str, Any]) -> str:
     seen = summary.get("ticks_seen")
     if isinstance(seen, int):
         return f"the world wrote no metrics (the run had reached tick {seen})"
+    if early := stopped_early(summary):  # "interrupted", without its time: 0 s or none
+        return f"the run was {early.partition(' at ')[0]} before its first tick"
     return "the run ended before its first tick"
 
 

@@ -163,7 +163,11 @@ def test_an_error_of_its_own_exits_1_with_one_line_and_a_log(
     out, err = capsys.readouterr()
     log = run / "report" / TRACEBACK_LOG
     assert out == ""
-    assert err == f"swarm report: drawing vn.png: ValueError: shapes (20,) and (1,) do not match (traceback in {log})\n"
+    *progress, said = err.splitlines()  # the progress on stderr, then the one line of the error
+    assert progress == [f"report: figure {k}/4 {stem}.png" for k, stem in enumerate(FIGURES[:3], start=1)]
+    assert said.startswith("swarm report: drawing vn.png: ValueError: ")  # the figure, the error's type
+    assert said.endswith(f"(traceback in {log})")
+    assert "shapes (20,) and (1,) do not match" in said  # its two lines in one
     text = log.read_text()
     assert text.startswith("Traceback (most recent call last):")
     assert "in broken" in text
@@ -188,7 +192,9 @@ def test_a_report_it_cannot_write_exits_1_with_one_line(tmp_path: Path, capsys: 
 
 def test_usage_errors_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main([str(tmp_path / "missing")]) == 2
-    assert capsys.readouterr().err == f"swarm report: {tmp_path / 'missing'}: no such folder\n"
+    (said,) = capsys.readouterr().err.splitlines()
+    assert said.startswith(f"swarm report: {tmp_path / 'missing'}: ")
+    assert said.endswith("no such folder")
     run = synthetic_run(tmp_path / "run", [])
     (run / "summary.json").write_text("[]")
     assert main([str(run)]) == 2

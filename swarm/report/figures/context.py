@@ -32,7 +32,7 @@ class Context:
     paper: Mapping[str, str] = field(default_factory=dict)  # figure stem -> "Fig. 7a", when reproduced
     changes: str | None = None  # else, for a paper's scenario that was changed, what was (report.paper_changes)
     fault_marks: list[Mark] = field(default_factory=list)
-    cut: str = ""  # the recording ends early (its logger killed): said in every title
+    cut: str = ""  # why the lines end early (interrupted, its logger killed): said in every title
     switches: list[tuple[float, str]] = field(default_factory=list)  # (time s, formation)
     formation_events: list[Mapping[str, Any]] = field(default_factory=list)
     formations: Mapping[str, Mapping[int, tuple[int, tuple[float, float]]]] = field(default_factory=dict)
@@ -43,11 +43,12 @@ class Context:
     laws: Mapping[str, Any] = field(default_factory=dict)
 
     def title(self, stem: str, what: str) -> str:
-        """The scenario, seed and what the figure shows; under it the laws flown."""
+        """The scenario, seed and what the figure shows; under it the laws
+        flown, and under them why the lines end early, if they do."""
         cf = f" (cf. paper {self.paper[stem]})" if stem in self.paper else ""
-        cut = f" [{self.cut}]" if self.cut else ""
         flown = f"\n{describe_laws(self.laws)}" if self.laws else ""
-        return f"{self.scenario}, seed {self.seed}: {what}{cf}{cut}{flown}"
+        cut = f"\n[{self.cut}]" if self.cut else ""  # a line of its own: it can be long
+        return f"{self.scenario}, seed {self.seed}: {what}{cf}{flown}{cut}"
 
     def laws_of_followers(self) -> list[str]:
         """The laws the followers flew, each once, in the order of their first follower."""
