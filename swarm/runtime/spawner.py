@@ -18,6 +18,7 @@ the launcher), and the exit codes ``subprocess`` reports (``-9`` for SIGKILL).
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import ctypes
 import importlib
@@ -63,6 +64,9 @@ def _forkserver() -> Any:
             ctx = multiprocessing.get_context("forkserver")
             ctx.set_forkserver_preload([PRELOAD])
             _leave_main_alone()
+            # Before either starts: a Ctrl-C as they start must not leave them unstopped.
+            atexit.unregister(_stop_server)
+            atexit.register(_stop_server)
             # Started with SIGINT blocked, which the exec'd server inherits: a Ctrl-C
             # meant for the launcher would otherwise end its imports with a traceback
             # (the server ignores it itself once they are done, which drops one held
@@ -73,9 +77,6 @@ def _forkserver() -> Any:
             resource_tracker.ensure_running()
             with proc.sigint_deferred(), _sigint_blocked():
                 multiprocessing.forkserver.ensure_running()
-            import atexit
-
-            atexit.register(_stop_server)
             _context = ctx
         return _context
 
@@ -91,33 +92,66 @@ def _sigint_blocked() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
 
-STOP_WAIT_S = 2.0  # the longest the launcher's exit waits for its fork server
+STOP_WAIT_S = 2.0  # the longest the launcher's exit waits for its fork server, and for its resource tracker
+SERVER_GRACE_S = 0.5  # after its pipe closed: a server in its loop leaves at once, one still importing never
 
 
 def _stop_server() -> None:
-    """At the launcher's exit: end the fork server and wait for it. Left alone it
-    ends by itself once it sees the launcher gone, about a quarter of a second
-    later, outliving the command that started it. Uses multiprocessing's
-    private fields (Python 3.11-3.13); without them, the server ends alone."""
+    """At the launcher's exit: end the fork server and the resource tracker and
+    wait for them, so that none outlives the command that started it (nor
+    holds its stdout open). A server still importing the roles' modules
+    (10-20 s on a loaded machine) reads the pipe that tells it to leave only
+    once done, so it is sent SIGTERM after SERVER_GRACE_S; until it is gone,
+    a start request it never read keeps the tracker's pipe open. Uses
+    multiprocessing's private fields (Python 3.11-3.13); without them, both
+    end alone once the server is done."""
     import multiprocessing.forkserver as fs
-    import time
 
     server = getattr(fs, "_forkserver", None)
     pid, alive = getattr(server, "_forkserver_pid", None), getattr(server, "_forkserver_alive_fd", None)
-    if not isinstance(pid, int) or not isinstance(alive, int):
+    if isinstance(pid, int) and isinstance(alive, int):
+        with contextlib.suppress(OSError):
+            os.close(alive)  # what the server waits on: closed, it exits
+        server._forkserver_alive_fd = None
+        if not _reaped(pid, SERVER_GRACE_S):
+            for sig in (signal.SIGTERM, signal.SIGKILL):
+                with contextlib.suppress(OSError):
+                    os.kill(pid, sig)
+                if _reaped(pid, STOP_WAIT_S):
+                    break
+        server._forkserver_pid = None
+    _stop_tracker()
+
+
+def _stop_tracker() -> None:
+    """Close this process's end of the resource tracker's pipe and wait for the
+    tracker to leave (it does once every end is closed). It ignores SIGINT and
+    SIGTERM by design, to unlink what its processes leaked: it is not killed."""
+    tracker = getattr(resource_tracker, "_resource_tracker", None)
+    fd, pid = getattr(tracker, "_fd", None), getattr(tracker, "_pid", None)
+    if not isinstance(fd, int) or not isinstance(pid, int):
         return
     with contextlib.suppress(OSError):
-        os.close(alive)  # what the server waits on: closed, it exits
-    server._forkserver_alive_fd = None
-    deadline = time.monotonic() + STOP_WAIT_S
-    while time.monotonic() < deadline:
+        os.close(fd)
+    tracker._fd = None  # type: ignore[union-attr]
+    if _reaped(pid, STOP_WAIT_S):
+        tracker._pid = None  # type: ignore[union-attr]
+
+
+def _reaped(pid: int, wait_s: float) -> bool:
+    """Whether child ``pid`` ended (and was reaped) within ``wait_s``; True for one not ours."""
+    import time
+
+    deadline = time.monotonic() + wait_s
+    while True:
         try:
             if os.waitpid(pid, os.WNOHANG)[0] == pid:
-                break
+                return True
         except ChildProcessError:
-            break
+            return True
+        if time.monotonic() >= deadline:
+            return False
         time.sleep(0.005)
-    server._forkserver_pid = None
 
 
 def _leave_main_alone() -> None:
@@ -211,6 +245,11 @@ def _child(  # pragma: no cover - child
     # it would keep the server, and so this process, alive after the launcher).
     os.closerange(3, os.sysconf("SC_OPEN_MAX"))
     os.setsid()
+    # The log first: whatever ends this process from here says why there.
+    fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)
+    os.close(fd)
     # The server started with SIGINT blocked (_forkserver): ignored, as it was, until the
     # role sets its own handlers.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -218,11 +257,8 @@ def _child(  # pragma: no cover - child
     with contextlib.suppress(OSError, AttributeError):
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     if os.getppid() == 1:  # the server died before the prctl: so did the launcher
+        print(f"{module.split('.')[-2]}: its launcher died as it started: not starting", file=sys.stderr, flush=True)
         os._exit(128 + signal.SIGTERM)
-    fd = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
-    os.dup2(fd, 1)
-    os.dup2(fd, 2)
-    os.close(fd)
     with contextlib.suppress(ImportError):  # first: it takes its room from the environment's memory
         import setproctitle
 
@@ -244,8 +280,6 @@ def _child(  # pragma: no cover - child
     finally:
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # done: a stop signal now finds nothing to stop
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        import atexit
-
         atexit._run_exitfuncs()
         for stream in (sys.stdout, sys.stderr):
             with contextlib.suppress(Exception):

@@ -181,7 +181,7 @@ class Host:
                 return HostReply(**ok, pid=old.pid)
             return self.refuse(f"{req.process} of run {req.run} already runs here (pid {old.pid})")
         scenario = run.folder / "scenario.toml"
-        scenario.write_text(req.scenario)
+        write_whole(scenario, req.scenario)
         secrets = run.folder / "secrets"
         secrets.mkdir(mode=0o700, exist_ok=True)
         auth = secrets / f"{req.process}.json"
@@ -297,6 +297,16 @@ class Host:
             else:
                 for c in run.children.values():
                     c.poll()
+
+
+def write_whole(path: Path, text: str) -> None:
+    """``text`` in ``path``, put in place at once: every start of a run writes
+    its scenario, which the run's agents started before read as they start,
+    and one that read it half written exited with code 2 (a scenario that
+    is no TOML, or misses keys)."""
+    part = path.with_name(f".{path.name}.part")
+    part.write_text(text)
+    os.replace(part, path)
 
 
 def _start_identity(req: HostRequest) -> tuple[Any, ...]:

@@ -64,8 +64,10 @@ from formation_swarm.runtime.summary.end_reason import (
     describe_controller_failures,
     describe_end,
     describe_host_lost,
+    describe_waited,
     lost_agents,
     robots_lost,
+    world_failed,
 )
 from formation_swarm.runtime.summary.faults import fault_effects
 from formation_swarm.runtime.summary.links import killed_agents, link_sums, mark_partial_counts, partial_links
@@ -83,8 +85,11 @@ from formation_swarm.spec.laws import laws
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
 
+DUPLICATE_ANSWER = "duplicate answer"  # the reason of a robot's second answer to one tick, refused by the world
+
 # What the launcher, the world, the report and the studies take from here.
 __all__ = [
+    "DUPLICATE_ANSWER",
     "DURATION_REACHED",
     "END_REASONS",
     "INTERRUPTED",
@@ -107,8 +112,10 @@ __all__ = [
     "read_parts",
     "recording_cut",
     "recording_gap",
+    "rejections",
     "robots_lost",
     "run_failed",
+    "world_failed",
     "write",
 ]
 
@@ -140,7 +147,7 @@ def build(
     if ending["end_reason"] not in END_REASONS:
         raise ValueError(f"end_reason must be one of {END_REASONS}, got {ending['end_reason']!r}")
     world = parts.get("world", {})
-    rejected = {name: part.get("rejected", {}) for name, part in parts.items() if part.get("rejected")}
+    rejected = rejections(parts)
     links = _links(parts)
     link_totals, link_faults = link_sums(links, sc)
     out = {
@@ -179,6 +186,25 @@ def build(
     return out
 
 
+def rejections(parts: Mapping[str, Any]) -> dict[str, dict[str, int]]:
+    """What each process rejected, by reason (its stats' ``rejected``), and
+    the world's answers refused as a robot's second for a tick it had
+    answered (its ``duplicate_agents``: a second agent of the robot), as
+    DUPLICATE_ANSWER."""
+    out = {
+        name: dict(part["rejected"])
+        for name, part in parts.items()
+        if isinstance(part, Mapping) and isinstance(part.get("rejected"), Mapping)
+    }
+    world_part = parts.get("world")
+    duplicates = world_part.get("duplicate_agents") if isinstance(world_part, Mapping) else None
+    counts = duplicates.values() if isinstance(duplicates, Mapping) else ()
+    if n := sum(v for v in counts if isinstance(v, int) and not isinstance(v, bool)):
+        world = out.setdefault("world", {})
+        world[DUPLICATE_ANSWER] = world.get(DUPLICATE_ANSWER, 0) + n
+    return {name: reasons for name, reasons in out.items() if reasons}
+
+
 def _ending(ending: Ending, parts: Mapping[str, Any], sc: Scenario, events: list[dict[str, Any]]) -> dict[str, Any]:
     """The summary's fields of how the run ended, and why it failed if it did."""
     reason, at = ending["end_reason"], ending["ended_at_s"]
@@ -186,12 +212,17 @@ def _ending(ending: Ending, parts: Mapping[str, Any], sc: Scenario, events: list
     hosts_lost = [describe_host_lost(e) for e in events if e.get("event") == "host lost"]
     failure = "; ".join(hosts_lost) or robots_lost(world, sc)  # a lost host fails the run, its robots with it
     failure = "; ".join(w for w in (failure, *_controllers_failed(parts, sc, events)) if w) or None
+    if reason == ROLE_FAILED:  # the world failed, or a process before tick 0: named first
+        died = world_failed(events) or (None if failure else describe_end(reason, at, events))
+        failure = "; ".join(w for w in (died, failure) if w) or None
     if reason == START_FAILED:
         failure = describe_end(reason, None, events)
     return {
         "exit_code": ending["exit_code"],
         "end_reason": reason,
-        "ended": describe_end(reason, at, events, ending.get("limit_s")),  # the same in words
+        # The same in words; the world's own words for what it waited for in vain.
+        "ended": (reason == PEERS_TIMEOUT and describe_waited(world))
+        or describe_end(reason, at, events, ending.get("limit_s")),
         "failure": failure,
         "ended_at_s": at,
         "interrupted": ending["interrupted"],

@@ -56,6 +56,33 @@ def describe_end(
     }.get(reason or "", f"unknown ({reason})")
 
 
+def world_failed(events: list[Mapping[str, Any]]) -> str | None:
+    """How the world ended on its own with an error (killed from outside, a
+    crash), from the launcher's "exited" event, in words; None if it did not.
+    The world takes the run with it: it is the run's failure."""
+    for e in events:
+        if e.get("event") == "exited" and e.get("process") == "world" and isinstance(e.get("code"), int):
+            if e["code"] == 0:
+                return None
+            t = e.get("sim_time_s")
+            when = (
+                f"after sim t={t:.2f} s (its last status)"
+                if isinstance(t, (int, float)) and t >= 0
+                else "before the run started"
+            )
+            return f"the world {describe_exit(e['code'])} {when}: the run ended"
+    return None
+
+
+def describe_waited(world: Mapping[str, Any]) -> str | None:
+    """What the world gave up waiting for before tick 0 and for how long (its
+    stats' ``waited_for``), in words; None if it did not give up."""
+    waited = world.get("waited_for")
+    if not isinstance(waited, Mapping) or not isinstance(t := waited.get("timeout_s"), (int, float)):
+        return None
+    return f"the world gave up after {t:g} s (--peers-timeout): {waited.get('missing') or 'its peers did not appear'}"
+
+
 def describe_host_lost(ev: Mapping[str, Any]) -> str:
     """A "host lost" event of a run on hosts (its token went mid-run) as a sentence."""
     t = ev.get("sim_time_s")

@@ -25,7 +25,7 @@ from collections.abc import Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from formation_swarm.runtime.children import KILLED_AT_STOP_TIMEOUT
-from formation_swarm.spec.laws import LEADER_POLICY, follower_law
+from formation_swarm.spec.laws import follower_law
 
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
@@ -55,7 +55,7 @@ def _law(sc: Scenario, robot: int) -> dict[str, Any]:
     if robot in sc.followers:
         return {"role": "follower", "law": follower_law(sc.followers[robot])}
     leader = robot == sc.leader.robot_id
-    return {"role": "leader" if leader else None, "law": LEADER_POLICY if leader else None}
+    return {"role": "leader" if leader else None, "law": sc.leader.policy if leader else None}
 
 
 def _who(e: Mapping[str, Any]) -> str:
