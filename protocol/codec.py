@@ -234,7 +234,16 @@ class Message:
     OPTIONAL: ClassVar[int] = 0
 
     def to_bytes(self) -> bytes:
+        """The message on the wire; ValueError for a seq or a tick that no decoder
+        takes (outside 0..MAX_TICK, or not an int). The sender is not checked:
+        tests forge messages of the wrong sender with it."""
         values = [self.TAG, VERSION, *self._getter()(self)]
+        seq, tick = values[3], values[4]
+        # Exact int types, as the decoder wants: True or 2.0 would decode as a wrong type.
+        if not (type(seq) is int and 0 <= seq <= MAX_TICK and type(tick) is int and 0 <= tick <= MAX_TICK):
+            for name, value in (("seq", seq), ("tick", tick)):
+                if type(value) is not int or not 0 <= value <= MAX_TICK:
+                    raise ValueError(f"{type(self).__name__}.{name} must be an int in [0, 2^53], got {value!r}")
         if self.OPTIONAL:
             for _ in range(self.OPTIONAL):  # empty optional fields at the end are left out
                 if values[-1]:

@@ -14,9 +14,12 @@ certificate, and the router refuses the link.
 
 from __future__ import annotations
 
+import shutil
 import ssl
+import subprocess
 from collections.abc import Mapping
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +29,7 @@ LISTEN_CERTIFICATE, LISTEN_PRIVATE_KEY = f"{SECTION}/listen_certificate", f"{SEC
 CONNECT_CERTIFICATE, CONNECT_PRIVATE_KEY = f"{SECTION}/connect_certificate", f"{SECTION}/connect_private_key"
 ENABLE_MTLS = f"{SECTION}/enable_mtls"
 CA, CERTIFICATE, PRIVATE_KEY = "ca.pem", "router.pem", "router.key"  # their names in a run's secrets folder
+_OPENSSL_TIMEOUT_S = 30.0
 
 
 @dataclass(frozen=True)
@@ -107,6 +111,7 @@ def check_certificate(path: str, setting: str) -> None:
         ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT).load_verify_locations(cafile=path)
     except ssl.SSLError:
         raise ValueError(f"TLS file {path} ({setting}): not a certificate in PEM form") from None
+    check_dates(path, setting)
 
 
 def check_key(certificate: str, private_key: str, setting: str) -> None:
@@ -134,3 +139,45 @@ def certificate_names(path: str | Path) -> set[str] | None:
     except (OSError, ssl.SSLError, ValueError):
         return None
     return {str(value).strip() for _kind, value in decoded.get("subjectAltName", ())}
+
+
+def validity(path: str | Path) -> tuple[datetime, datetime] | None:
+    """(not before, not after) of the first certificate of a PEM file, in UTC;
+    None when neither this Python nor openssl can read them."""
+    decode = getattr(getattr(ssl, "_ssl", None), "_test_decode_cert", None)  # CPython's, without a dependency
+    dates: list[str] = []
+    if decode is not None:
+        try:
+            decoded = decode(str(path))
+            dates = [decoded["notBefore"], decoded["notAfter"]]
+        except (OSError, ssl.SSLError, ValueError, KeyError):
+            dates = []
+    if not dates and shutil.which("openssl"):
+        argv = ["openssl", "x509", "-in", str(path), "-noout", "-startdate", "-enddate"]
+        try:
+            done = subprocess.run(argv, capture_output=True, text=True, timeout=_OPENSSL_TIMEOUT_S, check=False)
+        except (OSError, subprocess.TimeoutExpired):
+            return None
+        said = dict(line.partition("=")[::2] for line in done.stdout.splitlines())
+        dates = [said.get("notBefore", ""), said.get("notAfter", "")]
+    try:
+        start, end = (datetime.fromtimestamp(ssl.cert_time_to_seconds(d), UTC) for d in dates)
+    except ValueError:
+        return None
+    return start, end
+
+
+def check_dates(path: str | Path, setting: str, now: datetime | None = None) -> None:
+    """ValueError, one line naming the file and the date, for a certificate that
+    has expired or is not valid yet: TLS refuses it, and a client then only
+    finds that no router answered."""
+    label = f"TLS file {path} ({setting}):"
+    dates = validity(path)
+    if dates is None:
+        return  # unreadable here: the TLS check of the file itself reports that
+    now = now or datetime.now(UTC)
+    start, end = dates
+    if now > end:
+        raise ValueError(f"{label} expired on {end:%Y-%m-%d %H:%M} UTC: give a certificate valid now")
+    if now < start:
+        raise ValueError(f"{label} is not valid before {start:%Y-%m-%d %H:%M} UTC: give one valid now")

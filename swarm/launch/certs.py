@@ -16,7 +16,9 @@ import subprocess
 from collections.abc import Sequence
 from pathlib import Path
 
-from formation_swarm.protocol.tls import Tls
+from formation_swarm.protocol.tls import Tls, check_dates, validity
+
+__all__ = ["Tls", "check_dates", "validity"]  # the dates' checks live with the TLS files' others
 
 VALID_DAYS = 365
 _EC_KEY = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes"]

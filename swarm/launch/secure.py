@@ -31,7 +31,9 @@ Make the credentials and access rules of one run spread over machines: a
 folder with a login per role (world.json, logger.json, launcher.json,
 agent-N.json, and with --observer observer.json), the router's password list
 and access rules (router.json), and with --tls-* the CA, certificate and key
-for TLS links. Every file is readable by its owner only.
+for TLS links. Every file is readable by its owner only. A certificate given
+(--tls-ca, --tls-cert) must be valid now: one expired or not valid yet is
+refused, naming its date (TLS would refuse it, and clients find no router).
 
 The router enforces the rules: without a login nothing connects, and each
 login may only publish and subscribe what its role does (only agent N drives
@@ -212,6 +214,8 @@ def _tls_options(ap: cliargs.Parser, args: argparse.Namespace) -> tuple[tls.Tls 
         tls.check_certificate(args.tls_ca, "--tls-ca")
         tls.check_certificate(args.tls_cert, "--tls-cert")
         tls.check_key(args.tls_cert, args.tls_key, "--tls-key")
+        certs.check_dates(args.tls_ca, "--tls-ca")
+        certs.check_dates(args.tls_cert, "--tls-cert")
     except ValueError as exc:
         ap.error(str(exc))
     return tls.Tls(Path(args.tls_ca), Path(args.tls_cert), Path(args.tls_key)), []
@@ -239,6 +243,7 @@ def _mtls_options(ap: cliargs.Parser, args: argparse.Namespace) -> tuple[tls.Tls
     try:
         tls.check_certificate(args.tls_ca, "--tls-ca")
         tls.check_key(args.tls_ca, args.tls_ca_key, "--tls-ca-key")
+        certs.check_dates(args.tls_ca, "--tls-ca")
     except ValueError as exc:
         ap.error(str(exc))
     return tls.Tls(Path(args.tls_ca), Path(args.tls_ca), Path(args.tls_ca_key)), addresses
@@ -299,6 +304,11 @@ def _hosts(ap: cliargs.Parser, args: argparse.Namespace) -> int:
         ap.error(f"argument --out: {out} already holds files; secrets are never overwritten: give a new folder")
     if args.tls_ca and not Path(args.tls_ca).is_file():
         ap.error(f"argument --tls-ca: no such file: {args.tls_ca}")
+    try:
+        if args.tls_ca:
+            certs.check_dates(args.tls_ca, "--tls-ca")
+    except ValueError as exc:
+        ap.error(str(exc))
     files = trust.write_host_logins(out, names, Path(args.tls_ca) if args.tls_ca else None)
     scheme = "tls" if args.tls_ca else "tcp"
     print(f"swarm secure: logins for hosts {', '.join(names)}: wrote {out}/")

@@ -18,6 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import msgpack
 import pytest
 import zenoh
 
@@ -35,6 +36,14 @@ FIG11 = "fig11_obstacles"
 HUGE_SEQ = 2**53  # newer than anything real
 FAR_TICK = 2**53
 LINE = 1  # fig11's formation codes: triangle 0, line 1
+
+
+def beyond_seq(msg: Command) -> bytes:
+    """``msg`` on the wire with a seq one past what any decoder takes: our
+    encoder refuses to write it, an attacker need not."""
+    values = msgpack.unpackb(msg.to_bytes())
+    values[3] = HUGE_SEQ + 1
+    return msgpack.packb(values, use_bin_type=True)
 
 
 def rogue(launch: Launch, user: str | None) -> zenoh.Session:
@@ -77,9 +86,9 @@ def attacks(k: Keys, tick: int) -> list[tuple[str, bytes]]:
         ),
         (
             k.cmd(3),
-            Command(
-                sender=3, seq=HUGE_SEQ + 1, tick=tick, left_mps=1.0, right_mps=2.0, formation=0, done=False
-            ).to_bytes(),
+            beyond_seq(
+                Command(sender=3, seq=HUGE_SEQ, tick=tick, left_mps=1.0, right_mps=2.0, formation=0, done=False)
+            ),
         ),
         (
             k.cmd(1),

@@ -1,7 +1,8 @@
 """docs/ci.md's GitHub Actions workflow works: the page shows the file
 examples/ci/github-actions.yml, and its `run:` steps, run here in a fresh
 virtual environment with the package installed from this repository instead
-of the git URL, pass a user's fixture test.
+of the git URL, pass a user's fixture test that flies the user's own
+controller package (a copy of examples/pure_pursuit, its law found by name).
 
 PyYAML is not a dependency: the few lines needed (the top-level `env:`, each
 step's `uses:`, `with:` and `run:`) are read by `workflow()` below, which
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import socket
 import subprocess
 import sys
@@ -25,6 +27,9 @@ from tests.helpers.tracked import copy_tracked
 
 DOC = ROOT / "docs" / "ci.md"
 EXAMPLE = ROOT / "examples" / "ci" / "github-actions.yml"
+# The user's repository: a controller package (examples/pure_pursuit's files but its tests) and the page's test.
+PACKAGE = ROOT / "examples" / "pure_pursuit"
+PACKAGE_FILES = ("pyproject.toml", "README.md", "pure_pursuit_controller.py")
 
 
 def workflow(text: str) -> tuple[dict[str, str], list[dict[str, str]]]:
@@ -69,7 +74,7 @@ def test_the_workflow_sets_up_python_3_11_with_pips_cache_installs_and_runs_pyte
     assert setup["with.cache-dependency-path"] == ".github/workflows/fixture-tests.yml"
     runs = [s["run"].split() for s in steps if "run" in s]  # word by word, quotes kept: the requirement has spaces
     assert runs == [
-        ["python", "-m", "pip", "install", '"$FORMATION_SWARM"', "pytest"],
+        ["python", "-m", "pip", "install", '"$FORMATION_SWARM"', "pytest", "."],  # "." is the user's package
         ["python", "-m", "pytest", "--basetemp=pytest-runs"],
     ]
     assert steps.index(setup) < min(i for i, s in enumerate(steps) if "run" in s)
@@ -91,7 +96,10 @@ def test_the_workflows_run_steps_pass_a_users_fixture_test(tmp_path: Path) -> No
     project = tmp_path / "project"
     (project / "tests").mkdir(parents=True)
     (test,) = re.findall(r"^```python\n(.*?)^```$", DOC.read_text(), re.M | re.S)
+    assert '"controller.law": "pure_pursuit"' in test  # the page's test flies the user's law
     (project / "tests" / "test_formation.py").write_text(test)
+    for name in PACKAGE_FILES:
+        shutil.copy2(PACKAGE / name, project / name)
     env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH", "PYTHONHOME")}
     env |= env_vars
     env["FORMATION_SWARM"] = str(copy_tracked(tmp_path / "formation-swarm"))  # not the git URL

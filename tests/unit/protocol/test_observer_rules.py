@@ -14,7 +14,7 @@ R = "swarm/r1"
 
 def test_the_observer_may_hear_the_whole_run_and_nothing_else() -> None:
     g = acl.grants("r1", ROBOTS, leader_id=1, observer=True)
-    assert g[acl.OBSERVER] == Grants(subscribe=(f"{R}/**",), watch=(f"{R}/alive/*/*",))
+    assert g[acl.OBSERVER] == Grants(subscribe=(f"{R}/**",), withheld=(f"{R}/robot/wake/cmd",), watch=(f"{R}/**",))
     assert acl.OBSERVER not in acl.grants("r1", ROBOTS, leader_id=1)  # only on request
 
 
@@ -24,14 +24,23 @@ def test_its_router_rules_allow_no_put_no_token_no_query_but_liveliness() -> Non
     rules = {r["id"]: r for r in access["rules"]}
     assert policy == {
         "id": acl.OBSERVER,
-        "rules": ["learn-subscribers", "observer-sub", "observer-data", "observer-watch", "observer-seen"],
+        "rules": [
+            "learn-subscribers",
+            "observer-sub",
+            "observer-data",
+            "observer-withheld",
+            "observer-watch",
+            "observer-seen",
+        ],
         "subjects": [acl.OBSERVER],
     }
-    assert [(rules[r]["flows"], rules[r]["messages"], rules[r]["key_exprs"]) for r in policy["rules"][1:]] == [
-        (["ingress"], ["declare_subscriber"], [f"{R}/**"]),
-        (["egress"], ["put"], [f"{R}/**"]),
-        (["ingress"], ["declare_liveliness_subscriber", "liveliness_query"], [f"{R}/alive/*/*"]),
-        (["egress"], ["liveliness_token", "reply"], [f"{R}/alive/*/*"]),
+    got = [(r["permission"], r["flows"], r["messages"], r["key_exprs"]) for r in map(rules.get, policy["rules"][1:])]
+    assert got == [
+        ("allow", ["ingress"], ["declare_subscriber"], [f"{R}/**"]),
+        ("allow", ["egress"], ["put"], [f"{R}/**"]),
+        ("deny", ["egress"], ["put"], [f"{R}/robot/wake/cmd"]),
+        ("allow", ["ingress"], ["declare_liveliness_subscriber", "liveliness_query"], [f"{R}/**"]),
+        ("allow", ["egress"], ["liveliness_token", "reply"], [f"{R}/**"]),
     ]
     # What it sends the router (ingress) is declarations and liveliness queries only: no data.
     sent = {m for r in policy["rules"] if rules[r]["flows"] == ["ingress"] for m in rules[r]["messages"]}

@@ -99,9 +99,9 @@ def test_each_bad_file_is_named_in_one_line(made: tls.Tls, tmp_path: Path) -> No
     cert2, key2 = (str(p) for p in made.clients["agent-2"])
     key3 = str(made.clients["agent-3"][1])
     gone = str(tmp_path / "gone.pem")
-    assert _refused(_client(made, Path(cert2), Path(key3))) == (
-        f"TLS file {key3} (connect_private_key): not the private key of the certificate {cert2}"
-    )
+    file, setting, why = _file_refused(_client(made, Path(cert2), Path(key3)))
+    assert (file, setting, why.rpartition(" ")[2]) == (key3, "connect_private_key", cert2)  # the key, its certificate
+    assert why.startswith("not the private key")
     file, setting, why = _file_refused(_client(made, Path(gone), Path(key2)))
     assert (file, setting) == (gone, "connect_certificate")
     assert why.startswith("No such file")
