@@ -9,7 +9,8 @@ The router holds access rules that deny everything not granted
               robot N's inbox and the run status; a follower receives the codes
     logger    subscribes to the world's streams and the telemetry; publishes nothing
     observer  (on request) subscribes to the whole run and watches every token;
-              publishes nothing, holds no token: a dashboard, a user's own monitor
+              publishes nothing, holds no token: a dashboard, a user's own monitor.
+              It is not handed the world's wake-ups to itself (robot/wake/cmd)
     launcher  subscribes to the run status and the world's fault calls (it executes
               process faults: kill, start, freeze, thaw) and holds its token; in a
               run placed on machines, queries those hosts and watches their tokens
@@ -51,6 +52,8 @@ class Grants:
     # Data it is handed on keys it does not subscribe to by name: a put on a
     # wildcard key (the leader's formation codes) that its subscription matches.
     receive: tuple[str, ...] = ()
+    # Keys its subscription matches that it is never handed (a deny rule: it wins over the allows).
+    withheld: tuple[str, ...] = ()
     tokens: tuple[str, ...] = ()
     watch: tuple[str, ...] = ()
     serve: tuple[str, ...] = ()  # queryables it declares and answers
@@ -104,7 +107,10 @@ def grants(
         ),
     }
     if observer:  # everything of the run, nothing back: no publisher, no token, no query but liveliness
-        out[OBSERVER] = Grants(subscribe=(k.everything,), watch=(k.alive_any,))
+        # The router grants a declaration whose key expression lies within a granted one: watching
+        # the whole run lets alive/** and alive/*/* both in. The world's wake-ups are its own
+        # business, not a message: a zero-byte put no decoder reads.
+        out[OBSERVER] = Grants(subscribe=(k.everything,), withheld=(k.world_wake,), watch=(k.everything,))
     for h in hosts:
         out[host_user(h)] = Grants(
             tokens=(HostKeys(h).alive,), watch=(k.alive("launcher", 0),), serve=(HostKeys(h).ctl,)
@@ -121,8 +127,10 @@ def grants(
     return out
 
 
-def _rule(rule_id: str, flow: str, messages: list[str], keys: Iterable[str]) -> dict[str, Any]:
-    return {"id": rule_id, "permission": "allow", "flows": [flow], "messages": messages, "key_exprs": list(keys)}
+def _rule(
+    rule_id: str, flow: str, messages: list[str], keys: Iterable[str], permission: str = "allow"
+) -> dict[str, Any]:
+    return {"id": rule_id, "permission": permission, "flows": [flow], "messages": messages, "key_exprs": list(keys)}
 
 
 def access_control(
@@ -155,6 +163,8 @@ def access_control(
         if g.subscribe:
             own.append(_rule(f"{user}-sub", "ingress", ["declare_subscriber"], g.subscribe))
             own.append(_rule(f"{user}-data", "egress", ["put"], (*g.subscribe, *g.receive)))
+        if g.withheld:
+            own.append(_rule(f"{user}-withheld", "egress", ["put"], g.withheld, permission="deny"))
         if g.tokens:
             own.append(_rule(f"{user}-token", "ingress", ["liveliness_token"], g.tokens))
         if g.watch:

@@ -328,7 +328,14 @@ def test_swarm_secure_writes_the_observer_login_on_request(tmp_path: Path) -> No
     access = json.loads((out / "router.json").read_text())["access_control"]
     policy = next(p for p in access["policies"] if p["id"] == acl.OBSERVER)
     rules = {r["id"]: r for r in access["rules"]}
-    assert policy["rules"] == ["learn-subscribers", "observer-sub", "observer-data", "observer-watch", "observer-seen"]
+    assert policy["rules"] == [
+        "learn-subscribers",
+        "observer-sub",
+        "observer-data",
+        "observer-withheld",
+        "observer-watch",
+        "observer-seen",
+    ]
     assert all(rules[r]["flows"] == ["egress"] or "put" not in rules[r]["messages"] for r in policy["rules"])
 
 
@@ -379,7 +386,11 @@ def test_a_second_agent_of_a_robot_is_refused_by_the_world_and_counted(
     second = None
     try:
         assert launch.wait_until(lambda: launch.sim_time() >= 2.0, timeout_s=90)
-        second = _start_foreign([*flags, "--fly-beside"], tmp_path / "second.json", tmp_path / "second.log")
+        # A copy of the login, taken before the launcher deleted it: the file is gone once the first connects.
+        copy = trust.write_settings(tmp_path / "agent-3-copy.json", launch.login("agent-3"))
+        second = _start_foreign(
+            [*flags[:-1], str(copy), "--fly-beside"], tmp_path / "second.json", tmp_path / "second.log"
+        )
         res = launch.wait(timeout_s=240)
         assert _reap(first, 30) == 0, (tmp_path / "first.log").read_text()
         assert _reap(second, 30) == 0, (tmp_path / "second.log").read_text()

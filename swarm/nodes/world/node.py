@@ -24,6 +24,7 @@ import zenoh
 
 from formation_swarm.nodes.world.clock import CLOCKS
 from formation_swarm.nodes.world.inbox import Inbox
+from formation_swarm.nodes.world.sessions import SESSION_CLOSED, LoginWatch
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.runtime import process as process_mod
@@ -93,6 +94,7 @@ class Options:
     expect_logger: bool = False
     executor: bool = False  # a process executes the fault calls (--process-faults)
     where: str = ""  # the session's endpoints, for messages
+    logins: bool = False  # the router with logins: a token kept by a second session is seen
 
 
 class World:
@@ -100,6 +102,11 @@ class World:
 
     def __init__(self, sess: zenoh.Session, setup: WorldSetup, role: process_mod.Process, opts: Options) -> None:
         self.session = sess
+        self.spool: Any = None  # a runtime.spool.SpoolWriter (main sets it): the commands taken, for wire.mcap
+        self.logins: LoginWatch | None = None  # with logins, as the router: the sessions that close
+        if opts.logins:
+            self.logins = LoginWatch(sess, self._now, role.say)
+            self.logins.listen()
         self.opts = opts
         self.keys = Keys(opts.run_id)
         self.role = role
@@ -109,6 +116,7 @@ class World:
             self.tick, self._drain, role.stop, deadline_s=setup.lockstep_deadline_s, thaw_s=role.peers_timeout_s
         )
         self.peers = Peers()
+        self.waited_for: dict[str, Any] | None = None  # what the world gave up waiting for before tick 0
         self.inbox: Inbox | None = None
         self.out: Outbox | None = None
         self.end_reason = summary_mod.INTERRUPTED
@@ -120,6 +128,10 @@ class World:
     def _wall_s(self) -> float:
         """Wall seconds since the loop started (before: since the world started)."""
         return time.monotonic() - self.t0
+
+    def _now(self) -> dict[str, Any]:
+        eng = self.tick.engine
+        return {"tick": eng.tick, "time_s": eng.time_s, "wall_s": self._wall_s()}
 
     def _drain(self, until: float) -> None:
         if self.inbox is not None:
@@ -139,9 +151,12 @@ class World:
             return process_mod.EXIT_DUPLICATE
         robots = self.tick.setup.robots
         self.out = Outbox.declare(s, k, robots, self.clock.truth_congestion, self.opts.executor)
-        self.inbox = inbox = Inbox(s, k, robots, self.tick.receive, self._on_alive)
+        self.inbox = inbox = Inbox(s, k, robots, self.tick.receive, self._on_alive, spool=self.spool)
+        inbox.engine = self.tick.engine  # its tick: the sim time a command is spooled at
         self.role.stop.add_waker(inbox.wake)
         self.out.listen(inbox.wake)
+        if self.logins is not None:
+            self.logins.wake = lambda: inbox.notify(SESSION_CLOSED)
         s.liveliness().declare_subscriber(k.alive_any, inbox.alive_changed, history=True)
         token = s.liveliness().declare_token(k.alive("world", 0))
         try:
@@ -223,12 +238,17 @@ class World:
             missing.append("no executor of the process faults (the launcher's token alive/launcher/0)")
         if deaf := sorted(r for r in out.obs if r in peers.agents_seen and not out.hears(r)):
             missing.append(f"agents {', '.join(map(str, deaf))} present but not subscribed to their observations")
+        said = " and ".join(missing)
+        self.waited_for = {"robots": absent, "missing": said, "timeout_s": self.role.peers_timeout_s}
         self.role.gave_up(
-            f"{' and '.join(missing)} in run {self.keys.run_id!r} ({self.opts.where}); "
+            f"{said} in run {self.keys.run_id!r} ({self.opts.where}); "
             f"for the missing processes, {process_mod.CHECK_PEERS}"
         )
 
     def _on_alive(self, key: str, present: bool) -> None:
+        if key == SESSION_CLOSED:
+            self._lost_to_second_sessions()
+            return
         parsed = self.keys.parse_alive(key)
         if parsed is None:
             return
@@ -249,6 +269,17 @@ class World:
                 peers.agents_seen.add(rid)
             if lost := self.tick.agent_token(rid, present):
                 print(f"world: {lost}", flush=True)
+
+    def _lost_to_second_sessions(self) -> None:
+        """After a session closed: a live robot whose token stays but whose
+        observations lost their subscriber has lost its agent (nodes.world.sessions)."""
+        out, present = self.out, self.peers.present
+        if self.logins is None or out is None or self.tick.finished:
+            return
+        held = [r for r in self.tick.engine.alive_ids if self.keys.alive("agent", r) in present]
+        for rid in self.logins.kept([r for r in held if not out.hears(r)]):
+            if said := self.tick.agent_token(rid, False):
+                print(f"world: {said}", flush=True)
 
     def _send_truth(self) -> None:
         if self.out is not None and (truth := self.tick.truth()) is not None:
@@ -352,6 +383,8 @@ class World:
                 **tick.faults.stats(),  # deaths, fault_log, rejoins, recoveries
                 "robot_digests": tick.robot_digests(),
                 "logger_lost": self.peers.logger_lost,
+                "waited_for": self.waited_for,  # what it gave up waiting for before tick 0 (None: it did not)
+                "second_sessions": [] if self.logins is None else self.logins.records,
                 "memory_given_back": self.relief.given_back,
                 "stalls": tick.stalls.events,
                 "held_for_lost_s": tick.stalls.held_s,
