@@ -42,6 +42,8 @@ calls it again (docs/controllers.md).
 A controller may also define ``prepare()``: the role calls it once the
 tick's command is sent, while the robot waits for its next observation, so
 that work such as the EKF's prediction leaves the tick's critical path.
+And ``reset()``, called once before its first step, and ``close()``, called
+once when its agent stops (agents.hooks).
 
 The implementations: agents.fuzzy_controller.FuzzyController (the paper's
 EKF, FIS-2, FIS-1 and eq. 11-13) and agents.lpsi_controller.LpsiController

@@ -23,7 +23,8 @@ speed that is not a finite number has failed: from that tick on the robot
 answers every tick with zero speeds and telemetry without values, the
 controller is not called again, the failure is in the stats
 (``controller_failure``: tick, error, law) and its traceback in ``notes``
-for the process's log.
+for the process's log. Its ``close()`` (agents.hooks) is called once, by
+the process or the engine, when the agent stops.
 """
 
 from __future__ import annotations
@@ -31,10 +32,10 @@ from __future__ import annotations
 import collections
 import functools
 import math
-import traceback
 from collections.abc import Callable, Mapping
 from typing import Any
 
+from formation_swarm.agents import hooks
 from formation_swarm.agents.controller import (
     HOLDING,
     STATS_VALUES,
@@ -49,11 +50,11 @@ from formation_swarm.agents.controller import (
 from formation_swarm.agents.formation import Slot
 from formation_swarm.agents.geometry import Point
 from formation_swarm.agents.role_base import Answer, RoleBase, RoleSetup
+from formation_swarm.agents.stops import Stops
 from formation_swarm.protocol.links import Link
 from formation_swarm.protocol.messages import EXTRA_NAME, MAX_EXTRAS, Command, FormationCode, Observation, Telemetry
 
 PENDING_CODES = 64  # formation codes waiting for their tick
-MAX_HOLDS = 100  # holds listed in the stats (all are counted in held_ticks)
 KNOWN_NAMES = frozenset(WIRE_VALUES + STATS_VALUES)  # any other value's name is an extra
 MAX_UNSENT_NOTES = 16  # value names that cannot be sent, each said once in the log
 STOPPED = FollowerOutput(left_mps=0.0, right_mps=0.0)  # a failed controller's robot, every tick
@@ -88,6 +89,8 @@ class FollowerRole(RoleBase):
         cls = type(controller)
         self.law = law or f"{cls.__module__}:{cls.__qualname__}"  # for the failure's report
         self.failure: dict[str, Any] | None = None  # the controller's failure: tick, error, law
+        self._close = hooks.bound(controller, "close")  # optional (agents.hooks)
+        self._closed = False
         self._unsent: set[str] = set()  # telemetry names said not to fit the wire
 
     @property
@@ -190,13 +193,17 @@ class FollowerRole(RoleBase):
 
     def _fail(self, tick: int, exc: Exception) -> None:
         """The controller failed at ``tick``: the robot stops for the rest of the run."""
-        error = " ".join(f"{type(exc).__name__}: {exc}".split())[:300]
-        self.failure = {"tick": tick, "error": error, "law": self.law}
-        trace = "".join(traceback.format_exception(exc)).rstrip()
-        self.notes.append(
-            f"controller {self.law} failed at tick {tick}: {error}; robot {self.robot_id} stops for the rest of the "
-            f"run\n{trace}"
-        )
+        self.failure, note = hooks.failure(tick, exc, self.law, self.robot_id)
+        self.notes.append(note)
+
+    def close(self) -> None:
+        """The controller's ``close()``, once, even after a failure (agents.hooks):
+        what it raises is its failure, unless it failed before."""
+        if not self._closed:
+            self._closed = True
+            if (failed := hooks.close(self._close, self.law, self.last_tick or 0)) is not None:
+                self.failure = self.failure or failed[0]
+                self.notes.append(failed[1])
 
     def _fly_due_codes(self, tick: int) -> None:
         """The codes stamped before ``tick``, in the order of their ticks (then seqs)."""
@@ -312,30 +319,6 @@ class FollowerRole(RoleBase):
             "formation_changes": self.formation_changes,
             "controller_failure": self.failure,
         }
-
-
-class Stops:
-    """A follower's stops, for its stats: the ticks it held at a standing
-    reference, [first, last] tick of each hold (the first MAX_HOLDS), and the
-    ticks it waited ahead of its target (controller.wait_ahead)."""
-
-    def __init__(self) -> None:
-        self.held_ticks = 0
-        self.holds: list[list[int]] = []
-        self._span: list[int] | None = None  # the hold under way, if it is recorded
-        self.waited_ticks = 0
-
-    def count(self, tick: int, *, holding: bool, waiting: bool) -> None:
-        self.waited_ticks += waiting
-        if not holding:
-            self._span = None
-            return
-        self.held_ticks += 1
-        if self._span is not None:
-            self._span[1] = tick
-        elif len(self.holds) < MAX_HOLDS:
-            self._span = [tick, tick]
-            self.holds.append(self._span)
 
 
 def _slot(slot: Slot) -> Slot:

@@ -87,6 +87,9 @@ class RoleBase:
     def prepare(self) -> None:
         """Called once the answer is sent, while the robot waits for its next observation."""
 
+    def close(self) -> None:
+        """Called once when the agent stops: its controller's or policy's ``close()`` (agents.hooks)."""
+
     def describe(self) -> str:
         return self.NAME
 

@@ -16,6 +16,9 @@ few need any of it):
   ``FollowerInput``, ``MarkerReading``, ``FollowerOutput``,
   ``TargetEstimate``), docs/controllers.md, and ``check_controller``, which
   tries a controller as ``swarm check-controller`` does.
+- the leader's policy API: ``LeaderPolicy`` and what it takes and gives
+  (``LeaderSetup``, ``LeaderParams``, ``LeaderSensing``, ``LeaderMove``,
+  ``Pose``), docs/leader-policy.md.
 
 Everything else (``formation_swarm.spec``, ``.runtime``, ``.nodes``, ...) is
 internal: docs/architecture.md draws the layers.
@@ -40,6 +43,14 @@ if TYPE_CHECKING:
         Slot,
         TargetEstimate,
     )
+    from formation_swarm.agents.leader_policy import (
+        LeaderMove,
+        LeaderParams,
+        LeaderPolicy,
+        LeaderSensing,
+        LeaderSetup,
+        Pose,
+    )
     from formation_swarm.engine import Engine, EngineResult
     from formation_swarm.engine.check import check_controller
     from formation_swarm.launch.launcher import Launch, RunResult
@@ -53,6 +64,10 @@ _PUBLIC = {
     "Engine": "formation_swarm.engine",
     "EngineResult": "formation_swarm.engine",
     "check_controller": "formation_swarm.engine.check",
+    **dict.fromkeys(
+        ("LeaderMove", "LeaderParams", "LeaderPolicy", "LeaderSensing", "LeaderSetup", "Pose"),
+        "formation_swarm.agents.leader_policy",
+    ),
     **dict.fromkeys(
         (
             "ControllerSetup",
@@ -78,8 +93,14 @@ __all__ = [
     "FollowerOutput",
     "FollowerParams",
     "Launch",
+    "LeaderMove",
+    "LeaderParams",
+    "LeaderPolicy",
+    "LeaderSensing",
+    "LeaderSetup",
     "MarkerReading",
     "Point",
+    "Pose",
     "RunData",
     "RunResult",
     "Slot",

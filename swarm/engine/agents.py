@@ -73,6 +73,15 @@ class Agents:
                 if agent.role.TAKES_CODES:
                     agent.take(self.keys.codes, payload)
 
+    def close(self) -> None:
+        """Every live agent's controller or policy closed, once (agents.hooks):
+        as its process closes it when it stops. An agent a fault killed is not
+        (a process killed gets no call). What a close raised is among the notes."""
+        for rid, agent in self.live.items():
+            agent.role.close()
+            self.notes += [f"{self.names[rid]}: {note}" for note in agent.role.notes]
+            agent.role.notes.clear()
+
     def stats(self) -> dict[str, dict[str, Any]]:
         """Every agent's stats, by name: the agents stopped, then those still there."""
         return {**self.gone, **{self.names[rid]: _stats(agent) for rid, agent in self.live.items()}}

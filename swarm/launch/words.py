@@ -10,6 +10,7 @@ from typing import Any
 
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.runtime.children import KILLED_AT_STOP_TIMEOUT, describe_exit
+from formation_swarm.spec.laws import LEADER_POLICY
 from formation_swarm.world.recovery import HOLD_S
 
 
@@ -21,12 +22,14 @@ def num(value: Any, fmt: str = ".3f") -> str:
 def describe_laws(laws: Mapping[str, Any]) -> str:
     """The leader's policy and the followers' laws (spec.laws) in a phrase:
     "leader path, law fuzzy (V_N dynamic)" when every follower flies one law,
-    else each law with its followers, "leader path, laws R2,R3 lpsi; R4 pkg.mod:Ctl"."""
+    else each law with its followers, "leader path, laws R2,R3 lpsi; R4 pkg.mod:Ctl";
+    "leader pkg.mod:Policy, ..." for a policy of the user's (a record without
+    the leader's is from before policies could be named: "path")."""
     by_law: dict[str, list[int]] = {}
     for rid, law in (laws.get("followers") or {}).items():
         if str(rid).isdigit():
             by_law.setdefault(str(law), []).append(int(rid))
-    leader = f"leader {laws.get('leader')}"
+    leader = f"leader {laws.get('leader') or LEADER_POLICY}"
     if len(by_law) <= 1:
         return leader + "".join(f", law {law}" for law in by_law)
     groups = sorted(by_law.items(), key=lambda kv: min(kv[1]))

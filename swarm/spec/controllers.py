@@ -2,6 +2,8 @@
 takes, ``[followers.ID]`` overrides of it, the law each flies with its
 ``params`` checked against the law's class (agents.laws), and every
 controller's fastest wheel command within what the robots' wheels can do.
+The leader's policy (``leader.policy``, ``[leader.params]``) is checked the
+same way.
 """
 
 from __future__ import annotations
@@ -13,7 +15,8 @@ from typing import Any
 from formation_swarm.agents.ekf import EkfParams
 from formation_swarm.agents.follower import LAWS, FollowerParams, law_class
 from formation_swarm.agents.fuzzy import FuzzyParams, SpeedMode
-from formation_swarm.agents.laws import LawError, declared_params
+from formation_swarm.agents.laws import FOLLOWER, LEADER, PATH, Kind, LawError, declared_params
+from formation_swarm.agents.leader_policy import policy_class
 from formation_swarm.agents.lpsi import LpsiParams
 from formation_swarm.spec.checking import check_table, check_times, wrapped
 from formation_swarm.spec.keys import CONTROLLER_KEYS, EKF_KEYS, NUM, Key, ScenarioError
@@ -108,7 +111,8 @@ def check_wheel_limit(
     """Every controller's fastest wheel command within robot.max_wheel_mps: the
     world would clamp it otherwise, and the run would not fly the controller."""
     fastest = float(leader["speed_mps"]) + float(leader["turn_rate_rps"]) * width / 2.0  # eq. 8-9
-    if fastest > max_wheel:
+    # A user's policy keeps within the limit itself (LeaderSetup.max_wheel_mps).
+    if leader.get("policy", PATH) == PATH and fastest > max_wheel:
         raise ScenarioError(
             f"the leader's wheels reach {fastest:g} m/s (leader.speed_mps + leader.turn_rate_rps * robot.width_m / 2),"
             f" above robot.max_wheel_mps = {max_wheel:g}"
@@ -147,19 +151,32 @@ def law_and_params(where: str, t: Mapping[str, Any]) -> dict[str, Any]:
     takes them: the law's class found (imported) and its params checked against
     what it declares, each filled with its default, before any process starts."""
     law = t["law"]
+    own = " (its parameters are the keys of [controller])" if law in LAWS else ""
+    return {"law": law, "law_params": _params(where, t["params"], kind=FOLLOWER, name=law, own=own)}
+
+
+def policy_and_params(t: Mapping[str, Any]) -> dict[str, Any]:
+    """``policy`` and ``params`` of the checked [leader] table, as
+    agents.leader_policy.LeaderParams takes them, checked as a law's are."""
+    policy = t["policy"]
+    own = " (its parameters are the keys of [leader])" if policy == PATH else ""
+    return {"policy": policy, "policy_params": _params("leader", t["params"], kind=LEADER, name=policy, own=own)}
+
+
+def _params(where: str, given: Mapping[str, Any], *, kind: Kind, name: str, own: str) -> tuple[tuple[str, Any], ...]:
+    """The params ``given`` to the class ``name`` names (a law, a policy: ``kind``),
+    checked against what it declares; ``own``: where a class without any takes its own."""
     try:
-        declared = declared_params(law_class(law), law)
+        declared = declared_params((law_class if kind is FOLLOWER else policy_class)(name), name, kind)
     except LawError as exc:
-        raise ScenarioError(f"{where}.law: {exc}") from None
-    given = t["params"]
+        raise ScenarioError(f"{where}.{kind.word}: {exc}") from None
     if given and not declared:
-        own = " (its parameters are the keys of [controller])" if law in LAWS else ""
-        raise ScenarioError(f"unknown key {where}.params.{next(iter(given))}: law {law!r} takes no params{own}")
-    schema = {name: _param_key(default) for name, default in declared.items()}
+        first = next(iter(given))
+        raise ScenarioError(f"unknown key {where}.params.{first}: {kind.word} {name!r} takes no params{own}")
+    schema = {n: _param_key(default) for n, default in declared.items()}
     checked = check_table(given, f"{where}.params", schema)
     # A float parameter given as an integer (gain = 2, --set ...=1,2,3) is the float.
-    values = tuple((k, float(v) if isinstance(declared[k], float) else v) for k, v in checked.items())
-    return {"law": law, "law_params": values}
+    return tuple((k, float(v) if isinstance(declared[k], float) else v) for k, v in checked.items())
 
 
 def _param_key(default: bool | int | float | str) -> Key:

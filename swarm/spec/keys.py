@@ -155,6 +155,20 @@ LEADER_KEYS = {
         "after a formation change the leader sends its code every tick for this long", 1.0, "s"
     ),
     "code_period_s": positive("otherwise it repeats its current code this often", 0.5, "s"),
+    "policy": Key(
+        str,
+        "path",
+        "what flies the leader: 'path' (the paper's: the waypoints, the formation switch near obstacles and the"
+        " code repeats above), or a policy of your own: 'package.module:Class' or the name of an entry point of the"
+        " group formation_swarm.leader_policies (docs/controllers.md). Any policy starts at the first waypoint,"
+        " heading to the second, and the world takes its 'done' only at the last waypoint",
+    ),
+    "params": Key(
+        dict,
+        {},
+        "the policy's own parameters, a table of name = value: those its class declares in PARAMS"
+        " (docs/controllers.md); 'path' takes none",
+    ),
 }
 SHAPES = ("wedge", "line", "abreast", "grid", "custom")
 FORMATION_KEYS = {

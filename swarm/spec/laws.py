@@ -4,8 +4,10 @@ for the summary's ``laws``, the console, the report and ``swarm compare``.
 
 A follower's law is named as ``controller.law`` names it ("lpsi",
 "pkg.module:Class", an entry point's name), the paper's fuzzy law with its
-V_N: "fuzzy (V_N dynamic)" or "fuzzy (V_N 1.5 m/s)". The leader flies the
-paper's path follower (agents.leader_policy.PathLeader): "path".
+V_N: "fuzzy (V_N dynamic)" or "fuzzy (V_N 1.5 m/s)". The leader's policy is
+named as ``leader.policy`` names it: "path" (the paper's path follower,
+agents.leader_policy.PathLeader, the default), "pkg.module:Class", an entry
+point's name.
 """
 
 from __future__ import annotations
@@ -14,13 +16,13 @@ from collections.abc import Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from formation_swarm.spec.controllers import with_override
-from formation_swarm.spec.keys import CONTROLLER_KEYS
+from formation_swarm.spec.keys import CONTROLLER_KEYS, LEADER_KEYS
 
 if TYPE_CHECKING:
     from formation_swarm.agents.follower import FollowerParams
     from formation_swarm.spec.model import Scenario
 
-LEADER_POLICY = "path"  # agents.leader_policy.PathLeader, the only policy a scenario can name today
+LEADER_POLICY = LEADER_KEYS["policy"].default  # "path": agents.leader_policy.PathLeader, unless leader.policy says
 FUZZY = "fuzzy"  # the paper's law: its name says its V_N
 
 
@@ -41,7 +43,8 @@ def follower_law(fp: FollowerParams) -> str:
 def laws(sc: Scenario) -> dict[str, Any]:
     """The leader's policy and each follower's law (by its id, a string as
     in the summary's ``followers``), in the order of the ids."""
-    return {"leader": LEADER_POLICY, "followers": {str(r): follower_law(sc.followers[r]) for r in sorted(sc.followers)}}
+    named = {str(r): follower_law(sc.followers[r]) for r in sorted(sc.followers)}
+    return {"leader": sc.leader.policy, "followers": named}
 
 
 def laws_as_run(config: Mapping[str, Any], followers: Iterable[int]) -> dict[str, Any]:
@@ -57,7 +60,9 @@ def laws_as_run(config: Mapping[str, Any], followers: Iterable[int]) -> dict[str
         table = with_override(base, own if isinstance(own, Mapping) else {})
         law = table.get("law", CONTROLLER_KEYS["law"].default)
         named[str(rid)] = law_name(str(law), table.get("vn", CONTROLLER_KEYS["vn"].default))
-    return {"leader": LEADER_POLICY, "followers": named}
+    leader = config.get("leader")
+    policy = leader.get("policy", LEADER_POLICY) if isinstance(leader, Mapping) else LEADER_POLICY
+    return {"leader": str(policy), "followers": named}
 
 
 def run_laws(summary: Mapping[str, Any], config: Mapping[str, Any], followers: Iterable[int]) -> dict[str, Any]:

@@ -39,6 +39,8 @@ class LeaderSpec:
     clear_after_s: float
     code_burst_s: float
     code_period_s: float
+    policy: str = "path"  # leader.policy (agents.laws)
+    policy_params: tuple[tuple[str, bool | int | float | str], ...] = ()  # [leader.params], checked
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ from formation_swarm.spec.checking import (
     suggest,
     wrapped,
 )
-from formation_swarm.spec.controllers import check_wheel_limit, parse_followers
+from formation_swarm.spec.controllers import check_wheel_limit, parse_followers, policy_and_params
 from formation_swarm.spec.files import deep_set, resolve
 from formation_swarm.spec.formations import check_in_sight, parse_formations
 from formation_swarm.spec.keys import (
@@ -207,6 +207,7 @@ def _leader_spec(ld: Mapping[str, Any]) -> LeaderSpec:
         clear_after_s=float(ld["clear_after_s"]),
         code_burst_s=float(ld["code_burst_s"]),
         code_period_s=float(ld["code_period_s"]),
+        **policy_and_params(ld),
     )
 
 

@@ -18,7 +18,8 @@ Before it announces itself (its liveliness token) it waits, up to
 match (the leader: also its code publisher, a follower's inbox), each such
 change waking the wait. It exits when the world says the run is done, when
 the world's token has been gone for ``--world-grace`` seconds (default: the
-peers timeout) once the run started, or on SIGINT/SIGTERM. A dropped session
+peers timeout) once the run started, or on SIGINT/SIGTERM; however it stops,
+it then calls its controller's or policy's ``close()`` (agents.hooks). A dropped session
 (a freeze beyond the Zenoh lease, a cut, a router restart) comes back by
 itself: the client reconnects, declares the agent's subscribers and token
 again, and the world re-admits the robot.
@@ -53,6 +54,7 @@ from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import Status
 from formation_swarm.runtime import process as process_mod
+from formation_swarm.runtime import spool as spool_mod
 from formation_swarm.runtime.memory import FloodRelief
 from formation_swarm.runtime.proc import wait_for
 from formation_swarm.spec import scenario as scenario_mod
@@ -77,6 +79,7 @@ class Options:
     # In lockstep the telemetry may hold back the run rather than be lost: a
     # dropped batch took up to 200 ticks out of the recording and its metrics.
     lockstep: bool = False
+    wire_spool: str | None = None  # where to spool every message taken, for wire.mcap (runtime.spool)
 
 
 class Agent:
@@ -89,7 +92,8 @@ class Agent:
         self.role = role  # the process's name, stop signals and deadline
         self.opts = opts
         self.keys = Keys(opts.run_id)
-        self.router = Router(self.keys, brain)
+        self.spool = spool_mod.open_path(opts.wire_spool, opts.run_id, role.complain)
+        self.router = Router(self.keys, brain, self.spool)
         self.peers = Peers(role.say, opts.world_grace_s, self._close_inbox)
         self.stats_file = StatsFile(opts.stats_path, len(sc.robots), (e for lk in brain.links for e in lk.fault_ends))
         self.status_rejections = Rejections()  # counted on the status callback's thread
@@ -123,6 +127,16 @@ class Agent:
                 inbox.undeclare()
 
     def run(self) -> int:
+        """The agent's life: its start, its loop, its end; then its controller's
+        or policy's ``close()`` (agents.hooks), whatever ended it."""
+        try:
+            return self._run()
+        finally:
+            self.brain.close()  # a close that raises is a failure in the stats, its note in the log
+            if self.brain.notes:
+                self._say_notes()
+
+    def _run(self) -> int:
         s, k, rid = self.session, self.keys, self.brain.robot_id
         self.inbox = s.declare_subscriber(
             k.inbox(rid), zenoh.handlers.FifoChannel(INBOX_CAPACITY), allowed_origin=zenoh.Locality.REMOTE
@@ -247,6 +261,8 @@ class Agent:
                 self._serve(channel, outbox)
         finally:
             self.loop_cpu_s = time.process_time() - cpu0
+            if self.spool is not None:  # what it buffers, whatever ended the loop (a stop signal included)
+                self.spool.close()
         return self._exit_code()
 
     def _serve(self, channel: Any, outbox: Outbox) -> None:
@@ -288,9 +304,11 @@ class Agent:
         return self.done or self.role.stop.is_set()
 
     def who(self) -> str:
-        """What decides the robot's steps, for the log: "controller pkg.mod:Cls"."""
-        law = getattr(self.brain, "law", None)  # a follower's
-        return f"controller {law}" if law else f"the {self.brain.NAME}'s policy"
+        """What decides the robot's steps, for the log: "controller pkg.mod:Cls", "policy path"."""
+        law = getattr(self.brain, "law", None)  # a follower's law, the leader's policy
+        if not law:
+            return f"the {self.brain.NAME}'s policy"
+        return f"{'policy' if self.brain.SENDS_CODES else 'controller'} {law}"
 
     def complain(self, text: str) -> None:
         self.role.complain(text)

@@ -3,24 +3,27 @@
 The roles (agents.leader_role, agents.follower_role) know nothing of the
 scenario file; this hands them its facts, the receiving ends of the robot's
 links with the faults the run's schedule puts on them, the leader's policy
-and a follower's controller (agents.follower.make_controller, by
-``controller.law``). A controller that cannot be built (its class raises,
-or cannot be imported on this machine) fails at the first tick, as one
-that raises there does: the robot stops, the run goes on. No Zenoh here: a
-test builds a role the same way.
+(agents.leader_policy.make_policy, by ``leader.policy``) and a follower's
+controller (agents.follower.make_controller, by ``controller.law``), each
+reset once built (agents.hooks). A controller or policy that cannot be built
+or reset (its class raises, or cannot be imported on this machine) fails at
+the first tick, as one that raises there does: the robot stops, the run
+goes on. No Zenoh here: a test builds a role the same way.
 """
 
 from __future__ import annotations
 
-from formation_swarm.agents.controller import ControllerSetup, FollowerController, FollowerInput, FollowerOutput
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+from formation_swarm.agents import hooks
+from formation_swarm.agents.controller import ControllerSetup, FollowerController
 from formation_swarm.agents.follower import make_controller
 from formation_swarm.agents.follower_role import FollowerRole
 from formation_swarm.agents.formation import Slot
 from formation_swarm.agents.inbox import InboxChecks
-from formation_swarm.agents.leader import CodeRepeats, FormationSwitch
-from formation_swarm.agents.leader_policy import PathLeader
+from formation_swarm.agents.leader_policy import LeaderParams, LeaderSetup, make_policy
 from formation_swarm.agents.leader_role import LeaderRole
-from formation_swarm.agents.pilot import PathPilot
 from formation_swarm.agents.role_base import RoleSetup
 from formation_swarm.protocol.links import Link, faults_on, link_name
 from formation_swarm.protocol.messages import WORLD_ID, FormationCode, Observation
@@ -44,31 +47,71 @@ def role_for(
         checks=InboxChecks(sc.robots, sc.camera.range_m, sc.camera.sigma_rho_m, sc.leader.sensing_range_m, sc.dt_s),
     )
     if rid == sc.leader.robot_id:
-        return LeaderRole(setup, _path_leader(sc))
+        return LeaderRole(setup, _built(lambda: make_policy(leader_setup(sc, seed))), law=sc.leader.policy)
     law = sc.followers[rid].law
-    if controller is None:
-        controller = _controller(sc, rid, sc.formation_by_code(setup.code).slots[rid])
+    slot = sc.formation_by_code(setup.code).slots[rid]
+    given = controller
+    built = _built(lambda: make_controller(_controller_setup(sc, rid, slot)) if given is None else given)
     formation_link: Link[FormationCode] = _link(sc, "formation", sc.leader.robot_id, rid, seed)
-    return FollowerRole(setup, formation_link, controller, law=law)
+    return FollowerRole(setup, formation_link, built, law=law)
 
 
-def _controller(sc: Scenario, rid: int, slot: Slot) -> FollowerController:
-    """Follower ``rid``'s controller, or one that fails at once when it cannot be built."""
-    setup = ControllerSetup(robot_id=rid, params=sc.followers[rid], slot=slot, max_wheel_mps=sc.max_wheel_mps)
+def leader_setup(sc: Scenario, seed: int) -> LeaderSetup:
+    """What the leader's policy is built from: the scenario's [leader] keys, its formations, the run's seed."""
+    ld = sc.leader
+    params = LeaderParams(
+        waypoints=ld.waypoints,
+        speed_mps=ld.speed_mps,
+        turn_rate_rps=ld.turn_rate_rps,
+        lookahead_m=ld.lookahead_m,
+        corners=ld.corners,
+        sensing_range_m=ld.sensing_range_m,
+        clear_after_s=ld.clear_after_s,
+        code_burst_s=ld.code_burst_s,
+        code_period_s=ld.code_period_s,
+        policy=ld.policy,
+        policy_params=ld.policy_params,
+    )
+    return LeaderSetup(
+        robot_id=ld.robot_id,
+        params=params,
+        formations=sc.formation_names,
+        formation=sc.code_of(ld.formation),
+        avoid_formation=None if ld.avoid_formation is None else sc.code_of(ld.avoid_formation),
+        dt_s=sc.dt_s,
+        width_m=sc.width_m,
+        max_wheel_mps=sc.max_wheel_mps,
+        seed=seed,
+    )
+
+
+def _controller_setup(sc: Scenario, rid: int, slot: Slot) -> ControllerSetup:
+    return ControllerSetup(robot_id=rid, params=sc.followers[rid], slot=slot, max_wheel_mps=sc.max_wheel_mps)
+
+
+Built = TypeVar("Built")
+
+
+def _built(build: Callable[[], Built]) -> Built:
+    """A controller or policy built and reset (agents.hooks), or one that
+    fails at once when either raises."""
     try:
-        return make_controller(setup)
+        made = build()
+        hooks.reset(made)
     except Exception as exc:  # noqa: BLE001 - a user's class: its failure stops its robot, not the run
-        return Unbuilt(exc)
+        return Unbuilt(exc)  # type: ignore[return-value]
+    return made
 
 
 class Unbuilt:
-    """In the place of a controller whose class raised when built: its step
-    raises that error again, so the role reports it (with its traceback)."""
+    """In the place of a controller or policy whose class raised when built
+    or reset: its step raises that error again, so the role reports it (with
+    its traceback)."""
 
     def __init__(self, error: Exception) -> None:
         self.error = error
 
-    def step(self, inp: FollowerInput) -> FollowerOutput:
+    def step(self, _inp: Any) -> Any:
         raise self.error
 
 
@@ -76,13 +119,3 @@ def _link(sc: Scenario, kind: str, src: int, rid: int, seed: int) -> Link[Observ
     """The receiving end of ``kind``'s link from ``src`` to robot ``rid``."""
     drop = sc.links.obs_drop if kind == "obs" else sc.links.formation_drop
     return Link(link_name(kind, src, rid), drop, seed, faults_on(sc.faults, kind, rid), sc.dt_s)
-
-
-def _path_leader(sc: Scenario) -> PathLeader:
-    """The paper's leader: the scenario's path, formation switch and code repeats."""
-    ld = sc.leader
-    pilot = PathPilot(ld.waypoints, ld.speed_mps, sc.width_m, ld.lookahead_m, ld.turn_rate_rps, corners=ld.corners)
-    avoid = None if ld.avoid_formation is None else sc.code_of(ld.avoid_formation)
-    switch = FormationSwitch(sc.code_of(ld.formation), avoid, ld.clear_after_s, sc.dt_s)
-    repeats = CodeRepeats(ld.code_burst_s, ld.code_period_s, sc.dt_s)
-    return PathLeader(pilot, switch, repeats)

@@ -84,7 +84,7 @@ def test_a_draw_from_a_global_random_state_is_refused_twice(name: str, state: st
     problems = check_controller(f"{LAW}:{name}")
     assert [p.split(": ")[0] for p in problems] == ["determinism", "global random"]
     assert problems[0].startswith("determinism: two instances built alike answered input 0 of the recorded stream")
-    assert problems[1] == f"global random: it draws from {state}'s global state: seed a generator of its own"
+    assert re.findall(r"from ([\w.]+)'s global state", problems[1]) == [state]  # the state it drew from, named
     assert random.getstate() == before[0]  # the caller's states as they were
     assert np.array_equal(np.random.get_state()[1], before[1][1])
 
@@ -95,7 +95,7 @@ def test_reset_and_close_are_checked_where_the_class_has_them() -> None:
     assert [p.split(": ")[0] for p in report.problems] == ["close", "reset"]
     assert report.problems[0].startswith("close: close() raised OSError: no such device at the end of the recorded")
     # Its first answer after reset() is its 351st step's, 0.351 m/s; a fresh one's is 0.001 m/s.
-    assert report.problems[1] == "reset: after reset() it answered input 0 of the stream unlike a fresh controller"
+    assert re.findall(r"after reset\(\)|input \d+|fresh", report.problems[1]) == ["after reset()", "input 0", "fresh"]
 
 
 def test_a_class_made_in_a_function_is_checked_with_its_params() -> None:
