@@ -12,7 +12,8 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	# setuptools prints a notice on every editable install of a mapped layout
 	# (folders named like the package could shadow it; none is named formation_swarm).
-	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/python -m pip install --quiet -e '.[dev,bench]'
+	# rl: the learning adapters' tests run PettingZoo's and Gymnasium's own checkers.
+	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/python -m pip install --quiet -e '.[dev,bench,rl]'
 	touch $(STAMP)
 
 run: $(STAMP)
@@ -87,7 +88,7 @@ docs: $(STAMP)
 # MUTATE_ARGS="--fresh agents/ekf.py" one module from scratch.
 MUTATE_ARGS ?= --sample 120
 $(VENV)/.mutate-installed: $(STAMP)
-	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/python -m pip install --quiet -e '.[dev,bench,mutate]'
+	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/python -m pip install --quiet -e '.[dev,bench,rl,mutate]'
 	touch $@
 
 mutate: $(VENV)/.mutate-installed

@@ -22,20 +22,32 @@ So the processes add nothing to the run's figures: its trajectory digest is
 ``swarm run --mode lockstep``'s (tests/system/test_engine.py). What depends
 on processes' timing is not here: a process too slow for the lockstep
 deadline, an agent frozen beyond the Zenoh lease, a logger.
+
+A caller may drive robots (the learning adapters, formation_swarm.gym):
+:meth:`Engine.observe` runs a tick up to the robots' answers, which
+:attr:`Engine.inputs` and :attr:`Engine.wheels` then show, and
+``step(actions)`` finishes it with the given wheel speeds in place of those
+robots' answers. Each follower's controller is watched (engine.drive) to
+keep its input; nothing else changes, so a run with no actions is the run.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import time
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from formation_swarm.agents.controller import FollowerInput
 from formation_swarm.common.faults import Fault
 from formation_swarm.engine import faults as engine_faults
 from formation_swarm.engine.agents import Agents
+from formation_swarm.engine.drive import Watched, checked_actions
 from formation_swarm.engine.result import EngineResult, result, world_stats
+from formation_swarm.protocol.messages import Command
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.spec.keys import ScenarioWarning
@@ -44,6 +56,7 @@ from formation_swarm.world.process_faults import FREEZE, KILL, THAW, Call
 from formation_swarm.world.tick import WorldTick
 
 FaultLike = Fault | str | Mapping[str, Any]
+Actions = Mapping[int, tuple[float, float]]  # robot id -> (left_mps, right_mps) for one tick
 DONE = {KILL: "killed", FREEZE: "frozen", THAW: "thawed"}  # the events of the calls, as swarm run names them
 
 
@@ -58,7 +71,8 @@ class Engine:
     fault that needs processes (a kill, any fault of the logger).
 
     ``step()`` runs one tick, ``run()`` runs to the end and returns the
-    :class:`EngineResult`; ``reset(seed)`` starts over."""
+    :class:`EngineResult`; ``reset(seed)`` starts over. ``observe()`` and
+    ``step(actions)`` drive robots (the module's docstring)."""
 
     def __init__(
         self,
@@ -92,14 +106,27 @@ class Engine:
                 warnings.simplefilter("ignore", ScenarioWarning)
                 self._sc = self._load(seed)
         sc = self._sc
+        if (old := getattr(self, "_agents", None)) is not None:
+            old.close()  # the last run's controllers and policy: the roles are built afresh
         self._world = WorldTick(sc, sc.seed, lockstep=True, wall_s=self._sim_s)
         self._agents = Agents(sc, sc.seed)
+        self._inputs: dict[int, FollowerInput] = {}  # each follower's input of the tick observed last
+        # The tick observed and not yet stepped: each robot's command as its role answered, the leader's codes.
+        self._open: tuple[dict[int, Command], list[bytes]] | None = None
         for rid in sc.robots:
-            self._agents.start(rid)
+            self._start(rid)
             self._world.agent_token(rid, True)
         self._events: list[dict[str, Any]] = []
         self._wall_s = 0.0  # spent stepping
         self._result: EngineResult | None = None
+
+    def _start(self, rid: int) -> str:
+        """A fresh agent for robot ``rid``, its controller watched if it is a follower's; its name."""
+        name = self._agents.start(rid)
+        role = self._agents.live[rid].role
+        if (law := getattr(role, "controller", None)) is not None:
+            role.controller = Watched(law, rid, self._inputs)
+        return name
 
     # -- what the run is -------------------------------------------------------------
     @property
@@ -131,24 +158,83 @@ class Engine:
         """Whether there is a tick to run: the duration not reached, the leader not done."""
         return self._world.running
 
+    @property
+    def end_reason(self) -> str | None:
+        """Why the run has ended (``leader_finished`` or ``duration_reached``); None while it runs."""
+        if self.running:
+            return None
+        return summary_mod.LEADER_FINISHED if self._world.leader_done else summary_mod.DURATION_REACHED
+
+    @property
+    def inputs(self) -> dict[int, FollowerInput]:
+        """What each follower's controller got at the tick observed last
+        (agents.controller.FollowerInput), by robot id: those whose controller
+        stepped (not one killed, frozen, failed, or whose observation was lost)."""
+        return dict(self._inputs)
+
+    @property
+    def wheels(self) -> dict[int, tuple[float, float]]:
+        """The wheel speeds (left_mps, right_mps) each robot answered the tick
+        observed and not yet stepped with, by robot id, as its own law gave
+        them; empty when no tick is open."""
+        if self._open is None:
+            return {}
+        return {rid: (cmd.left_mps, cmd.right_mps) for rid, cmd in self._open[0].items()}
+
+    def formation_errors(self) -> dict[int, float]:
+        """Each follower's formation error now, in m, by robot id: its distance
+        from its true virtual target (eq. 2 on the true poses, in the formation
+        it flies), the number world.metrics records for this tick."""
+        eng = self._world.engine
+        out = {}
+        for rid in self._sc.follower_ids:
+            x, y = eng.true_target(rid)
+            pose = eng.robots[rid].pose
+            out[rid] = math.hypot(x - pose.x_m, y - pose.y_m)
+        return out
+
     def _sim_s(self) -> float:
         """What the fault log records as wall time: the sim time (nothing here waits)."""
         return self._world.engine.time_s
 
     # -- the run ------------------------------------------------------------------------
-    def step(self) -> bool:
-        """Run one tick; whether the run goes on (False once it has ended:
-        then a step does nothing)."""
+    def observe(self) -> bool:
+        """Run the next tick up to the robots' answers, not yet taken by the
+        world: its fault calls, observations and answers (:attr:`inputs`,
+        :attr:`wheels`). Whether there is a tick (False once the run has
+        ended). Once per tick: observing an open tick again does nothing."""
         world = self._world
+        if self._open is not None:
+            return True
         if not world.running:
             return False
         t0 = time.perf_counter()
+        self._inputs.clear()
         world.start(self._sim_s())
         self._process_faults()
-        commands, codes = self._answers()
+        self._open = self._answers()
+        self._wall_s += time.perf_counter() - t0
+        return True
+
+    def step(self, actions: Actions | None = None) -> bool:
+        """Run one tick (the rest of it, after :meth:`observe`); whether the
+        run goes on (False once it has ended: then a step does nothing).
+        ``actions``: wheel speeds {robot id: (left_mps, right_mps)}, each
+        within robot.max_wheel_mps, in place of those robots' answers this
+        tick; a robot that did not answer it (killed, frozen, its observation
+        lost) takes none. ValueError for a robot or speeds that are not."""
+        given = {} if actions is None else checked_actions(actions, self._sc.robots, self._sc.max_wheel_mps)
+        if not self.observe() or self._open is None:
+            return False
+        world = self._world
+        t0 = time.perf_counter()
+        (commands, codes), self._open = self._open, None
+        for rid, (left, right) in given.items():
+            if rid in commands:
+                commands[rid] = dataclasses.replace(commands[rid], left_mps=left, right_mps=right)
         world.record()
-        for rid, payload in commands:
-            world.receive(rid, payload)
+        for rid, command in commands.items():
+            world.receive(rid, command.to_bytes())
         if waiting := world.waiting():  # no answer: the lockstep deadline passes, stopped for this step
             world.miss(waiting)
             self._agents.notes += [f"world: {line}" for line in world.stall(waiting)]
@@ -168,13 +254,25 @@ class Engine:
             reason = summary_mod.LEADER_FINISHED if world.leader_done else summary_mod.DURATION_REACHED
             stats = world_stats(world, end_reason=reason, ended_at_s=self.time_s, wall_s=self._wall_s)
             agents = self._agents
+            agents.close()  # as its processes close theirs when they stop: a close's failure is the run's
             self._result = result(self._sc, stats, agents.stats(), self._events, agents.notes)
         return self._result
 
-    def _answers(self) -> tuple[list[tuple[int, bytes]], list[bytes]]:
+    def close(self) -> None:
+        """Close the run's controllers and the leader's policy (their ``close()``),
+        as the end of ``run()`` and ``reset()`` do; once each. Also ``with Engine(...) as engine``."""
+        self._agents.close()
+
+    def __enter__(self) -> Engine:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
+    def _answers(self) -> tuple[dict[int, Command], list[bytes]]:
         """Each observed robot's command to the tick's observation, and the
-        leader's code (routed after the step), as bytes."""
-        agents, commands, codes = self._agents, [], []
+        leader's code (routed after the step) as bytes."""
+        agents, commands, codes = self._agents, {}, []
         for rid, obs in self._world.observations():
             if rid not in agents:  # no agent hears it (none is observed without one in lockstep)
                 continue
@@ -183,7 +281,7 @@ class Engine:
                 continue
             if answer.code is not None:
                 codes.append(answer.code.to_bytes())
-            commands.append((rid, answer.command.to_bytes()))
+            commands[rid] = answer.command
             agents.prepare(rid)
         return commands, codes
 
@@ -194,7 +292,7 @@ class Engine:
         world, agents = self._world, self._agents
         for call in world.calls_due():
             if (rid := world.apply_call(call)) is not None:  # a restart's "start": the world waits for it
-                self._event("started", agents.start(rid), call)
+                self._event("started", self._start(rid), call)
                 world.agent_token(rid, True)
             elif call.action == KILL and call.robot in agents:
                 self._event(DONE[KILL], agents.stop(call.robot), call)
