@@ -27,6 +27,10 @@ on a loaded machine:
   can pass on this machine, however lean the rest.
 - full: ``swarm run scenarios/fig11_obstacles.toml`` in lockstep with the
   logger writing its recording; the rate is the world's loop (ticks / wall s).
+- full with the wire recording (``swarm run --record-wire``): what
+  recording every message to ``wire.mcap`` costs (each process appends what
+  it receives to its spool; the launcher merges them after the run, outside
+  the measured loop).
 - full without the logger (``--no-logger``): what the recording costs.
 - full without authentication (every process a stranger, the router without
   access rules): what the logins and the router's rules cost.
@@ -42,6 +46,9 @@ each robot following the one ahead, as bench/scale.py): the bare exchange at
 N robots is what one process per robot costs before any of the paper's maths.
 
     python bench/lockstep.py [--repeat 3] [--ticks 3000] [--robots 3]
+
+bench/wire_cost.py measures the wire recording's cost alone (the full run
+without and with it, alternating), with more rounds in the same time.
 """
 
 from __future__ import annotations
@@ -258,7 +265,9 @@ def measure_bare(ticks: int, robots: int, lowlatency: bool = False, control: boo
     return rate, cpu / ticks
 
 
-def measure_full(duration_s: float, robots: int, logger: bool = True, auth: bool = True) -> tuple[float, dict]:
+def measure_full(
+    duration_s: float, robots: int, logger: bool = True, auth: bool = True, wire: bool = False
+) -> tuple[float, dict]:
     overrides: dict[str, object] = {"run.duration_s": duration_s, "leader.waypoints": [[0.0, 0.0], [0.0, 400.0]]}
     if robots != 3:
         overrides |= {"run.robots": robots, "leader.formation": "line"}
@@ -268,6 +277,7 @@ def measure_full(duration_s: float, robots: int, logger: bool = True, auth: bool
             ROOT / "scenarios" / "fig11_obstacles.toml",
             out=Path(tmp) / "run",
             logger=logger,
+            record_wire=wire,
             auth=auth,
             overrides=overrides,
             progress=lambda _l: None,
@@ -320,7 +330,7 @@ def main() -> None:
         else:
             bare_logger(ep, run, ll)
         return
-    bare, bare_ll, floor, full, quiet, open_ = [], [], [], [], [], []
+    bare, bare_ll, floor, full, quiet, open_, wired = [], [], [], [], [], [], []
     bare_cpu, floor_cpu, full_cpu = [], [], []
     n = args.robots
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}; {n} robots")
@@ -335,13 +345,15 @@ def main() -> None:
         rate, summary = measure_full(args.ticks * 0.05, n)
         full.append(rate)
         full_cpu.append(full_cpu_per_tick(summary))
+        wired.append(measure_full(args.ticks * 0.05, n, wire=True)[0])
         quiet.append(measure_full(args.ticks * 0.05, n, logger=False)[0])
         open_.append(measure_full(args.ticks * 0.05, n, auth=False)[0])
         print(
             f"  round {i + 1}: bare {bare[-1]:7.0f} ticks/s   bare low-latency {bare_ll[-1]:7.0f}   "
             f"bare + controller {floor[-1]:7.0f}   "
             f"full (controller + logger) {full[-1]:7.0f} ticks/s ({summary['ticks']} ticks, "
-            f"misses {summary['lockstep_misses']})   without the logger {quiet[-1]:7.0f} ticks/s   "
+            f"misses {summary['lockstep_misses']})   with the wire recording {wired[-1]:7.0f} ticks/s   "
+            f"without the logger {quiet[-1]:7.0f} ticks/s   "
             f"without authentication {open_[-1]:7.0f} ticks/s   "
             f"CPU per tick, all processes: bare {1e6 * bare_cpu[-1]:.0f} us, "
             f"bare + controller {1e6 * floor_cpu[-1]:.0f} us, full {1e6 * full_cpu[-1]:.0f} us",
@@ -354,6 +366,12 @@ def main() -> None:
         f"(full/bare {f / b:.2f}, full/bare low-latency {f / bl:.2f}), "
         f"without the logger {q:.0f} ticks/s ({q / b:.2f} of bare), "
         f"without authentication {o:.0f} ticks/s ({o / b:.2f} of bare)"
+    )
+    # The cost as the median of each round's ratio: the rounds run under different loads.
+    cost = statistics.median(1 - w / fr for w, fr in zip(wired, full, strict=True))
+    print(
+        f"the wire recording (--record-wire): full {f:.0f} ticks/s without it, {statistics.median(wired):.0f} "
+        f"with it: it costs {100 * cost:.0f}% of the lockstep rate (median of the rounds' ratios)"
     )
     print(
         f"bare + controller (no design of this shape passes it here): {fl:.0f} ticks/s, "

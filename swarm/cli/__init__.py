@@ -46,7 +46,7 @@ def build_parser() -> Parser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", title="commands")
     add_scenarios(sub)
     add_run(sub)
-    for name in ("report", "export", "compare", "sweep", "results"):
+    for name in ("report", "export", "compare", "sweep", "results", "replay"):
         sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
     add_sim(sub)
     add_check(sub)

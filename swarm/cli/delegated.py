@@ -19,6 +19,10 @@ DELEGATED = {
         "many lockstep runs of a scenario (seeds x parameter values), in parallel",
     ),
     "results": ("formation_swarm.studies.results", "recompute the baseline comparison table of docs/results.md"),
+    "replay": (
+        "formation_swarm.replay.cli",
+        "one robot of a run recorded with --record-wire, fed its inputs again and its commands compared",
+    ),
     "world": ("formation_swarm.nodes.world.main", "role: the world alone (physics, cameras, clock; a Zenoh router)"),
     "agent": ("formation_swarm.nodes.agent.main", "role: one robot's agent alone, a client of a router"),
     "logger": ("formation_swarm.nodes.logger.main", "role: the Rerun logger alone (to a file or a viewer)"),

@@ -77,6 +77,7 @@ def _launch(args: argparse.Namespace) -> Launch:
         out=args.out,
         overrides=overrides,
         logger=not args.no_logger,
+        record_wire=args.record_wire,
         live=args.live,
         serve_web=args.serve_web,
         kills=kills,
@@ -251,6 +252,13 @@ def _add_viewer_flags(run: argparse.ArgumentParser) -> None:
         "--no-logger",
         action="store_true",
         help="no logger process: no recording.rrd (so nothing for swarm report to draw), a little faster",
+    )
+    run.add_argument(
+        "--record-wire",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="every process spools the messages it receives and the run's end merges them into wire.mcap, "
+        "for swarm replay (default: on; about 2%% of the lockstep rate: docs/replay.md)",
     )
     run.add_argument(
         "--live",

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 import zenoh
 
 from formation_swarm.launch import external as external_mod
-from formation_swarm.launch import remote
+from formation_swarm.launch import mainguard, remote, result
 from formation_swarm.launch.console import print_result, progress_line, reachable_live
 from formation_swarm.launch.faults import FaultExecutor
 from formation_swarm.launch.hosts import HostOptions, Hosts
@@ -28,7 +28,7 @@ from formation_swarm.launch.logins import RunLogins
 from formation_swarm.launch.plan import SECRETS, KillAt, Plan, RunOptions
 from formation_swarm.launch.processes import Processes, wait_for_fork_server
 from formation_swarm.launch.record import Journal, StatusFeed, folder_gone, folder_identity
-from formation_swarm.launch.result import Ending, RunResult, end_reason, place_exits, processes_part
+from formation_swarm.launch.result import Ending, RunResult, end_reason, fetch_failed_logs, place_exits, processes_part
 from formation_swarm.launch.signals import stop_signals_noted
 from formation_swarm.nodes.logger import viewer
 from formation_swarm.protocol import acl
@@ -80,6 +80,7 @@ class Launch:
         self.port = 0
         self.logins: RunLogins | None = None  # the run's, once written (prepare)
         self.external: dict[int, external_mod.ExternalAgent] = {}  # robot -> what its outside agent needs (prepare)
+        self.outside: external_mod.Outside | None = None  # their tokens watched (start)
         self.session: zenoh.Session | None = None
         self.token: zenoh.LivelinessToken | None = None  # held: a dropped token is undeclared
         self._interrupt = threading.Event()  # interrupt(): another thread's Ctrl-C (a sweep's runs)
@@ -146,6 +147,8 @@ class Launch:
         """Spawn every process (once); on any failure (Ctrl-C included) reap what started."""
         if self.children:
             return
+        if self.plan.options.fork:  # its children import the main script again: refused unguarded
+            mainguard.check()
         try:
             self._start()
         except BaseException as exc:
@@ -206,6 +209,8 @@ class Launch:
         keys = Keys(self.run_id)
         self.session.declare_subscriber(keys.status, lambda s: self.status.put(s.payload.to_bytes()))
         self.session.declare_subscriber(keys.faults, lambda s: self.faults.put(s.payload.to_bytes()))
+        self.outside = external_mod.Outside(self.external, logins.settings, self.journal, keys)
+        self.outside.listen(self.session)
         # After the subscriber: with process faults the world waits for this token before tick 0.
         self.token = self.session.liveliness().declare_token(keys.alive("launcher", 0))
         if remote_agents:
@@ -261,6 +266,9 @@ class Launch:
             self.said_web = True
             self.journal.say(f"[swarm] watch the run in a browser: {viewer.web_address(*opts.web_ports)}")
         self.hosts.check_lost(t)
+        if self.outside is not None:
+            self.outside.look(self.status)
+        fetch_failed_logs(self.children, self.run_dir / "stats")
         self.procs.report_exits(t, started=self.status.last is not None, lost_hosts=self.hosts.lost)
 
     def wait(self, timeout_s: float | None = None) -> RunResult:
@@ -285,6 +293,8 @@ class Launch:
         parts = summary_mod.read_parts(self.run_dir / "stats")
         world_stats = parts.get("world", {})
         place_exits(self.journal.events, world_stats)
+        if self.outside is not None:  # its losses, and every robot's login a second session used
+            self.outside.settle(world_stats)
         events = self.journal.events
         lost = summary_mod.run_failed(parts, self.sc, events) or summary_mod.logger_lost(world_stats, events)
         if self.plan.external and (line := external_mod.gave_up(world_stats, events, self.plan)):
@@ -343,6 +353,7 @@ class Launch:
         with stop_signals_noted(self.interrupt):
             self.procs.stop(graceful_first, cut_short=self._interrupt.is_set)
             self.hosts.stop()
+            result.merge_wire(self.run_dir, self.journal.say)  # every receiver has left: its spool is whole
             if self.session is not None:
                 self.session.close()
                 self.session = None

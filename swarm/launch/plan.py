@@ -20,6 +20,7 @@ from formation_swarm.nodes.logger import viewer
 from formation_swarm.protocol import acl, trust
 from formation_swarm.protocol.hostmsg import HostRequest
 from formation_swarm.protocol.keys import Keys
+from formation_swarm.runtime.spool import path_for as spool_path
 from formation_swarm.spec import files as scenario_files
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.spec.keys import ScenarioWarning
@@ -68,6 +69,8 @@ class RunOptions:
     out: str | Path | None = None  # the run folder (runs/<run id> when None)
     overrides: Mapping[str, Any] | None = None  # scenario keys, e.g. {"leader.speed_mps": 1.6}
     logger: bool = True
+    # Every receiver spools what it takes, merged into wire.mcap (docs/replay.md): under 5% of the lockstep rate.
+    record_wire: bool = True
     live: str | None = None  # a Rerun viewer's URL the logger also streams to
     serve_web: bool = False
     web_ports: tuple[int, int] = (9876, 9090)  # (gRPC, web viewer), with serve_web
@@ -226,6 +229,8 @@ class Plan:
         """A fresh agent's command line: the first one's, with stats of its own."""
         out = list(argv)
         out[out.index("--stats") + 1] = str(self.run_dir / "stats" / f"{name}.json")
+        if "--wire-spool" in out:
+            out[out.index("--wire-spool") + 1] = str(spool_path(self.run_dir, name))
         return out
 
     def agent_request(self, name: str, scenario_text: str, logins: Mapping[str, Mapping[str, Any]]) -> HostRequest:
@@ -264,6 +269,9 @@ class Plan:
     def _stats(self, name: str) -> str:
         return str(self.run_dir / "stats" / f"{name}.json")
 
+    def _spool(self, name: str) -> list[str]:
+        return ["--wire-spool", str(spool_path(self.run_dir, name))] if self.options.record_wire else []
+
     def _world(self, endpoint: str, secrets: Mapping[str, Path], remote_agents: bool) -> list[str]:
         opts = self.options
         zenoh_role = (
@@ -278,6 +286,7 @@ class Plan:
             opts.mode,
             "--stats",
             self._stats("world"),
+            *self._spool("world"),
             *zenoh_role,
             *["--expect-logger"] * opts.logger,
             *["--process-faults"] * self.process_faults,
@@ -294,6 +303,7 @@ class Plan:
             *self._common(),
             "--out",
             str(self.run_dir / "recording.rrd"),
+            *self._spool("logger"),
             "--stats",
             self._stats("logger"),
             "--connect",
@@ -310,6 +320,7 @@ class Plan:
             *self._common(),
             "--stats",
             self._stats(f"agent-{rid}"),
+            *self._spool(f"agent-{rid}"),
             "--connect",
             endpoint,
             "--world-grace",

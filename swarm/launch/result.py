@@ -3,7 +3,8 @@ of its processes."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import struct
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -11,6 +12,7 @@ from typing import Any
 from formation_swarm.launch import remote
 from formation_swarm.protocol.messages import Status
 from formation_swarm.runtime import summary as summary_mod
+from formation_swarm.runtime import wirefile
 from formation_swarm.runtime.children import Child
 
 INTERRUPTED, TIMED_OUT = 130, 124  # exit codes, as a shell reports Ctrl-C and timeout(1)
@@ -71,6 +73,8 @@ def end_reason(
         return summary_mod.TIMED_OUT, reached
     if world_code == 0 and world.get("end_reason"):
         return world["end_reason"], world.get("ended_at_s")
+    if world.get("end_reason") == summary_mod.PEERS_TIMEOUT:  # the agents that left when it gave up: not the cause
+        return summary_mod.PEERS_TIMEOUT, None
     return summary_mod.ROLE_FAILED, reached
 
 
@@ -92,6 +96,25 @@ def place_exits(events: Sequence[dict[str, Any]], world: Mapping[str, Any]) -> N
         if place:  # a restarted agent's exits, in order, with its losses in order
             at = place.pop(0)
             e.update(tick=at.get("tick"), sim_time_s=at.get("time_s"), placed_by="the world")
+
+
+def fetch_failed_logs(children: Mapping[str, Child], stats: Path) -> None:
+    """The log of each agent on a host that ended with an error on its own,
+    fetched before its exit is told (its last lines on the console and in
+    its event): the logs of remote agents come here only at the run's end."""
+    for c in children.values():
+        on_its_own = not c.reported and c.stop_sent_at is None
+        if isinstance(c, remote.RemoteChild) and on_its_own and c.poll() not in (None, 0):
+            c.fetch(stats)  # a host lost or silent: the exit is told without the log, as before
+
+
+def merge_wire(run_dir: Path, say: Callable[[str], None]) -> None:
+    """The receivers' spools merged into the run's wire.mcap (runtime.wirefile);
+    a merge that fails leaves them, said in one line: swarm replay merges them later."""
+    try:
+        wirefile.merge_spools(run_dir, say)
+    except (OSError, ValueError, struct.error) as exc:  # a full disk; a scenario.toml gone; a field mcap cannot hold
+        say(f"[swarm] cannot merge the wire spools of {run_dir} into {wirefile.FILE_NAME}: {exc}")
 
 
 def processes_part(children: Mapping[str, Child], lost_hosts: Sequence[str]) -> dict[str, dict[str, Any]]:

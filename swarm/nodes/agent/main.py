@@ -15,6 +15,7 @@ from formation_swarm.nodes.agent.setup import role_for
 from formation_swarm.protocol import acl, session
 from formation_swarm.runtime import cliargs
 from formation_swarm.runtime import process as process_mod
+from formation_swarm.runtime import spool as spool_mod
 from formation_swarm.runtime.proc import SEND_DRAIN_S, exit_after_main, wait_sent
 
 DESCRIPTION = """\
@@ -39,6 +40,7 @@ def build_parser() -> cliargs.Parser:
     )
     ap.add_argument("--id", type=int, required=True, metavar="N", help="the robot id, one of the scenario's robots")
     cliargs.add_run_arguments(ap, seeds="the link drops and link faults", stats="this agent's counters")
+    spool_mod.add_arguments(ap)
     ap.add_argument(
         "--lockstep",
         action="store_true",
@@ -74,7 +76,14 @@ def main(argv: list[str] | None = None) -> int:
     where = process_mod.describe_session(args)
     with sess_cm as sess:
         grace = args.peers_timeout if args.world_grace is None else args.world_grace
-        opts = Options(run_id=args.run, where=where, world_grace_s=grace, stats_path=args.stats, lockstep=args.lockstep)
+        opts = Options(
+            run_id=args.run,
+            where=where,
+            world_grace_s=grace,
+            stats_path=args.stats,
+            lockstep=args.lockstep,
+            wire_spool=args.wire_spool,
+        )
         agent = Agent(sess, sc, role_for(sc, args.id, seed), role, opts)
         waits = "the world and its followers" if agent.brain.SENDS_CODES else "the world"
         part = agent.brain.describe()

@@ -12,6 +12,7 @@ from formation_swarm.agents.role_base import Answer, RoleBase
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import FormationCode, Observation
+from formation_swarm.runtime.spool import SpoolWriter
 
 # Telemetry is for the logger only. Up to TELEMETRY_BATCH_ABOVE robots each
 # tick's goes out at once (protocol.batch's 20 ms window); beyond, a follower
@@ -28,25 +29,34 @@ class Router:
     is counted in the role's rejections and dropped: a key that is not this
     robot's, a kind the role does not take, a payload that does not decode."""
 
-    def __init__(self, keys: Keys, role: RoleBase) -> None:
+    def __init__(self, keys: Keys, role: RoleBase, spool: SpoolWriter | None = None) -> None:
         self.keys = keys
         self.role = role
+        self.spool = spool  # every message taken, for the wire recording (None: not kept)
         # Compared with every inbox message's key: built once.
         self.codes_key = keys.codes
         self.obs_key = keys.obs(role.robot_id)
 
     def take(self, key: str, payload: bytes) -> None:
-        role, rejections = self.role, self.role.rejections
+        role, rejections, spool = self.role, self.role.rejections, self.spool
         if key == self.obs_key:  # every tick's: its key need not be taken apart
-            if (obs := rejections.decode(Observation, payload)) is not None:
+            obs = rejections.decode(Observation, payload)
+            if spool is not None:  # as decoded: its tick and seq, never a second decode
+                spool.add(key, payload, *((None, None) if obs is None else (obs.tick, obs.seq)))
+            if obs is not None:
                 role.take_observation(obs)
             return
         if key == self.codes_key:
+            fc = rejections.decode(FormationCode, payload) if role.TAKES_CODES else None
+            if spool is not None:
+                spool.add(key, payload, *((None, None) if fc is None else (fc.tick, fc.seq)))
             if not role.TAKES_CODES:
                 rejections.reject("unexpected key")
-            elif (fc := rejections.decode(FormationCode, payload)) is not None:
+            elif fc is not None:
                 role.take_code(fc)
             return
+        if spool is not None:  # refused below, but it reached the inbox: kept as it came
+            spool.add(key, payload)
         rk = self.keys.parse_robot(key)  # another of this robot's keys (not its obs), or none of it
         if rk is None or rk.robot_id != role.robot_id:
             rejections.reject("unknown key")

@@ -1,18 +1,17 @@
 """The logger process: the run's key space streamed to Rerun (formation_swarm.nodes.logger.recorder).
 
     swarm logger --scenario S.toml --run RUN --out recording.rrd [--live URL] [--serve-web]
-                 [--stats FILE] [--peers-timeout S] --connect ENDPOINT
+                 [--wire-spool FILE] [--stats FILE] [--peers-timeout S] --connect ENDPOINT
 
 The recording file is complete whatever live outputs are added: they are fed
 by a second Rerun stream, which is never waited on while the run lasts
 (formation_swarm.nodes.logger.recording.Recording).
 
-It subscribes to the world's keys, to every follower's telemetry and to
-the leader's formation codes (one put every 10 ticks: the leader's switches,
-for the event log), not to observations and commands (they would double the
-router's work for nothing), holds a liveliness token the world waits for,
-and watches the world's token: it gives up when the world has not appeared
-within ``--peers-timeout`` and ends when the world says "done" or leaves.
+It subscribes to the world's keys, every follower's telemetry and the leader's
+codes (its switches, for the event log); with ``--wire-spool`` it appends each
+to its spool (runtime.spool). It holds a token the world waits
+for and watches the world's: it gives up when the world has not appeared within
+``--peers-timeout`` and ends when the world says "done" or leaves.
 
 Data is buffered and sent as columns every 0.25 s of wall time (beyond 12
 robots every 0.02 s per robot: 2 s for 100) and the file is flushed every
@@ -45,6 +44,7 @@ from formation_swarm.protocol.keys import Keys
 from formation_swarm.protocol.messages import FaultCall, FormationCode, Status, Telemetry, Truth
 from formation_swarm.runtime import cliargs
 from formation_swarm.runtime import process as process_mod
+from formation_swarm.runtime import spool as spool_mod
 from formation_swarm.runtime.proc import exit_after_main, write_json
 from formation_swarm.spec import scenario as scenario_mod
 
@@ -83,6 +83,7 @@ class Logger:
         role: process_mod.Process,
         *,
         where: str = "",
+        wire: spool_mod.SpoolWriter | None = None,
     ) -> None:
         self.session = sess
         self.sc = sc
@@ -93,7 +94,8 @@ class Logger:
         self.where = where  # the session's endpoints, for messages
         self.wake = threading.Event()  # set by a stop, the run's status, a stream's end or the world's token
         self.stop.add_waker(self.wake.set)
-        self.inbox: queue.SimpleQueue[tuple[str, bytes]] = queue.SimpleQueue()
+        self.wire = wire  # every message taken, spooled for wire.mcap (None: not recorded)
+        self.inbox: queue.SimpleQueue[tuple[str, bytes, int]] = queue.SimpleQueue()
         self.rejections = Rejections()
         self.peers = Peers()
         self.counts = {"truth": 0, "telemetry": 0, "fault_calls": 0, "other": 0}
@@ -106,7 +108,7 @@ class Logger:
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         key, payload = str(sample.key_expr), sample.payload.to_bytes()
-        self.inbox.put((key, payload))
+        self.inbox.put((key, payload, time.time_ns()))  # received now: the wire recording's publish time
         if key == self.keys.status or payload == END_OF_STREAM:
             self.wake.set()  # the end of the run is handled at once, the rest per send
 
@@ -120,12 +122,14 @@ class Logger:
         self.peers.world(present=sample.kind == zenoh.SampleKind.PUT)
         self.wake.set()
 
+    def _subscribe(self) -> None:
+        for key in (self.keys.world_all, self.keys.all_telemetry, self.keys.codes):
+            self.session.declare_subscriber(key, self._on_sample)
+
     def run(self) -> int:
         s, k = self.session, self.keys
         self.recorder.log_static()
-        s.declare_subscriber(k.world_all, self._on_sample)
-        s.declare_subscriber(k.all_telemetry, self._on_sample)
-        s.declare_subscriber(k.codes, self._on_sample)
+        self._subscribe()
         s.liveliness().declare_subscriber(k.alive("world", 0), self._on_world_alive, history=True)
         # Its token goes after its last telemetry (same link, in order): a follower
         # gone has nothing more on its way.
@@ -168,6 +172,8 @@ class Logger:
                     last_send = now
                 if now - last_flush >= FLUSH_PERIOD_S:
                     self.recorder.flush(timeout_s=0.2)
+                    if self.wire is not None:
+                        self.wire.flush()
                     last_flush = now
             # Handle what already arrived, then close the file properly.
             self._drain()
@@ -183,11 +189,15 @@ class Logger:
         return code
 
     def _drain(self) -> None:
+        wire = self.wire
         while True:
             try:
-                self._handle(*self.inbox.get_nowait())
+                key, payload, received_ns = self.inbox.get_nowait()
             except queue.Empty:
                 return
+            self._handle(key, payload)
+            if wire is not None:  # at the logger's sim time: the newest truth tick it has taken
+                wire.add(key, payload, self.ticks.last.get(WORLD_ID), received_ns=received_ns)
 
     def _handle(self, key: str, payload: bytes) -> None:
         rk = self.keys.parse_robot(key)
@@ -244,6 +254,7 @@ class Logger:
     def stats(self) -> dict[str, Any]:
         recorded = self.recorder.stats()
         return {
+            "wire": None if self.wire is None else self.wire.stats(),
             "messages": {**self.counts, **self.recorder.counts},
             "last_sim_time_s": recorded["last_sim_time_s"],
             "target_errors": recorded["target_errors"],
@@ -284,6 +295,7 @@ def build_parser() -> cliargs.Parser:
     )
     cliargs.add_run_arguments(ap, seeds=None, stats="the logger's counters")
     ap.add_argument("--out", required=True, metavar="FILE", help="the Rerun recording to write (.rrd)")
+    spool_mod.add_arguments(ap)
     ap.add_argument(
         "--live", metavar="URL", help="also stream to a Rerun viewer, e.g. rerun+http://127.0.0.1:9876/proxy"
     )
@@ -304,6 +316,24 @@ def build_parser() -> cliargs.Parser:
     process_mod.add_arguments(ap, waits_for="the world")
     session.add_arguments(ap, default_mode="client")
     return ap
+
+
+def _serve(
+    args: Any, sc: scenario_mod.Scenario, rec: Any, role: process_mod.Process, wire: spool_mod.SpoolWriter | None
+) -> tuple[int, Logger] | int:
+    """The logger's loop in its session: its exit code and the logger, or the code of a session that did not open."""
+    sess_cm = role.connect(args, login="logger")
+    if isinstance(sess_cm, int):
+        return sess_cm
+    where = process_mod.describe_session(args)
+    with sess_cm as sess:
+        role.say(
+            f"{where}; run {args.run}: recording to {args.out}; waiting up to {role.peers_timeout_s:g} s for the world"
+        )
+        logger = Logger(sess, sc, args.run, Recorder(rec, sc), role, where=where, wire=wire)
+        code = logger.run()
+        write_json(args.stats, logger.stats())
+    return code, logger
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -328,17 +358,20 @@ def main(argv: list[str] | None = None) -> int:
         role.say(f"{rec.dropped}: not streaming there; the run is recorded to {args.out} only")
     if rec.web:
         role.say(f"web viewer: {rec.web}")
-    sess_cm = role.connect(args, login="logger")
-    if isinstance(sess_cm, int):
-        return sess_cm
-    where = process_mod.describe_session(args)
-    with sess_cm as sess:
-        role.say(
-            f"{where}; run {args.run}: recording to {args.out}; waiting up to {role.peers_timeout_s:g} s for the world"
-        )
-        logger = Logger(sess, sc, args.run, Recorder(rec, sc), role, where=where)
-        code = logger.run()
-        write_json(args.stats, logger.stats())
+    try:
+        wire = spool_mod.open_spool(args, role.complain)
+    except OSError as exc:
+        role.complain(f"cannot spool the wire to {args.wire_spool}: {exc}")
+        rec.close()
+        return process_mod.EXIT_FAILED
+    try:
+        served = _serve(args, sc, rec, role, wire)
+    finally:
+        if wire is not None:  # what it buffers, whatever ended the loop (a stop signal included)
+            wire.close()
+    if isinstance(served, int):
+        return served
+    code, logger = served
     delivered = rec.close()
     if code != process_mod.EXIT_NO_PEERS:
         written = f"stats in {args.stats}" if args.stats else "no --stats: counters not written"

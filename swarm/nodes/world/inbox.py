@@ -16,10 +16,12 @@ import math
 import threading
 import time
 from collections.abc import Callable
+from typing import Any
 
 import zenoh
 
 from formation_swarm.protocol.keys import Keys
+from formation_swarm.runtime.spool import SpoolWriter
 
 # Lockstep holds at most one command per robot here; when full, Zenoh waits
 # for the loop (back-pressure) rather than dropping.
@@ -78,15 +80,22 @@ class Inbox:
         robots: tuple[int, ...],
         on_command: Callable[[int | None, bytes], None],
         on_alive: Callable[[str, bool], None],
+        *,
+        spool: SpoolWriter | None = None,
     ) -> None:
         self.keys = keys
+        self.spool = spool  # each command as taken, for the wire recording, at the world's tick (None: not kept)
+        self.engine: Any = None  # the world's engine, for its tick (set with a spool)
         self.on_command = on_command
         self.on_alive = on_alive
         self.wakes = 0  # deadlines, clock ticks, liveliness, stop: not commands
         self.events: collections.deque[tuple[str, bool]] = collections.deque()  # liveliness, from its callback
         self.cmd_ids = {keys.cmd(rid): rid for rid in robots}  # each robot's command key, parsed once
         block = zenoh.CongestionControl.BLOCK
-        self.wake_pub = sess.declare_publisher(keys.world_wake, congestion_control=block)
+        # Its own wake-ups stay in its session: no other process hears them, logins or not.
+        self.wake_pub = sess.declare_publisher(
+            keys.world_wake, congestion_control=block, allowed_destination=zenoh.Locality.SESSION_LOCAL
+        )
         self.cmds = sess.declare_subscriber(keys.all_cmd, zenoh.handlers.FifoChannel(CMD_CAPACITY))
         self.alarm = Alarm(self.wake)
 
@@ -98,6 +107,11 @@ class Inbox:
     def wake(self) -> None:
         with contextlib.suppress(zenoh.ZError):  # a stop signal may come after the session closed
             self.wake_pub.put(b"")
+
+    def notify(self, key: str) -> None:
+        """An event of the world's own (not a token) for ``on_alive``, as a token's going."""
+        self.events.append((key, False))
+        self.wake()
 
     # -- the loop's side -----------------------------------------------------------
     def drain(self, until: float) -> None:
@@ -123,7 +137,10 @@ class Inbox:
                 return
             rk = self.keys.parse_robot(key)
             rid = None if rk is None else rk.robot_id
-        self.on_command(rid, sample.payload.to_bytes())
+        payload = sample.payload.to_bytes()
+        if self.spool is not None:
+            self.spool.add(key, payload, None if self.engine is None else self.engine.tick)
+        self.on_command(rid, payload)
 
     def close(self) -> None:
         self.alarm.close()

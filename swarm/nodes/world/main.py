@@ -35,6 +35,7 @@ from formation_swarm.nodes.world.node import Options, World
 from formation_swarm.protocol import session
 from formation_swarm.runtime import cliargs, proc
 from formation_swarm.runtime import process as process_mod
+from formation_swarm.runtime import spool as spool_mod
 from formation_swarm.runtime import summary as summary_mod
 from formation_swarm.runtime.proc import exit_after_main, write_json
 from formation_swarm.spec import files as scenario_files
@@ -67,6 +68,7 @@ def build_parser() -> cliargs.Parser:
         epilog=process_mod.EXIT_CODES_HELP,
     )
     cliargs.add_run_arguments(ap, seeds="camera noise, link drops and the faults' draws", stats="the world's metrics")
+    spool_mod.add_arguments(ap)
     ap.add_argument(
         "--mode",
         choices=("lockstep", "realtime"),
@@ -133,9 +135,10 @@ def main(argv: list[str] | None = None) -> int:
             expect_logger=args.expect_logger,
             executor=args.process_faults,
             where=where,
+            logins=args.zenoh_mode == "router" and bool(args.auth),  # it sees sessions close: nodes.world.sessions
         )
         world = World(sess, sc, role, opts)
-        code = world.run()
+        code = _run_spooled(args, role, world)
         if code == process_mod.EXIT_DUPLICATE:
             return code  # the run's stats and summary are the other world's: nothing written over them
         stats = world.stats(time.monotonic() - started)
@@ -148,18 +151,37 @@ def main(argv: list[str] | None = None) -> int:
                 role.complain(f"cannot write {exc.filename or args.stats}: {exc.strerror or exc}")
             return process_mod.EXIT_FAILED
         if code == process_mod.EXIT_NO_PEERS:
-            heard = world.peers.agents_seen or world.peers.logger_seen or world.peers.executor_seen
-            if args.auth and args.zenoh_mode == "client" and not heard and not all(map(session.loopback, args.connect)):
-                role.complain(
-                    "it heard no process of the run at all: a world's login from swarm secure is granted over "
-                    "the router's loopback only, so connect it to 127.0.0.1 on the router's machine (or make "
-                    "the logins with --world-anywhere)"
-                )
+            _heard_nobody(args, role, world)
             return code  # the lines that gave up were the last word
         role.say(
             f"run {args.run} ended ({_why(role, world)}), exit code {code}, {world.tick.engine.tick} ticks; {written}"
         )
     return code
+
+
+def _run_spooled(args: argparse.Namespace, role: process_mod.Process, world: World) -> int:
+    """The world's loop, with what it receives spooled (--wire-spool): its exit code."""
+    try:
+        world.spool = spool_mod.open_spool(args, role.complain)
+    except OSError as exc:
+        role.complain(f"cannot spool the wire to {args.wire_spool}: {exc}")
+        return process_mod.EXIT_FAILED
+    try:
+        return world.run()
+    finally:
+        if world.spool is not None:  # what it buffers, whatever ended the loop (a stop signal included)
+            world.spool.close()
+
+
+def _heard_nobody(args: argparse.Namespace, role: process_mod.Process, world: World) -> None:
+    """After the wait for peers gave up: the likely cause, when no process of the run was heard at all."""
+    heard = world.peers.agents_seen or world.peers.logger_seen or world.peers.executor_seen
+    if args.auth and args.zenoh_mode == "client" and not heard and not all(map(session.loopback, args.connect)):
+        role.complain(
+            "it heard no process of the run at all: a world's login from swarm secure is granted over "
+            "the router's loopback only, so connect it to 127.0.0.1 on the router's machine (or make "
+            "the logins with --world-anywhere)"
+        )
 
 
 def _scenario(args: argparse.Namespace, role: process_mod.Process) -> scenario_mod.Scenario | int:
