@@ -54,7 +54,12 @@ def check_values(raw: Any) -> None:
         elif isinstance(value, bool):
             continue
         elif isinstance(value, float) and not math.isfinite(value):
-            raise ScenarioError(f"{where} must be a finite number, got {value!r}", key=where, value=value)
+            # TOML reads a bare nan or inf as a number: for a string it must be quoted.
+            raise ScenarioError(
+                f'{where} must be a finite number, got {value!r} (as a string, quote it: "{value!r}")',
+                key=where,
+                value=value,
+            )
         elif isinstance(value, int) and not INT_MIN <= value <= INT_MAX:
             raise ScenarioError(
                 f"{where} must be an integer in [-2**63, 2**63 - 1] (64 bits), got one of {value.bit_length()} bits",

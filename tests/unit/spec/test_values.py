@@ -66,6 +66,7 @@ def test_a_number_that_is_not_finite_is_refused_wherever_it_is(overrides: dict[s
     assert err.key == key
     assert not math.isfinite(err.value)
     assert f"{key} must be a finite number, got {err.value!r}" in str(err)
+    assert str(err).endswith(f'(as a string, quote it: "{err.value!r}")')  # a bare nan or inf is TOML's number
 
 
 @pytest.mark.parametrize(
