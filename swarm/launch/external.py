@@ -168,7 +168,12 @@ class Outside:
                 self.journal.say(f"[swarm] robot {rid}'s outside agent connected: its login file is deleted")
             elif not present and not status.done:
                 again = "" if agent.login is None else self._write_again(agent.login, rid)
-                when = f"the world's last status: sim t={t:.2f} s" if t >= 0 else "before the run started"
+                # The launcher hears the token go after the world has; the summary places it at the world's tick.
+                when = (
+                    f"noticed at sim t={t:.2f} s; the summary gives the world's tick"
+                    if t >= 0
+                    else "before the run started"
+                )
                 self.journal.add(LEFT, robot=rid, sim_time_s=t, wall_s=wall)
                 self.journal.say(f"[swarm] robot {rid}'s outside agent left ({when}): its token went{again}")
 

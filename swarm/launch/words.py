@@ -55,8 +55,8 @@ def describe_event(ev: Mapping[str, Any]) -> str:
         tick = f" (tick {ev['tick']})" if isinstance(ev.get("tick"), int) else ""
         why = f"'{ev['fault']}'" if ev.get("fault") else "fault injection"
         return f"{ev['event']} {ev.get('process')} {when}{tick} ({why})"
-    if (host := _describe_host_event(ev)) is not None:
-        return host
+    if (said := _describe_host_event(ev) or _describe_login_event(ev, when)) is not None:
+        return said
     if ev.get("event") == "exited" and ev.get("host_lost"):  # its exit code stayed on that host
         return f"{ev.get('process')} lost with host {ev['host_lost']} {when}"
     if ev.get("event") == "not fetched":  # a remote agent's log and stats, at the run's end
@@ -69,6 +69,19 @@ def describe_event(ev: Mapping[str, Any]) -> str:
         tick = f" (tick {ev['tick']})" if isinstance(ev.get("tick"), int) else ""
         return f"{ev.get('process')} {describe_exit(ev['code'])} {when}{tick}"
     return ", ".join(f"{k} {v}" for k, v in ev.items() if k != "log_tail")
+
+
+def _describe_login_event(ev: Mapping[str, Any], when: str) -> str | None:
+    """An outside agent's coming and going, a robot's login used twice, as a sentence; None for any other event."""
+    robot = ev.get("robot")
+    if ev.get("event") in ("outside agent connected", "outside agent left"):  # launch.external's
+        return f"robot {robot}'s {ev['event']} {when}"
+    if ev.get("event") == "robot login used twice":  # launch.logins'
+        if ev.get("kept_token"):
+            return f"robot {robot}'s login ({ev.get('login')}) used by a second session, which kept its token {when}"
+        refused = ev.get("answers_refused")
+        return f"robot {robot}'s login ({ev.get('login')}) used by a second session: {refused} answers refused"
+    return None
 
 
 def _describe_host_event(ev: Mapping[str, Any]) -> str | None:

@@ -4,6 +4,7 @@ waited for in vain, the second sessions it saw, the losses it counted."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -84,3 +85,18 @@ def test_a_loss_a_second_session_hid_from_the_tokens_is_added_and_said(tmp_path:
     assert [(e["event"], e.get("tick")) for e in outside.journal.events] == [(USED_TWICE, 44), (LEFT, 81)]
     assert len(lines) == 2
     assert "kept its token" in lines[1]
+
+
+def test_outside_and_login_events_read_as_sentences_with_their_numbers() -> None:
+    from formation_swarm.launch.words import describe_event
+
+    came = describe_event({"event": "outside agent connected", "robot": 3, "sim_time_s": 39.400000000000006})
+    twice = describe_event({"event": "robot login used twice", "robot": 3, "login": "agent-3", "answers_refused": 158})
+    kept = describe_event(
+        {"event": "robot login used twice", "robot": 2, "login": "agent-2", "kept_token": True, "sim_time_s": 2.0}
+    )
+    assert re.findall(r"\d+(?:\.\d+)?", came) == ["3", "39.40"]  # rounded as every event's time is
+    assert "event" not in came
+    assert re.findall(r"\d+", twice) == ["3", "3", "158"]
+    assert "kept its token" in kept
+    assert re.findall(r"\d+(?:\.\d+)?", kept) == ["2", "2", "2.00"]
