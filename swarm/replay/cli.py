@@ -6,6 +6,7 @@ same inputs, and a figure of both wheel-speed series (replay.figure)."""
 
 from __future__ import annotations
 
+import re
 import sys
 import time
 from collections.abc import Callable
@@ -74,7 +75,9 @@ def build_parser() -> Parser:
         help="a what-if: this scenario key changed for the replayed role (repeatable), e.g. controller.law=lpsi",
     )
     ap.add_argument(
-        "--out", metavar="FILE", help="the figure's file (PNG; default: RUN/replay/robot-N.png, or -whatif with --set)"
+        "--out",
+        metavar="FILE",
+        help="the figure's file (PNG; default: RUN/replay/robot-N.png, or robot-N-whatif-SETTINGS.png with --set)",
     )
     return ap
 
@@ -166,7 +169,8 @@ def report(job: Job, replayed: Replayed, cmp: Comparison) -> list[str]:
 def _figure_path(job: Job, out: str | None) -> Path:
     if out:
         return Path(out)
-    tail = "-whatif" if job.what_if else ""
+    # Each what-if its own file: the settings, made safe for a file name.
+    tail = ("-whatif-" + re.sub(r"[^\w.=+-]+", "_", "_".join(job.what_if))[:80]) if job.what_if else ""
     return job.run_dir / "replay" / f"robot-{job.inputs.robot_id}{tail}.png"
 
 

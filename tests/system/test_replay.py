@@ -102,7 +102,7 @@ def test_a_law_changed_at_one_step_differs_from_that_tick(
     # The law unchanged (its step never reached): identical, and as a what-if it draws both series.
     assert _compared(lockstep.run_dir, 2, law, "controller.params.at_step=100000").identical
     assert _replay(capsys, *argv, "--set", "controller.params.at_step=100000")[0] == 0
-    assert (lockstep.run_dir / "replay" / "robot-2-whatif.png").is_file()
+    assert (lockstep.run_dir / "replay" / "robot-2-whatif-controller.params.at_step=100000.png").is_file()
 
 
 def test_bad_input_is_one_line_exit_2_and_nothing_written(
