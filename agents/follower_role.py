@@ -86,11 +86,7 @@ class FollowerRole(RoleBase):
         self.formation_changes: list[dict[str, Any]] = []
         self.stops = Stops()
         self.ekf_resets = 0
-        cls = type(controller)
-        self.law = law or f"{cls.__module__}:{cls.__qualname__}"  # for the failure's report
-        self.failure: dict[str, Any] | None = None  # the controller's failure: tick, error, law
-        self._close = hooks.bound(controller, "close")  # optional (agents.hooks)
-        self._closed = False
+        self._hooked(controller, law)
         self._unsent: set[str] = set()  # telemetry names said not to fit the wire
 
     @property
@@ -195,15 +191,6 @@ class FollowerRole(RoleBase):
         """The controller failed at ``tick``: the robot stops for the rest of the run."""
         self.failure, note = hooks.failure(tick, exc, self.law, self.robot_id)
         self.notes.append(note)
-
-    def close(self) -> None:
-        """The controller's ``close()``, once, even after a failure (agents.hooks):
-        what it raises is its failure, unless it failed before."""
-        if not self._closed:
-            self._closed = True
-            if (failed := hooks.close(self._close, self.law, self.last_tick or 0)) is not None:
-                self.failure = self.failure or failed[0]
-                self.notes.append(failed[1])
 
     def _fly_due_codes(self, tick: int) -> None:
         """The codes stamped before ``tick``, in the order of their ticks (then seqs)."""

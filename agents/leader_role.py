@@ -34,11 +34,7 @@ class LeaderRole(RoleBase):
     def __init__(self, setup: RoleSetup, policy: LeaderPolicy, law: str | None = None) -> None:
         super().__init__(setup)
         self.policy = policy
-        cls = type(policy)
-        self.law = law or f"{cls.__module__}:{cls.__qualname__}"  # the policy by name, for a failure's report
-        self.failure: dict[str, Any] | None = None  # the policy's failure: tick, error, law
-        self._close = hooks.bound(policy, "close")  # optional (agents.hooks)
-        self._closed = False
+        self._hooked(policy, law)
 
     def answer(self) -> Answer | None:
         got = self.inbox.pop()
@@ -79,15 +75,6 @@ class LeaderRole(RoleBase):
             if (note := self.step_times.first_slow(f"policy {self.law}", tick)) is not None:
                 self.notes.append(note)
         return move
-
-    def close(self) -> None:
-        """The policy's ``close()``, once, even after a failure (agents.hooks):
-        what it raises is its failure, unless it failed before."""
-        if not self._closed:
-            self._closed = True
-            if (failed := hooks.close(self._close, self.law, self.last_tick or 0)) is not None:
-                self.failure = self.failure or failed[0]
-                self.notes.append(failed[1])
 
     def stats(self) -> dict[str, Any]:
         # A follower's counters, none of which the leader has.

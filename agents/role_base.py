@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from formation_swarm.agents import hooks
 from formation_swarm.agents.formation import Formation
 from formation_swarm.agents.inbox import InboxChecks, ObservationInbox
 from formation_swarm.agents.step_times import StepTimes
@@ -87,8 +88,23 @@ class RoleBase:
     def prepare(self) -> None:
         """Called once the answer is sent, while the robot waits for its next observation."""
 
+    def _hooked(self, stepper: Any, law: str | None) -> None:
+        """What decides the role's steps (a controller, a policy): its name, for a
+        failure's report, no failure yet, and its optional ``close()`` (agents.hooks)."""
+        cls = type(stepper)
+        self.law = law or f"{cls.__module__}:{cls.__qualname__}"
+        self.failure: dict[str, Any] | None = None  # tick, error, law
+        self._close = hooks.bound(stepper, "close")
+        self._closed = False
+
     def close(self) -> None:
-        """Called once when the agent stops: its controller's or policy's ``close()`` (agents.hooks)."""
+        """Called once when the agent stops: the controller's or policy's ``close()``,
+        once, even after a failure; what it raises is its failure, unless it failed before."""
+        if not self._closed:
+            self._closed = True
+            if (failed := hooks.close(self._close, self.law, self.last_tick or 0)) is not None:
+                self.failure = self.failure or failed[0]
+                self.notes.append(failed[1])
 
     def describe(self) -> str:
         return self.NAME
