@@ -6,6 +6,7 @@ same inputs, and a figure of both wheel-speed series (replay.figure)."""
 
 from __future__ import annotations
 
+import hashlib
 import re
 import sys
 import time
@@ -169,8 +170,11 @@ def report(job: Job, replayed: Replayed, cmp: Comparison) -> list[str]:
 def _figure_path(job: Job, out: str | None) -> Path:
     if out:
         return Path(out)
-    # Each what-if its own file: the settings, made safe for a file name.
-    tail = ("-whatif-" + re.sub(r"[^\w.=+-]+", "_", "_".join(job.what_if))[:80]) if job.what_if else ""
+    # Each what-if its own file: its settings, made safe for a file name; a long list shortened and hashed.
+    slug = re.sub(r"[^\w.=+-]+", "_", ",".join(job.what_if))
+    if len(slug) > 60:
+        slug = f"{slug[:48]}-{hashlib.sha256(slug.encode()).hexdigest()[:8]}"
+    tail = f"-whatif-{slug}" if job.what_if else ""
     return job.run_dir / "replay" / f"robot-{job.inputs.robot_id}{tail}.png"
 
 

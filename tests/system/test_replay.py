@@ -8,6 +8,7 @@ spools were not merged (its launcher killed) is merged first."""
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -101,8 +102,12 @@ def test_a_law_changed_at_one_step_differs_from_that_tick(
     assert fig.stat().st_size > 10_000
     # The law unchanged (its step never reached): identical, and as a what-if it draws both series.
     assert _compared(lockstep.run_dir, 2, law, "controller.params.at_step=100000").identical
-    assert _replay(capsys, *argv, "--set", "controller.params.at_step=100000")[0] == 0
-    assert (lockstep.run_dir / "replay" / "robot-2-whatif-controller.params.at_step=100000.png").is_file()
+    code, out, _ = _replay(capsys, *argv, "--set", "controller.params.at_step=100000")
+    assert code == 0
+    (drawn,) = re.findall(r"figure: (.+)", out)
+    assert Path(drawn).is_file()
+    assert Path(drawn) != fig  # each what-if its own file
+    assert Path(drawn).name.startswith("robot-2-whatif-controller.law=tests.helpers.replay_laws")
 
 
 def test_bad_input_is_one_line_exit_2_and_nothing_written(
