@@ -223,6 +223,8 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
             viewer = shutil.which("rerun") or str(Path(sys.executable).parent / "rerun")
             cut = " (cut short: see above)" if s.get("recording_cut") else ""
             w(f"  recording: {res.recording}{cut}\n  open it:   {viewer} {res.recording}\n")
+    if (wire := res.run_dir / "wire.mcap").is_file():  # every message, for swarm replay and Foxglove
+        w(f"  messages:  {wire} (swarm replay {res.run_dir} --robot N)\n")
 
 
 def _kills(s: Mapping[str, Any]) -> dict[str, tuple[Any, ...]]:

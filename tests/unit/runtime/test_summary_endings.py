@@ -103,3 +103,14 @@ def test_the_console_s_rejected_line_counts_the_duplicate_answers(tmp_path: Path
     print_result(RunResult(tmp_path, s, 0), out)
     (line,) = [x for x in out.getvalue().splitlines() if "lockstep misses" in x]
     assert line.endswith("rejected 8 (duplicate answer 7, replayed or reordered 1)"), line
+
+
+def test_the_run_folder_lines_point_to_the_wire_recording_when_there_is_one(tmp_path: Path) -> None:
+    s = _summary({"world": {"ticks": 10, "ended_at_s": 0.5}}, [], summary_mod.DURATION_REACHED, code=0)
+    said: list[list[str]] = []
+    for _ in range(2):
+        out = io.StringIO()
+        print_result(RunResult(tmp_path, s, 0), out)
+        said.append([x.split()[1] for x in out.getvalue().splitlines() if x.startswith("  messages:")])
+        (tmp_path / "wire.mcap").write_bytes(b"")
+    assert said == [[], [str(tmp_path / "wire.mcap")]]
