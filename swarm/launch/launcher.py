@@ -152,13 +152,15 @@ class Launch:
         try:
             self._start()
         except BaseException as exc:
-            self._watch()  # a child that already failed (the world, say) explains itself
-            self.stop(graceful_first=False)
             host_failed = isinstance(exc, (remote.HostError, ValueError))  # a host missing, refusing, unfit
-            if host_failed:
-                self.journal.add("start failed", why=str(exc))
-            if self.run_dir.exists():
-                self._summary(1 if host_failed else 130, Ending(interrupted=not host_failed))
+            try:
+                self._watch()  # a child that already failed (the world, say) explains itself
+                self.stop(graceful_first=False)
+            finally:  # the summary, whatever the reaping met (a second Ctrl-C included)
+                if host_failed:
+                    self.journal.add("start failed", why=str(exc))
+                if self.run_dir.exists():
+                    self._summary(1 if host_failed else 130, Ending(interrupted=not host_failed))
             raise
 
     def prepare(self) -> dict[int, external_mod.ExternalAgent]:

@@ -3,7 +3,6 @@ of its processes."""
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -113,8 +112,8 @@ def merge_wire(run_dir: Path, say: Callable[[str], None]) -> None:
     a merge that fails leaves them, said in one line: swarm replay merges them later."""
     try:
         wirefile.merge_spools(run_dir, say)
-    except (OSError, ValueError, struct.error) as exc:  # a full disk; a scenario.toml gone; a field mcap cannot hold
-        say(f"[swarm] cannot merge the wire spools of {run_dir} into {wirefile.FILE_NAME}: {exc}")
+    except Exception as exc:  # noqa: BLE001 - a full disk, a scenario.toml gone, a field mcap cannot hold, ...: the run's summary comes first
+        say(f"[swarm] cannot merge the wire spools of {run_dir} into {wirefile.FILE_NAME}: {type(exc).__name__}: {exc}")
 
 
 def processes_part(children: Mapping[str, Child], lost_hosts: Sequence[str]) -> dict[str, dict[str, Any]]:

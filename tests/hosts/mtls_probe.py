@@ -85,7 +85,7 @@ class FarWorld(Wrong):
         session.liveliness().declare_token(keys.alive("world", 0))
         self.publishers = [session.declare_publisher(keys.obs(robot))]
         self.status = session.declare_publisher(keys.status)
-        self.done = Status(sender=0, seq=2**62, tick=10**6, time_s=0.0, state="done", total_ticks=1).to_bytes()
+        self.done = Status(sender=0, seq=2**53, tick=10**6, time_s=0.0, state="done", total_ticks=1).to_bytes()
 
     def put(self) -> None:
         super().put()

@@ -180,7 +180,7 @@ def test_a_placed_runs_world_and_logger_logins_are_granted_nothing_from_another_
             for where, sess in sessions.items():
                 key = k.world_all if where.startswith("logger") else k.all_cmd  # what each hears of the run
                 sess.declare_subscriber(key, lambda s, w=where: heard[w].append(str(s.key_expr)))
-            done = Status(sender=0, seq=2**62, tick=10**6, time_s=0.0, state="done", total_ticks=1).to_bytes()
+            done = Status(sender=0, seq=2**53, tick=10**6, time_s=0.0, state="done", total_ticks=1).to_bytes()
             pub = sessions["outward"].declare_publisher(k.status)
             deadline = time.monotonic() + 10
             while not (heard["loopback"] and len(heard["logger loopback"]) >= 20) and time.monotonic() < deadline:
