@@ -27,7 +27,7 @@ on a loaded machine:
   can pass on this machine, however lean the rest.
 - full: ``swarm run scenarios/fig11_obstacles.toml`` in lockstep with the
   logger writing its recording; the rate is the world's loop (ticks / wall s).
-- full with the wire recording (``swarm run --record-wire``): what
+- full with the wire recording (on unless ``swarm run --no-record-wire``): what
   recording every message to ``wire.mcap`` costs (each process appends what
   it receives to its spool; the launcher merges them after the run, outside
   the measured loop).

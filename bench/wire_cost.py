@@ -1,4 +1,4 @@
-"""What the wire recording (``swarm run --record-wire``, docs/replay.md) costs
+"""What the wire recording (on unless ``swarm run --no-record-wire``, docs/replay.md) costs
 the lockstep rate: the full fig11 run of bench/lockstep.py without and with
 it, alternating in one invocation, the cost as the median of the rounds'
 ratios (the rounds run under different loads).
@@ -35,7 +35,7 @@ def main() -> None:
     cost = statistics.median(1 - w / f for w, f in zip(wired, full, strict=True))
     print(
         f"the wire recording: full {statistics.median(full):.0f} ticks/s without it, "
-        f"{statistics.median(wired):.0f} with it: it costs {100 * cost:.1f}% of the lockstep rate "
+        f"{statistics.median(wired):.0f} with it: it costs {100 * cost:+.1f}% of the lockstep rate "
         f"(median of the rounds' ratios); load average after: {os.getloadavg()[0]:.2f}"
     )
 
