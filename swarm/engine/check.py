@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from formation_swarm.agents.controller import ControllerSetup, FollowerController, FollowerInput, FollowerOutput
+from formation_swarm.agents.controller import ControllerSetup, FollowerController, FollowerInput
 from formation_swarm.agents.follower import LAWS, law_class, make_controller
 from formation_swarm.agents.formation import Slot
 from formation_swarm.agents.geometry import Point
@@ -225,26 +225,12 @@ def _recorded(scenario: str | Path, seed: int, ticks: int) -> dict[int, tuple[Fo
         warnings.simplefilter("ignore", ScenarioWarning)
         engine = Engine(scenario, seed=seed, overrides=overrides)
     inputs: dict[int, list[FollowerInput]] = {rid: [] for rid in sc.follower_ids}
-    for rid, got in inputs.items():
-        # Each role's controller, wrapped at the seam the role calls (engine.agents holds the roles).
-        role = engine._agents.live[rid].role  # noqa: SLF001 - within the engine's package
-        role.controller = _Recorder(role.controller, got)  # type: ignore[attr-defined]
     for _ in range(ticks):
         if not engine.step():
             break
+        for rid, inp in engine.inputs.items():  # what each controller got at the tick just run
+            inputs[rid].append(inp)
     return {rid: tuple(got) for rid, got in inputs.items()}
-
-
-class _Recorder:
-    """A controller's stand-in that keeps each input it passes on."""
-
-    def __init__(self, inner: FollowerController, inputs: list[FollowerInput]) -> None:
-        self.inner = inner
-        self.inputs = inputs
-
-    def step(self, inp: FollowerInput) -> FollowerOutput:
-        self.inputs.append(inp)
-        return self.inner.step(inp)
 
 
 # -- the runs --------------------------------------------------------------------------
