@@ -13,7 +13,8 @@ $(STAMP): pyproject.toml
 	# setuptools prints a notice on every editable install of a mapped layout
 	# (folders named like the package could shadow it; none is named formation_swarm).
 	# rl: the learning adapters' tests run PettingZoo's and Gymnasium's own checkers.
-	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/python -m pip install --quiet -e '.[dev,bench,rl]'
+	# ros2: the ROS 2 topics, their bridge and `swarm export --mcap` (rosbags, no ROS).
+	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/python -m pip install --quiet -e '.[dev,bench,rl,ros2]'
 	touch $(STAMP)
 
 run: $(STAMP)

@@ -8,7 +8,7 @@ DELEGATED = {
     "report": ("formation_swarm.report.build", "figures (PNG, SVG or PDF) and a markdown summary of a run's folder"),
     "export": (
         "formation_swarm.report.export",
-        "a run's folder as a table, one row per robot per tick (CSV or Parquet)",
+        "a run's folder as a table, one row per robot per tick (CSV or Parquet), or as ROS 2 topics (MCAP)",
     ),
     "compare": (
         "formation_swarm.report.compare",

@@ -1,4 +1,5 @@
-"""One row per robot per tick of a run folder, as CSV or Parquet.
+"""One row per robot per tick of a run folder, as CSV or Parquet; or the run
+as ROS 2 messages in an MCAP file (--mcap).
 
 Reads RUN_DIR/recording.rrd and summary.json (formation_swarm.load_run)
 and writes a table (default: RUN_DIR/run.csv or RUN_DIR/run.parquet), the
@@ -19,8 +20,16 @@ rows robot by robot, tick by tick. Columns and units:
     steering_to, changing         eq. 13's target and a formation change under way, when recorded
     controller_<name>             each of the controller's own values (docs/controllers.md)
 
-A value the run did not record is empty in CSV and null in Parquet. The
-table is written beside its file and renamed to it once complete.
+A value the run did not record is empty in CSV and null in Parquet.
+
+--mcap writes RUN_DIR/run.mcap: the topics a ROS 2 node sees of a live run
+(/clock, /tf, /robotN/odom, /robotN/camera, /formation,
+/robotN/formation_error; docs/ros2.md), one message per tick, stamped with
+sim time, with ROS 2 Jazzy schemas, as rosbag2 writes them. It needs the
+ros2 extra (pip install 'formation-swarm[ros2]').
+
+Every file is written beside its name and renamed to it once complete. A
+file named by --out that exists already is left alone unless --force.
 """
 
 from __future__ import annotations
@@ -37,7 +46,7 @@ from formation_swarm.agents.controller import WIRE_VALUES
 from formation_swarm.report.data import RunData, load_run
 from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser
 
-FORMATS = ("csv", "parquet")
+FORMATS = ("csv", "parquet", "mcap")
 
 
 def table(run: RunData) -> dict[str, np.ndarray]:
@@ -108,11 +117,16 @@ def write_parquet(columns: dict[str, np.ndarray], path: Path) -> None:
     pq.write_table(pa.table(arrays), str(path))
 
 
-def export(run_dir: str | Path, fmt: str = "csv", out: str | Path | None = None) -> Path:
-    """Writes the run's table and returns its path. ValueError for a folder it
-    cannot use or an unknown format, OSError when it cannot write."""
+def export(run_dir: str | Path, fmt: str = "csv", out: str | Path | None = None, force: bool = False) -> Path:
+    """Writes the run's table (or MCAP file) and returns its path. ValueError for
+    a folder it cannot use, an unknown format or an ``out`` that exists (unless
+    ``force``), OSError when it cannot write."""
     if fmt not in FORMATS:
         raise ValueError(f"format must be one of {', '.join(FORMATS)}, got {fmt!r}")
+    if out is not None and not force and (Path(out).exists() or Path(out).is_symlink()):
+        raise ValueError(f"--out {out}: already exists; give another name, or --force to replace it")
+    if fmt == "mcap":
+        return _export_mcap(run_dir, out)
     run = load_run(run_dir)
     path = Path(out) if out is not None else run.run_dir / f"run.{fmt}"
     columns = table(run)
@@ -125,28 +139,49 @@ def export(run_dir: str | Path, fmt: str = "csv", out: str | Path | None = None)
     return path
 
 
+def _export_mcap(run_dir: str | Path, out: str | Path | None) -> Path:
+    try:
+        from formation_swarm.report.ros2bag import export_mcap
+    except ModuleNotFoundError as exc:
+        extra = "pip install 'formation-swarm[ros2]'"
+        raise ValueError(f"--mcap needs the ros2 extra ({exc.name} is missing): {extra}") from None
+    run = load_run(run_dir)
+    path = Path(out) if out is not None else run.run_dir / "run.mcap"
+    export_mcap(run, path)
+    return path
+
+
 def build_parser() -> Parser:
     ap = Parser(
         prog="swarm export",
         description=__doc__,
         epilog="example:\n  swarm run fig11_obstacles --out runs/fig11\n"
-        "  swarm export runs/fig11 --format parquet --out fig11.parquet",
+        "  swarm export runs/fig11 --format parquet --out fig11.parquet\n"
+        "  swarm export runs/fig11 --mcap --out fig11.mcap",
     )
     ap.add_argument("run_dir", metavar="RUN_DIR", help="a run's folder, as swarm run printed it (runs/<run id>)")
-    ap.add_argument("--format", choices=FORMATS, default="csv", help="the table's format (default: csv)")
+    ap.add_argument("--format", choices=FORMATS, default="csv", help="the file's format (default: csv)")
+    ap.add_argument(
+        "--mcap",
+        dest="format",
+        action="store_const",
+        const="mcap",
+        help="the same as --format mcap: the run's ROS 2 topics, as rosbag2 writes them",
+    )
     ap.add_argument(
         "--out",
         default=None,
         metavar="FILE",
-        help="the file to write (default: RUN_DIR/run.csv or RUN_DIR/run.parquet)",
+        help="the file to write (default: RUN_DIR/run.csv, run.parquet or run.mcap)",
     )
+    ap.add_argument("--force", action="store_true", help="replace the file --out names if it exists")
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        path = export(args.run_dir, args.format, args.out)
+        path = export(args.run_dir, args.format, args.out, force=args.force)
     except ValueError as exc:
         print(f"swarm export: {exc}", file=sys.stderr)
         return USAGE_ERROR
