@@ -45,7 +45,9 @@ With ``--robots N`` every variant has N robots (the full runs in a line,
 each robot following the one ahead, as bench/scale.py): the bare exchange at
 N robots is what one process per robot costs before any of the paper's maths.
 
-    python bench/lockstep.py [--repeat 3] [--ticks 3000] [--robots 3]
+    python bench/lockstep.py [--repeat 3] [--ticks 3000] [--robots 3] [--ros2]
+
+``--ros2``: only the full run, without and with its ROS 2 bridge (bench/lockstep_ros2.py).
 
 bench/wire_cost.py measures the wire recording's cost alone (the full run
 without and with it, alternating), with more rounds in the same time.
@@ -71,6 +73,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 import zenoh  # noqa: E402
+from lockstep_ros2 import ros2_rounds  # noqa: E402
 
 from formation_swarm.launch.launcher import Launch, free_port  # noqa: E402
 from formation_swarm.protocol.keys import Keys  # noqa: E402
@@ -266,7 +269,7 @@ def measure_bare(ticks: int, robots: int, lowlatency: bool = False, control: boo
 
 
 def measure_full(
-    duration_s: float, robots: int, logger: bool = True, auth: bool = True, wire: bool = False
+    duration_s: float, robots: int, logger: bool = True, auth: bool = True, wire: bool = False, ros2: bool = False
 ) -> tuple[float, dict]:
     overrides: dict[str, object] = {"run.duration_s": duration_s, "leader.waypoints": [[0.0, 0.0], [0.0, 400.0]]}
     if robots != 3:
@@ -279,7 +282,7 @@ def measure_full(
             logger=logger,
             record_wire=wire,
             auth=auth,
-            overrides=overrides,
+            overrides=overrides | {"ros2.bridge": ros2},
             progress=lambda _l: None,
         ) as launch,
     ):
@@ -318,6 +321,7 @@ def main() -> None:
         metavar="N",
         help="robots in every variant, 3 to 500 (default 3: fig11 as shipped; more: in a line)",
     )
+    ap.add_argument("--ros2", action="store_true", help="only the full run, without and with its ROS 2 bridge")
     ap.add_argument("--role", nargs="+", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.role:
@@ -334,6 +338,8 @@ def main() -> None:
     bare_cpu, floor_cpu, full_cpu = [], [], []
     n = args.robots
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}; {n} robots")
+    if args.ros2:
+        return ros2_rounds(args.repeat, args.ticks * 0.05, n, measure_full)
     for i in range(args.repeat):
         rate, cpu = measure_bare(args.ticks, n)
         bare.append(rate)

@@ -22,14 +22,19 @@ Per N and mode it prints:
   of the logger's loop thread, what its sends to Rerun took and what taking
   the messages apart and checking them took), and the ticks it recorded;
 - the collisions between robots, and the closest two robots came (m);
-- PSS per agent (MB, shared pages counted once), sampled a second into the run.
+- PSS per robot's agent (MB, shared pages counted once; a process of K robots'
+  agents counts 1/K), sampled a second into the run.
+
+``--agents-per-process K ...`` runs each N and mode once per K
+(``run.agents_per_process``: K robots' agents in one process, each with its own
+session); the agents' CPU of a shared process is split evenly among its robots.
 
 The machine's load average is printed before and after: other work on the
 machine shows in every figure.
 
     python bench/scale.py [--robots N ...] [--modes realtime lockstep]
                           [--duration 20] [--lockstep-duration 10] [--no-logger]
-                          [--straight] [--lookahead-m 1]
+                          [--straight] [--lookahead-m 1] [--agents-per-process 1 10]
 """
 
 from __future__ import annotations
@@ -77,9 +82,10 @@ def _warnings_once(line: str) -> None:
 
 
 def one(
-    n: int, mode: str, duration_s: float, logger: bool, straight: bool, lookahead_m: float, tmp: Path
+    n: int, mode: str, duration_s: float, logger: bool, straight: bool, lookahead_m: float, tmp: Path, k: int = 1
 ) -> dict[str, Any]:
     overrides: dict[str, Any] = {
+        "run.agents_per_process": k,
         "run.robots": n,
         "leader.formation": "line",
         "run.duration_s": duration_s,
@@ -100,7 +106,7 @@ def one(
             raise SystemExit(f"{n} robots, {mode}: no first tick within 900 s ({launch.run_dir})")
         start_s = time.monotonic() - t0
         launch.wait_until(lambda: launch.sim_time() >= min(1.0, 0.5 * duration_s), timeout_s=60.0)
-        pss = [pss_mb(pid) for name, pid in launch.pids().items() if name.startswith("agent-")]
+        pss = [pss_mb(pid) / k for name, pid in launch.pids().items() if name.startswith("agent")]
         res = launch.wait(timeout_s=max(600.0, 20 * duration_s))
     s = res.summary
     parts = s.get("parts", {})
@@ -110,6 +116,7 @@ def one(
     per_tick = [1e6 * p["loop_cpu_s"] / p["answered"] for p in followers if p.get("answered")]
     ticks = max(1, int(s.get("ticks") or 0))
     return {
+        "k": k,
         "exit": res.exit_code,
         "start_s": start_s,
         "ticks": ticks,
@@ -138,7 +145,7 @@ def one(
 
 
 def line(n: int, mode: str, r: dict[str, Any], cold: bool = False) -> str:
-    head = f"{n:4d} robots {mode:8s} start {r['start_s']:6.2f} s{' (cold)' if cold else '       '}"
+    head = f"{n:4d} robots K={r['k']:<3d} {mode:8s} start {r['start_s']:6.2f} s{' (cold)' if cold else '       '}"
     if mode == "realtime":
         rt = "real-time" if r["scheduling"].startswith("real-time") else "NORMAL class"
         timing = (
@@ -189,6 +196,14 @@ def main() -> None:
         help="the followers' steering look-ahead, controller.lookahead_m (default 0, the paper's steering; "
         "1 keeps the heading swings from growing down the line: docs/paper.md)",
     )
+    ap.add_argument(
+        "--agents-per-process",
+        type=integer(1, MAX_ROBOTS),
+        nargs="+",
+        default=[1],
+        metavar="K",
+        help="robots' agents per process, each K a run of its own (default 1: a process per robot)",
+    )
     args = ap.parse_args()
     print(
         f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}; "
@@ -196,15 +211,17 @@ def main() -> None:
         flush=True,
     )
     with tempfile.TemporaryDirectory() as tmp:
+        first = (args.robots[0], args.modes[0], args.agents_per_process[0])
         for n in args.robots:
             for mode in args.modes:
                 duration = args.duration if mode == "realtime" else args.lockstep_duration
-                r = one(n, mode, duration, not args.no_logger, args.straight, args.lookahead_m, Path(tmp))
-                print(
-                    line(n, mode, r, cold=(n, mode) == (args.robots[0], args.modes[0])),
-                    f"load {os.getloadavg()[0]:.2f}",
-                    flush=True,
-                )
+                for k in args.agents_per_process:
+                    r = one(n, mode, duration, not args.no_logger, args.straight, args.lookahead_m, Path(tmp), k)
+                    print(
+                        line(n, mode, r, cold=(n, mode, k) == first),
+                        f"load {os.getloadavg()[0]:.2f}",
+                        flush=True,
+                    )
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

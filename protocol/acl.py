@@ -18,6 +18,12 @@ The router holds access rules that deny everything not granted
               its own key (swarmhost/NAME/ctl) and nothing else, holds its own
               token, watches the launcher's token; it publishes and subscribes
               nothing (the agents it starts log in with their own agent-N login)
+    ros2-bridge (swarm run --ros2) subscribes to the truth, the status and the
+              formation codes; for each robot left to ROS it stands in for its
+              agent (robot N's inbox, command and token); publishes the ROS
+              topics of its domain, but no ``cmd_vel``, and holds ROS tokens
+    ros2      (on request) a ROS node's: reads every ROS topic of the domain,
+              writes only the ``cmd_vel`` of the robots left to ROS; ROS tokens
 
 Each role may also hold its own liveliness token and watch the tokens it
 needs. An identity may also be bound to this machine (``local``: in a run
@@ -40,7 +46,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from formation_swarm.protocol.keys import HostKeys, Keys, check_host_name, check_robot_id
+from formation_swarm.protocol.keys import HostKeys, Keys, RosKeys, check_host_name, check_robot_id
 
 
 @dataclass(frozen=True)
@@ -58,6 +64,18 @@ class Grants:
     watch: tuple[str, ...] = ()
     serve: tuple[str, ...] = ()  # queryables it declares and answers
     ask: tuple[str, ...] = ()  # queryables it queries
+    refused: tuple[str, ...] = ()  # keys it may never put, within those it may (a deny rule)
+
+
+@dataclass(frozen=True)
+class RosAccess:
+    """A run's ROS 2 bridge: its domain and namespace, the robots left to ROS,
+    and whether a ROS node's login (``ros2``) is let in too."""
+
+    domain_id: int = 0
+    namespace: str = ""
+    robots: tuple[int, ...] = ()
+    login: bool = False
 
 
 def agent_user(robot_id: int) -> str:
@@ -69,6 +87,8 @@ def host_user(name: str) -> str:
 
 
 OBSERVER = "observer"  # the read-only login: swarm secure --observer, swarm run --observer-login
+BRIDGE = "ros2-bridge"  # swarm run --ros2's bridge
+ROS2 = "ros2"  # a ROS node's login: swarm run --ros2-login
 
 
 def loopback_interfaces() -> list[str]:
@@ -81,11 +101,17 @@ def loopback_interfaces() -> list[str]:
 
 
 def grants(
-    run_id: str, robots: Sequence[int], leader_id: int, hosts: Sequence[str] = (), *, observer: bool = False
+    run_id: str,
+    robots: Sequence[int],
+    leader_id: int,
+    hosts: Sequence[str] = (),
+    *,
+    observer: bool = False,
+    ros2: RosAccess | None = None,
 ) -> dict[str, Grants]:
     """Every identity of a run and what it may do (``hosts``: the machines'
     ``swarm host`` the run's agents are placed on; ``observer``: with the
-    read-only login)."""
+    read-only login; ``ros2``: with the ROS 2 bridge)."""
     k = Keys(run_id)
     out = {
         "world": Grants(
@@ -111,6 +137,8 @@ def grants(
         # the whole run lets alive/** and alive/*/* both in. The world's wake-ups are its own
         # business, not a message: a zero-byte put no decoder reads.
         out[OBSERVER] = Grants(subscribe=(k.everything,), withheld=(k.world_wake,), watch=(k.everything,))
+    if ros2 is not None:
+        out.update(_ros_grants(k, ros2))
     for h in hosts:
         out[host_user(h)] = Grants(
             tokens=(HostKeys(h).alive,), watch=(k.alive("launcher", 0),), serve=(HostKeys(h).ctl,)
@@ -124,6 +152,25 @@ def grants(
             # Its own: is another agent flying it? The logger's: a follower leaves after it.
             watch=(k.alive("world", 0), k.alive("agent", rid), k.alive("logger", 0)),
         )
+    return out
+
+
+def _ros_grants(k: Keys, ros2: RosAccess) -> dict[str, Grants]:
+    """The bridge's grants and, if asked, the ROS node's (:class:`RosAccess`)."""
+    ros, mine = RosKeys(ros2.domain_id, ros2.namespace), tuple(ros2.robots)
+    out = {
+        BRIDGE: Grants(
+            publish=(*(k.cmd(r) for r in mine), ros.topics),
+            refused=(ros.any_cmd_vel,),  # what only a ROS node says
+            subscribe=(k.truth, k.status, k.codes, *(k.inbox(r) for r in mine), *(ros.cmd_vel(r) for r in mine)),
+            tokens=(k.alive("bridge", 0), *(k.alive("agent", r) for r in mine), ros.graph),
+            watch=(k.alive("world", 0), *(k.alive("agent", r) for r in mine), ros.graph),
+        )
+    }
+    if ros2.login:
+        graph = (ros.graph,)
+        cmd_vels = tuple(ros.cmd_vel(r) for r in mine)
+        out[ROS2] = Grants(publish=cmd_vels, subscribe=(ros.topics,), tokens=graph, watch=graph)
     return out
 
 
@@ -142,6 +189,7 @@ def access_control(
     observer: bool = False,
     mtls: bool = False,
     local: Sequence[str] = (),
+    ros2: RosAccess | None = None,
 ) -> dict[str, Any]:
     """The router's ``access_control`` section for one run: deny by default,
     each identity granted exactly its role's keys. With ``mtls``, an identity
@@ -150,13 +198,14 @@ def access_control(
     name, matches no one and is granted nothing. The users in ``local`` are
     granted their keys over loopback only (Zenoh matches a link's interface)."""
     k = Keys(run_id)
+    learn = [k.everything, *([RosKeys(ros2.domain_id).topics] if ros2 is not None else [])]
     rules: list[dict[str, Any]] = [
         # Publishers only send once they know of a subscriber: everyone may learn the run's subscriptions.
-        _rule("learn-subscribers", "egress", ["declare_subscriber"], [k.everything]),
+        _rule("learn-subscribers", "egress", ["declare_subscriber"], learn),
     ]
     subjects: list[dict[str, Any]] = []
     policies: list[dict[str, Any]] = []
-    for user, g in grants(run_id, robots, leader_id, hosts, observer=observer).items():
+    for user, g in grants(run_id, robots, leader_id, hosts, observer=observer, ros2=ros2).items():
         own: list[dict[str, Any]] = []
         if g.publish:
             own.append(_rule(f"{user}-put", "ingress", ["put"], g.publish))
@@ -165,6 +214,8 @@ def access_control(
             own.append(_rule(f"{user}-data", "egress", ["put"], (*g.subscribe, *g.receive)))
         if g.withheld:
             own.append(_rule(f"{user}-withheld", "egress", ["put"], g.withheld, permission="deny"))
+        if g.refused:
+            own.append(_rule(f"{user}-refused", "ingress", ["put"], g.refused, permission="deny"))
         if g.tokens:
             own.append(_rule(f"{user}-token", "ingress", ["liveliness_token"], g.tokens))
         if g.watch:

@@ -10,8 +10,16 @@ All keys start with ``swarm/<run>`` so that runs never cross-talk::
     swarm/<run>/world/truth           world -> logger   Truth (true poses and targets)
     swarm/<run>/world/status          world -> all      Status (progress, end of run)
     swarm/<run>/world/faults          world -> launcher FaultCall (kill, start, freeze, thaw a process now)
-    swarm/<run>/alive/<role>/<id>     liveliness tokens (role: world, agent, logger, launcher)
+    swarm/<run>/alive/<role>/<id>     liveliness tokens (role: world, agent, logger, launcher, bridge)
     swarm/<run>/robot/wake/cmd        world -> itself   wakes its command loop (local only)
+
+With ``swarm run --ros2``, ROS 2's own keys (rmw_zenoh's, outside the run's)::
+
+    <domain>/<namespace>/<topic>/<type>/<hash>  bridge <-> ROS nodes   a topic's samples (CDR)
+    @ros2_lv/<domain>/...                       liveliness tokens of the ROS graph
+
+The full keys are formation_swarm.ros2.rmw's; :class:`RosKeys` gives the
+patterns the router's access rules name.
 
 A machine's ``swarm host`` serves every run, so its keys are outside any run's::
 
@@ -35,7 +43,7 @@ _HOST = re.compile(r"^[a-z][a-z0-9-]{0,26}$")  # a host's login is host-<name>: 
 MAX_ROBOT_ID = 10_000
 _RUN_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 ROBOT_KINDS = ("obs", "cmd", "telemetry")
-ROLES = ("world", "agent", "logger", "launcher")
+ROLES = ("world", "agent", "logger", "launcher", "bridge")
 
 
 def check_run_id(run_id: str) -> str:
@@ -76,6 +84,41 @@ class HostKeys:
     @property
     def alive(self) -> str:
         return f"{self.prefix}/alive"
+
+
+_ROS_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
+MAX_ROS_DOMAIN = 232  # ROS 2's highest domain id
+
+
+class RosKeys:
+    """The patterns of ROS 2's keys (rmw_zenoh) in one domain, for the access rules."""
+
+    def __init__(self, domain_id: int, namespace: str = "") -> None:
+        if isinstance(domain_id, bool) or not isinstance(domain_id, int) or not 0 <= domain_id <= MAX_ROS_DOMAIN:
+            raise ValueError(f"ROS domain id must be an integer in [0, {MAX_ROS_DOMAIN}], got {domain_id!r}")
+        parts = namespace.strip("/").split("/") if isinstance(namespace, str) and namespace.strip("/") else []
+        if not isinstance(namespace, str) or any(not _ROS_NAME.match(p) for p in parts):
+            raise ValueError(f"ROS namespace must be names of letters, digits and '_' joined by '/', got {namespace!r}")
+        self.domain = f"{domain_id}"
+        self.prefix = "/".join([self.domain, *parts])  # a topic's key starts so (its leading '/' dropped)
+
+    @property
+    def topics(self) -> str:
+        """Every topic of the domain, whatever its type."""
+        return f"{self.domain}/**"
+
+    def cmd_vel(self, robot_id: int) -> str:
+        """Robot ``robot_id``'s ``cmd_vel`` topic, any type and hash."""
+        return f"{self.prefix}/robot{check_robot_id(robot_id)}/cmd_vel/**"
+
+    @property
+    def any_cmd_vel(self) -> str:
+        return f"{self.domain}/**/cmd_vel/**"
+
+    @property
+    def graph(self) -> str:
+        """The ROS graph's liveliness tokens in this domain."""
+        return f"@ros2_lv/{self.domain}/**"
 
 
 class RobotKey(NamedTuple):

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from formation_swarm.protocol import tls as tls_mod
-from formation_swarm.protocol.acl import access_control, grants, host_user
+from formation_swarm.protocol.acl import RosAccess, access_control, grants, host_user
 from formation_swarm.protocol.tls import CA, CERTIFICATE, PRIVATE_KEY, Tls
 
 _USER = re.compile(r"^[a-z][a-z0-9-]{0,31}$")
@@ -91,7 +91,7 @@ def router_settings(
 WORLD_PLACES = ("router", "loopback", "anywhere")  # write_run_secrets's world: where its login is granted
 
 
-def write_run_secrets(
+def write_run_secrets(  # noqa: PLR0913 -- past the fourth, keywords only
     folder: Path,
     run_id: str,
     robots: Sequence[int],
@@ -101,6 +101,7 @@ def write_run_secrets(
     tls: Tls | None = None,
     host_logins: dict[str, Credential] | None = None,
     observer: bool = False,
+    ros2: RosAccess | None = None,
 ) -> dict[str, Path]:
     """Fresh credentials for every role of a run, in ``folder`` (0700, files 0600):
     ``<user>.json`` for each client, ``router.json`` for the router, which
@@ -114,7 +115,8 @@ def write_run_secrets(
     and key are copied in too. Files name each other relative to the folder.
     ``host_logins`` (host name -> its lasting login, :func:`read_host_logins`)
     are let in too, with their rules; they get no file here (each host has its own).
-    ``observer``: an ``observer`` login too (:data:`OBSERVER`).
+    ``observer``: an ``observer`` login too (:data:`OBSERVER`); ``ros2``: the
+    ROS 2 bridge's login and, if it says so, a ROS node's (acl.RosAccess).
     With ``tls.clients`` (mutual TLS), each login's certificate and key are
     copied in as ``<user>.pem``/``.key`` and named by its login, and the
     router's rules require both the user and the certificate's common name.
@@ -124,7 +126,7 @@ def write_run_secrets(
     folder.mkdir(mode=0o700, parents=True, exist_ok=True)
     os.chmod(folder, 0o700)
     hosts = sorted(host_logins or {})
-    everyone = grants(run_id, robots, leader_id, observer=observer)
+    everyone = grants(run_id, robots, leader_id, observer=observer, ros2=ros2)
     users = [u for u in everyone if not (world == "router" and u == "world")]
     clients = tls.clients if tls is not None else None
     mtls = clients is not None
@@ -143,7 +145,7 @@ def write_run_secrets(
         _write_private(out[user], json.dumps(login, indent=1))
     out["router"] = folder / "router.json"
     local = (("world", "logger") if host_logins else ("world",)) if world == "loopback" else ()
-    acl = access_control(run_id, robots, leader_id, hosts, observer=observer, mtls=mtls, local=local)
+    acl = access_control(run_id, robots, leader_id, hosts, observer=observer, mtls=mtls, local=local, ros2=ros2)
     router = router_settings(PASSWORDS, acl, (CERTIFICATE, PRIVATE_KEY) if tls else None, CA if mtls else None)
     _write_private(out["router"], json.dumps(router, indent=1))
     return out

@@ -50,7 +50,7 @@ def build_parser() -> Parser:
         sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
     add_sim(sub)
     add_check(sub)
-    for name in ("world", "agent", "logger", "router", "secure", "host", "doctor"):
+    for name in ("world", "agent", "logger", "router", "bridge", "secure", "host", "doctor"):
         sub.add_parser(name, help=DELEGATED[name][1], add_help=False)
     return parser
 

@@ -27,6 +27,7 @@ DELEGATED = {
     "agent": ("formation_swarm.nodes.agent.main", "role: one robot's agent alone, a client of a router"),
     "logger": ("formation_swarm.nodes.logger.main", "role: the Rerun logger alone (to a file or a viewer)"),
     "router": ("formation_swarm.nodes.router", "role: a Zenoh router for agents on other machines"),
+    "bridge": ("formation_swarm.nodes.bridge.main", "role: a run's ROS 2 bridge alone (rmw_zenoh's topics)"),
     "secure": ("formation_swarm.launch.secure", "credentials and access rules for a run spread over machines"),
     "host": ("formation_swarm.nodes.host.main", "serve this machine to runs started elsewhere (swarm run --hosts)"),
     "doctor": ("formation_swarm.launch.doctor", "check that the hosts of a run spread over machines are there and fit"),

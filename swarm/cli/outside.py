@@ -1,6 +1,7 @@
 """``swarm run``'s flags for processes the run does not start: an outside
-agent's robot (``--external``), a read-only login (``--observer-login``) and
-how long every role waits for the others (``--peers-timeout``)."""
+agent's robot (``--external``), a read-only login (``--observer-login``),
+ROS 2 nodes (``--ros2``, ``--ros2-login``) and how long every role waits
+for the others (``--peers-timeout``)."""
 
 from __future__ import annotations
 
@@ -30,6 +31,20 @@ def add_outside_flags(run: argparse.ArgumentParser) -> None:
         help="let in a read-only login and write it to FILE (0600; replaced if there): it may subscribe to the "
         "whole run and its liveliness tokens and publish nothing, for a dashboard or a monitor of your own "
         "(give it as --auth FILE, with the endpoint printed at the start); valid while the run lasts",
+    )
+    group.add_argument(
+        "--ros2",
+        action="store_true",
+        help="also start a ROS 2 bridge (the same as --set ros2.bridge=true): the run's topics on rmw_zenoh's "
+        "keys (the scenario's [ros2] domain, namespace, distro), and the robots named by --external driven "
+        "from ROS by a Twist on /robotN/cmd_vel (docs/ros2.md)",
+    )
+    group.add_argument(
+        "--ros2-login",
+        metavar="FILE",
+        default=None,
+        help="with the bridge: write a ROS node's login to FILE (0600; replaced if there): it may read every "
+        "ROS topic of the run and write only the cmd_vel of the robots driven from ROS; valid while the run lasts",
     )
     group.add_argument(
         "--peers-timeout",

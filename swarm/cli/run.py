@@ -43,6 +43,7 @@ examples:
   (every fault kind: docs/faults.md)
   swarm run fig11_obstacles --external 3        (then start robot 3's agent as the run says)
   swarm run fig11_obstacles --observer-login observer.json
+  swarm run fig11_obstacles --ros2 --external 3 --ros2-login ros2.json   (docs/ros2.md)
 """
 
 
@@ -69,6 +70,10 @@ def _launch(args: argparse.Namespace) -> Launch:
 
     kills = [KillAt.parse(spec) for spec in args.kill]
     overrides = parse_overrides(args.set)
+    if args.ros2:
+        overrides["ros2.bridge"] = True
+    if args.agents_per_process is not None:
+        overrides["run.agents_per_process"] = args.agents_per_process
     hosts = [h.strip() for h in (args.hosts or "").split(",") if h.strip()]
     launch = Launch(
         args.scenario,
@@ -96,6 +101,10 @@ def _launch(args: argparse.Namespace) -> Launch:
         raise ValueError("--out '': an empty name")
     if args.out is not None and (Path(args.out) / "summary.json").exists():
         raise ValueError(f"--out {args.out}: already holds a run (summary.json); give a new folder")
+    if args.ros2_login is not None and not launch.plan.bridge:
+        raise ValueError("--ros2-login: only with the ROS 2 bridge (--ros2, or ros2.bridge = true)")
+    if args.ros2_login is not None and Path(args.ros2_login).is_dir():
+        raise ValueError(f"--ros2-login {args.ros2_login}: a folder; give a file name")
     make_folder("--out" if args.out else "run folder", launch.run_dir)  # last: nothing made for a bad input
     return launch
 
@@ -149,6 +158,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     )
     if (code := _start(launch)) is not None:
         return code
+    if args.ros2_login is not None and (settings := launch.login("ros2")) is not None:
+        from formation_swarm.launch.ros2 import write_login
+
+        print(f"[swarm] ROS 2 node: --auth {write_login(settings, args.ros2_login)} (docs/ros2.md)", flush=True)
     with launch:
         result = launch.wait(timeout_s=args.timeout)
     if result.exit_code == interrupts.INTERRUPTED:
@@ -208,6 +221,14 @@ def _add_scenario_flags(run: argparse.ArgumentParser) -> None:
     )
     run.add_argument(
         "--out", default=None, metavar="DIR", help="the run folder, created if needed (default: runs/<run id>)"
+    )
+    run.add_argument(
+        "--agents-per-process",
+        type=integer(1),
+        default=None,
+        metavar="K",
+        help="run K robots' agents in each process, each with its own session, login and token: "
+        "the same as --set run.agents_per_process=K (default: the scenario's, 1)",
     )
     run.add_argument(
         "--set",

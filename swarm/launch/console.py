@@ -13,6 +13,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
+from formation_swarm.launch import ros2 as ros2_mod
 from formation_swarm.launch.words import (
     describe_counts,
     describe_event,
@@ -212,6 +213,8 @@ def print_result(res: RunResult, out: TextIO = sys.stdout) -> None:
     else:
         _metrics(w, s)
     _faults_and_events(w, s)
+    if isinstance(ros2 := s.get("ros2"), Mapping):
+        w(f"  {ros2_mod.result_line(ros2)}\n")
     if s.get("unkept"):
         w(f"run folder: {res.run_dir}: nothing of the run is kept there ({s['unkept']})\n")
         return

@@ -1,12 +1,12 @@
 """The scenario's faults as the launcher sees them: it executes the process
 faults the world calls (``Keys.faults``, a FaultCall at the fault's tick):
-SIGKILL, a fresh agent for the same robot, SIGSTOP, SIGCONT; it says on the
+SIGKILL, a fresh agent for the same robot, SIGSTOP, SIGCONT (a robot
+that shares a process: a call to that process, launch.sharing); it says on the
 console when the run passes each other fault's start and end."""
 
 from __future__ import annotations
 
 import queue
-import signal
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -19,7 +19,6 @@ from formation_swarm.protocol.messages import FaultCall
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
 
-SIGNALS = {"kill": signal.SIGKILL, "freeze": signal.SIGSTOP, "thaw": signal.SIGCONT}
 DONE = {"kill": "killed", "start": "started", "freeze": "frozen", "thaw": "thawed"}
 RUN_END = "the run's end"  # why a process still frozen when the world says "done" is thawed
 
@@ -63,25 +62,27 @@ class FaultExecutor:
 
     def _execute(self, call: FaultCall, fault: Fault) -> None:
         procs = self.procs
-        name = procs.current[call.process]
         if call.action == "start":
             name = self.restart(call.process)
         else:
-            procs.children[name].signal(SIGNALS[call.action])
-            (procs.frozen.add if call.action == "freeze" else procs.frozen.discard)(name)
-            procs.frozen_by[name] = str(fault)
+            name = procs.act(call.process, call.action)
+            procs.frozen_by[call.process if name in procs.shared else name] = str(fault)
+        # A robot of a shared process is named, with that process beside it.
+        where = {"process": name} if name not in procs.shared else {"process": call.process, "in_process": name}
         done = DONE[call.action]
         self._say_windows_until(call.tick)  # the world is at the call's tick: what came before, first
         self.journal.add(
             done,
-            process=name,
+            **where,
             fault=str(fault),
             tick=call.tick,
             sim_time_s=call.time_s,
             wall_s=self.journal.wall_s(),
             pid=procs.children[name].pid,
         )
-        self.journal.say(f"[swarm] {done} {name} at tick {call.tick}, sim t={call.time_s:.2f} s ('{fault}')")
+        self.journal.say(
+            f"[swarm] {done} {where['process']} at tick {call.tick}, sim t={call.time_s:.2f} s ('{fault}')"
+        )
 
     def say_windows(self, status: StatusFeed) -> None:
         """The schedule's faults the world applies itself (link, sensor, actuator):
@@ -118,7 +119,7 @@ class FaultExecutor:
         st = status.last
         assert st is not None  # done
         for name in sorted(procs.frozen):
-            procs.children[name].signal(signal.SIGCONT)
+            procs.thaw(name)
             self.journal.add(
                 "thawed",
                 process=name,

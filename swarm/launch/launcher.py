@@ -20,15 +20,16 @@ from typing import TYPE_CHECKING, Any
 import zenoh
 
 from formation_swarm.launch import external as external_mod
-from formation_swarm.launch import mainguard, remote, result
+from formation_swarm.launch import mainguard, remote, result, sharing, summarize
+from formation_swarm.launch import ros2 as ros2_mod
 from formation_swarm.launch.console import print_result, progress_line, reachable_live
 from formation_swarm.launch.faults import FaultExecutor
 from formation_swarm.launch.hosts import HostOptions, Hosts
 from formation_swarm.launch.logins import RunLogins
 from formation_swarm.launch.plan import SECRETS, KillAt, Plan, RunOptions
 from formation_swarm.launch.processes import Processes, wait_for_fork_server
-from formation_swarm.launch.record import Journal, StatusFeed, folder_gone, folder_identity
-from formation_swarm.launch.result import Ending, RunResult, end_reason, fetch_failed_logs, place_exits, processes_part
+from formation_swarm.launch.record import Journal, StatusFeed, folder_identity
+from formation_swarm.launch.result import Ending, RunResult, fetch_failed_logs, place_exits
 from formation_swarm.launch.signals import stop_signals_noted
 from formation_swarm.nodes.logger import viewer
 from formation_swarm.protocol import acl
@@ -77,6 +78,8 @@ class Launch:
         self.hosts = Hosts(host_options, self.plan, self.journal, self.procs)
         if self.plan.external and self.hosts.names:
             raise ValueError("external robots and hosts: not together; an outside agent connects to this machine")
+        if self.hosts.names and sharing.per_process(self.sc) > 1:
+            raise ValueError("run.agents_per_process above 1 and hosts: not together; a host starts one agent each")
         self.port = 0
         self.logins: RunLogins | None = None  # the run's, once written (prepare)
         self.external: dict[int, external_mod.ExternalAgent] = {}  # robot -> what its outside agent needs (prepare)
@@ -160,7 +163,7 @@ class Launch:
                 if host_failed:
                     self.journal.add("start failed", why=str(exc))
                 if self.run_dir.exists():
-                    self._summary(1 if host_failed else 130, Ending(interrupted=not host_failed))
+                    summarize.write(self, 1 if host_failed else 130, Ending(interrupted=not host_failed))
             raise
 
     def prepare(self) -> dict[int, external_mod.ExternalAgent]:
@@ -205,6 +208,7 @@ class Launch:
         wait = self.plan.options.peers_timeout_s or DEFAULT_PEERS_TIMEOUT_S
         ends = {"endpoint": self.endpoint, "observer_login": self.plan.options.observer_login, "run_id": self.run_id}
         external_mod.hand_over(self.journal.say, self.external, wait, **ends)
+        ros2_mod.hand_over(self.journal.say, plan, self.endpoint)
         if self.session is None:
             settings = logins.settings.get("launcher")
             self.session = zenoh.open(make_config("client", [self.endpoint], connect_timeout_s=30.0, settings=settings))
@@ -226,7 +230,7 @@ class Launch:
         name = self.procs.next_name(process)
         if isinstance(old, remote.RemoteChild):
             return self.hosts.restart(old, name)
-        argv = self.plan.restart_argv(self.children[process].argv, name)
+        argv = self.plan.restart_argv(self.procs.first_argv(process), name)
         if self.logins is not None:
             self.logins.rewrite(process, argv)
         return self.procs.start(Child(name, argv, self.plan.log_path(name), fork=self.plan.options.fork))
@@ -307,7 +311,7 @@ class Launch:
         if code in (0, 1) and self.hosts.lost:
             self.hosts.say_lost()
             code = 1
-        summary = self._summary(code, ending)
+        summary = summarize.write(self, code, ending)
         if unkept := summary.get("unkept"):  # the folder deleted, or the disk full: said in one line
             self.journal.say(f"[swarm] the run failed: {unkept}")
             summary["exit_code"] = code = 1
@@ -361,39 +365,3 @@ class Launch:
                 self.session = None
             # Every process that held a password is gone: they are of no use now.
             shutil.rmtree(self.run_dir / SECRETS, ignore_errors=True)
-
-    # -- summary ------------------------------------------------------------------
-    def _summary(self, code: int, ending: Ending) -> dict[str, Any]:
-        parts = summary_mod.read_parts(self.run_dir / "stats")
-        if self.faults.rejections.total:  # fault calls refused: counted like every receiver's rejections
-            parts["launcher"] = {"rejected": dict(self.faults.rejections.by_reason)}
-        world = self.children.get("world")
-        world_code = world.proc.returncode if world is not None and world.proc is not None else None
-        reason, reached = end_reason(parts.get("world", {}), world_code, self.status.last, self.journal.events, ending)
-        summary = summary_mod.build(
-            run_id=self.run_id,
-            sc=self.sc,
-            mode=self.plan.options.mode,
-            parts=parts,
-            exit_code=code,
-            end_reason=reason,
-            ended_at_s=reached,
-            interrupted=ending.interrupted,
-            timed_out=ending.timed_out,
-            limit_s=ending.limit_s,
-            processes=processes_part(self.children, self.hosts.lost),
-            events=self.journal.events,
-            recording="recording.rrd" if self.plan.options.logger else None,
-        )
-        self.hosts.add_to_summary(summary)
-        summary["ticks_seen"] = None if self.status.last is None else self.status.last.tick
-        if self.plan.external:
-            external_mod.mark_summary(summary, self.plan.external)
-        if (gone := folder_gone(self.run_dir, self.folder_id)) is not None:
-            summary["unkept"] = gone
-            return summary
-        try:
-            summary_mod.write(self.run_dir, summary)
-        except OSError as exc:
-            summary["unkept"] = f"cannot write {exc.filename or self.run_dir / 'summary.json'}: {exc.strerror or exc}"
-        return summary

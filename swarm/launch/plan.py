@@ -16,6 +16,8 @@ from typing import Any
 from formation_swarm.common.faults import Fault
 from formation_swarm.common.version import __version__
 from formation_swarm.launch import external as external_mod
+from formation_swarm.launch import ros2 as ros2_mod
+from formation_swarm.launch import sharing
 from formation_swarm.nodes.logger import viewer
 from formation_swarm.protocol import acl, trust
 from formation_swarm.protocol.hostmsg import HostRequest
@@ -145,6 +147,8 @@ class Plan:
     run_id: str
     run_dir: Path
     external: tuple[int, ...] = ()  # robots whose agent the launcher does not start
+    bridge: bool = False  # a ROS 2 bridge, as [ros2] bridge says; the external robots are then ROS's (launch.ros2)
+    ros2_robots: tuple[int, ...] = ()  # robots driven from ROS 2 through the bridge
 
     @classmethod
     def make(cls, scenario_path: str | Path, options: RunOptions) -> Plan:
@@ -159,12 +163,14 @@ class Plan:
             for flag, p in zip(("--grpc-port", "--web-port"), options.web_ports, strict=True):
                 if (why := viewer.port_taken(p)) is not None:
                     raise ValueError(f"{flag} {p}: cannot serve the web viewer there ({why}); choose another port")
-        return cls(options, path, sc, run_id, run_dir, external_mod.check(sc, options.external))
+        external = external_mod.check(sc, options.external)
+        bridge, ros2 = ros2_mod.check(sc, external)
+        return cls(options, path, sc, run_id, run_dir, () if bridge else external, bridge, ros2)
 
     @property
     def own_robots(self) -> list[int]:
         """The robots whose agent the launcher starts (all but the external ones)."""
-        return [r for r in self.sc.robots if r not in self.external]
+        return [r for r in self.sc.robots if r not in self.external and r not in self.ros2_robots]
 
     def names(self) -> list[str]:
         """The run's own processes: the world, the logger, one agent per robot not external."""
@@ -209,6 +215,7 @@ class Plan:
             host_logins=host_logins,
             tls=tls,
             observer=self.options.observer_login is not None,
+            ros2=ros2_mod.access(self),
         )
 
     def command_lines(
@@ -221,9 +228,11 @@ class Plan:
         lines = {"world": self._world(endpoint, secrets, remote_agents)}
         if self.options.logger:
             lines["logger"] = self._logger(endpoint, secrets, live)
+        if self.bridge:
+            lines[ros2_mod.BRIDGE] = ros2_mod.bridge_argv(self, endpoint, _auth(secrets, acl.BRIDGE))
         for rid in [] if remote_agents else self.own_robots:
             lines[f"agent-{rid}"] = self._agent(rid, endpoint, secrets)
-        return lines
+        return sharing.group(lines, sharing.per_process(self.sc), self.run_dir / "control")
 
     def restart_argv(self, argv: Sequence[str], name: str) -> list[str]:
         """A fresh agent's command line: the first one's, with stats of its own."""
@@ -289,6 +298,8 @@ class Plan:
             *self._spool("world"),
             *zenoh_role,
             *["--expect-logger"] * opts.logger,
+            *["--expect-bridge"] * self.bridge,
+            *["--truth-every-tick"] * (bool(self.ros2_robots) and opts.mode == "lockstep"),
             *["--process-faults"] * self.process_faults,
             *(["--rt-priority", str(opts.rt_priority)] if opts.rt_priority is not None else []),
         ]

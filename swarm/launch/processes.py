@@ -10,12 +10,14 @@ import subprocess
 import time
 from collections.abc import Callable, Sequence
 
+from formation_swarm.launch import sharing
 from formation_swarm.launch.record import Journal
 from formation_swarm.launch.remote import RemoteChild
 from formation_swarm.runtime import spawner
 from formation_swarm.runtime.children import KILLED_AT_STOP_TIMEOUT, Child, describe_exit, log_tail
 from formation_swarm.runtime.process import EXIT_HUNG
 
+SIGNALS = {"kill": signal.SIGKILL, "freeze": signal.SIGSTOP, "thaw": signal.SIGCONT}
 END_GRACE_S = 3.0  # at the end, the processes' time to leave on the world's "done"
 STOP_GRACE_S = 2.0  # after SIGTERM, before SIGKILL (plus a second)
 REAP_WAIT_S = 5.0
@@ -43,15 +45,48 @@ class Processes:
         self.journal = journal
         self.children: dict[str, Child] = {}
         self.current: dict[str, str] = {}  # a process of the scenario -> its newest child (agent-3 -> agent-3.2)
-        self.frozen: set[str] = set()  # children stopped by SIGSTOP
+        self.frozen: set[str] = set()  # children stopped by SIGSTOP, robots of a shared process frozen
+        self.shared: dict[str, sharing.Control] = {}  # a process of several robots -> its calls
+        self.sharer: dict[str, str] = {}  # a robot started in a shared process -> that process (agent-3 -> agents-2-11)
         self.frozen_by: dict[str, str] = {}  # the fault that froze (or thawed) each, last
 
     def start(self, child: Child) -> str:
         """Start ``child`` as its process's newest; its name."""
         self.children[child.name] = child
         self.current[child.name.split(".")[0]] = child.name
+        if robots := sharing.robots_in(child.argv):
+            self.shared[child.name] = sharing.Control(sharing.control_path(child.argv))
+            self.current.update(dict.fromkeys(robots, child.name))
+            self.sharer.update(dict.fromkeys(robots, child.name))
         child.start()
         return child.name
+
+    def act(self, process: str, action: str) -> str:
+        """Kill, freeze or thaw ``process`` (agent-3): its newest child by a signal,
+        or in a shared process that robot alone by a call; the child's name."""
+        name = self.current[process]
+        if name in self.shared:
+            self.shared[name].call(action, process)
+            held = process
+        else:
+            self.children[name].signal(SIGNALS[action])
+            held = name
+        (self.frozen.add if action == "freeze" else self.frozen.discard)(held)
+        return name
+
+    def thaw(self, held: str) -> None:
+        """A name of ``frozen`` thawed: a child's SIGCONT, or a robot's call."""
+        if held in self.children:
+            self.children[held].signal(signal.SIGCONT)
+        elif (name := self.current.get(held)) in self.shared:
+            self.shared[name].call("thaw", held)
+
+    def first_argv(self, process: str) -> list[str]:
+        """The command line ``process`` (agent-3) was first started with, alone
+        (a robot of a shared process: the one it would have had)."""
+        if process in self.sharer:
+            return sharing.robots_in(self.children[self.sharer[process]].argv)[process]
+        return self.children[process].argv
 
     def newest(self, process: str) -> Child:
         return self.children[self.current[process]]
@@ -64,8 +99,9 @@ class Processes:
         return f"{process}.{n}"
 
     def kill_and_reap(self, child: Child) -> None:
-        """SIGKILL and wait (a restart: the old one's token must be gone first)."""
-        if child.proc is not None:
+        """SIGKILL and wait (a restart: the old one's token must be gone first).
+        A shared process lives on: its robot was killed at the kill call."""
+        if child.proc is not None and child.name not in self.shared:
             child.signal(signal.SIGKILL)
             with contextlib.suppress(subprocess.TimeoutExpired):
                 child.proc.wait(timeout=REAP_WAIT_S)
@@ -116,7 +152,7 @@ class Processes:
         ``graceful_first``, until ``cut_short`` says otherwise), then SIGTERM,
         then SIGKILL after STOP_GRACE_S; reap every child and close its log."""
         for name in self.frozen:  # a stopped process hears no SIGTERM, nor the end of the run
-            self.children[name].signal(signal.SIGCONT)
+            self.thaw(name)
         self.frozen.clear()
         if graceful_first:
             self._wait_exit(END_GRACE_S, cut_short)

@@ -40,6 +40,7 @@ EXIT_USAGE = 2  # bad flags or scenario (argparse's own code for bad flags)
 EXIT_NO_PEERS = 3  # the router or the peers did not appear within --peers-timeout
 EXIT_DUPLICATE = 4  # an agent for this robot, or a world, is already in the run
 EXIT_HUNG = 5  # (agent) its controller's call had not returned after the run's end: it left (nodes.agent.watch)
+EXIT_KILLED = 137  # (agent) a robot of a shared process killed by a fault: the code SIGKILL gives its own
 # Stopped by a signal: 128 + its number (130 SIGINT, 143 SIGTERM), the code a
 # shell reports for a process that signal kills. A signal that comes while the
 # process still imports its modules (its first second or so, before main()
@@ -150,19 +151,23 @@ def describe_session(args: argparse.Namespace) -> str:
 
 class Process:
     """One role process: its name in what it prints, its stop signals and its
-    peers deadline, which starts now."""
+    peers deadline, which starts now. ``stop``: the stop event of a process
+    that runs several roles (robots sharing a process), installed once."""
 
-    def __init__(self, name: str, peers_timeout_s: float) -> None:
+    def __init__(self, name: str, peers_timeout_s: float, stop: StopEvent | None = None) -> None:
         self.name = name
         self.peers_timeout_s = peers_timeout_s
         self.deadline = time.monotonic() + peers_timeout_s
-        self.stop = install_stop_handlers()
+        self.stop = install_stop_handlers() if stop is None else stop
 
+    # One write per line: the robots that share a process print from threads of their own.
     def say(self, text: str) -> None:
-        print(f"{self.name}: {text}", flush=True)
+        sys.stdout.write(f"{self.name}: {text}\n")
+        sys.stdout.flush()
 
     def complain(self, text: str) -> None:
-        print(f"{self.name}: {text}", file=sys.stderr, flush=True)
+        sys.stderr.write(f"{self.name}: {text}\n")
+        sys.stderr.flush()
 
     def gave_up(self, what: str) -> int:
         """Report missing peers; the exit code to return."""

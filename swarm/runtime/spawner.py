@@ -42,6 +42,7 @@ PRELOAD = "formation_swarm.nodes.preload"
 UNREPORTED = 255  # multiprocessing's exit code when the fork server did not report one
 FORKED_ROLES = (
     "formation_swarm.nodes.agent.main",
+    "formation_swarm.nodes.agent.shared",
     "formation_swarm.nodes.world.main",
     "formation_swarm.nodes.logger.main",
 )

@@ -108,6 +108,7 @@ RUN_KEYS = {
         "s",
     ),
     "stale_after_s": positive("a robot whose latest command is older than this is stopped", 0.5, "s"),
+    "agents_per_process": Key(int, 1, "swarm run: robots per agent process, a session each", low=1, high=MAX_ROBOTS),
 }
 ROBOT_KEYS = {
     "width_m": positive("wheel base: the distance between the two wheels (eq. 7-10)", 0.5, "m"),
@@ -343,6 +344,13 @@ LINK_KEYS = {
     "cmd_drop": Key(NUM, 0.0, "probability that an agent -> world command is lost", low=0.0, high=1.0),
     "formation_drop": Key(NUM, 0.0, "probability that a leader -> follower formation code is lost", low=0.0, high=1.0),
 }
+ROS2_DISTROS = ("jazzy",)  # whose rmw_zenoh wire format swarm run --ros2 speaks
+ROS2_KEYS = {
+    "bridge": Key(bool, False, "swarm run starts the ROS 2 bridge (swarm run --ros2 sets it)"),
+    "domain_id": Key(int, 0, "the ROS 2 domain the bridge's topics are in (ROS_DOMAIN_ID)", low=0, high=232),
+    "namespace": Key(str, "", "put every topic under this namespace, e.g. fleet (frames keep their names)"),
+    "distro": Key(str, "jazzy", f"the ROS 2 distro whose wire format to speak: {', '.join(ROS2_DISTROS)}"),
+}
 
 # The file's sections: name -> (keys, what the section is, how it appears in TOML).
 SECTIONS: dict[str, tuple[Mapping[str, Key], str, str]] = {
@@ -365,20 +373,10 @@ SECTIONS: dict[str, tuple[Mapping[str, Key], str, str]] = {
     ),
     "obstacles": (OBSTACLE_KEYS, f"round obstacles (at most {MAX_OBSTACLES})", "[[obstacles]]"),
     "links": (LINK_KEYS, "faults of the one-way links: each message is dropped with this probability", "[links]"),
+    "ros2": (ROS2_KEYS, "the ROS 2 bridge of swarm run --ros2 (docs/ros2.md)", "[ros2]"),
 }
-TOP_KEYS = (
-    "run",
-    "robot",
-    "camera",
-    "leader",
-    "formations",
-    "controller",
-    "followers",
-    "obstacles",
-    "links",
-    "faults",
-    "placement",
-)
+TOP_KEYS = ("run", "robot", "camera", "leader", "formations", "controller", "followers", "obstacles", "links")
+TOP_KEYS += ("faults", "placement", "ros2")
 
 
 def type_name(types: type | tuple[type, ...]) -> str:

@@ -54,6 +54,7 @@ from formation_swarm.spec.keys import (
     ScenarioWarning,
 )
 from formation_swarm.spec.model import LeaderSpec, LinkFaults, Obstacle, Scenario
+from formation_swarm.spec.ros2 import ros2_settings
 from formation_swarm.world.camera import CameraParams
 
 # What the package's other layers and a library's user take from here.
@@ -88,6 +89,7 @@ def from_dict(raw: Mapping[str, Any]) -> Scenario:
     check_in_sight(ld, formations, camera, followers, raw["formations"])
     obstacles = _obstacles(raw.get("obstacles", []))
     links = check_table(raw.get("links"), "links", LINK_KEYS)
+    ros2_settings(raw)  # checked with the rest; swarm run --ros2 reads it (spec.ros2)
     faults = _faults(raw.get("faults", []), robots, ld["id"], run)
     sc = Scenario(
         placement=_placement(raw.get("placement", {}), robots),

@@ -10,6 +10,9 @@ session, waits and loop); the robot's decisions are its role's
 
 from __future__ import annotations
 
+import argparse
+from collections.abc import Callable
+
 from formation_swarm.nodes.agent.node import Agent, Options
 from formation_swarm.nodes.agent.setup import role_for
 from formation_swarm.protocol import acl, session
@@ -17,6 +20,7 @@ from formation_swarm.runtime import cliargs
 from formation_swarm.runtime import process as process_mod
 from formation_swarm.runtime import spool as spool_mod
 from formation_swarm.runtime.proc import SEND_DRAIN_S, exit_after_main, wait_sent
+from formation_swarm.spec.scenario import Scenario
 
 DESCRIPTION = """\
 Run one robot's agent by hand: its controller, on the run's Zenoh key
@@ -62,8 +66,22 @@ def build_parser() -> cliargs.Parser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    role = process_mod.Process(f"agent {args.id}", args.peers_timeout)
-    sc = role.load(args)
+    return serve(args, process_mod.Process(f"agent {args.id}", args.peers_timeout))
+
+
+def serve(
+    args: argparse.Namespace,
+    role: process_mod.Process,
+    share: int = 1,
+    made: Callable[[Agent], None] | None = None,
+    sc: Scenario | int | None = None,
+) -> int:
+    """One robot's agent, from its flags: its session, its run, its stats;
+    the exit code. ``share``: the robots whose agents run in this process
+    (nodes.agent.shared), which is told of each robot's Agent by ``made``
+    and loads their scenario once (``sc``)."""
+    if sc is None:
+        sc = role.load(args)
     if isinstance(sc, int):
         return sc
     if args.id not in sc.robots:
@@ -83,12 +101,17 @@ def main(argv: list[str] | None = None) -> int:
             stats_path=args.stats,
             lockstep=args.lockstep,
             wire_spool=args.wire_spool,
+            share=share,
         )
         agent = Agent(sess, sc, role_for(sc, args.id, seed), role, opts)
+        if made is not None:
+            made(agent)
         waits = "the world and its followers" if agent.brain.SENDS_CODES else "the world"
         part = agent.brain.describe()
         role.say(f"{where}; run {args.run}, {part}: waiting up to {role.peers_timeout_s:g} s for {waits}")
         code = agent.run()
+        if agent.killed:
+            return process_mod.EXIT_KILLED  # as a process of its own: no last words, no last stats
         # Our last telemetry and its end-of-stream mark may still be in our kernel
         # (the router reads them only as fast as the logger takes them): leaving
         # now could throw them away (swarm.proc.wait_sent).

@@ -80,6 +80,17 @@ class Options:
     # dropped batch took up to 200 ticks out of the recording and its metrics.
     lockstep: bool = False
     wire_spool: str | None = None  # where to spool every message taken, for wire.mcap (runtime.spool)
+    share: int = 1  # the robots whose agents share this process (nodes.agent.shared): its CPU time is split
+
+
+class Hold:
+    """One robot of a shared process, held: frozen (``running`` cleared, its
+    messages wait in its inbox) or killed (its loop ends, nothing more sent)."""
+
+    def __init__(self) -> None:
+        self.running = threading.Event()
+        self.running.set()
+        self.killed = False
 
 
 class Agent:
@@ -105,6 +116,7 @@ class Agent:
         self.end_note = "not started"  # why the loop ended, for the last report line
         self.busy_s = 0.0  # time handling messages in the loop, summed
         self.loop_cpu_s = 0.0  # CPU time of this process over the loop (all its threads)
+        self.hold = Hold()  # a process shared by several robots freezes and kills one of them here
 
     # -- callbacks: short; they only set a flag and end the loop's wait ----------
     def _on_status(self, sample: zenoh.Sample) -> None:
@@ -132,9 +144,30 @@ class Agent:
         try:
             return self._run()
         finally:
-            self.brain.close()  # a close that raises is a failure in the stats, its note in the log
-            if self.brain.notes:
+            if not self.killed:
+                self.brain.close()  # a close that raises is a failure in the stats, its note in the log
+            if self.brain.notes and not self.killed:
                 self._say_notes()
+
+    @property
+    def killed(self) -> bool:
+        return self.hold.killed
+
+    def freeze(self, frozen: bool) -> None:
+        """Pause (True) or resume the loop, as SIGSTOP and SIGCONT do a process of its own."""
+        if frozen:
+            self.hold.running.clear()
+        else:
+            self.brain.step_times.continued()
+            self.hold.running.set()
+
+    def kill(self) -> None:
+        """End the robot as SIGKILL ends a process of its own: its loop ends and
+        its token goes (the world sees it die), nothing more sent nor written.
+        The loop's thread closes the session: two closes at once clash in Zenoh."""
+        self.hold.killed = True
+        self._close_inbox()
+        self.hold.running.set()
 
     def _run(self) -> int:
         s, k, rid = self.session, self.keys, self.brain.robot_id
@@ -164,8 +197,9 @@ class Agent:
             return self._loop(outbox)
         finally:
             self.peers.stop_waiting()
-            outbox.close()  # the logger waits for this end-of-stream mark
-            self._await_logger()
+            if not self.killed:
+                outbox.close()  # the logger waits for this end-of-stream mark
+                self._await_logger()
             token.undeclare()
 
     def _declare_outbox(self) -> Outbox:
@@ -253,6 +287,7 @@ class Agent:
         # The handler, not the subscriber: closing the subscriber from another
         # thread must not wait for this recv.
         channel = inbox.handler
+        self.role.stop.add_waker(self.hold.running.set)  # a frozen robot hears a stop signal
         cpu0 = time.process_time()
         if threading.current_thread() is threading.main_thread():  # a freeze's SIGCONT: its step's time is no step's
             signal.signal(signal.SIGCONT, lambda _sig, _frame: self.brain.step_times.continued())
@@ -276,6 +311,10 @@ class Agent:
                 sample = channel.recv()
             except zenoh.ZError:
                 break  # closed by _close_inbox, once what was queued is read
+            if not self.hold.running.is_set():
+                self.hold.running.wait()  # a freeze: a stop signal sets it too
+            if self.killed:
+                break
             if not self.started:
                 self.started = True
                 self.role.say(f"run {self.keys.run_id} started")
@@ -291,7 +330,7 @@ class Agent:
             if self.done:
                 continue  # the run is over: counted, not answered
             answer = brain.answer()
-            if answer is not None:
+            if answer is not None and not self.killed:
                 outbox.send(answer)
                 brain.prepare()
             noted = bool(brain.notes) and self._say_notes()
@@ -346,8 +385,9 @@ class Agent:
             "role": self.brain.NAME,
             "lockstep": self.opts.lockstep,  # its telemetry waits for the logger (lockstep) or may be dropped
             "busy_s": self.busy_s,
-            "cpu_s": time.process_time(),  # the process's CPU time so far (user + system, all threads)
-            "loop_cpu_s": self.loop_cpu_s,
+            # The process's CPU time (user + system, all threads), so far and over the loop; shared: its share.
+            "cpu_s": time.process_time() / self.opts.share,
+            "loop_cpu_s": self.loop_cpu_s / self.opts.share,
             "in_step": self.brain.step_times.in_call(),  # a call under way (nodes.agent.watch)
             "world_back_after_s": self.peers.world_back_after_s,  # per loss of the world's token mid-run (None: never)
             "rejected": dict(self.brain.rejections.by_reason + self.status_rejections.by_reason),

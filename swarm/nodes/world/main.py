@@ -82,6 +82,12 @@ def build_parser() -> cliargs.Parser:
         help="write the run's summary.json and the scenario as run (scenario.toml) into DIR, as swarm run does",
     )
     ap.add_argument("--expect-logger", action="store_true", help="also wait for the logger before the first tick")
+    ap.add_argument("--expect-bridge", action="store_true", help="also wait for the ROS 2 bridge before the first tick")
+    ap.add_argument(
+        "--truth-every-tick",
+        action="store_true",
+        help="send each tick's ground truth at once, not in batches (a ROS 2 bridge in lockstep waits for it)",
+    )
     ap.add_argument(
         "--rt-priority",
         type=cliargs.integer(0, 99),
@@ -136,6 +142,8 @@ def main(argv: list[str] | None = None) -> int:
             executor=args.process_faults,
             where=where,
             logins=args.zenoh_mode == "router" and bool(args.auth),  # it sees sessions close: nodes.world.sessions
+            truth_every_tick=args.truth_every_tick,
+            expect_bridge=args.expect_bridge,
         )
         world = World(sess, sc, role, opts)
         code = _run_spooled(args, role, world)

@@ -2,7 +2,7 @@
 liveliness tokens, the inbox and the clock.
 
 :class:`World` waits, up to ``--peers-timeout``, for an agent per robot (and
-the logger, and the executor of process faults when promised): their
+the logger, the ROS 2 bridge and the executor of process faults when promised): their
 liveliness tokens and the matching of every observation publisher, each
 change waking the loop. Then its loop runs the tick (world.tick) on its
 clock (nodes.world.clock) and publishes what the tick returns; at a process
@@ -16,16 +16,15 @@ from __future__ import annotations
 import gc
 import math
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import zenoh
 
 from formation_swarm.nodes.world.clock import CLOCKS
 from formation_swarm.nodes.world.inbox import Inbox
+from formation_swarm.nodes.world.outbox import TRUTH_WINDOW_S, Outbox, Peers
 from formation_swarm.nodes.world.sessions import SESSION_CLOSED, LoginWatch
-from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.keys import Keys
 from formation_swarm.runtime import process as process_mod
 from formation_swarm.runtime import summary as summary_mod
@@ -41,49 +40,6 @@ LINGER_S = 2.0  # after "done", at most this long for the agents to leave
 LINGER_LOGGER_S = 10.0
 
 
-@dataclass
-class Peers:
-    """Who of the run is there, from the liveliness tokens."""
-
-    agents_seen: set[int] = field(default_factory=set)
-    logger_seen: bool = False
-    executor_seen: bool = False
-    present: set[str] = field(default_factory=set)  # alive keys of the agents and the logger
-    # When the logger's token went before "done": the tick its recording is cut at.
-    logger_lost: dict[str, Any] | None = None
-
-
-@dataclass
-class Outbox:
-    """The world's publishers: each robot's observations, the truth, the status, the fault calls."""
-
-    obs: dict[int, zenoh.Publisher]
-    truth: BatchPublisher
-    status: zenoh.Publisher
-    faults: zenoh.Publisher | None  # only with an executor of the calls (--process-faults)
-    matching: list[Any] = field(default_factory=list)
-
-    @classmethod
-    def declare(
-        cls, sess: zenoh.Session, keys: Keys, robots: tuple[int, ...], truth_cc: zenoh.CongestionControl, calls: bool
-    ) -> Outbox:
-        block = zenoh.CongestionControl.BLOCK  # Zenoh never drops an observation; our link layer may
-        return cls(
-            obs={rid: sess.declare_publisher(keys.obs(rid), congestion_control=block) for rid in robots},
-            truth=BatchPublisher(sess.declare_publisher(keys.truth, congestion_control=truth_cc)),
-            status=sess.declare_publisher(keys.status),
-            faults=sess.declare_publisher(keys.faults, congestion_control=block) if calls else None,
-        )
-
-    def listen(self, wake: Callable[[], None]) -> None:
-        """A matching change wakes the loop: before tick 0, and when a fresh agent subscribes mid-run."""
-        self.matching = [p.declare_matching_listener(lambda _status: wake()) for p in self.obs.values()]
-
-    def hears(self, rid: int) -> bool:
-        """Whether robot ``rid``'s observations have a subscriber."""
-        return self.obs[rid].matching_status.matching
-
-
 @dataclass(frozen=True)
 class Options:
     """How this world runs: its run, its seed and mode, whom it waits for."""
@@ -92,9 +48,13 @@ class Options:
     seed: int
     mode: str = "lockstep"  # or "realtime" (nodes.world.clock.CLOCKS)
     expect_logger: bool = False
+    expect_bridge: bool = False  # a ROS 2 bridge publishes every tick: waited for as the logger
     executor: bool = False  # a process executes the fault calls (--process-faults)
     where: str = ""  # the session's endpoints, for messages
     logins: bool = False  # the router with logins: a token kept by a second session is seen
+    # Each tick's truth sent at once, never held for the batch's window: a ROS 2
+    # bridge answers tick k once it has published tick k - 1 (nodes.bridge).
+    truth_every_tick: bool = False
 
 
 class World:
@@ -150,7 +110,10 @@ class World:
             )
             return process_mod.EXIT_DUPLICATE
         robots = self.tick.setup.robots
-        self.out = Outbox.declare(s, k, robots, self.clock.truth_congestion, self.opts.executor)
+        window_s = 0.0 if self.opts.truth_every_tick else TRUTH_WINDOW_S
+        self.out = Outbox.declare(
+            s, k, robots, self.clock.truth_congestion, calls=self.opts.executor, truth_window_s=window_s
+        )
         self.inbox = inbox = Inbox(s, k, robots, self.tick.receive, self._on_alive, spool=self.spool)
         inbox.engine = self.tick.engine  # its tick: the sim time a command is spooled at
         self.role.stop.add_waker(inbox.wake)
@@ -219,6 +182,7 @@ class World:
                 peers.agents_seen >= want
                 and all(out.hears(rid) for rid in out.obs)
                 and (peers.logger_seen or not self.opts.expect_logger)
+                and (peers.bridge_seen or not self.opts.expect_bridge)
                 and (peers.executor_seen or not self.opts.executor)
             ):
                 return True
@@ -234,6 +198,8 @@ class World:
             missing.append(f"no agent for robot{'s' if len(absent) > 1 else ''} {', '.join(map(str, absent))}")
         if self.opts.expect_logger and not peers.logger_seen:
             missing.append("no logger")
+        if self.opts.expect_bridge and not peers.bridge_seen:
+            missing.append("no ROS 2 bridge")
         if self.opts.executor and not peers.executor_seen:
             missing.append("no executor of the process faults (the launcher's token alive/launcher/0)")
         if deaf := sorted(r for r in out.obs if r in peers.agents_seen and not out.hears(r)):
@@ -254,7 +220,7 @@ class World:
             return
         role, ident = parsed
         peers = self.peers
-        if role in ("agent", "logger"):
+        if role in ("agent", "logger", "bridge"):  # after "done", the world stays until they have left
             (peers.present.add if present else peers.present.discard)(key)
         if role == "logger":
             peers.logger_seen = peers.logger_seen or present
@@ -263,6 +229,8 @@ class World:
                 peers.logger_lost = {"tick": eng.tick, "time_s": eng.time_s, "wall_s": self._wall_s()}
         elif role == "launcher":
             peers.executor_seen = peers.executor_seen or present
+        elif role == "bridge":
+            peers.bridge_seen = peers.bridge_seen or present
         elif role == "agent" and ident.isdigit() and int(ident) in self.tick.engine.robots:
             rid = int(ident)
             if present:

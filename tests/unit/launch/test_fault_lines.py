@@ -9,6 +9,7 @@ from types import SimpleNamespace
 from typing import Any
 
 from formation_swarm.launch.faults import FaultExecutor
+from formation_swarm.launch.processes import Processes
 from formation_swarm.protocol.messages import FaultCall
 from formation_swarm.spec import scenario as scenario_mod
 
@@ -31,8 +32,9 @@ def test_window_faults_before_a_process_fault_s_tick_are_said_first_in_tick_orde
     faults = ["blackout 3@5s for=2s", "drop obs:2@1s for=3s p=0.3", "kill agent-2@8s"]
     sc = scenario_mod.load("fig11_obstacles", None, faults)
     child = SimpleNamespace(pid=1, signal=lambda _sig: None)
-    procs = SimpleNamespace(current={"agent-2": "agent-2"}, children={"agent-2": child}, frozen=set(), frozen_by={})
     journal = _Journal()
+    procs = Processes(journal)  # type: ignore[arg-type]
+    procs.children["agent-2"], procs.current["agent-2"] = child, "agent-2"  # type: ignore[assignment]
     executor = FaultExecutor(sc, procs, journal, restart=lambda name: name)  # type: ignore[arg-type]
     executor.say_windows(SimpleNamespace(last=SimpleNamespace(tick=30)))  # type: ignore[arg-type]
     kill = next(i for i, f in enumerate(sc.faults) if f.kind == "kill")
