@@ -1,72 +1,112 @@
-"""CPU time of the world's work per tick, without Zenoh: every robot's
-observation (cameras), its encoding, the truth message, the step
-(kinematics) and the metrics (record: formation errors, contacts, digest),
-for N robots in a line on fig11's path, each robot driven straight ahead.
+"""CPU time of the world's work per tick, without Zenoh, on the world process's
+own path (world.tick.WorldTick, lockstep): every robot's observation
+(cameras) and its encoding; the ground truth (taken, its digests fed, its
+message encoded); the step (kinematics); the metrics (record: formation
+errors, contacts, digest); and apart, the answers (each robot's Command
+decoded and judged), which the world's figure of merit has left out so far.
+N robots in a line on fig11's path, each robot driven straight ahead.
 
-    python bench/world_tick.py [--robots 10 50 100 200] [--ticks 200]
+    python bench/world_tick.py [--robots 10 100 200 500 1000] [--ticks 100]
+
+Beyond the scenario's limit of robots (spec.keys.MAX_ROBOTS: the ground truth
+must fit one message) the line is made longer here, for the world alone.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from formation_swarm.protocol.messages import WORLD_ID, Observation, Truth  # noqa: E402
+from formation_swarm.protocol.messages import Command  # noqa: E402
 from formation_swarm.spec import files as scenario_files  # noqa: E402
 from formation_swarm.spec import scenario as scenario_mod  # noqa: E402
-from formation_swarm.world.engine import WorldEngine  # noqa: E402
+from formation_swarm.spec.formations import parse_formations  # noqa: E402
+from formation_swarm.spec.keys import MAX_ROBOTS  # noqa: E402
+from formation_swarm.world.tick import WorldTick  # noqa: E402
+
+STAGES = ("observe", "truth", "step", "record", "answers")
+
+
+def line_of(n: int) -> scenario_mod.Scenario:
+    """fig11 with ``n`` robots in a line (each following the one ahead)."""
+    with warnings.catch_warnings():  # the long chain's steering warning: each robot is driven straight here
+        warnings.simplefilter("ignore")
+        sc = scenario_mod.load(
+            scenario_files.resolve("fig11_obstacles"),
+            {"run.robots": min(n, MAX_ROBOTS), "leader.formation": "line"},
+        )
+    if n <= MAX_ROBOTS:
+        return sc
+    lead = sc.leader.robot_id
+    robots = tuple(range(lead, lead + n))
+    ld = {"id": lead, "formation": sc.leader.formation, "avoid_formation": ""}
+    return dataclasses.replace(sc, robots=robots, formations=parse_formations(sc.raw["formations"], robots, ld))
 
 
 def per_tick(n: int, ticks: int) -> dict[str, float]:
-    sc = scenario_mod.load(scenario_files.resolve("fig11_obstacles"), {"run.robots": n, "leader.formation": "line"})
-    eng = WorldEngine(sc, 0)
-    ids = sorted(eng.robots)
-    spent = {"observe": 0.0, "encode": 0.0, "step": 0.0, "record": 0.0}
-    for _ in range(ticks):
+    """Microseconds of CPU per tick, by stage."""
+    sc = line_of(n)
+    world = WorldTick(sc, 0, lockstep=True, wall_s=time.monotonic)
+    eng = world.engine
+    code = sc.code_of(sc.leader.formation)
+    spent = dict.fromkeys(STAGES, 0.0)
+    for k in range(ticks):
+        straight = {"left_mps": 1.0, "right_mps": 1.0, "formation": code, "done": False}
+        # The agents' work, not timed.
+        payloads = [(rid, Command(sender=rid, seq=k + 1, tick=eng.tick, **straight).to_bytes()) for rid in sc.robots]
+        world.start(time.monotonic())
         t0 = time.process_time()
-        obs = eng.observations(ids) if hasattr(eng, "observations") else {r: eng.observation(r) for r in ids}
+        if hasattr(world, "encoded_observations"):
+            world.encoded_observations()
+        else:  # the code before it: one Observation at a time
+            [obs.to_bytes() for _, obs in world.observations()]
         t1 = time.process_time()
-        for pose, readings, obstacles in obs.values():
-            Observation(
-                sender=WORLD_ID,
-                seq=eng.tick + 1,
-                tick=eng.tick,
-                time_s=eng.time_s,
-                pose=pose,
-                readings=tuple(readings),
-                obstacles=tuple(obstacles),
-            ).to_bytes()
-        robots = tuple((rid, *r.pose, r.alive) for rid, r in eng.robots.items())
-        targets = tuple((rid, *eng.true_target(rid)) for rid in sc.follower_ids)
-        Truth(sender=0, seq=eng.tick + 1, tick=eng.tick, time_s=eng.time_s, robots=robots, targets=targets).to_bytes()
+        truth = world.truth()  # the last tick's (taken at its close)
+        if truth is not None:
+            truth.to_bytes()
         t2 = time.process_time()
-        for rid in ids:
-            eng.set_command(rid, 1.0, 1.0, 0, eng.time_s)
-        eng.step(eng.time_s)
+        for rid, payload in payloads:
+            world.receive(rid, payload)
         t3 = time.process_time()
-        eng.record()
+        world.close()  # this tick's ground truth taken, the robots' digests fed
         t4 = time.process_time()
-        for k, a, b in (("observe", t0, t1), ("encode", t1, t2), ("step", t2, t3), ("record", t3, t4)):
-            spent[k] += b - a
+        world.step()
+        t5 = time.process_time()
+        world.record()
+        t6 = time.process_time()
+        spent["observe"] += t1 - t0
+        spent["truth"] += (t2 - t1) + (t4 - t3)
+        spent["answers"] += t3 - t2
+        spent["step"] += t5 - t4
+        spent["record"] += t6 - t5
     return {k: 1e6 * v / ticks for k, v in spent.items()}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--robots", type=int, nargs="+", default=[10, 50, 100, 200])
-    ap.add_argument("--ticks", type=int, default=200)
+    ap.add_argument("--robots", type=int, nargs="+", default=[10, 100, 200, 500, 1000])
+    ap.add_argument("--ticks", type=int, default=100)
     args = ap.parse_args()
+    if min(args.robots) < 2 or args.ticks < 1:
+        ap.error("--robots: at least 2 each; --ticks: at least 1")
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
     for n in args.robots:
         r = per_tick(n, args.ticks)
-        parts = ", ".join(f"{k} {v:7.0f}" for k, v in r.items())
-        print(f"{n:4d} robots: {sum(r.values()):8.0f} us of CPU per tick ({parts})", flush=True)
+        parts = ", ".join(f"{k} {v:6.0f}" for k, v in r.items() if k != "answers")
+        total = sum(v for k, v in r.items() if k != "answers")
+        print(
+            f"{n:5d} robots: {total:8.0f} us of CPU per tick, {total / n:5.1f} per robot ({parts}); "
+            f"answers {r['answers']:6.0f} more",
+            flush=True,
+        )
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 

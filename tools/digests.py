@@ -11,8 +11,10 @@ check the changed code against it:
 
 ``--check`` prints every case that differs and exits 1 if one does.
 ``tools/digests.txt`` is the list recorded on the development machine
-(Python 3.11, numpy 2.4) before the world's cameras went to numpy; another
-machine's libm may give other digests: record a list there first.
+(Python 3.11, numpy 2.4, a CPU with AVX-512) since the cameras draw their
+noise for the markers in view only (world.camera); another machine's libm,
+or a CPU for which numpy picks other vector code (its arctan2), may give
+other digests: record a list there first.
 """
 
 from __future__ import annotations

@@ -11,13 +11,23 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from formation_swarm.world.camera import CameraFrame
+from formation_swarm.world.camera import pose_array
+from formation_swarm.world.grid import ALL_PAIRS_MAX, near_pairs
 from formation_swarm.world.kinematics import Pose
 from formation_swarm.world.setup import Obstacle
 
 # Contacts listed in the summary with their tick and who touched whom (all are
 # counted): enough to find the first ones; a 200-robot swarm that folds has hundreds.
 CONTACTS_LISTED = 50
+# Relative and absolute slack of numpy's distances, in m: far above the few ulps
+# numpy's hypot and math's can differ by, far below any distance that matters.
+SLACK = 1e-9
+# Up to this many robots every pair is measured with math.hypot: numpy's fixed
+# cost per call is dearer than the pairs it would spare.
+SCALAR_MAX = 4
+# The candidates' radius until a pair has come closer (m): any swarm dense
+# enough to matter has a pair within it.
+FIRST_RADIUS_M = 10.0
 
 
 @dataclass
@@ -38,19 +48,33 @@ class Contacts:
 
     def measure(self, poses: dict[int, Pose], tick: int) -> None:
         """Collisions (robot pairs, robots and obstacles) and the minimum distance
-        of tick ``tick``. numpy measures every pair at once; the pairs it finds near
-        the minimum or near touching (within CameraFrame.SLACK) are measured
-        again with math.hypot, which decides, as the pair loop did."""
+        of tick ``tick``. numpy measures the candidate pairs at once; the pairs
+        it finds near the minimum or near touching (within SLACK) are measured
+        again with math.hypot, which decides, as the pair loop did.
+
+        The candidates are the pairs a grid (world.grid) finds within the
+        smallest distance seen so far (or touching, if wider): a closer pair
+        lowers the minimum, a farther one cannot. Only while no pair has come
+        that close (the first tick) may every pair be measured."""
         ids = sorted(poses)
-        if len(ids) <= CameraFrame.SCALAR_MAX:
+        if len(ids) <= SCALAR_MAX:
             self._by_pairs(ids, poses, tick)
             return
-        xy = np.array([(poses[i][0], poses[i][1]) for i in ids], dtype=float).reshape(-1, 2)
-        slack, diameter = CameraFrame.SLACK, self.diameter_m
+        xy = pose_array(poses, ids)[:, :2]
+        slack, diameter = SLACK, self.diameter_m
         touching: set[tuple[int, int]] = set()
-        if len(ids) > 1:
+        radius = max(diameter * (1.0 + slack) + slack, min(self.min_distance_m, FIRST_RADIUS_M))
+        if len(ids) ** 2 <= ALL_PAIRS_MAX:  # a few: every pair, without the grid's work
             ia, ib = self._pairs(len(ids))
+        else:
+            ia, ib = near_pairs(xy, xy, radius)
+            keep = np.flatnonzero(ia < ib)
+            ia, ib = ia[keep], ib[keep]
+        d = np.hypot(xy[ia, 0] - xy[ib, 0], xy[ia, 1] - xy[ib, 1])
+        if (not d.size or d.min() > radius) and self.min_distance_m > radius:
+            ia, ib = self._pairs(len(ids))  # none that close: the minimum may be farther still
             d = np.hypot(xy[ia, 0] - xy[ib, 0], xy[ia, 1] - xy[ib, 1])
+        if d.size:
             near = (d <= d.min() * (1.0 + slack) + slack) | (d < diameter * (1.0 + slack) + slack)
             for k in np.flatnonzero(near).tolist():
                 a, b = ids[ia[k]], ids[ib[k]]

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from formation_swarm.world.camera import CameraFrame
+from formation_swarm.world.camera import CameraFrame, MarkerReading, Seen, pose_array
 from formation_swarm.world.contacts import CONTACTS_LISTED
 from formation_swarm.world.hardware_faults import SENSOR_EFFECT, CameraFaults, Wheels, counts_table
 from formation_swarm.world.kinematics import Pose, _step_unchecked, from_body_frame, to_body_frame
@@ -45,6 +45,10 @@ __all__ = [
     "WorldEngine",
     "start_poses",
 ]
+
+# Up to this many followers their true targets are taken one by one: numpy's fixed
+# cost per call is dearer than the arithmetic of a few.
+TARGETS_ONE_BY_ONE = 24
 
 Observed = tuple[tuple[float, float, float], list, list]  # own pose, marker readings, obstacles in range
 
@@ -130,35 +134,69 @@ class WorldEngine:
         return dict(self.each_observation(rids))
 
     def each_observation(self, rids: list[int]) -> Iterator[tuple[int, Observed]]:
-        """(rid, :meth:`observation`) of each robot of ``rids`` in turn, so that
-        one can be sent before the next is taken. Every robot's comes from its
-        own generator: the order of ``rids`` changes no reading."""
-        sc = self.scenario
-        leader = sc.leader.robot_id
-        frame = None
-        poses: dict[int, Pose] = {}
+        """(rid, :meth:`observation`) of each robot of ``rids`` in turn. Every
+        camera of the tick is read at once (world.camera.CameraFrame), and every
+        robot's noise comes from its own generator: the order of ``rids``
+        changes no reading."""
+        frame = self._frame()
+        leader = self.scenario.leader.robot_id
+        followers = [(rid, self.robots[rid].rng) for rid in rids if rid != leader]
+        seen_by = frame.observe_many(followers) if followers else {}
         for rid in rids:
-            r = self.robots[rid]
-            readings: list = []
-            obstacles = []
-            if rid != leader:
-                # The leader uses no camera: it flies its path and senses obstacles.
-                if frame is None:
-                    poses = {i: s.pose for i, s in self.robots.items()}
-                    frame = CameraFrame(poses, sc.camera)
-                seen = self.cameras[rid].apply(self.tick, poses, frame.observe(rid, r.rng))
+            yield rid, self._observed(rid, frame, seen_by.get(rid, []))
+
+    def observation_batch(self, rids: list[int]) -> tuple[list[int], Seen, dict[int, Observed]]:
+        """:meth:`observations` of ``rids``, those of the followers whose camera
+        no fault is scheduled on as arrays: (those followers in the order of
+        ``rids``, their readings one after the other, every other robot's
+        observation: the leader's, a faulty camera's). The same readings, the
+        same draws, the same counts."""
+        frame = self._frame()
+        leader = self.scenario.leader.robot_id
+        plain = [rid for rid in rids if rid == leader or self.cameras[rid].effects]
+        fast = [rid for rid in rids if rid != leader and not self.cameras[rid].effects]
+        seen = frame.observe_arrays([(rid, self.robots[rid].rng) for rid in fast])
+        # Whether each camera showed its reference: a reading of the reference's id.
+        refs = np.array([self._reference(rid) for rid in fast], dtype=np.int64)
+        camera = np.repeat(np.arange(len(fast)), seen.counts)
+        showed = np.bincount(camera[seen.ids == refs[camera]], minlength=len(fast)).tolist()
+        for rid, hit in zip(fast, showed, strict=True):
+            metrics = self.metrics.followers[rid]
+            metrics.frames += 1
+            metrics.seen_ticks += hit > 0
+        seen_by = frame.observe_many([(rid, self.robots[rid].rng) for rid in plain if rid != leader])
+        return fast, seen, {rid: self._observed(rid, frame, seen_by.get(rid, [])) for rid in plain}
+
+    def _frame(self) -> CameraFrame:
+        return CameraFrame({i: s.pose for i, s in self.robots.items()}, self.scenario.camera)
+
+    def _reference(self, rid: int) -> int:
+        """The robot follower ``rid`` follows in the formation it flies."""
+        return self.scenario.formation_by_code(self.robots[rid].formation).slots[rid].reference
+
+    def _observed(self, rid: int, frame: CameraFrame, readings: list) -> Observed:
+        """Robot ``rid``'s observation: a follower's ``readings`` once its camera's
+        faults act, counted in its metrics; the leader's obstacles in range."""
+        sc = self.scenario
+        r = self.robots[rid]
+        obstacles = []
+        if rid != sc.leader.robot_id:
+            camera = self.cameras[rid]
+            if camera.effects:  # faults scheduled on this camera (active or not: it decides)
+                seen = camera.apply(self.tick, frame.poses, [MarkerReading(*m) for m in readings])
                 readings = [tuple(m) for m in seen]
-                reference = sc.formation_by_code(r.formation).slots[rid].reference
-                metrics = self.metrics.followers[rid]
-                metrics.frames += 1
-                metrics.seen_ticks += any(m[0] == reference for m in seen)
-            else:
-                for ob in sc.obstacles:
-                    xb, yb = to_body_frame(r.pose, ob.x_m, ob.y_m)
-                    dist = math.hypot(xb, yb)
-                    if dist - ob.radius_m <= sc.leader.sensing_range_m:
-                        obstacles.append((dist, math.atan2(xb, yb), ob.radius_m))
-            yield rid, (tuple(r.pose), readings, obstacles)
+            reference = self._reference(rid)
+            metrics = self.metrics.followers[rid]
+            metrics.frames += 1
+            metrics.seen_ticks += any(m[0] == reference for m in readings)
+        else:
+            # The leader uses no camera: it flies its path and senses obstacles.
+            for ob in sc.obstacles:
+                xb, yb = to_body_frame(r.pose, ob.x_m, ob.y_m)
+                dist = math.hypot(xb, yb)
+                if dist - ob.radius_m <= sc.leader.sensing_range_m:
+                    obstacles.append((dist, math.atan2(xb, yb), ob.radius_m))
+        return tuple(r.pose), readings, obstacles
 
     def set_command(self, rid: int, left_mps: float, right_mps: float, formation: int, now_s: float) -> None:
         """Robot ``rid`` runs these wheel speeds from now (``now_s``, on the clock
@@ -206,6 +244,29 @@ class WorldEngine:
     def target_in(self, rid: int, formation: int, poses: Mapping[int, Pose]) -> tuple[float, float]:
         """Follower ``rid``'s true virtual target in ``formation`` among ``poses`` (eq. 2)."""
         return target_in(self.scenario, rid, formation, poses)
+
+    def targets_in(self, formations: Mapping[int, int], poses: Mapping[int, Pose]) -> list[tuple[int, float, float]]:
+        """(rid, x, y): :meth:`target_in` of each follower of ``formations``
+        (follower: formation code), the arithmetic done for all at once: math's
+        cosines and sines, then the same operations in the same order
+        (from_body_frame's), so the same numbers."""
+        rids = list(formations)
+        if len(rids) <= TARGETS_ONE_BY_ONE:
+            return [(rid, *self.target_in(rid, code, poses)) for rid, code in formations.items()]
+        codes = np.fromiter(formations.values(), dtype=np.int64, count=len(rids))
+        refs, ox, oy = np.zeros(len(rids), np.int64), np.zeros(len(rids)), np.zeros(len(rids))
+        for code in sorted(set(formations.values())):
+            at = np.flatnonzero(codes == code)
+            slots = self.scenario.formation_by_code(code).slots
+            refs[at] = [slots[rids[k]].reference for k in at.tolist()]
+            ox[at] = [slots[rids[k]].offset[0] for k in at.tolist()]
+            oy[at] = [slots[rids[k]].offset[1] for k in at.tolist()]
+        ref = pose_array(poses, refs.tolist())
+        heading = ref[:, 2].tolist()
+        c, s = np.array(list(map(math.cos, heading))), np.array(list(map(math.sin, heading)))
+        x = ref[:, 0] + ox * s + oy * c
+        y = ref[:, 1] - ox * c + oy * s
+        return list(zip(rids, x.tolist(), y.tolist(), strict=True))
 
     def step(self, now_s: float) -> None:
         """Integrate tick k to tick k+1.

@@ -112,7 +112,13 @@ class World:
         robots = self.tick.setup.robots
         window_s = 0.0 if self.opts.truth_every_tick else TRUTH_WINDOW_S
         self.out = Outbox.declare(
-            s, k, robots, self.clock.truth_congestion, calls=self.opts.executor, truth_window_s=window_s
+            s,
+            k,
+            robots,
+            self.clock.truth_congestion,
+            calls=self.opts.executor,
+            truth_window_s=window_s,
+            sightings=self.opts.expect_bridge,
         )
         self.inbox = inbox = Inbox(s, k, robots, self.tick.receive, self._on_alive, spool=self.spool)
         inbox.engine = self.tick.engine  # its tick: the sim time a command is spooled at
@@ -262,8 +268,10 @@ class World:
             now = clock.start_tick()
             tick.start(now - clock.started)
             self._process_faults(out)  # this tick's fault calls and returning agents, before its observations
-            for rid, obs in tick.observations():
-                out.obs[rid].put(obs.to_bytes())
+            encoded = tick.encoded_observations()
+            for rid, payload in encoded:
+                out.obs[rid].put(payload)
+            out.sighted(encoded)
             # While the agents work on this tick: the last tick's ground truth and metrics.
             self._send_truth()
             tick.record()

@@ -65,15 +65,17 @@ def test_bad_camera_parameters(kwargs: dict, name: str) -> None:
         CameraParams(**kwargs)
 
 
-def test_noise_is_three_draws_per_robot_in_id_order_added_to_the_truth() -> None:
-    """The documented stream (rho, phi, beta per robot, visible or not): same seed,
-    same readings, so the same seed gives the same run."""
+def test_noise_is_three_draws_per_marker_in_view_in_id_order_added_to_the_truth() -> None:
+    """The documented stream (rho, phi, beta per marker in view, by robot id): same
+    seed, same readings, so the same seed gives the same run."""
     params = CameraParams(range_m=3.0)
     poses = {1: Pose(0.0, 0.0, 0.3), 2: Pose(9.0, 0.0, 0.0), 3: Pose(0.05, 0.02, -0.2), 4: Pose(-1.0, 2.0, 3.0)}
-    seen = observe(1, poses, params, np.random.default_rng(11))
-    draws = np.random.default_rng(11).standard_normal(9).reshape(3, 3)  # robots 2, 3, 4 (2 out of range)
+    used = np.random.default_rng(11)
+    seen = observe(1, poses, params, used)
+    rng = np.random.default_rng(11)
+    draws = rng.standard_normal(6).reshape(2, 3)  # robots 3 and 4 (2 out of range: no draw)
     want = []
-    for rid, n in zip((3, 4), draws[1:], strict=True):
+    for rid, n in zip((3, 4), draws, strict=True):
         rho, phi, beta = true_reading(poses[1], poses[rid], params.marker_offset_m)
         want.append(
             (
@@ -85,6 +87,7 @@ def test_noise_is_three_draws_per_robot_in_id_order_added_to_the_truth() -> None
         )
     assert [v for m in seen for v in m] == pytest.approx([v for w in want for v in w], abs=1e-15)
     assert seen[0].rho_m >= 0.0  # robot 3 almost on top: the noise may not make rho negative
+    assert used.random() == rng.random()  # six draws, no more
 
 
 def test_a_marker_right_behind_is_seen_by_the_all_around_camera() -> None:
