@@ -115,7 +115,8 @@ def grants(
     k = Keys(run_id)
     out = {
         "world": Grants(
-            publish=(*(k.obs(r) for r in robots), k.truth, k.status, k.faults, k.world_wake),
+            publish=(*(k.obs(r) for r in robots), k.truth, k.status, k.faults, k.world_wake)
+            + ((k.sightings,) if ros2 is not None else ()),
             subscribe=(k.all_cmd,),
             tokens=(k.alive("world", 0),),
             watch=(f"{k.prefix}/alive/*/*",),
@@ -162,7 +163,14 @@ def _ros_grants(k: Keys, ros2: RosAccess) -> dict[str, Grants]:
         BRIDGE: Grants(
             publish=(*(k.cmd(r) for r in mine), ros.topics),
             refused=(ros.any_cmd_vel,),  # what only a ROS node says
-            subscribe=(k.truth, k.status, k.codes, *(k.inbox(r) for r in mine), *(ros.cmd_vel(r) for r in mine)),
+            subscribe=(
+                k.truth,
+                k.status,
+                k.codes,
+                k.sightings,
+                *(k.inbox(r) for r in mine),
+                *(ros.cmd_vel(r) for r in mine),
+            ),
             tokens=(k.alive("bridge", 0), *(k.alive("agent", r) for r in mine), ros.graph),
             watch=(k.alive("world", 0), *(k.alive("agent", r) for r in mine), ros.graph),
         )

@@ -10,6 +10,7 @@ All keys start with ``swarm/<run>`` so that runs never cross-talk::
     swarm/<run>/world/truth           world -> logger   Truth (true poses and targets)
     swarm/<run>/world/status          world -> all      Status (progress, end of run)
     swarm/<run>/world/faults          world -> launcher FaultCall (kill, start, freeze, thaw a process now)
+    swarm/<run>/bridge/sightings      world -> bridge   every robot's Observation of a tick (--ros2 only)
     swarm/<run>/alive/<role>/<id>     liveliness tokens (role: world, agent, logger, launcher, bridge)
     swarm/<run>/robot/wake/cmd        world -> itself   wakes its command loop (local only)
 
@@ -185,6 +186,11 @@ class Keys:
     def faults(self) -> str:
         """The world's calls to the process that executes process faults (the launcher)."""
         return f"{self.prefix}/world/faults"
+
+    @property
+    def sightings(self) -> str:
+        """Every robot's observations of a tick, for the ROS 2 bridge (protocol.sightings)."""
+        return f"{self.prefix}/bridge/sightings"
 
     @property
     def world_all(self) -> str:

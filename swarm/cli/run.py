@@ -159,9 +159,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if (code := _start(launch)) is not None:
         return code
     if args.ros2_login is not None and (settings := launch.login("ros2")) is not None:
-        from formation_swarm.launch.ros2 import write_login
+        from formation_swarm.launch.ros2 import login_line, write_login
 
-        print(f"[swarm] ROS 2 node: --auth {write_login(settings, args.ros2_login)} (docs/ros2.md)", flush=True)
+        print(login_line(write_login(settings, args.ros2_login), launch.endpoint), flush=True)
     with launch:
         result = launch.wait(timeout_s=args.timeout)
     if result.exit_code == interrupts.INTERRUPTED:

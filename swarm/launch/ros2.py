@@ -24,6 +24,9 @@ from typing import TYPE_CHECKING, Any
 
 from formation_swarm.protocol import acl
 from formation_swarm.ros2 import topics
+from formation_swarm.runtime.process import DEFAULT_PEERS_TIMEOUT_S
+from formation_swarm.runtime.spool import path_for as spool_path
+from formation_swarm.runtime.summary import PEERS_TIMEOUT
 from formation_swarm.spec.ros2 import ros2_settings
 
 if TYPE_CHECKING:
@@ -71,6 +74,7 @@ def bridge_argv(plan: Plan, endpoint: str, auth: list[str]) -> list[str]:
         str(run_dir / "stats" / f"{BRIDGE}.json"),
         *[arg for r in plan.ros2_robots for arg in ("--robot", str(r))],
         *(["--lockstep"] if plan.options.mode == "lockstep" else []),
+        *(["--wire-spool", str(spool_path(run_dir, BRIDGE))] if plan.options.record_wire else []),
         "--connect",
         endpoint,
         *auth,
@@ -101,11 +105,22 @@ def hand_over(say: Callable[[str], None], plan: Plan, endpoint: str) -> None:
         f"{topics.topic('robotN/camera', ns)}, {topics.topic('formation', ns)}, "
         f"{topics.topic('robotN/formation_error', ns)}"
     )
+    wait = plan.options.peers_timeout_s or DEFAULT_PEERS_TIMEOUT_S
     for r in plan.ros2_robots:
         say(
-            f"[swarm] robot {r} is driven from ROS 2: the world waits for a node that publishes "
-            f"geometry_msgs/msg/Twist on {topics.cmd_vel(r, ns)} and subscribes to {topics.topic('clock', ns)}"
+            f"[swarm] robot {r} is driven from ROS 2: the world waits up to {wait:g} s (--peers-timeout) for a "
+            f"node that publishes geometry_msgs/msg/Twist on {topics.cmd_vel(r, ns)} and subscribes to "
+            f"{topics.topic('clock', ns)}"
         )
+
+
+def login_line(login: Path, endpoint: str) -> str:
+    """The console line that names a ROS node's login and how to make its session
+    configuration from it (examples/ros2_follower/session_config.py)."""
+    return (
+        f"[swarm] ROS 2 node's login: {login}; its Zenoh session (ZENOH_SESSION_CONFIG_URI): python3 "
+        f"examples/ros2_follower/session_config.py {login} {endpoint} swarm_session.json5 (docs/ros2.md)"
+    )
 
 
 def mark_summary(summary: dict[str, Any], parts: Mapping[str, Any], robots: Sequence[int]) -> None:
@@ -124,6 +139,32 @@ def mark_summary(summary: dict[str, Any], parts: Mapping[str, Any], robots: Sequ
     for rid in robots:
         if isinstance(entry := followers.get(str(rid)), dict):
             entry["ros2"] = True
+    if summary.get("end_reason") == PEERS_TIMEOUT and (said := never_came(parts, robots)):
+        summary["ended"] = said
+
+
+def never_came(parts: Mapping[str, Any], robots: Sequence[int]) -> str | None:
+    """The ROS node the run waited for in vain before tick 0, in words: the
+    robots it would have driven (the world's wait: their agents' places, which
+    the bridge takes only once a ROS node is there) and what the bridge still
+    missed of it; None if the world waited for none of them."""
+    world = parts.get("world")
+    waited = world.get("waited_for") if isinstance(world, Mapping) else None
+    if not isinstance(waited, Mapping) or not isinstance(absent := waited.get("robots"), list):
+        return None
+    missing = [r for r in robots if r in absent]
+    t = waited.get("timeout_s")
+    if not missing or not isinstance(t, (int, float)):
+        return None
+    bridge = parts.get(BRIDGE)
+    lacked = bridge.get("waited_for") if isinstance(bridge, Mapping) else None
+    said = lacked.get("missing") if isinstance(lacked, Mapping) else None
+    what = "; ".join(map(str, said)) if isinstance(said, list) and said else "see the bridge's log"
+    who = f"robot{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))}"
+    return (
+        f"no ROS 2 node came for {who} (swarm run --ros2 --external): the world gave up waiting after {t:g} s "
+        f"(--peers-timeout); the bridge waited for: {what}"
+    )
 
 
 def result_line(ros2: Mapping[str, Any]) -> str:

@@ -125,6 +125,11 @@ def prepare(run_dir: Path, robot: int, sets: list[str], say: Callable[[str], Non
             robots = ", ".join(map(str, which.robots))
             raise UsageError(f"robot {robot} is not in run {keys.run_id} (robots {robots})")
     inputs = inputs_of(wire, robot, takes_codes=robot != as_run.leader.robot_id)
+    if not inputs.inbox and any(h.receiver == "bridge" and h.key == keys.obs(robot) for h in wire.messages):
+        raise UsageError(
+            f"{path}: robot {robot} was driven from ROS 2 (swarm run --ros2): no agent of ours answered it, "
+            f"nothing to replay; its Twists are in swarm export {run_dir} --mcap, /robot{robot}/cmd_vel"
+        )
     if not inputs.recorded:
         raise UsageError(f"{path}: robot {robot} answered no tick in it")
     seed = sc.seed if "run.seed" in overrides else wire.seed  # the run's, unless the what-if changes it

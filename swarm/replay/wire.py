@@ -23,7 +23,7 @@ from mcap.records import Channel, Footer, Message, Metadata
 from mcap.stream_reader import StreamReader
 from zstandard import ZstdError
 
-from formation_swarm.runtime.wirefile import ENCODING, METADATA, RECEIVER
+from formation_swarm.runtime.wirefile import ENCODING, METADATA, RECEIVER, ROS_ENCODING
 
 MAGIC = b"\x89MCAP0\r\n"  # an MCAP file's first and last 8 bytes (its specification)
 # What the run metadata must hold.
@@ -138,7 +138,7 @@ def _ends_whole(stream: Any) -> bool:
 
 
 def _channel(path: Path, ch: Channel) -> tuple[str, str]:
-    if ch.message_encoding != ENCODING:
+    if ch.message_encoding not in (ENCODING, ROS_ENCODING):
         raise WireError(f"{path}: channel {ch.topic!r} is {ch.message_encoding!r}, expected {ENCODING!r}")
     return ch.topic, str(ch.metadata.get(RECEIVER, ""))
 

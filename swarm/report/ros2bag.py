@@ -7,6 +7,10 @@ twist of ``/robotN/odom`` is the true motion since the tick before (zero at
 the first), as the bridge gives it. What each robot's camera saw comes from the
 observations its agent received in the wire recording (wire.mcap); a run
 without one, or a tick its agent did not receive, has an empty MarkerArray.
+A run driven from ROS (``swarm run --ros2 --external N``) also has
+``/robotN/cmd_vel``: each Twist as the bridge received it (its CDR bytes, at
+the tick the bridge was at; one it refused as not finite too), from the same
+recording; a sample that does not decode as a Twist is left out.
 
 Profile ``ros2``; each schema is the type's definition with its dependencies
 (encoding ``ros2msg``), each message CDR (encoding ``cdr``); log and publish
@@ -17,6 +21,7 @@ read it; mcap-ros2-support decodes it.
 from __future__ import annotations
 
 import math
+import re
 import struct
 from collections import Counter
 from collections.abc import Iterator
@@ -42,6 +47,12 @@ PROFILE = "ros2"
 SCHEMA_ENCODING = "ros2msg"
 MESSAGE_ENCODING = "cdr"
 Sightings = dict[tuple[int, int], tuple[tuple[int, float, float, float], ...]]  # (robot, tick) -> readings
+Twists = list[tuple[int, int, bytes]]  # (robot, log time ns, CDR) of each Twist the bridge took, in order
+# A cmd_vel key of rmw_zenoh (ros2.rmw.topic_key), whatever the domain and namespace.
+_CMD_VEL = re.compile(
+    r"^\d+/(?:[A-Za-z0-9_]+/)*robot(\d+)/cmd_vel/geometry_msgs::msg::dds_::Twist_/RIHS01_[0-9a-f]{64}$"
+)
+BRIDGE = "bridge"  # the receiver of the ROS robots' Twists in wire.mcap
 # What a damaged or cut wire recording raises as it is read (swarm.replay.wire reads it fully).
 _UNREADABLE = (McapError, ValueError, struct.error, UnicodeDecodeError, ZstdError, RuntimeError, MemoryError, OSError)
 
@@ -90,35 +101,47 @@ def read_sightings(run: RunData) -> Sightings:
     """What each robot's camera saw per tick: the observations its agent
     received, from the run's wire recording ({} without one). A recording cut
     short gives what it holds; one that does not read at all gives {}."""
+    return read_wire(run)[0]
+
+
+def read_wire(run: RunData) -> tuple[Sightings, Twists]:
+    """From the run's wire recording: what each robot's camera saw per tick, and
+    the Twists the bridge took (none without a recording; what a damaged one holds)."""
     path = run.run_dir / FILE_NAME
     run_id = run.summary.get("run_id")
     if not path.is_file() or not isinstance(run_id, str):
-        return {}
+        return {}, []
     keys = Keys(run_id)
     wanted = {keys.obs(robot): robot for robot in run.robots}
     out: Sightings = {}
+    twists: Twists = []
     try:
         with path.open("rb") as f:
-            _read_obs(f, wanted, out)
+            _read(f, wanted, out, twists)
     except _UNREADABLE:
         pass  # what was read before the damage holds
-    return out
+    return out, twists
 
 
-def _read_obs(stream: IO[bytes], wanted: dict[str, int], out: Sightings) -> None:
-    channels: dict[int, int] = {}  # channel id -> robot
+def _read(stream: IO[bytes], wanted: dict[str, int], out: Sightings, twists: Twists) -> None:
+    channels: dict[int, int] = {}  # channel id -> robot, of the observations
+    cmd_vels: dict[int, int] = {}  # channel id -> robot, of the bridge's Twists
     rejections = Rejections()
     for record in StreamReader(stream, validate_crcs=True).records:
         if isinstance(record, Channel):
             # Every receiver of a robot's observations took the same messages (its
-            # agent, a restarted one, a process of several agents): the first of a tick holds.
+            # agent, a restarted one, a process of several agents, the bridge): the first of a tick holds.
             robot = wanted.get(record.topic)
             if robot is not None:
                 channels[record.id] = robot
+            elif record.metadata.get("receiver") == BRIDGE and (m := _CMD_VEL.match(record.topic)):
+                cmd_vels[record.id] = int(m.group(1))
         elif isinstance(record, Message) and record.channel_id in channels:
             robot = channels[record.channel_id]
             for obs in _observations(rejections, bytes(record.data)):
                 out.setdefault((robot, obs.tick), tuple(tuple(r) for r in obs.readings))
+        elif isinstance(record, Message) and record.channel_id in cmd_vels:
+            twists.append((cmd_vels[record.channel_id], record.log_time, bytes(record.data)))
         elif isinstance(record, Footer):
             return
 
@@ -138,19 +161,37 @@ def write_mcap(run: RunData, stream: IO[bytes], distro: str = messages.DEFAULT_D
     schemas: dict[str, int] = {}
     channels: dict[str, int] = {}
     counts: Counter[str] = Counter()
-    for k, state in enumerate(ticks(run, read_sightings(run))):
+
+    def add(name: str, msgtype: str, data: bytes, ns: int, seq: int) -> None:
+        if name not in channels:
+            if msgtype not in schemas:
+                text = messages.msgdef(msgtype, distro).encode()
+                schemas[msgtype] = writer.register_schema(name=msgtype, encoding=SCHEMA_ENCODING, data=text)
+            channels[name] = writer.register_channel(name, MESSAGE_ENCODING, schemas[msgtype])
+        writer.add_message(channels[name], log_time=ns, data=data, publish_time=ns, sequence=seq)
+        counts[name] += 1
+
+    sightings, received = read_wire(run)
+    twists = [t for t in received if _is_twist(t[2], distro)]
+    for k, state in enumerate(ticks(run, sightings)):
         ns = round(state.time_s * 1e9)
         for name, msgtype, msg in topics.tick_messages(state, distro=distro):
-            if name not in channels:
-                if msgtype not in schemas:
-                    text = messages.msgdef(msgtype, distro).encode()
-                    schemas[msgtype] = writer.register_schema(name=msgtype, encoding=SCHEMA_ENCODING, data=text)
-                channels[name] = writer.register_channel(name, MESSAGE_ENCODING, schemas[msgtype])
-            data = messages.encode(msgtype, msg, distro)
-            writer.add_message(channels[name], log_time=ns, data=data, publish_time=ns, sequence=k)
-            counts[name] += 1
+            add(name, msgtype, messages.encode(msgtype, msg, distro), ns, k)
+        while twists and twists[0][1] <= ns:  # the Twists taken by this tick, after its topics
+            robot, at, data = twists.pop(0)
+            add(topics.topic(f"robot{robot}/cmd_vel"), topics.TWIST, data, at, counts[f"/robot{robot}/cmd_vel"])
+    for robot, at, data in twists:  # after the last tick the run recorded
+        add(topics.topic(f"robot{robot}/cmd_vel"), topics.TWIST, data, at, counts[f"/robot{robot}/cmd_vel"])
     writer.finish()
     return dict(counts)
+
+
+def _is_twist(data: bytes, distro: str) -> bool:
+    try:
+        messages.decode(topics.TWIST, data, distro)
+    except ValueError:
+        return False
+    return True
 
 
 def export_mcap(run: RunData, path: Path, distro: str = messages.DEFAULT_DISTRO) -> dict[str, int]:

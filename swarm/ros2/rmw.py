@@ -24,13 +24,17 @@ last 42): ``::,10:,:,:,,`` is a depth of 10.
 Objects (zenoh-python; each undeclares what it declared on ``close()``):
 
     Node(session, name, namespace="", domain=0, distro="jazzy")   an NN token
-    Publisher(node, topic, msgtype, depth=10)     an MP token; .put(msg, stamp_ns=None)
-    Subscriber(node, topic, msgtype, callback, depth=10)
+    Publisher(node, topic, msgtype, depth=10, block=False)
+        an MP token; .put(msg, stamp_ns=None); ``block``: Zenoh's congestion control
+        BLOCK (a sample waits for room on a congested link) instead of DROP (its default)
+    Subscriber(node, topic, msgtype, callback, depth=10, raw=None)
         an MS token; callback(msg, Attachment | None) for each sample that decodes,
         on Zenoh's receiving thread in the order samples came (keep it short);
         .received and .rejected count the samples; a sample that does not decode,
         or that ``check`` refuses (default: any non-finite float), is counted in
-        .rejected and dropped, never raised into Zenoh's thread
+        .rejected and dropped, never raised into Zenoh's thread. With
+        ``raw(payload, attachment)``, Zenoh's thread hands it each sample's bytes
+        instead, and its owner decodes them later by ``.intake.take``
     Intake(msgtype, callback, check=finite)       that receiving end alone, .take(payload, attachment)
 
 A relative topic is put under the node's namespace.
@@ -235,7 +239,7 @@ class Publisher:
     """A ROS 2 publisher of ``msgtype`` on ``topic``: samples with the attachment
     ROS subscribers expect, the sequence number counting from 1."""
 
-    def __init__(self, node: Node, topic: str, msgtype: str, *, depth: int = 10) -> None:
+    def __init__(self, node: Node, topic: str, msgtype: str, *, depth: int = 10, block: bool = False) -> None:
         self.topic = qualify(topic, node.namespace)
         self.msgtype = msgtype
         self.distro = node.distro
@@ -243,7 +247,8 @@ class Publisher:
         self.token_key = node.entity("MP", self.topic, msgtype, qos_key(depth))
         self.gid = gid_of(self.token_key)
         self.seq = 0
-        self._pub = node.session.declare_publisher(self.key)
+        congestion = zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP
+        self._pub = node.session.declare_publisher(self.key, congestion_control=congestion)
         self._token = node.session.liveliness().declare_token(self.token_key)
 
     def put(self, msg: Any, stamp_ns: int | None = None) -> None:
@@ -313,12 +318,14 @@ class Subscriber:
         *,
         depth: int = 10,
         check: Callable[[Any], bool] = finite,
+        raw: Callable[[bytes, bytes | None], None] | None = None,
     ) -> None:
         self.topic = qualify(topic, node.namespace)
         self.msgtype = msgtype
         self.key = topic_key(node.domain, self.topic, msgtype, node.distro)
         self.token_key = node.entity("MS", self.topic, msgtype, qos_key(depth))
         self.intake = Intake(msgtype, callback, distro=node.distro, check=check)
+        self._raw = raw
         # On the thread that received the sample, not one thread per subscriber
         # (zenoh-python's default): a node's subscriptions then see the samples of
         # a link in the order they came (/robotN/odom of tick t - 1 before /clock t).
@@ -335,8 +342,12 @@ class Subscriber:
         return self.intake.rejected
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
-        raw = sample.attachment
-        self.intake.take(sample.payload.to_bytes(), None if raw is None else raw.to_bytes())
+        att = sample.attachment
+        payload, attached = sample.payload.to_bytes(), None if att is None else att.to_bytes()
+        if self._raw is not None:
+            self._raw(payload, attached)
+        else:
+            self.intake.take(payload, attached)
 
     def close(self) -> None:
         self._token.undeclare()

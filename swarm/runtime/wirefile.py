@@ -5,7 +5,8 @@ run ends.
 One channel per (key, receiver): its topic is the concrete key the message
 was put on, its metadata ``{"receiver": PROCESS}`` names the process that
 took it (world, logger, agent-3; a restarted agent is agent-3.2); message
-encoding ``msgpack`` (the wire's own bytes, batches as batches). Log time is
+encoding ``msgpack`` (the wire's own bytes, batches as batches), or ``cdr``
+for a ROS 2 sample the bridge took (a key outside ``swarm/``). Log time is
 the message's sim time (its tick times dt, in ns, as its receiver decoded
 it); a message its receiver did not decode (a batch, a command the world
 decodes later) gets the receiver's latest sim time. Publish time is the wall
@@ -31,12 +32,14 @@ from mcap.writer import CompressionType, Writer
 
 from formation_swarm.common.version import __version__
 from formation_swarm.protocol.codec import BATCH_TAG, MAX_PAYLOAD_BYTES, MAX_TICK
+from formation_swarm.protocol.keys import ROOT
 from formation_swarm.runtime import spool as spool_mod
 from formation_swarm.spec import scenario as scenario_mod
 from formation_swarm.spec.files import dumps
 
 FILE_NAME = "wire.mcap"
 ENCODING = "msgpack"
+ROS_ENCODING = "cdr"  # the ROS 2 bridge's cmd_vel samples, on rmw_zenoh's keys
 _U64_MAX = 2**64 - 1
 METADATA = "run"  # the name of the metadata record
 RECEIVER = "receiver"  # the channel metadata naming the process that took its messages
@@ -102,7 +105,10 @@ class WireWriter:
         ch = self.channels.get((key, receiver))
         if ch is None:
             ch = self.channels[(key, receiver)] = self.writer.register_channel(
-                topic=key, message_encoding=ENCODING, schema_id=0, metadata={RECEIVER: receiver}
+                topic=key,
+                message_encoding=ENCODING if key.startswith(f"{ROOT}/") else ROS_ENCODING,
+                schema_id=0,
+                metadata={RECEIVER: receiver},
             )
         # A forged tick (up to 2^53) would overflow MCAP's u64 nanoseconds: it is kept, at the end of time.
         log_ns = min(round(tick * self.dt_ns), _U64_MAX)

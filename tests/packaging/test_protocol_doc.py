@@ -93,6 +93,7 @@ def test_every_key_in_the_table_is_built_by_the_keys_module_and_back() -> None:
         "truth": k.truth,
         "status": k.status,
         "faults": k.faults,
+        "sightings": k.sightings,
         "alive": (k.alive("world", 0), k.alive("agent", ID), k.alive("logger", 0), k.alive("launcher", 0)),
         "world_wake": k.world_wake,
     }

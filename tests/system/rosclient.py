@@ -32,6 +32,7 @@ ODOM = "nav_msgs/msg/Odometry"
 CLOCK = "rosgraph_msgs/msg/Clock"
 TF = "tf2_msgs/msg/TFMessage"
 UINT8 = "std_msgs/msg/UInt8"
+MARKERS = "visualization_msgs/msg/MarkerArray"
 QOS = "::,10:,:,:,,"  # reliable, volatile, keep last 10
 
 
@@ -102,9 +103,16 @@ def twist_bytes(linear_x: float, angular_z: float) -> bytes:
 class Follower:
     """Drives one robot from the topics: at each /clock, a Twist from ``law``
     (the poses of every robot by id, the formation code -> (linear_x, angular_z));
-    records what it hears, per tick."""
+    records what it hears, per tick, and the cameras of ``cameras``."""
 
-    def __init__(self, node: RosNode, robot: int, robots: tuple[int, ...], law: Callable[..., tuple[float, float]]):
+    def __init__(
+        self,
+        node: RosNode,
+        robot: int,
+        robots: tuple[int, ...],
+        law: Callable[..., tuple[float, float]],
+        cameras: tuple[int, ...] = (),
+    ) -> None:
         self.node, self.robot, self.law = node, robot, law
         self.lock = threading.Lock()
         self.poses: dict[int, tuple[float, ...]] = {}  # robot -> x, y, yaw, v, w (its latest odometry)
@@ -113,6 +121,9 @@ class Follower:
         self.clocks: list[float] = []
         self.code = 0
         self.twists = 0
+        self.sent: list[tuple[float, float]] = []  # each Twist's (linear.x, angular.z), in order
+        # robot -> per message: its stamp and each arrow (id, x, y, yaw) in the robot's base_link
+        self.cameras: dict[int, list[tuple[float, list[tuple[int, float, float, float]]]]] = {r: [] for r in cameras}
         self.before: list[tuple[float, bytes]] = []  # (sim time, payload): sent once, before a tick's answer
         self.todo: list[tuple[float, dict[int, tuple[float, ...]], int]] = []
         self.wake = threading.Event()
@@ -120,6 +131,8 @@ class Follower:
             node.subscribe(f"/robot{r}/odom", ODOM, lambda m, r=r: self._odom(r, m))
         node.subscribe("/tf", TF, lambda m: self.tf.append(_t(m.transforms[0].header.stamp)))
         node.subscribe("/formation", UINT8, self._code)
+        for r in cameras:
+            node.subscribe(f"/robot{r}/camera", MARKERS, lambda m, r=r: self._camera(r, m))
         self.pub = node.publisher(f"/robot{robot}/cmd_vel", TWIST)
         node.subscribe("/clock", CLOCK, self._clock)  # last: the bridge waits for it
         self.done = False
@@ -132,6 +145,11 @@ class Follower:
             twist = m.twist.twist
             self.poses[r] = (p.position.x, p.position.y, yaw(p.orientation), twist.linear.x, twist.angular.z)
             self.odom[r].append((_t(m.header.stamp), p.position.x, p.position.y, yaw(p.orientation)))
+
+    def _camera(self, r: int, m: Any) -> None:
+        head, *arrows = m.markers  # a DELETEALL first, then one arrow per robot seen
+        seen = [(a.id, a.pose.position.x, a.pose.position.y, yaw(a.pose.orientation)) for a in arrows]
+        self.cameras[r].append((_t(head.header.stamp), seen))
 
     def _code(self, m: Any) -> None:
         with self.lock:
@@ -158,6 +176,7 @@ class Follower:
                 linear_x, angular_z = self.law(poses, code) if self.robot in poses else (0.0, 0.0)
                 self.node.put(self.pub, twist_bytes(linear_x, angular_z))
                 self.twists += 1
+                self.sent.append((linear_x, angular_z))
 
     def close(self) -> None:
         self.done = True

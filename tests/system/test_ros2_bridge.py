@@ -1,12 +1,17 @@
 """swarm run --ros2: the run seen and robot 3 driven through rmw_zenoh's keys,
 by a client written from rmw_zenoh's design (tests.system.rosclient: rosbags'
 CDR over plain Zenoh; no import of formation_swarm.ros2) with the pursuit of
-examples/ros2_follower."""
+examples/ros2_follower. Robot 2's camera on ROS is what robot 2's agent was
+sent; the Twists the bridge took are in wire.mcap and in swarm export --mcap;
+a ROS node that never comes is named in the run's end."""
 
 from __future__ import annotations
 
 import importlib.util
+import json
 import math
+import subprocess
+import sys
 import time
 import uuid
 from pathlib import Path
@@ -14,12 +19,18 @@ from typing import Any
 
 import numpy as np
 import pytest
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
 
 from formation_swarm import load_run
 from formation_swarm.launch.launcher import Launch, RunResult
 from formation_swarm.launch.ros2 import write_login
+from formation_swarm.protocol.keys import Keys
+from formation_swarm.protocol.messages import Observation
+from formation_swarm.report.data import RunData
+from formation_swarm.report.ros2bag import export_mcap
 from formation_swarm.spec import scenario as scenario_mod
-from tests.system.rosclient import Follower, RosNode
+from tests.system.rosclient import STORE, TWIST, Follower, RosNode
 
 pytestmark = pytest.mark.slow
 
@@ -71,7 +82,7 @@ def fly(
         login = write_login(launch.login("ros2") or {}, tmp_path / f"{run_id}.json")  # as --ros2-login does
         node = RosNode(launch.endpoint, login)
         try:
-            follower = Follower(node, 3, SC.robots, law)
+            follower = Follower(node, 3, SC.robots, law, cameras=(2,))
             follower.before = list(before or [])
             deadline, graph = time.monotonic() + 20.0, []
             while time.monotonic() < deadline and not _seen(graph, node.zid):
@@ -118,6 +129,8 @@ def test_lockstep_seen_and_driven_from_ros(tmp_path: Path) -> None:
     assert rms < 1.5
     assert any("ROS 2 bridge" in line for line in lines)
     assert any("robot 3 is driven from ROS 2" in line for line in lines)
+    cameras_are_what_robot_2_was_sent(run, follower)
+    twists_are_recorded_and_exported(run, follower, tmp_path)
     # Two lockstep runs, one digest.
     again, _, _, _ = fly(tmp_path, "lockstep")
     assert again.summary["trajectory_digest"] == s["trajectory_digest"]
@@ -144,3 +157,81 @@ def test_a_malformed_payload_and_a_nan_twist_are_rejected_and_counted(tmp_path: 
     assert s["rejected"]["bridge"] == {"malformed CDR": 1, "twist not finite or out of bounds": 1}
     assert s["ros2"]["twists"]["3"]["taken"] == follower.twists == 40
     assert s["lockstep_misses"] == 0
+
+
+def cameras_are_what_robot_2_was_sent(run: RunData, follower: Follower) -> None:
+    """/robot2/camera (robot 2 has its own agent) holds, each tick, the readings
+    of the observation robot 2's agent received (wire.mcap), as arrows in base_link."""
+    sent: dict[int, tuple[tuple[float, ...], ...]] = {}
+    with (run.run_dir / "wire.mcap").open("rb") as f:
+        for _s, channel, message in make_reader(f).iter_messages(topics=[Keys(run.summary["run_id"]).obs(2)]):
+            if channel.metadata.get("receiver") == "agent-2":
+                obs = Observation.from_bytes(message.data)
+                sent[obs.tick] = obs.readings
+    cams = follower.cameras[2]
+    assert len(cams) == len(run.tick) == len(sent)
+    arrows = 0
+    for stamp, seen in cams:
+        readings = sent[round(stamp / SC.dt_s)]
+        assert [a[0] for a in seen] == [r[0] for r in readings]
+        for (_id, x, y, heading), (_rid, rho, phi, beta) in zip(seen, readings, strict=True):
+            assert (x, y, heading) == pytest.approx((rho * math.cos(beta), -rho * math.sin(beta), phi), abs=1e-9)
+        arrows += len(seen)
+    assert arrows > len(cams)  # robot 2 sees more than one robot a tick on average: the triangle
+
+
+def twists_are_recorded_and_exported(run: RunData, follower: Follower, tmp_path: Path) -> None:
+    """Every Twist robot 3's node sent is in wire.mcap as the bridge took it, and in swarm export --mcap."""
+    recorded = []
+    with (run.run_dir / "wire.mcap").open("rb") as f:
+        for _s, channel, message in make_reader(f).iter_messages():
+            if channel.metadata.get("receiver") == "bridge" and "/robot3/cmd_vel/" in channel.topic:
+                assert channel.message_encoding == "cdr"
+                msg = STORE.deserialize_cdr(message.data, TWIST)
+                recorded.append((msg.linear.x, msg.angular.z))
+    assert recorded == follower.sent
+    counts = export_mcap(run, tmp_path / "run.mcap")
+    assert counts["/robot3/cmd_vel"] == len(follower.sent)
+    assert counts["/robot3/camera"] == len(run.tick)  # what the bridge was sent for robot 3, recorded
+    with (tmp_path / "run.mcap").open("rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        bag = [(m.linear.x, m.angular.z) for *_r, m in reader.iter_decoded_messages(topics=["/robot3/cmd_vel"])]
+    assert bag == follower.sent
+    # Robot 3 had no agent of ours: nothing to replay, said in one line.
+    argv = [sys.executable, "-m", "formation_swarm.cli", "replay", str(run.run_dir), "--robot", "3"]
+    replay = subprocess.run(argv, capture_output=True, text=True, timeout=120, check=False)
+    assert replay.returncode == 2, replay.stdout + replay.stderr
+    assert "robot 3 was driven from ROS 2" in replay.stderr
+
+
+def test_a_ros_node_that_never_comes_is_named_and_nothing_stays(tmp_path: Path) -> None:
+    """As an outside agent that never connects: exit code 1, the robot and the topics waited for named."""
+    out = tmp_path / "run"
+    argv = [sys.executable, "-m", "formation_swarm.cli", "run", "fig11_obstacles", "--ros2", "--external", "3"]
+    done = subprocess.run(
+        [*argv, "--no-logger", "--peers-timeout", "3", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 1, done.stdout + done.stderr
+    s = json.loads((out / "summary.json").read_text())
+    said = (
+        "no ROS 2 node came for robot 3 (swarm run --ros2 --external): the world gave up waiting after 3 s "
+        "(--peers-timeout); the bridge waited for: no ROS publisher of /robot3/cmd_vel; no ROS subscription to /clock"
+    )
+    assert (s["end_reason"], s["ended"], s["exit_code"]) == ("peers_timeout", said, 1)
+    assert s["parts"]["world"]["waited_for"]["robots"] == [3]
+    assert s["parts"]["bridge"]["waited_for"]["robots"] == [3]
+    assert [line for line in done.stdout.splitlines() if line.startswith("  ended: ")] == [f"  ended: {said}"]
+    left = [p for p in Path("/proc").iterdir() if p.name.isdigit() and _runs(p, s["run_id"])]
+    assert left == []
+
+
+def _runs(proc: Path, run_id: str) -> bool:
+    """Whether the process at ``proc`` is one of run ``run_id``'s (its command line names it)."""
+    try:
+        return run_id in (proc / "cmdline").read_bytes().decode(errors="replace").split("\0")
+    except OSError:  # it ended meanwhile
+        return False

@@ -1,7 +1,7 @@
 """The ROS 2 bridge process's command line: a run's topics on rmw_zenoh's keys.
 
     swarm bridge --scenario S.toml --run RUN [--robot N ...] [--lockstep] [--stats FILE]
-                 [--peers-timeout S] --connect ENDPOINT [--auth FILE]
+                 [--wire-spool FILE] [--peers-timeout S] --connect ENDPOINT [--auth FILE]
 
 This module is the command line; the process is nodes.bridge.node, its
 decisions nodes.bridge.role. ``swarm run --ros2`` starts it (docs/ros2.md).
@@ -14,6 +14,7 @@ from formation_swarm.nodes.bridge.role import BridgeRole
 from formation_swarm.protocol import acl, session
 from formation_swarm.runtime import cliargs
 from formation_swarm.runtime import process as process_mod
+from formation_swarm.runtime import spool as spool_mod
 from formation_swarm.runtime.proc import exit_after_main, write_json
 from formation_swarm.spec.ros2 import ros2_settings
 
@@ -47,6 +48,7 @@ def build_parser() -> cliargs.Parser:
         help="the world runs in lockstep: /clock says a tick once the one before is published, and the first "
         "Twist after it answers that tick",
     )
+    spool_mod.add_arguments(ap)
     process_mod.add_arguments(ap, waits_for="the world (and a ROS node for each --robot)")
     session.add_arguments(ap, default_mode="client")
     return ap
@@ -70,11 +72,17 @@ def main(argv: list[str] | None = None) -> int:
     if isinstance(sess_cm, int):
         return sess_cm
     where = process_mod.describe_session(args)
-    with sess_cm as sess:
-        role.say(f"{where}; run {args.run}: waiting up to {role.peers_timeout_s:g} s for the world")
-        bridge = Bridge(sess, brain, role, Options(run_id=args.run, where=where, stats_path=args.stats))
-        code = bridge.run()
-        stats = bridge.stats()
+    spool = spool_mod.open_path(args.wire_spool, args.run, role.complain)
+    opts = Options(run_id=args.run, where=where, stats_path=args.stats, lockstep=args.lockstep)
+    try:
+        with sess_cm as sess:
+            role.say(f"{where}; run {args.run}: waiting up to {role.peers_timeout_s:g} s for the world")
+            bridge = Bridge(sess, brain, role, opts, spool)
+            code = bridge.run()
+            stats = bridge.stats()
+    finally:
+        if spool is not None:  # what it buffers, whatever ended the loop
+            spool.close()
     try:
         write_json(args.stats, stats)
     except OSError as exc:

@@ -8,6 +8,11 @@ bridge holds the robot's agent token, so that the world waits for it as for
 any agent, but only once a ROS node is there to answer: one that publishes
 the robot's ``cmd_vel`` and subscribes to ``/clock`` (their ROS liveliness
 tokens), within ``--peers-timeout``.
+
+With a spool (``--wire-spool``), every run message and every ROS sample the
+bridge takes in (the truth, the status, the sightings, its robots' inboxes,
+the codes, each ``cmd_vel`` sample as its bytes came) is recorded as the loop
+takes it, at the newest tick the bridge knew of (docs/replay.md).
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from formation_swarm.protocol.keys import Keys, RosKeys
 from formation_swarm.protocol.messages import Status
 from formation_swarm.ros2 import rmw, topics
 from formation_swarm.runtime import process as process_mod
+from formation_swarm.runtime.spool import SpoolWriter
 
 NODE_NAME = "swarm_bridge"
 QUEUE_CAPACITY = 100_000  # events waiting for the loop; beyond, the newest are dropped and counted
@@ -38,13 +44,22 @@ class Options:
     run_id: str
     where: str = ""
     stats_path: str | None = None
+    lockstep: bool = False
 
 
 class Bridge:
     """The bridge process of one run."""
 
-    def __init__(self, sess: zenoh.Session, brain: BridgeRole, role: process_mod.Process, opts: Options) -> None:
+    def __init__(  # noqa: PLR0913 -- the process's parts, each once
+        self,
+        sess: zenoh.Session,
+        brain: BridgeRole,
+        role: process_mod.Process,
+        opts: Options,
+        spool: SpoolWriter | None = None,
+    ) -> None:
         self.session = sess
+        self.spool = spool
         self.brain = brain
         self.role = role
         self.opts = opts
@@ -55,22 +70,25 @@ class Bridge:
         self.started = False
         self.world_seen = False
         self.end_note = "not started"
+        self.waited_for: dict[str, Any] | None = None  # what it waited for in vain before the run (None: it did not)
         self.graph: set[tuple[str, str]] = set()  # (kind, topic) of the other ROS entities' tokens
         self.subs: dict[int, rmw.Subscriber] = {}
         self.malformed: dict[int, int] = {}  # per robot, the cmd_vel samples its subscription refused, said so far
         self.zid = str(sess.zid())  # our own ROS entities' tokens carry it
         self.pubs: dict[str, rmw.Publisher] = {}
         self.cmds: dict[int, zenoh.Publisher] = {}
+        self.twists_out: list[RosOut | CmdOut] = []  # what the Twist being taken gave
 
     # -- callbacks: Zenoh's threads, they only queue ------------------------------------
-    def _put(self, *event: Any) -> None:
+    def _put(self, kind: str, robot: int, data: Any, key: str = "") -> None:
+        """An event for the loop; ``key``: a message's, to spool (its bytes are ``data``)."""
         try:
-            self.events.put_nowait(event)
+            self.events.put_nowait((kind, robot, data, key, time.time_ns()))
         except queue.Full:
             self.dropped += 1
 
     def _on_sample(self, kind: str, robot: int = 0) -> zenoh.handlers.Callback:
-        return _direct(lambda sample: self._put(kind, robot, sample.payload.to_bytes()))
+        return _direct(lambda sample: self._put(kind, robot, sample.payload.to_bytes(), str(sample.key_expr)))
 
     def _on_inbox(self, robot: int) -> zenoh.handlers.Callback:
         obs, codes = self.keys.obs(robot), self.keys.codes
@@ -78,12 +96,20 @@ class Bridge:
         def take(sample: zenoh.Sample) -> None:
             key = str(sample.key_expr)
             kind = "obs" if key == obs else "code" if key == codes else "stray"
-            self._put(kind, robot, sample.payload.to_bytes())
+            self._put(kind, robot, sample.payload.to_bytes(), key)
 
         return _direct(take)
 
-    def _on_twist(self, robot: int) -> Callable[[Any, Any], None]:
-        return lambda msg, _meta: self._put("twist", robot, (float(msg.linear.x), float(msg.angular.z)))
+    def _on_twist(self, robot: int, key: str) -> Callable[[bytes, bytes | None], None]:
+        """A sample on robot ``robot``'s cmd_vel, its bytes as they came: decoded in the loop."""
+        return lambda payload, attached: self._put("twist", robot, (payload, attached), key)
+
+    def _took_twist(self, robot: int) -> Callable[[Any, Any], None]:
+        """A Twist that decoded (the loop's, in Intake.take): what the role answers."""
+        brain = self.brain
+        return lambda msg, _meta: self.twists_out.extend(
+            brain.take_twist(robot, float(msg.linear.x), float(msg.angular.z))
+        )
 
     def _on_world(self, sample: zenoh.Sample) -> None:
         self._put("world", 0, sample.kind == zenoh.SampleKind.PUT)
@@ -100,20 +126,24 @@ class Bridge:
         settings = brain.settings
         node = rmw.Node(s, NODE_NAME, namespace=settings.namespace, domain=settings.domain_id, distro=settings.distro)
         self.pubs = {
-            name: rmw.Publisher(node, name, msgtype)
+            name: rmw.Publisher(node, name, msgtype, block=blocks(msgtype, lockstep=self.opts.lockstep))
             for name, msgtype in _topics(brain, settings.namespace, settings.distro).items()
         }
         block = zenoh.CongestionControl.BLOCK  # a command is never dropped by Zenoh, as an agent's
         self.cmds = {r: s.declare_publisher(k.cmd(r), congestion_control=block) for r in brain.robots}
         s.declare_subscriber(k.truth, self._on_sample("truth"))
         s.declare_subscriber(k.status, self._on_sample("status"))
+        s.declare_subscriber(k.sightings, self._on_sample("sightings"))
         for r in brain.robots:  # its inbox: observations and the leader's codes (not our own commands)
             s.declare_subscriber(k.inbox(r), self._on_inbox(r), allowed_origin=zenoh.Locality.REMOTE)
         if not brain.robots:
             s.declare_subscriber(k.codes, self._on_sample("code"))
         for r in brain.robots:
             twist = topics.cmd_vel(r, settings.namespace)
-            self.subs[r] = rmw.Subscriber(node, twist, topics.TWIST, self._on_twist(r), check=lambda _m: True)
+            key = rmw.topic_key(settings.domain_id, rmw.qualify(twist, node.namespace), topics.TWIST, node.distro)
+            self.subs[r] = rmw.Subscriber(
+                node, twist, topics.TWIST, self._took_twist(r), check=lambda _m: True, raw=self._on_twist(r, key)
+            )
             self.malformed[r] = 0
         s.liveliness().declare_subscriber(k.alive("world", 0), self._on_world, history=True)
         s.liveliness().declare_subscriber(RosKeys(settings.domain_id).graph, self._on_graph, history=True)
@@ -133,14 +163,27 @@ class Bridge:
     def _ros_ready(self) -> list[str]:
         """What the robots left to ROS still miss of a ROS node: its cmd_vel publisher, its /clock subscription."""
         ns = self.brain.settings.namespace
-        missing = [
-            f"no ROS publisher of {topics.cmd_vel(r, ns)}"
-            for r in self.brain.robots
-            if ("MP", topics.cmd_vel(r, ns)) not in self.graph
-        ]
+        missing = [f"no ROS publisher of {topics.cmd_vel(r, ns)}" for r in self._unanswered(with_clock=False)]
         if self.brain.robots and ("MS", topics.topic("clock", ns)) not in self.graph:
             missing.append(f"no ROS subscription to {topics.topic('clock', ns)}")
         return missing
+
+    def _unanswered(self, *, with_clock: bool = True) -> list[int]:
+        """The robots left to ROS no ROS node answers for yet: no publisher of their
+        cmd_vel or (``with_clock``) no subscription to /clock, which every answer needs."""
+        ns, robots = self.brain.settings.namespace, self.brain.robots
+        if with_clock and robots and ("MS", topics.topic("clock", ns)) not in self.graph:
+            return list(robots)
+        return [r for r in robots if ("MP", topics.cmd_vel(r, ns)) not in self.graph]
+
+    def _gave_up_waiting(self) -> None:
+        """What the run's start still lacked of ROS when the bridge stopped waiting, for its stats."""
+        self.waited_for = {
+            "robots": self._unanswered(),
+            "missing": self._ros_ready(),
+            "world": self.world_seen,
+            "timeout_s": self.role.peers_timeout_s,
+        }
 
     def _wait_ready(self) -> int | None:
         """Until the world is there, hears our commands, and a ROS node answers
@@ -151,9 +194,11 @@ class Bridge:
             if self.world_seen and heard and not self._ros_ready():
                 return None
             if self.role.left_s() <= 0:
+                self._gave_up_waiting()
                 missing = self._ros_ready() + ([] if self.world_seen else [f"no world of run {self.keys.run_id!r}"])
                 said = "; ".join(missing or ["the world never subscribed to our robots' commands"])
                 return self.role.gave_up(f"{said} ({self.opts.where}); {process_mod.CHECK_PEERS}")
+        self._gave_up_waiting()  # stopped first: the world gave up, say, and the launcher stopped us
         return self.role.stop.exit_code
 
     def _loop(self) -> int:
@@ -182,11 +227,28 @@ class Bridge:
             except queue.Empty:
                 return
             wait = 0.0
-            for out in self._handle(*event):
+            kind, robot, data, key, received_ns = event
+            outs = self._handle(kind, robot, data)
+            if key and self.spool is not None:
+                self._spool(self.spool, kind, data, key, received_ns)
+            for out in outs:
                 if isinstance(out, RosOut):
                     self.pubs[out.topic].put(out.msg)
                 else:
                     self.cmds[out.robot].put(out.command.to_bytes())
+
+    def _spool(self, spool: SpoolWriter, kind: str, data: Any, key: str, received_ns: int) -> None:
+        """One message taken, at the newest tick known (a Twist: at the tick it answers, with its sender's seq)."""
+        tick = self.brain.newest_tick
+        if kind != "twist":
+            spool.add(key, data, tick if tick >= 0 else None, None, received_ns)
+            return
+        payload, attached = data
+        try:
+            seq = None if attached is None else rmw.parse_attachment(attached).seq
+        except ValueError:
+            seq = None
+        spool.add(key, payload, tick if tick >= 0 else None, seq, received_ns)
 
     def _handle(self, kind: str, robot: int, data: Any) -> list[RosOut | CmdOut]:
         brain = self.brain
@@ -197,8 +259,12 @@ class Bridge:
             self.started = True
             return brain.take_truth(data)
         if kind == "twist":
-            return brain.take_twist(robot, *data)
-        if kind == "code":
+            self.twists_out = []
+            self.subs[robot].intake.take(*data)  # a Twist that decodes: _took_twist
+            return self.twists_out
+        if kind == "sightings":
+            brain.take_sightings(data)
+        elif kind == "code":
             brain.take_code(data)
         elif kind == "status":
             st = self.status_rejections.decode(Status, data)
@@ -224,7 +290,20 @@ class Bridge:
         out["rejected"] = {**out["rejected"], **dict(self.status_rejections.by_reason)}
         out["events_dropped"] = self.dropped
         out["end"] = self.end_note
+        out["waited_for"] = self.waited_for
         return out
+
+
+def blocks(msgtype: str, *, lockstep: bool) -> bool:
+    """Whether a topic's samples wait for room on a congested link (Zenoh's BLOCK)
+    rather than being dropped. In lockstep, what a ROS node answers a tick from
+    (/clock, /tf, odometry, the cameras, /formation): a /clock dropped is a tick
+    unanswered, a pose dropped an answer from an older one, and the run would
+    depend on the timing; a slow subscriber then slows the run, as a slow agent
+    does. Not the formation errors: a score, no input. In real time nothing
+    blocks: the next tick's message supersedes a dropped one, and a bridge held
+    back by a slow viewer would make every ROS robot's commands stale."""
+    return lockstep and msgtype != topics.ERROR
 
 
 def _direct(callback: Callable[[zenoh.Sample], None]) -> zenoh.handlers.Callback:

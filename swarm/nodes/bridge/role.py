@@ -3,10 +3,11 @@ ROS robots' Twists in, what to publish out. No Zenoh: nodes.bridge.node
 declares the subscribers and publishers and hands everything to one loop.
 
 Each tick's ground truth becomes the topics of formation_swarm.ros2.topics
-(but ``/clock``, said here). A robot left to ROS is answered for as its
-agent would: a Twist on ``/robotN/cmd_vel`` becomes wheel speeds (the
-robot's drive model, ``twist_to_wheels``) in a Command the world judges as
-any agent's.
+(but ``/clock``, said here); what each robot's camera saw comes from the
+world's sightings of that tick (every robot's observation, protocol.sightings).
+A robot left to ROS is answered for as its agent would: a Twist on
+``/robotN/cmd_vel`` becomes wheel speeds (the robot's drive model,
+``twist_to_wheels``) in a Command the world judges as any agent's.
 
 Lockstep: ``/clock`` says tick t once tick t - 1's topics are out (the
 world sends tick t - 1's truth while it waits for tick t's answers), and
@@ -26,6 +27,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
+from formation_swarm.protocol import sightings as sightings_mod
 from formation_swarm.protocol.codec import Rejections
 from formation_swarm.protocol.messages import Command, FormationCode, Observation, Truth
 from formation_swarm.ros2 import messages as ros_messages
@@ -35,6 +37,7 @@ from formation_swarm.spec.scenario import Scenario
 
 TAKEN, REJECTED, UNAWAITED = "taken", "rejected", "unawaited"  # a Twist's fates, per robot
 MAX_SPEED_MPS = 1e3  # a Twist beyond this (or a turn rate beyond it in rad/s) is no robot's: rejected
+SIGHTINGS_KEPT = 4  # ticks of sightings kept for their truth (lockstep: it comes a tick after them)
 
 
 @dataclass(frozen=True)
@@ -94,7 +97,7 @@ class BridgeRole:
         self.clock = clock  # real time: a Twist's age
         self.latest: dict[int, tuple[float, float, float]] = {}  # real time: robot -> its latest Twist: wheels, when
         self.observed: dict[int, int] = {}  # robot -> the newest tick it was observed at
-        self.readings: dict[tuple[int, int], tuple[Any, ...]] = {}  # (robot, tick) -> its camera's, two ticks kept
+        self.readings: dict[int, dict[int, tuple[Any, ...]]] = {}  # tick -> robot -> its camera's readings
         self.seq = dict.fromkeys(self.robots, 0)
         self.done = False
 
@@ -118,8 +121,6 @@ class BridgeRole:
             return []
         self.world_tick = max(self.world_tick, obs.tick)
         self.observed[robot] = obs.tick
-        self.readings[(robot, obs.tick)] = obs.readings
-        self.readings.pop((robot, obs.tick - 2), None)
         if not self.lockstep:
             out: list[RosOut | CmdOut] = self._clock(obs.tick)
             left, right, at = self.latest.get(robot, (0.0, 0.0, -math.inf))
@@ -130,6 +131,22 @@ class BridgeRole:
             self.awaiting[robot] = obs.tick
             return []
         return self._clock_due()
+
+    def take_sightings(self, payload: bytes) -> None:
+        """Some robots' observations of a tick (protocol.sightings): what their cameras saw."""
+        robots = self.sc.robots
+        for rid, obs in sightings_mod.unpack(payload, self.rejections):
+            if rid not in robots:
+                self.rejections.reject("unknown robot")
+            elif obs.tick > self.truth_tick:  # a tick whose topics are out: too late to show
+                self.readings.setdefault(obs.tick, {})[rid] = obs.readings
+        for old in [t for t in self.readings if t <= self.truth_tick or t < self.newest_tick - SIGHTINGS_KEPT]:
+            del self.readings[old]
+
+    @property
+    def newest_tick(self) -> int:
+        """The newest tick the bridge knows of: observed, published or said by /clock."""
+        return max(self.world_tick, self.truth_tick, self.clock_tick, max(self.readings, default=-1))
 
     def take_truth(self, payload: bytes) -> list[RosOut | CmdOut]:
         """A batch of ground truth: each tick's topics, then (lockstep) /clock if due."""
@@ -232,6 +249,7 @@ class BridgeRole:
         before = self.last_truth
         prev = {r[0]: r for r in before.robots} if before is not None and before.tick == truth.tick - 1 else {}
         targets = {rid: (x, y) for rid, x, y in truth.targets}
+        seen = self.readings.pop(truth.tick, {})
         robots = []
         for rid, x, y, theta, _alive in truth.robots:
             v = omega = 0.0
@@ -239,7 +257,7 @@ class BridgeRole:
                 v = ((x - p[1]) * math.cos(p[3]) + (y - p[2]) * math.sin(p[3])) / dt
                 omega = math.remainder(theta - p[3], math.tau) / dt
             error = None if rid not in targets else math.hypot(x - targets[rid][0], y - targets[rid][1])
-            sightings = self.readings.get((rid, truth.tick), ())
+            sightings = seen.get(rid, ())
             robots.append(
                 topics.RobotTick(
                     robot=rid,

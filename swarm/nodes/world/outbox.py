@@ -1,6 +1,7 @@
 """The world's side of the wire it sends on, and who of the run is there:
 :class:`Outbox` (each robot's observations, the truth, the status, the
-fault calls) and :class:`Peers` (from the liveliness tokens)."""
+fault calls, every robot's observations again for a ROS 2 bridge) and
+:class:`Peers` (from the liveliness tokens)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from typing import Any
 
 import zenoh
 
+from formation_swarm.protocol import sightings as sightings_mod
 from formation_swarm.protocol.batch import BatchPublisher
 from formation_swarm.protocol.keys import Keys
 
@@ -38,6 +40,7 @@ class Outbox:
     status: zenoh.Publisher
     faults: zenoh.Publisher | None  # only with an executor of the calls (--process-faults)
     matching: list[Any] = field(default_factory=list)
+    sightings: zenoh.Publisher | None = None  # only with a ROS 2 bridge: every robot's observations
 
     @classmethod
     def declare(  # noqa: PLR0913 -- the publishers' settings, each once
@@ -49,6 +52,7 @@ class Outbox:
         *,
         calls: bool,
         truth_window_s: float = TRUTH_WINDOW_S,
+        sightings: bool = False,
     ) -> Outbox:
         block = zenoh.CongestionControl.BLOCK  # Zenoh never drops an observation; our link layer may
         truth = sess.declare_publisher(keys.truth, congestion_control=truth_cc)
@@ -57,7 +61,16 @@ class Outbox:
             truth=BatchPublisher(truth, window_s=truth_window_s),
             status=sess.declare_publisher(keys.status),
             faults=sess.declare_publisher(keys.faults, congestion_control=block) if calls else None,
+            # As the truth: what the bridge shows, not what anyone answers. The bridge does not subscribe
+            # each robot's obs instead: that subscription is how the world knows its agent is there.
+            sightings=sess.declare_publisher(keys.sightings, congestion_control=truth_cc) if sightings else None,
         )
+
+    def sighted(self, encoded: list[tuple[int, bytes]]) -> None:
+        """The tick's observations (robot id, bytes) once more, gathered for the ROS 2 bridge (protocol.sightings)."""
+        if self.sightings is not None:
+            for payload in sightings_mod.pack(encoded):
+                self.sightings.put(payload)
 
     def listen(self, wake: Callable[[], None]) -> None:
         """A matching change wakes the loop: before tick 0, and when a fresh agent subscribes mid-run."""

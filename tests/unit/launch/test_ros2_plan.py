@@ -84,3 +84,26 @@ def test_the_result_line_counts_each_robots_twists() -> None:
         "ROS 2 bridge: 60 ticks published; robot 3 driven from ROS: 58 Twists taken, 2 rejected, 1 before their tick"
     )
     assert ros2_mod.result_line({"ticks_published": 9, "twists": {}}).endswith("no robot driven from ROS")
+
+
+def test_the_bridge_spools_what_it_takes_and_the_console_says_how_long_and_how_to_join(tmp_path: Path) -> None:
+    p = plan(tmp_path)
+    bridge = p.command_lines("tcp/127.0.0.1:7447", {}, remote_agents=False, live=None)["bridge"]
+    assert bridge[bridge.index("--wire-spool") + 1] == str(tmp_path / "run" / "wire" / "bridge.spool")
+    said: list[str] = []
+    ros2_mod.hand_over(said.append, p, "tcp/127.0.0.1:7447")
+    assert "the world waits up to 60 s (--peers-timeout) for a node that publishes" in said[1]
+    line = ros2_mod.login_line(Path("ros2.json"), "tcp/127.0.0.1:7447")
+    assert "session_config.py ros2.json tcp/127.0.0.1:7447 swarm_session.json5" in line
+
+
+def test_a_ros_node_that_never_came_is_named_with_what_the_bridge_waited_for() -> None:
+    world = {"waited_for": {"robots": [3], "missing": "no agent for robot 3 and no ROS 2 bridge", "timeout_s": 5.0}}
+    bridge = {"waited_for": {"robots": [3], "missing": ["no ROS subscription to /clock"], "timeout_s": 5.0}}
+    said = ros2_mod.never_came({"world": world, "bridge": bridge}, (3,)) or ""
+    assert said.startswith("no ROS 2 node came for robot 3 ")
+    assert "after 5 s (--peers-timeout)" in said
+    assert said.endswith("the bridge waited for: no ROS subscription to /clock")
+    assert (ros2_mod.never_came({"world": world}, (3,)) or "").endswith("the bridge waited for: see the bridge's log")
+    assert ros2_mod.never_came({"world": world, "bridge": bridge}, (2,)) is None  # not a robot left to ROS
+    assert ros2_mod.never_came({"world": {"waited_for": None}}, (3,)) is None

@@ -7,7 +7,9 @@ import math
 
 import pytest
 
+from formation_swarm.nodes.bridge.node import blocks
 from formation_swarm.nodes.bridge.role import BridgeRole, CmdOut, RosOut
+from formation_swarm.protocol import sightings
 from formation_swarm.protocol.batch import pack_batch
 from formation_swarm.protocol.messages import WORLD_ID, FormationCode, Observation, Truth
 from formation_swarm.ros2 import topics
@@ -133,3 +135,39 @@ def test_topics_of_a_namespace() -> None:
     b = BridgeRole(SC, Ros2Settings(namespace="fleet"), (), lockstep=True)
     assert {o.topic for o in b.take_truth(truth(0))} >= {"/fleet/clock", "/fleet/robot2/odom", "/fleet/tf"}
     assert topics.cmd_vel(3, "fleet") == "/fleet/robot3/cmd_vel"
+
+
+def seen(tick: int, robot: int) -> bytes:
+    """Robot ``robot``'s observation at ``tick``: it sees robot 1 at 2 m, 0.1 rad to its right."""
+    msg = Observation(
+        sender=WORLD_ID,
+        seq=tick + 1,
+        tick=tick,
+        time_s=tick * DT,
+        pose=(0, 0, 0),
+        readings=((1, 2.0, 0.3, 0.1),),
+        obstacles=(),
+    )
+    return msg.to_bytes()
+
+
+def test_every_robot_s_camera_comes_from_the_world_s_sightings() -> None:
+    b = role()  # robot 3 left to ROS; robot 2's camera is shown all the same
+    b.take_sightings(sightings.pack([(2, seen(0, 2)), (3, seen(0, 3)), (99, seen(0, 3))])[0])
+    out = b.take_truth(truth(0))
+    cams = {o.topic: o.msg.markers for o in out if o.topic.endswith("/camera")}
+    assert set(cams) == {"/robot1/camera", "/robot2/camera", "/robot3/camera"}
+    assert len(cams["/robot1/camera"]) == 1  # its DELETEALL: robot 1's observation was not among them
+    arrow = cams["/robot2/camera"][1]
+    assert (arrow.id, arrow.pose.position.x, arrow.pose.position.y) == (1, 2.0 * math.cos(0.1), -2.0 * math.sin(0.1))
+    assert dict(b.rejections.by_reason) == {"unknown robot": 1}
+    # Sightings of a tick whose topics are out come too late: not kept.
+    b.take_sightings(sightings.pack([(2, seen(0, 2))])[0])
+    assert b.readings == {}
+
+
+def test_topics_block_in_lockstep_but_the_score_and_never_in_real_time() -> None:
+    names = [topics.CLOCK, topics.TF, topics.ODOM, topics.CAMERA, topics.FORMATION]
+    assert all(blocks(m, lockstep=True) for m in names)
+    assert not blocks(topics.ERROR, lockstep=True)
+    assert not any(blocks(m, lockstep=False) for m in [*names, topics.ERROR])
