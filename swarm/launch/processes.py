@@ -5,6 +5,7 @@ the end stopped and always reaped."""
 from __future__ import annotations
 
 import contextlib
+import functools
 import signal
 import subprocess
 import time
@@ -55,7 +56,8 @@ class Processes:
         self.children[child.name] = child
         self.current[child.name.split(".")[0]] = child.name
         if robots := sharing.robots_in(child.argv):
-            self.shared[child.name] = sharing.Control(sharing.control_path(child.argv))
+            wake = functools.partial(child.signal, sharing.CALL_SIGNAL)
+            self.shared[child.name] = sharing.Control(sharing.control_path(child.argv), wake)
             self.current.update(dict.fromkeys(robots, child.name))
             self.sharer.update(dict.fromkeys(robots, child.name))
         child.start()

@@ -5,7 +5,8 @@ process (a signal would act on all K)."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import signal
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -15,6 +16,7 @@ if TYPE_CHECKING:
 MODULE = "formation_swarm.nodes.agent.shared"
 AGENT_MODULE = "formation_swarm.nodes.agent.main"
 SEPARATOR = "--"  # between the robots' command lines (nodes.agent.shared)
+CALL_SIGNAL = signal.SIGUSR1  # wakes a shared process to read its calls at once (nodes.agent.shared)
 
 
 def per_process(sc: Scenario) -> int:
@@ -64,14 +66,18 @@ def control_path(argv: Sequence[str]) -> Path:
 
 
 class Control:
-    """The launcher's calls to one shared process, appended to its control file."""
+    """The launcher's calls to one shared process, appended to its control
+    file; ``wake`` (its process's CALL_SIGNAL) after each, so it reads them at once."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, wake: Callable[[], None] | None = None) -> None:
         self.path = path
         self.seq = 0
+        self.wake = wake
 
     def call(self, action: str, process: str) -> None:
         """``action`` (kill, freeze, thaw) on robot ``process`` (agent-N)."""
         self.seq += 1
         with self.path.open("a", encoding="utf-8") as f:
             f.write(f"{self.seq} {action} {process.removeprefix('agent-')}\n")
+        if self.wake is not None:
+            self.wake()

@@ -45,6 +45,7 @@ from typing import Any
 import zenoh
 
 from formation_swarm.agents.role_base import RoleBase
+from formation_swarm.nodes.agent.hold import Hold
 from formation_swarm.nodes.agent.peers import Peers
 from formation_swarm.nodes.agent.stats import KEYS as STATS_KEYS
 from formation_swarm.nodes.agent.stats import StatsFile
@@ -81,16 +82,6 @@ class Options:
     lockstep: bool = False
     wire_spool: str | None = None  # where to spool every message taken, for wire.mcap (runtime.spool)
     share: int = 1  # the robots whose agents share this process (nodes.agent.shared): its CPU time is split
-
-
-class Hold:
-    """One robot of a shared process, held: frozen (``running`` cleared, its
-    messages wait in its inbox) or killed (its loop ends, nothing more sent)."""
-
-    def __init__(self) -> None:
-        self.running = threading.Event()
-        self.running.set()
-        self.killed = False
 
 
 class Agent:
@@ -312,7 +303,7 @@ class Agent:
             except zenoh.ZError:
                 break  # closed by _close_inbox, once what was queued is read
             if not self.hold.running.is_set():
-                self.hold.running.wait()  # a freeze: a stop signal sets it too
+                self.hold.wait(channel)  # a freeze (nodes.agent.hold): a stop signal ends it too
             if self.killed:
                 break
             if not self.started:
@@ -324,7 +315,7 @@ class Agent:
             while sample is not None:
                 take(str(sample.key_expr), sample.payload.to_bytes())
                 try:
-                    sample = channel.try_recv()
+                    sample = self.hold.next(channel)  # what came while frozen first
                 except zenoh.ZError:
                     sample = None  # closed by _close_inbox: answer what we have, then recv ends the loop
             if self.done:

@@ -254,3 +254,41 @@ def test_target_covariance_is_first_order_in_the_whole_state() -> None:
         (x + off.x_m * math.cos(phi) - off.y_m * math.sin(phi), y + off.x_m * math.sin(phi) + off.y_m * math.cos(phi)),
         abs=1e-12,
     )
+
+
+def test_the_filters_update_gives_filterpys_numbers_bit_for_bit() -> None:
+    """Its update is filterpy's with a faster call of the same inverse: along a
+    random walk of readings and steps, every array it keeps equals filterpy's."""
+    from filterpy.kalman import ExtendedKalmanFilter
+
+    rng = np.random.default_rng(7)
+    ours, theirs = (TargetEKF(EkfParams(), marker_offset_m=0.15, width_m=0.5) for _ in range(2))
+    for ekf in (ours, theirs):
+        ekf.update(_z(2.0, 0.1, 0.2))
+    theirs._kf.update = lambda *a, **kw: ExtendedKalmanFilter.update(theirs._kf, *a, **kw)  # filterpy's own
+    for _ in range(200):
+        left, right = rng.uniform(0.0, 0.6, 2).tolist()
+        reading = None if rng.random() < 0.1 else _z(*rng.normal((2.0, 0.0, 0.0), (0.3, 0.3, 0.3)).tolist())
+        for ekf in (ours, theirs):
+            ekf.predict(left, right, 0.05)
+            ekf.update(reading)
+        for name in ("x", "P", "S", "SI", "K", "y", "z", "x_post", "P_post"):
+            a, b = getattr(ours._kf, name), getattr(theirs._kf, name)
+            assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), name  # a missed reading's z: None
+    assert ours.resets == theirs.resets == 0
+
+
+@pytest.mark.parametrize(
+    ("s", "error"),
+    [
+        (np.diag([1.0, 0.0, 1.0]), np.linalg.LinAlgError),  # singular
+        (np.diag([1.0, math.nan, 1.0]), ValueError),  # not finite: scipy's own check
+    ],
+)
+def test_an_innovation_covariance_scipy_refuses_is_refused_the_same_way(s: np.ndarray, error: type) -> None:
+    from formation_swarm.agents.ekf import _inverse
+
+    with pytest.raises(error):
+        _inverse(s)
+    s = np.array([[0.3, 0.01, 0.002], [0.01, 0.2, 0.003], [0.002, 0.003, 0.1]])
+    assert np.array_equal(_inverse(s), __import__("scipy.linalg").linalg.inv(s))

@@ -3,11 +3,13 @@ line found again (a restart's), and the launcher's calls to one robot."""
 
 from __future__ import annotations
 
+import os
+import signal
 from pathlib import Path
 
 from formation_swarm.launch import sharing
 from formation_swarm.launch.processes import Processes
-from formation_swarm.nodes.agent.shared import ControlFile, Robots, split_argv
+from formation_swarm.nodes.agent.shared import CALL_SIGNAL, Calls, ControlFile, Robots, split_argv
 from formation_swarm.runtime.children import Child
 
 PY = ["python", "-m"]
@@ -71,3 +73,36 @@ def test_the_shared_process_takes_only_well_formed_calls_in_order(tmp_path: Path
     with path.open("ab") as f:
         f.write(b" 3\n")
     assert control.read() == ["4 thaw 3"]
+
+
+class _Taken(Robots):
+    """Robots that keep the calls they are given: (seq, action, robot)."""
+
+    def __init__(self) -> None:
+        super().__init__("agents 1,2")
+        self.calls: list[tuple[str, ...]] = []
+
+    def execute(self, line: str) -> None:
+        self.calls.append(tuple(line.split()))
+
+
+def test_each_call_wakes_its_process_which_reads_it_on_the_signal(tmp_path: Path) -> None:
+    assert sharing.CALL_SIGNAL == CALL_SIGNAL  # the launcher's and the process's, without an import between
+    woken: list[int] = []
+    control = sharing.Control(tmp_path / "calls", wake=lambda: woken.append(control.seq))
+    taken = _Taken()
+    calls = Calls(ControlFile(control.path), taken)
+    old = signal.signal(CALL_SIGNAL, calls.read)
+    try:
+        control.call("freeze", "agent-2")
+        os.kill(os.getpid(), CALL_SIGNAL)  # the handler runs in this (main) thread before kill returns here
+        assert taken.calls == [("1", "freeze", "2")]
+        control.call("thaw", "agent-2")
+        calls.busy = True  # a signal that lands during a read: that read reads again
+        calls.read()
+        assert len(taken.calls) == 1
+        calls.busy = False
+        calls.read()
+        assert (taken.calls, woken) == ([("1", "freeze", "2"), ("2", "thaw", "2")], [1, 2])
+    finally:
+        signal.signal(CALL_SIGNAL, old)
