@@ -41,8 +41,8 @@ def _stop_signals_as_they_were() -> object:
 # other file keeps its place after them. A stale list only costs balance.
 LONGEST_FIRST = (
     "tests/system/test_claims.py",
-    "tests/system/test_many_robots.py",
     "tests/system/test_distributed.py",
+    "tests/system/test_many_robots.py",
     "tests/system/test_process_faults.py",
     "tests/system/test_web_view.py",
     "tests/system/test_report_gaps.py",

@@ -39,9 +39,10 @@ def _clean(tmp: Path, **kwargs: Any) -> dict[str, Any]:
 
 
 @pytest.fixture(scope="module")
-def clean(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    """A clean lockstep fig11 run's summary: the digests a forgery must leave alone."""
-    return _clean(tmp_path_factory.mktemp("clean"))
+def clean(clean_run: dict[str, Any]) -> dict[str, Any]:
+    """A clean lockstep fig11 run's summary (tests/system/conftest.py, shared with
+    the attacks' tests): the digests a forgery must leave alone."""
+    return clean_run
 
 
 @pytest.fixture(scope="module")
