@@ -115,10 +115,11 @@ class CommandGate:
         # Ordered by (tick, seq), the tick bounded by the world's own: a command
         # with a huge seq (a stolen login, say) cannot make the agent's real ones
         # look replayed beyond the tick it answers, as ordering by seq alone did.
-        if (msg.tick, msg.seq) <= self.last[msg.sender]:
+        order = (msg.tick, msg.seq)
+        if order <= self.last[msg.sender]:
             self.rejections.reject("replayed or reordered")
             return False
-        self.last[msg.sender] = (msg.tick, msg.seq)
+        self.last[msg.sender] = order
         return True
 
     def done(self, msg: Command, leader_pose: Pose) -> bool:
@@ -137,10 +138,11 @@ class CommandGate:
         """Whether a command its link hands over (now, or held until this tick)
         is newer than the last one applied; else (a duplicate, one held behind
         a newer one) "replayed or reordered"."""
-        if (msg.tick, msg.seq) <= self.applied[msg.sender]:
+        order = (msg.tick, msg.seq)
+        if order <= self.applied[msg.sender]:
             self.rejections.reject("replayed or reordered")
             return False
-        self.applied[msg.sender] = (msg.tick, msg.seq)
+        self.applied[msg.sender] = order
         return True
 
     def wheels(self, msg: Command) -> tuple[float, float]:

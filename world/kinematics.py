@@ -46,19 +46,26 @@ def step(pose: Pose, v_left_mps: float, v_right_mps: float, width_m: float, dt_s
     return _step_unchecked(x, y, th, vl, vr, width=width, dt=dt)
 
 
+# Module constants and functions bound once: the step runs for every robot on every tick.
+_PI = math.pi
+_TWO_PI = 2.0 * math.pi
+_cos, _sin = math.cos, math.sin
+_pose = tuple.__new__  # what Pose(x, y, theta) does, without its Python frame
+
+
 def _step_unchecked(x: float, y: float, th: float, vl: float, vr: float, *, width: float, dt: float) -> Pose:
-    v, w = body_twist(vl, vr, width)
+    # body_twist and wrap_angle written out: the same operations in the same order.
+    v = 0.5 * (vl + vr)
+    w = (vr - vl) / width
     dth = w * dt
     if abs(dth) < 1e-9:
         # Second-order expansion of the arc: exact to ~1e-18 m per metre here.
         mid = th + 0.5 * dth
-        return Pose(x + v * dt * math.cos(mid), y + v * dt * math.sin(mid), wrap_angle(th + dth))
+        return _pose(Pose, (x + v * dt * _cos(mid), y + v * dt * _sin(mid), (th + dth + _PI) % _TWO_PI - _PI))
     radius = v / w
     th1 = th + dth
-    return Pose(
-        x + radius * (math.sin(th1) - math.sin(th)),
-        y - radius * (math.cos(th1) - math.cos(th)),
-        wrap_angle(th1),
+    return _pose(
+        Pose, (x + radius * (_sin(th1) - _sin(th)), y - radius * (_cos(th1) - _cos(th)), (th1 + _PI) % _TWO_PI - _PI)
     )
 
 

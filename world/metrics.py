@@ -7,12 +7,14 @@ of the trajectories. No I/O: the engine hands it one snapshot per tick.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import math
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 from formation_swarm.world.contacts import Contacts
+from formation_swarm.world.formation_errors import FormationErrors
 from formation_swarm.world.kinematics import Pose, from_body_frame
 from formation_swarm.world.leader_track import LeaderTrack
 from formation_swarm.world.recovery import Recovery
@@ -27,6 +29,9 @@ TURN_RATE_RPS = 0.1
 # A second smooths the camera noise that a follower of a follower amplifies
 # (fig11's robot 3: 10-35% of its ticks above 0.5 m in steady flight).
 ERROR_WINDOW_S = 1.0
+# From this many followers on, their errors are taken all at once (world.formation_errors,
+# the same numbers): below, numpy's fixed cost per call is dearer than the loop.
+ERRORS_AT_ONCE_FROM = 24
 
 # One robot's state in a snapshot: pose, wheel command (left, right m/s), formation code.
 Snapshot = dict[int, tuple[Pose, tuple[float, float], int]]
@@ -134,6 +139,8 @@ class RunMetrics:
     recoveries: list[Recovery] = field(init=False, default_factory=list)
     recorded: int = field(init=False, default=0)  # ticks recorded
     leader: LeaderTrack = field(init=False)  # the leader's distance from its path
+    # Many followers: their errors' sums, kept here (the followers' own written on reading).
+    at_once: FormationErrors | None = field(init=False, default=None)
     _digest: hashlib._Hash = field(init=False)
 
     def __post_init__(self) -> None:
@@ -144,12 +151,39 @@ class RunMetrics:
         self.window_ticks = max(1, round(ERROR_WINDOW_S / sc.dt_s))
         self.leader = LeaderTrack(sc.leader.waypoints)
         self._digest = hashlib.sha256()
+        if len(self.followers) >= ERRORS_AT_ONCE_FROM:
+            self.at_once = FormationErrors(sc, self.window_ticks, TURN_RATE_RPS)
 
     def record(self, snap: Snapshot, tick: int) -> None:
         """The figures of tick ``tick``, whose state ``snap`` is."""
         sc = self.setup
-        errors: dict[int, float] = {}
         poses = {rid: pose for rid, (pose, _, _) in snap.items()}
+        if self.at_once is None:
+            errors = self._errors(snap, poses)
+        else:
+            err = self.at_once.add(snap)
+            errors = dict(zip(self.at_once.rids, err.tolist(), strict=True)) if self.recoveries else {}
+        self.recorded += 1
+        for rec in self.recoveries:
+            rec.add(tick, errors)
+        self.contacts.measure(poses, tick)
+        lead = poses[sc.leader.robot_id]
+        self.leader.add(lead.x_m, lead.y_m)
+        h = self._digest
+        if self.at_once is None:
+            for rid in sorted(snap):
+                h.update(struct.pack("<3d", *snap[rid][0]))
+            return
+        # Many robots: one update of every pose's bytes, the same digest as one update per robot.
+        packed = self.at_once.pose_bytes()
+        if packed is None:
+            packed = struct.pack(f"<{3 * len(poses)}d", *itertools.chain.from_iterable(poses[r] for r in sorted(poses)))
+        h.update(packed)
+
+    def _errors(self, snap: Snapshot, poses: dict[int, Pose]) -> dict[int, float]:
+        """Each follower's formation error in ``snap``, added to its metrics and windows, one by one."""
+        sc = self.setup
+        errors: dict[int, float] = {}
         for rid, metrics in self.followers.items():
             pose, _, formation = snap[rid]
             reference = sc.formation_by_code(formation).slots[rid].reference
@@ -166,19 +200,17 @@ class RunMetrics:
                 windows.append([0.0, 0.0, 0])
             w = windows[-1]
             w[0], w[1], w[2] = w[0] + err, max(w[1], err), w[2] + 1
-        self.recorded += 1
-        for rec in self.recoveries:
-            rec.add(tick, errors)
-        self.contacts.measure(poses, tick)
-        lead = poses[sc.leader.robot_id]
-        self.leader.add(lead.x_m, lead.y_m)
-        h = self._digest
-        for rid in sorted(snap):
-            h.update(struct.pack("<3d", *snap[rid][0]))
+        return errors
+
+    def _written(self) -> None:
+        """The followers' metrics brought up to date from the sums kept at once, if so kept."""
+        if self.at_once is not None:
+            self.at_once.write(self.followers)
 
     def stopped(self, rid: int, time_s: float) -> None:
         """Follower ``rid`` stops (its process gone) at ``time_s``: its error so far is kept, once."""
         if rid in self.followers and rid not in self.until_stopped:
+            self._written()
             m = self.followers[rid]
             self.until_stopped[rid] = {"time_s": time_s, "rms_m": m.rms_m(), "max_m": m.max_m}
 
@@ -188,14 +220,19 @@ class RunMetrics:
     def error_windows(self) -> dict[str, object]:
         """Per follower, the mean and the largest formation error of each window
         (the last one may be shorter), in m."""
+        window_s = self.window_ticks * self.setup.dt_s
+        if self.at_once is not None:
+            mean_m, max_m = self.at_once.error_windows()
+            return {"window_s": window_s, "mean_m": mean_m, "max_m": max_m}
         windows = self.windows.items()
         return {
-            "window_s": self.window_ticks * self.setup.dt_s,
+            "window_s": window_s,
             "mean_m": {str(r): [round(w[0] / w[2], 4) for w in ws] for r, ws in windows},
             "max_m": {str(r): [round(w[1], 4) for w in ws] for r, ws in windows},
         }
 
     def follower_summary(self, rid: int) -> dict[str, object]:
+        self._written()
         out: dict[str, object] = dict(self.followers[rid].as_dict())
         if rid in self.until_stopped:
             out["until_stopped"] = self.until_stopped[rid]
