@@ -2,6 +2,8 @@
 each follower's formation error (overall, in turns, in windows of time, up
 to its first stop), the recoveries after a return, the contacts and a digest
 of the trajectories. No I/O: the engine hands it one snapshot per tick.
+And a follower's target estimate against the truth (TargetErrors: its
+errors and the EKF's NEES), batch by batch, for whoever has its telemetry.
 """
 
 from __future__ import annotations
@@ -12,6 +14,8 @@ import math
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+
+import numpy as np
 
 from formation_swarm.world.contacts import Contacts
 from formation_swarm.world.formation_errors import FormationErrors
@@ -237,3 +241,79 @@ class RunMetrics:
         if rid in self.until_stopped:
             out["until_stopped"] = self.until_stopped[rid]
         return out
+
+
+# The 99% point of chi-square with 2 degrees of freedom (-2 ln 0.01): a consistent
+# filter's NEES of a 2-D estimate lies beyond it on 1% of the ticks.
+NEES_TICK_BOUND_99 = 9.2103
+
+
+@dataclass
+class TargetErrors:
+    """One follower's target estimate against the truth, batch by batch: the
+    raw reading's error (ticks with a reading), the EKF's (every tick with an
+    estimate, and only the ticks with a reading too, where the two compare
+    tick for tick), and the EKF's normalised estimation error squared (NEES,
+    e' P^-1 e over the ticks with a covariance; 2 on average for a
+    consistent filter of a 2-D estimate). Arrays are world frame except the
+    covariance, the follower's own (xx, xy, yy) of (x right, y ahead)."""
+
+    sums: dict[str, float] = field(default_factory=dict)
+
+    def _add(self, name: str, values: np.ndarray) -> None:
+        self.sums[name + "_sum"] = self.sums.get(name + "_sum", 0.0) + float(np.sum(values))
+        self.sums[name + "_n"] = self.sums.get(name + "_n", 0.0) + int(values.size)
+
+    def add(
+        self, pose: np.ndarray, target: np.ndarray, measured: np.ndarray, estimate: np.ndarray, cov: np.ndarray
+    ) -> None:
+        """n ticks: the follower's pose (n x 3), its true target, the raw
+        reading's and the EKF's targets (n x 2, NaN when none) and the EKF's
+        covariance (n x 3, NaN when none)."""
+        has_target = ~np.isnan(target[:, 0])
+        seen = has_target & ~np.isnan(measured[:, 0])
+        est = has_target & ~np.isnan(estimate[:, 0])
+        sq_meas = np.sum((measured[seen] - target[seen]) ** 2, axis=1)
+        sq_est = np.sum((estimate - target) ** 2, axis=1)
+        self._add("measured_sq", sq_meas)
+        self._add("ekf_sq", sq_est[est])
+        self._add("ekf_seen_sq", sq_est[est & seen])
+        ok = est & ~np.isnan(cov[:, 0])
+        nees = nees_body(pose[ok, 2], (estimate - target)[ok], cov[ok])
+        nees = nees[np.isfinite(nees)]
+        self._add("nees", nees)
+        self._add("nees_beyond", (nees > NEES_TICK_BOUND_99).astype(float))
+
+    def _mean(self, name: str) -> float | None:
+        n = self.sums.get(name + "_n", 0.0)
+        return self.sums[name + "_sum"] / n if n else None
+
+    def stats(self) -> dict[str, float | int | None]:
+        """RMS errors in m, the mean NEES, its ticks and the share of them beyond NEES_TICK_BOUND_99."""
+
+        def rms(name: str) -> float | None:
+            mean = self._mean(name)
+            return None if mean is None else math.sqrt(mean)
+
+        return {
+            "measured_rms_m": rms("measured_sq"),
+            "ekf_rms_m": rms("ekf_sq"),
+            "ekf_rms_seen_m": rms("ekf_seen_sq"),
+            "nees_mean": self._mean("nees"),
+            "nees_ticks": int(self.sums.get("nees_n", 0)),
+            "nees_beyond_99": self._mean("nees_beyond"),
+        }
+
+
+def nees_body(theta_rad: np.ndarray, err_world: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """NEES e' P^-1 e of world-frame errors (n x 2) against covariances in the
+    follower's frame (x right, y ahead; n x 3 of xx, xy, yy), the follower
+    heading ``theta_rad``. NaN where P is not positive definite."""
+    s, c = np.sin(theta_rad), np.cos(theta_rad)
+    bx = err_world[:, 0] * s - err_world[:, 1] * c  # x right is (sin, -cos) in the world
+    by = err_world[:, 0] * c + err_world[:, 1] * s
+    xx, xy, yy = cov[:, 0], cov[:, 1], cov[:, 2]
+    det = xx * yy - xy * xy
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = (yy * bx * bx - 2.0 * xy * bx * by + xx * by * by) / det
+    return np.where((det > 0) & (xx > 0), out, np.nan)

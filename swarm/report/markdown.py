@@ -77,22 +77,31 @@ def _metrics_table(summary: Mapping[str, Any], followers: list[int]) -> list[str
         ]
     lines = [
         "| follower | RMS error, m | max, m | RMS in turns, m | RMS on straights, m | mean lag in turns, m "
-        "| max ahead of target, m | measured target RMS, m | EKF target RMS, m |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| max ahead of target, m | measured target RMS, m | EKF target RMS, m | EKF mean NEES (ticks beyond 9.21) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     errs = ((summary.get("parts") or {}).get("logger") or {}).get("target_errors") or {}
     for r in followers:
         m = (summary.get("followers") or {}).get(str(r)) or {}
         e = errs.get(str(r)) or {}
         if m.get("acquired") is False:
-            lines.append(f"| R{r} | never acquired its reference: no metrics |" + " - |" * 7)
+            lines.append(f"| R{r} | never acquired its reference: no metrics |" + " - |" * 8)
             continue
         lines.append(
             f"| R{r} | {f(m.get('rms_m'))} | {f(m.get('max_m'))} | {f(m.get('turn_rms_m'))} | "
             f"{f(m.get('straight_rms_m'))} | {f(m.get('turn_mean_lag_m'))} | {f(m.get('max_ahead_m'))} | "
-            f"{f(e.get('measured_rms_m'))} | {f(e.get('ekf_rms_m'))} |"
+            f"{f(e.get('measured_rms_m'))} | {f(e.get('ekf_rms_m'))} | {_nees(e)} |"
         )
     return lines
+
+
+def _nees(e: Mapping[str, Any]) -> str:
+    """The EKF's mean NEES (2 for a consistent filter of the 2-D target) and the share of
+    its ticks beyond chi-square(2)'s 99% point, 9.21 (1% for a consistent filter)."""
+    if e.get("nees_mean") is None:
+        return "-"
+    beyond = e.get("nees_beyond_99")
+    return f"{e['nees_mean']:.2f}" + ("" if beyond is None else f" ({beyond:.1%})")
 
 
 def _run_notes(summary: Mapping[str, Any], followers: list[int]) -> list[str]:

@@ -85,7 +85,14 @@ SUMMARY = {
     "laws": {"leader": SCALAR, "followers": Each(SCALAR)},
     "followers": Each(FOLLOWER),
     "parts": {
-        "logger": {"target_errors": Each({"measured_rms_m": NUM, "ekf_rms_m": NUM})},
+        "logger": {
+            "target_errors": Each(
+                {
+                    **{k: NUM for k in ("measured_rms_m", "ekf_rms_m", "ekf_rms_seen_m")},
+                    **{"nees_mean": NUM, "nees_ticks": INT, "nees_beyond_99": NUM},
+                }
+            )
+        },
         "world": {"logger_lost": {"time_s": NUM, "tick": INT}},
     },
     "formation_events": [{"tick": INT, "time_s": NUM, "robot": SCALAR, "formation": SCALAR}],

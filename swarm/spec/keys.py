@@ -109,6 +109,14 @@ RUN_KEYS = {
     ),
     "stale_after_s": positive("a robot whose latest command is older than this is stopped", 0.5, "s"),
     "agents_per_process": Key(int, 1, "swarm run: robots per agent process, a session each", low=1, high=MAX_ROBOTS),
+    "record_every": Key(
+        int,
+        1,
+        "the logger records every N-th tick's truth and telemetry alone (the recording's size over N; the "
+        "summary's target errors from those ticks)",
+        low=1,
+        high=1000,
+    ),
 }
 ROBOT_KEYS = {
     "width_m": positive("wheel base: the distance between the two wheels (eq. 7-10)", 0.5, "m"),

@@ -316,6 +316,10 @@ def test_the_layout_follows_the_leader_and_draws_many_followers_means_alone() ->
     assert 2.0 < formation_reach_m(sc) < 8.0  # a few metres (the line: R3 behind R2), not the 80 m path
     named = _named_paths(bp)
     assert {"/robots/r2/fis/v_n", "/robots/r2/fis/v_n_1s", "/robots/r3/wheels/right_1s"} <= named
+    twelve = _named_paths(blueprint(scenario_mod.load(FIG11, {"run.robots": 12, "leader.formation": "line"})))
+    assert "/robots/r12/fis/v_n_1s" in twelve
+    assert "/robots/r12/fis/v_n" not in twelve  # 11 followers' per-tick values: a blur
+    # Beyond a dozen: the swarm as a whole, each robot's series there but hidden (tests/unit/nodes/logger).
     many = _named_paths(blueprint(scenario_mod.load(FIG11, {"run.robots": 30, "leader.formation": "line"})))
-    assert "/robots/r30/fis/v_n_1s" in many
-    assert "/robots/r30/fis/v_n" not in many  # 29 followers' per-tick values: a blur
+    assert {"/swarm/fis/v_n/median", "/swarm/fis/v_n/worst", "/world/swarm/**", "/robots/r30/fis/v_n"} <= many
+    assert "/robots/r30/fis/v_n_1s" not in many

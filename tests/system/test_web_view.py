@@ -15,7 +15,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -68,8 +68,12 @@ def _drawn(seen: dict[str, int]) -> bool:
     return all(seen[name] >= least for name, least in DRAWN.items())
 
 
-def _watch(page: Page, url: str, png: Path, timeout_s: float) -> dict[str, int]:
-    """Open ``url`` and take screenshots until every panel has drawn (or the timeout); the last count."""
+def _watch(
+    page: Page, url: str, png: Path, timeout_s: float, drawn: Callable[[dict[str, int]], bool] | None = None
+) -> dict[str, int]:
+    """Open ``url`` and take screenshots until every panel has drawn (``drawn``
+    says so; default ``_drawn``) or the timeout; the last count."""
+    drawn = drawn or _drawn
     page.open(url, WIDTH, HEIGHT)
     deadline = time.monotonic() + timeout_s
     while True:
@@ -82,7 +86,7 @@ def _watch(page: Page, url: str, png: Path, timeout_s: float) -> dict[str, int]:
             if "Not attached to an active page" not in str(exc) or time.monotonic() > deadline:
                 raise
             continue
-        if _drawn(seen) or time.monotonic() > deadline:
+        if drawn(seen) or time.monotonic() > deadline:
             return seen
 
 
@@ -164,3 +168,49 @@ def test_every_panel_draws_live_and_from_the_recording(tmp_path: Path) -> None:
             # A busy machine's software renderer takes its time over the file's first seconds.
             finished = _watch(page, viewer.web_address(file_grpc, file_web), tmp_path / "file.png", timeout_s=180)
         assert _drawn(finished), (finished, DRAWN, tmp_path / "file.png")
+
+
+CROWD_DRAWN = {"map": 200, "formation error": 100, "V_N": 100, "target error": 100}
+
+
+def _crowd_drawn(seen: dict[str, int]) -> bool:
+    return all(seen[name] >= least for name, least in CROWD_DRAWN.items())
+
+
+@pytest.mark.slow
+def test_a_hundred_robots_draw_live_and_from_the_recording(tmp_path: Path) -> None:
+    """100 robots in a line: the map and the aggregate plots draw, live and
+    from the file. With SWARM_FIGURES=DIR the screenshots are kept there
+    (docs/figures/viewer-100-live.png, viewer-100-file.png)."""
+    exe = find_chromium()
+    if exe is None:
+        pytest.skip("no Chromium to load the web viewer in: apt-get install -y chromium")
+    swarm = str(Path(sys.executable).parent / "swarm")
+    grpc_port, web_port = free_port(), free_port()
+    run_dir = tmp_path / "run"
+    sets = ["run.robots=100", "leader.formation=line", "run.duration_s=60", "controller.lookahead_m=1"]
+    argv = [swarm, "run", str(SCENARIOS / "fig11_obstacles.toml"), "--mode", "realtime", "--out", str(run_dir)]
+    argv += [a for kv in sets for a in ("--set", kv)]
+    argv += ["--serve-web", "--grpc-port", str(grpc_port), "--web-port", str(web_port)]
+    keep = os.environ.get("SWARM_FIGURES")
+    with chromium(exe, tmp_path / "profile") as page:
+        with _group(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT) as run:
+            lines = _lines(run)
+            address = _first(lines, ADDRESS, timeout_s=180)
+            live = _watch(page, address, tmp_path / "live.png", timeout_s=240, drawn=_crowd_drawn)
+            if keep:  # a few seconds more of the run
+                time.sleep(10.0)
+                page.screenshot(Path(keep) / "viewer-100-live.png")
+            assert _crowd_drawn(live), (live, CROWD_DRAWN, tmp_path / "live.png")
+            assert run.wait(timeout=240) == 0, "".join(lines[-20:])
+        rrd = run_dir / "recording.rrd"
+        file_grpc, file_web = free_port(), free_port()
+        serve = [RERUN, "--serve-web", str(rrd), "--port", str(file_grpc), "--web-viewer-port", str(file_web)]
+        with _group(serve, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL):
+            wait_listening(file_web, timeout_s=30)
+            url = viewer.web_address(file_grpc, file_web)
+            finished = _watch(page, url, tmp_path / "file.png", timeout_s=180, drawn=_crowd_drawn)
+            if keep:
+                time.sleep(5.0)
+                page.screenshot(Path(keep) / "viewer-100-file.png")
+        assert _crowd_drawn(finished), (finished, CROWD_DRAWN, tmp_path / "file.png")

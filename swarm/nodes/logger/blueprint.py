@@ -9,6 +9,13 @@ the leader's position, LEADER_FRAME) over the whole path; then one view per
 quantity with every follower in it. V_N and the wheel speeds are drawn as
 their 1 s means over the per-tick values (faint); beyond MANY_FOLLOWERS,
 the means alone and no legend.
+
+Beyond a dozen robots (crowd.CROWD_ROBOTS) the maps draw the swarm as a
+whole, the leader alone labelled (at that count labels overlap) and the
+follower worst in formation error ringed in red; each plot draws at most
+3 series, the median and the worst follower's (formation_swarm.nodes.logger.crowd),
+and a table names the worst followers. Each robot's own series are in the plots, hidden: its
+eye in the blueprint panel shows it.
 """
 
 from __future__ import annotations
@@ -21,6 +28,7 @@ import rerun.blueprint as rrb
 
 from formation_swarm.agents.params import LAWS
 from formation_swarm.common.palette import OBSTACLE, PATH, lighter, robot_colour
+from formation_swarm.nodes.logger.crowd import AGGREGATES, CROWD_ROBOTS
 
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
@@ -40,6 +48,8 @@ def blueprint(sc: Scenario) -> rrb.Blueprint:
     """The viewer's layout for ``sc``: the formation followed over the whole
     path, then the follower series over time and the run's events. Every entity is named by its full
     path: the viewer matches no wildcard in the middle of a path."""
+    if len(sc.robots) > CROWD_ROBOTS:
+        return _crowd_blueprint(sc)
     followers = sc.follower_ids
     many = len(followers) > MANY_FOLLOWERS
     legend = rrb.PlotLegend(visible=False) if many else rrb.PlotLegend(corner="LeftTop")
@@ -52,11 +62,6 @@ def blueprint(sc: Scenario) -> rrb.Blueprint:
         paths = [f"+ /robots/r{r}/{leaf}" for r in followers for leaf in leaves]
         return rrb.TimeSeriesView(name=name, origin="/", contents=paths, plot_legend=legend)
 
-    events = ["+ /events"]
-    if sc.faults:
-        events.append("+ /events/faults")
-    if any(f.process is not None for f in sc.faults):
-        events.append("+ /events/fault_calls")
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Vertical(_follow_view(sc), _map_view(sc), row_shares=[3, 2]),
@@ -71,24 +76,82 @@ def blueprint(sc: Scenario) -> rrb.Blueprint:
                 ),
                 series("link drops: observations, formation codes (light)", LINK_SERIES),
                 *_controller_series(sc),
-                rrb.TextLogView(
-                    name="events: formation changes, faults",
-                    origin="/",
-                    contents=events,
-                    columns=rrb.TextLogColumns(
-                        timeline_columns=[rrb.encodings.TimelineColumn(TIMELINE)],
-                        text_log_columns=[
-                            rrb.encodings.TextLogColumn("LogLevel"),
-                            rrb.encodings.TextLogColumn("Body"),
-                            rrb.encodings.TextLogColumn("EntityPath", visible=False),
-                        ],
-                    ),
-                ),
+                _events_view(sc),
             ),
             column_shares=[1.5, 1.75, 1.75],
         ),
         rrb.TimePanel(state="collapsed", timeline=TIMELINE, play_state="following"),
         collapse_panels=True,
+    )
+
+
+def _crowd_blueprint(sc: Scenario) -> rrb.Blueprint:
+    """Beyond a dozen robots: the swarm drawn as a whole, aggregates in the plots
+    (each robot's own series there, hidden), the worst followers named."""
+
+    def series(name: str, quantities: tuple[str, ...]) -> rrb.TimeSeriesView:
+        shown = [f"/swarm/{q}/{kind}" for q in quantities for kind in AGGREGATES[q]]
+        own = [f"/robots/r{r}/{q}" for r in sc.follower_ids for q in quantities]
+        hidden = {path: rrb.EntityBehavior(visible=False) for path in own}
+        legend = rrb.PlotLegend(corner="LeftTop")
+        return rrb.TimeSeriesView(
+            name=name, origin="/", contents=[f"+ {p}" for p in shown + own], plot_legend=legend, overrides=hidden
+        )
+
+    contents = ["+ /world/obstacles", "+ /world/path"] if sc.obstacles else ["+ /world/path"]
+    contents.append("+ /world/swarm/**")
+    trail = {"/world/swarm/trails": _trail()}
+    half = formation_reach_m(sc) + sc.diameter_m + FOLLOW_MARGIN_M
+    follow = rrb.Spatial2DView(
+        name=f"formation, following the leader R{sc.leader.robot_id}, m, y up",
+        origin=f"/{LEADER_FRAME}",
+        contents=contents,
+        visual_bounds=rrb.VisualBounds2D(x_range=(-half, half), y_range=(-half, half)),
+        overrides=trail,
+    )
+    whole = _map_view(sc, (contents, trail))
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Vertical(follow, whole, row_shares=[3, 2]),
+            rrb.Vertical(
+                series("formation error, m: median and worst follower (Fig. 6b, 7b)", ("error/formation",)),
+                series("V_N, m/s: median and largest follower (Fig. 8)", ("fis/v_n",)),
+                series("target error, m: EKF median, worst; raw median (Fig. 9-10)", ("error/ekf", "error/measured")),
+            ),
+            rrb.Vertical(
+                rrb.TextDocumentView(name="worst followers now", origin="/swarm/worst"),
+                series("wheel speeds, m/s: median left, right", ("wheels/left", "wheels/right")),
+                series("link drops: observations, formation codes, all followers", LINK_SERIES),
+                *_controller_series(sc),
+                _events_view(sc),
+                row_shares=[1.4, 2, 1.6, *([2] if _controller_series(sc) else []), 2],
+            ),
+            column_shares=[1.5, 1.75, 1.75],
+        ),
+        rrb.TimePanel(state="collapsed", timeline=TIMELINE, play_state="following"),
+        collapse_panels=True,
+    )
+
+
+def _events_view(sc: Scenario) -> rrb.TextLogView:
+    """The run's events: formation changes, faults and the world's calls for them."""
+    events = ["+ /events"]
+    if sc.faults:
+        events.append("+ /events/faults")
+    if any(f.process is not None for f in sc.faults):
+        events.append("+ /events/fault_calls")
+    return rrb.TextLogView(
+        name="events: formation changes, faults",
+        origin="/",
+        contents=events,
+        columns=rrb.TextLogColumns(
+            timeline_columns=[rrb.encodings.TimelineColumn(TIMELINE)],
+            text_log_columns=[
+                rrb.encodings.TextLogColumn("LogLevel"),
+                rrb.encodings.TextLogColumn("Body"),
+                rrb.encodings.TextLogColumn("EntityPath", visible=False),
+            ],
+        ),
     )
 
 
@@ -110,14 +173,18 @@ def _map_contents(sc: Scenario) -> tuple[list[str], dict[str, Any]]:
     contents = ["+ /world/obstacles", "+ /world/path"] if sc.obstacles else ["+ /world/path"]
     contents += [f"+ {base}/{leaf}" for base in robots for leaf in ("trajectory", "pose", "heading")]
     contents += [f"+ /robots/r{r}/{leaf}" for r in sc.follower_ids for leaf in ("target/true", "ekf/target", "ekf/cov")]
-    trail = rrb.VisibleTimeRanges(
+    return contents, {f"{base}/trajectory": _trail() for base in robots}
+
+
+def _trail() -> rrb.VisibleTimeRanges:
+    """A trail's points: the last TRAIL_S of them."""
+    return rrb.VisibleTimeRanges(
         rrb.VisibleTimeRange(
             TIMELINE,
             start=rrb.TimeRangeBoundary.cursor_relative(seconds=-TRAIL_S),
             end=rrb.TimeRangeBoundary.cursor_relative(),
         )
     )
-    return contents, {f"{base}/trajectory": trail for base in robots}
 
 
 def formation_reach_m(sc: Scenario) -> float:
@@ -148,10 +215,11 @@ def _follow_view(sc: Scenario) -> rrb.Spatial2DView:
     )
 
 
-def _map_view(sc: Scenario) -> rrb.Spatial2DView:
+def _map_view(sc: Scenario, drawn: tuple[list[str], dict[str, Any]] | None = None) -> rrb.Spatial2DView:
     """The whole path, y up (the world and the robots are drawn through a
-    flip, FLIP), with the formation around it."""
-    contents, overrides = _map_contents(sc)
+    flip, FLIP), with the formation around it; ``drawn``: its contents and
+    overrides, if not each robot's (_map_contents)."""
+    contents, overrides = drawn or _map_contents(sc)
     xs = [x for x, _ in sc.leader.waypoints] + [o.x_m + s * o.radius_m for o in sc.obstacles for s in (-1, 1)]
     ys = [y for _, y in sc.leader.waypoints] + [o.y_m + s * o.radius_m for o in sc.obstacles for s in (-1, 1)]
     reach = max((math.hypot(*slot.offset) for f in sc.formations.values() for slot in f.slots.values()), default=0.0)

@@ -8,6 +8,11 @@ entity every 0.25 s, 4-8 times those of the same run in lockstep (which
 passes more sim time per send), for the same rows. Batching by sim time
 makes a file's size the same in both modes. A logger killed with SIGKILL
 loses the rows of its last batch.
+
+Beyond a dozen robots each robot's own series (a dozen entities per robot)
+are not sent to the live stream at each send: they go with the file's batch
+(``prompt=False``), which then spans CROWD_BATCH_S. The swarm's drawings and
+aggregates stay prompt: a send then costs a few calls, whatever the robots.
 """
 
 from __future__ import annotations
@@ -22,20 +27,27 @@ if TYPE_CHECKING:
     from formation_swarm.nodes.logger.recording import Recording
 
 FILE_BATCH_S = 2.0  # sim time, s, of the rows in one chunk of the file
+CROWD_BATCH_S = 10.0  # the same beyond a dozen robots: a robot's series cost a call per entity per batch
 
 
-def columns(kind: str, values: np.ndarray) -> Any:
+def columns(kind: str, values: np.ndarray, lengths: np.ndarray | None = None) -> Any:
     """Rerun columns of ``values``, one row each, as ``kind``: scalar (n),
     point (n x 2), arrow (n x 4: origin, vector), strip (n x points x 2:
-    one strip per row) or translation (n x 3)."""
+    one strip per row), text (n strings) or translation (n x 3). With ``lengths``, a row holds
+    that many of ``values``' instances (points and arrows of a whole swarm)."""
     if kind == "scalar":
         return rr.Scalars.columns(scalars=values)
-    if kind == "point":
-        return rr.Points2D.columns(positions=values)
-    if kind == "arrow":
-        return rr.Arrows2D.columns(origins=values[:, :2], vectors=values[:, 2:])
+    if kind in ("point", "arrow"):
+        cols = (
+            rr.Points2D.columns(positions=values)
+            if kind == "point"
+            else rr.Arrows2D.columns(origins=values[:, :2], vectors=values[:, 2:])
+        )
+        return cols if lengths is None else cols.partition(lengths)
     if kind == "strip":  # an array takes Rerun's numpy path
         return rr.LineStrips2D.columns(strips=values)
+    if kind == "text":  # markdown, its media type logged static
+        return rr.TextDocument.columns(text=values)
     if kind == "translation":
         return rr.Transform3D.columns(translation=values)
     raise ValueError(f"unknown column kind {kind!r}")
@@ -48,29 +60,55 @@ class ColumnSink:
         self.rec = rec
         self.timeline = timeline
         self.batch_s = batch_s
-        self.held: dict[tuple[str, str], list[tuple[np.ndarray, np.ndarray]]] = {}
+        # (entity, kind, prompt) -> its parts: times, values, instances per row (None: one)
+        self.held: dict[tuple[str, str, bool], list[tuple[np.ndarray, np.ndarray, np.ndarray | None]]] = {}
         self.span = (math.inf, -math.inf)  # the held rows' first and last sim time, s
 
-    def add(self, entity: str, kind: str, times: np.ndarray, values: np.ndarray) -> None:
+    def add(
+        self,
+        entity: str,
+        kind: str,
+        times: np.ndarray,
+        values: np.ndarray,
+        *,
+        lengths: np.ndarray | None = None,
+        prompt: bool = True,
+    ) -> None:
+        """Rows of ``entity``: to the live stream now if ``prompt``, else with the file's batch."""
         if len(times) == 0:
             return
         times = np.asarray(times)
-        self.held.setdefault((entity, kind), []).append((times, np.asarray(values)))
+        self.held.setdefault((entity, kind, prompt), []).append((times, np.asarray(values), lengths))
         self.span = (min(self.span[0], float(times.min())), max(self.span[1], float(times.max())))
-        if self.rec.live is not None:
-            self._send(self.rec.live, (entity, kind), times, values)
+        if prompt and self.rec.live is not None:
+            self._send(self.rec.live, (entity, kind), times, values, lengths)
+
+    def due(self) -> bool:
+        """The held rows span a batch: the next ``write`` sends them."""
+        return bool(self.held) and self.span[1] - self.span[0] >= self.batch_s
 
     def write(self, final: bool = False) -> None:
-        """The held rows to the file, once they span a batch (or at the end: ``final``)."""
+        """The held rows to the file (and the rows held back from the live stream
+        to it), once they span a batch (or at the end: ``final``)."""
         if not self.held or (not final and self.span[1] - self.span[0] < self.batch_s):
             return
         held, self.held, self.span = self.held, {}, (math.inf, -math.inf)
-        for (entity, kind), parts in held.items():
-            times = np.concatenate([t for t, _ in parts])
-            values = np.concatenate([v for _, v in parts])
-            self._send(self.rec.file, (entity, kind), times, values)
+        for (entity, kind, prompt), parts in held.items():
+            times = np.concatenate([t for t, _, _ in parts])
+            values = np.concatenate([v for _, v, _ in parts])
+            lengths = None if parts[0][2] is None else np.concatenate([n for _, _, n in parts])
+            self._send(self.rec.file, (entity, kind), times, values, lengths)
+            if not prompt and self.rec.live is not None:
+                self._send(self.rec.live, (entity, kind), times, values, lengths)
 
-    def _send(self, stream: rr.RecordingStream, what: tuple[str, str], times: np.ndarray, values: Any) -> None:
+    def _send(
+        self,
+        stream: rr.RecordingStream,
+        what: tuple[str, str],
+        times: np.ndarray,
+        values: Any,
+        lengths: np.ndarray | None = None,
+    ) -> None:
         entity, kind = what
         indexes = [rr.TimeColumn(self.timeline, duration=times)]
-        stream.send_columns(entity, indexes=indexes, columns=columns(kind, values))
+        stream.send_columns(entity, indexes=indexes, columns=columns(kind, values, lengths))

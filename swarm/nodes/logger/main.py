@@ -13,10 +13,10 @@ to its spool (runtime.spool). It holds a token the world waits
 for and watches the world's: it gives up when the world has not appeared within
 ``--peers-timeout`` and ends when the world says "done" or leaves.
 
-Data is buffered and sent as columns every 0.25 s of wall time (beyond 12
-robots every 0.02 s per robot: 2 s for 100) and the file is flushed every
-0.5 s; the file takes the rows in batches of 2 s of sim time
-(formation_swarm.nodes.logger.columns), which a logger killed with SIGKILL loses.
+Data is buffered and sent as columns every 0.25 s of wall time and the file
+is flushed every 0.5 s; the file takes the rows in batches of 2 s of sim time
+(10 s beyond a dozen robots: formation_swarm.nodes.logger.columns), which a
+logger killed with SIGKILL loses.
 """
 
 from __future__ import annotations
@@ -48,12 +48,10 @@ from formation_swarm.runtime import spool as spool_mod
 from formation_swarm.runtime.proc import exit_after_main, write_json
 from formation_swarm.spec import scenario as scenario_mod
 
+# Each send costs about 17 Rerun calls per robot up to a dozen robots; beyond,
+# a few for the whole swarm, each robot's series going with the file's batches
+# (formation_swarm.nodes.logger.crowd).
 SEND_PERIOD_S = 0.25
-# Each send costs about 17 Rerun calls per robot, whatever the rows it carries
-# (about 0.1 ms each here): beyond 12 robots the logger sends less often, every
-# SEND_S_PER_ROBOT per robot (2 s for 100: 1.7 ms of CPU per robot per send,
-# 0.85 ms per second), not more rows.
-SEND_S_PER_ROBOT = 0.02
 FLUSH_PERIOD_S = 0.5
 # After "done", at most this long for the followers' last telemetry: each one's
 # end-of-stream mark, or its agent's leaving (a killed agent sends no mark).
@@ -71,8 +69,7 @@ END_OF_STREAM = pack_batch([])  # what protocol.batch.BatchPublisher.close sends
 
 class Logger:
     """The process loop: messages are queued as they arrive and handed to the
-    Recorder, which sends them as Rerun columns, every SEND_PERIOD_S (or
-    SEND_S_PER_ROBOT per robot, if longer)."""
+    Recorder, which sends them as Rerun columns, every SEND_PERIOD_S."""
 
     def __init__(
         self,
@@ -104,7 +101,7 @@ class Logger:
         self.ticks = TickLedger(sc.ticks + TICKS_PAST_END)  # per sender (WORLD_ID: truth), the ticks taken
         self.end_note = "not started"  # why the loop ended, for the last report line
         self.cpu = LoopCpu()
-        self.send_period_s = max(SEND_PERIOD_S, SEND_S_PER_ROBOT * len(sc.robots))
+        self.send_period_s = SEND_PERIOD_S
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         key, payload = str(sample.key_expr), sample.payload.to_bytes()

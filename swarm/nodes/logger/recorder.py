@@ -27,6 +27,9 @@ Entity paths mirror the key space::
 
 How each robot is drawn is static data too, and the viewer's layout names
 these paths for the scenario's robots: formation_swarm.nodes.logger.blueprint.
+Beyond a dozen robots the swarm is drawn and summed up as a whole, each
+robot's series kept (formation_swarm.nodes.logger.crowd). ``run.record_every``
+= N records every N-th tick's truth and telemetry alone.
 
 Messages are kept as they arrive (cheap, per tick) and turned into Rerun
 columns with numpy when the process loop calls ``Recorder.send`` (per send,
@@ -39,15 +42,19 @@ from __future__ import annotations
 import math
 import sys
 from collections import defaultdict
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import rerun as rr
 
 from formation_swarm.nodes.logger.blueprint import LEADER_FRAME, MEAN_S, SMOOTHED, TIMELINE, static_entities
-from formation_swarm.nodes.logger.columns import ColumnSink
+from formation_swarm.nodes.logger.columns import CROWD_BATCH_S, FILE_BATCH_S, ColumnSink
+from formation_swarm.nodes.logger.crowd import CROWD_ROBOTS, Crowd, crowd_styles
 from formation_swarm.nodes.logger.running_mean import CentredMean
+from formation_swarm.nodes.logger.shapes import ellipses, to_world
 from formation_swarm.world.kinematics import Pose, from_body_frame
+from formation_swarm.world.metrics import TargetErrors
 
 if TYPE_CHECKING:
     from formation_swarm.nodes.logger.recording import Recording
@@ -55,7 +62,7 @@ if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
 
 HISTORY_TICKS = 400  # telemetry waits this long for its tick's truth
-_CIRCLE = np.stack([np.cos(np.linspace(0, 2 * np.pi, 25)), np.sin(np.linspace(0, 2 * np.pi, 25))], axis=1)
+SETTLE_TICKS = 2  # beyond a dozen robots, a tick's telemetry is taken this many ticks late: whole, for its aggregates
 
 
 class Recorder:
@@ -72,19 +79,22 @@ class Recorder:
         self.leader_code: int | None = None  # the last formation code taken from the leader, and its tick
         self.leader_code_tick: int | None = None
         self.pending_events: list[tuple[float, str]] = []  # (sim time s, text) for /events at the next send
-        # Per follower: squared error of the measured and of the EKF target vs the true one.
-        self.target_errors: dict[int, dict[str, float]] = defaultdict(lambda: defaultdict(float))
+        # Per follower: the measured and the EKF target vs the true one, and the EKF's NEES.
+        self.target_errors: dict[int, TargetErrors] = defaultdict(TargetErrors)
         self.counts = {"log_errors": 0, "rows": 0, "unjoined": 0}
         self.schedule: list[tuple[float, str, str]] = []  # fault schedule events still to come: time s, text, level
         self.last_time_s = -1.0
-        self.sink = ColumnSink(rec, TIMELINE)
+        crowd = len(sc.robots) > CROWD_ROBOTS
+        self.sink = ColumnSink(rec, TIMELINE, CROWD_BATCH_S if crowd else FILE_BATCH_S)
+        self.crowd = Crowd(sc, self.sink, self._target_errors) if crowd else None
+        self.every = record_every(sc)
         self.means: dict[tuple[int, str], CentredMean] = {}  # (follower, series) -> its 1 s mean
 
     def add_truths(self, truths: list[Truth]) -> None:
-        self.truths.extend(truths)
+        self.truths.extend(t for t in truths if t.tick % self.every == 0)
 
     def add_telemetry(self, tels: list[Telemetry]) -> None:
-        self.tels.extend(tels)
+        self.tels.extend(t for t in tels if t.tick % self.every == 0)
 
     def add_leader_code(self, code: FormationCode) -> None:
         """The leader's formation code: a change is the leader's switch, an event."""
@@ -109,7 +119,7 @@ class Recorder:
         """The obstacles, the leader's path, the formations and how each robot
         is drawn, logged once as static data (formation_swarm.nodes.logger.blueprint)."""
         sc = self.sc
-        for entity, data in static_entities(sc):
+        for entity, data in static_entities(sc) + (crowd_styles(sc) if self.crowd else []):
             self.guard(self.rec.log, entity, data, static=True)
         self._event(0.0, f"run of {sc.name}: {len(sc.robots)} robots, leader R{sc.leader.robot_id}")
         self.log_fault_schedule()
@@ -147,6 +157,9 @@ class Recorder:
         self.guard(self._send_telemetry, final)
         if final:
             self.guard(self._end_means)
+        if self.crowd is not None:
+            self.guard(self.crowd.name)
+            self.guard(self.crowd.flush, final)
         self.guard(self.sink.write, final)
         events, self.pending_events = self.pending_events, []
         for t, text in events:
@@ -161,6 +174,11 @@ class Recorder:
 
     def _send_truth(self) -> None:
         truths, self.truths = self.truths, []
+        if self.crowd is not None:
+            self._keep_truths(truths)
+            self.crowd.truth(truths)
+            self._log_due_faults()
+            return
         robots: dict[int, list[tuple[float, float, float, float]]] = defaultdict(list)
         targets: dict[int, list[tuple[float, float, float, float, float]]] = defaultdict(list)
         for msg in truths:
@@ -191,14 +209,22 @@ class Recorder:
             self._columns(f"robots/r{rid}/error/formation", "scalar", a[:, 0], err)
         self._log_due_faults()
 
+    def _keep_truths(self, truths: list[Truth]) -> None:
+        """Each tick's true poses and targets, for its telemetry to join."""
+        for msg in truths:
+            self.last_time_s = max(self.last_time_s, msg.time_s)
+            self.poses[msg.tick] = {rid: Pose(x, y, th) for rid, x, y, th, _alive in msg.robots}
+            self.targets[msg.tick] = {rid: (x, y) for rid, x, y in msg.targets}
+
     def _send_telemetry(self, final: bool) -> None:
         """Telemetry whose tick's truth has arrived, joined with it: the follower's
         pose turns its body-frame points into world-frame ones."""
         newest = max(self.poses, default=-1)
+        settled = newest - (SETTLE_TICKS if self.crowd is not None and not final else 0)
         ready: dict[int, list[tuple[Telemetry, Pose, tuple[float, float] | None]]] = defaultdict(list)
         waiting = []
         for tel in self.tels:
-            pose = self.poses.get(tel.tick, {}).get(tel.sender)
+            pose = self.poses.get(tel.tick, {}).get(tel.sender) if tel.tick <= settled else None
             if pose is not None:
                 ready[tel.sender].append((tel, pose, self._flown_target(tel)))
             elif tel.tick > newest - HISTORY_TICKS and not final:
@@ -208,6 +234,9 @@ class Recorder:
         self.tels = waiting
         for old in [k for k in self.poses if k < newest - HISTORY_TICKS]:
             del self.poses[old], self.targets[old]
+        if self.crowd is not None:
+            self._send_crowd(ready)
+            return
         for rid, rows in ready.items():
             self._send_follower(rid, rows)
 
@@ -225,32 +254,31 @@ class Recorder:
         except (IndexError, KeyError):  # an unknown code or slot, a reference without a pose
             return self.targets.get(tel.tick, {}).get(tel.sender)
 
+    def _send_crowd(self, ready: dict[int, list[tuple[Telemetry, Pose, tuple[float, float] | None]]]) -> None:
+        """Many followers' telemetry at once (formation_swarm.nodes.logger.crowd)."""
+        if not ready or self.crowd is None:
+            return
+        for rid, rows in ready.items():
+            self._send_formations(rid, rows)
+            self._send_extras(f"robots/r{rid}", rows)
+        rows = [row for part in ready.values() for row in part]
+        a = _rows(rows)
+        rids = np.array([tel.sender for tel, _pose, _target in rows])
+        pose = a[:, 1:4]
+        self.crowd.telemetry(a, rids, to_world(pose, a[:, 6:8]), to_world(pose, a[:, 8:10]))
+        self.counts["rows"] += len(a)
+
+    def _target_errors(self, rid: int, a: np.ndarray) -> None:
+        """Follower ``rid``'s target errors from its joined telemetry rows (``_rows``' columns)."""
+        pose, target, cov = a[:, 1:4], a[:, 4:6], a[:, 10:13]
+        self.target_errors[rid].add(pose, target, to_world(pose, a[:, 6:8]), to_world(pose, a[:, 8:10]), cov)
+
     def _send_follower(self, rid: int, rows: list[tuple[Telemetry, Pose, tuple[float, float] | None]]) -> None:
-        nan = math.nan
         base = f"robots/r{rid}"
         self._send_formations(rid, rows)
-        a = np.array(
-            [
-                (
-                    tel.time_s,
-                    *pose,
-                    *(target or (nan, nan)),
-                    *(tel.measured or (nan, nan)),
-                    *(tel.estimate or (nan, nan)),
-                    *(tel.target_cov or (nan, nan, nan)),
-                    _nan(tel.rho_m),
-                    _nan(tel.alpha_rad),
-                    _nan(tel.vn),
-                    tel.left_mps,
-                    tel.right_mps,
-                    tel.obs_dropped,
-                    tel.formation_dropped,
-                )
-                for tel, pose, target in rows
-            ]
-        )
+        a = _rows(rows)
         t, pose, target = a[:, 0], a[:, 1:4], a[:, 4:6]
-        measured, estimate = _to_world(pose, a[:, 6:8]), _to_world(pose, a[:, 8:10])
+        measured, estimate = to_world(pose, a[:, 6:8]), to_world(pose, a[:, 8:10])
         cov = a[:, 10:13]
         scalars = (
             "fis/rho",
@@ -274,12 +302,10 @@ class Recorder:
             ok &= ~np.isnan(target[:, 0])
             err = np.hypot(*(pts[ok] - target[ok]).T)
             self._columns(f"{base}/error/{name}", "scalar", t[ok], err)
-            acc = self.target_errors[rid]
-            acc[f"{name}_sum_sq_m2"] += float(np.sum(err**2))
-            acc[f"{name}_samples"] += int(err.size)
+        self.target_errors[rid].add(pose, target, measured, estimate, cov)
         ok = ~np.isnan(estimate[:, 0]) & ~np.isnan(cov[:, 0])
         if ok.any():
-            self._columns(f"{base}/ekf/cov", "strip", t[ok], _ellipses(pose[ok], estimate[ok], cov[ok]))
+            self._columns(f"{base}/ekf/cov", "strip", t[ok], ellipses(pose[ok], estimate[ok], cov[ok]))
         self._send_extras(base, rows)
 
     def _send_formations(self, rid: int, rows: list[tuple[Telemetry, Pose, tuple[float, float] | None]]) -> None:
@@ -321,18 +347,11 @@ class Recorder:
         self.guard(self.rec.log, "events", rr.TextLog(text))
 
     def stats(self) -> dict[str, Any]:
-        """``last_sim_time_s`` and the RMS of the measured and EKF targets vs the true ones, per follower."""
+        """``last_sim_time_s`` and, per follower, the RMS of the measured and EKF targets vs
+        the true ones and the EKF's NEES (world.metrics.TargetErrors)."""
         return {
             "last_sim_time_s": self.last_time_s,
-            "target_errors": {
-                str(rid): {
-                    f"{name}_rms_m": math.sqrt(acc[f"{name}_sum_sq_m2"] / acc[f"{name}_samples"])
-                    if acc[f"{name}_samples"]
-                    else None
-                    for name in ("measured", "ekf")
-                }
-                for rid, acc in sorted(self.target_errors.items())
-            },
+            "target_errors": {str(rid): acc.stats() for rid, acc in sorted(self.target_errors.items())},
         }
 
 
@@ -340,20 +359,35 @@ def _nan(x: float | None) -> float:
     return math.nan if x is None else x
 
 
-def _to_world(pose: np.ndarray, body: np.ndarray) -> np.ndarray:
-    """Body-frame points (x right, y ahead) of robots at ``pose`` (n x 3), world frame."""
-    s, c = np.sin(pose[:, 2]), np.cos(pose[:, 2])
-    x, y = body[:, 0], body[:, 1]
-    return np.column_stack([pose[:, 0] + x * s + y * c, pose[:, 1] - x * c + y * s])
+def record_every(sc: Scenario) -> int:
+    """``run.record_every``: record every N-th tick (1: every tick)."""
+    run = sc.raw.get("run") if isinstance(sc.raw, Mapping) else None
+    every = run.get("record_every", 1) if isinstance(run, Mapping) else 1
+    return every if type(every) is int and every >= 1 else 1  # the loader checked it: this for a hand-made Scenario
 
 
-def _ellipses(pose: np.ndarray, center: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """2-sigma ellipses of follower-frame covariances (xx, xy, yy), as world-frame
-    polygons: n x 25 x 2."""
-    c = np.stack([np.stack([cov[:, 0], cov[:, 1]], -1), np.stack([cov[:, 1], cov[:, 2]], -1)], -2)
-    vals, vecs = np.linalg.eigh(c)  # n x 2, n x 2 x 2
-    body = np.einsum("kj,nj,nij->nki", _CIRCLE, 2.0 * np.sqrt(np.maximum(vals, 0.0)), vecs)
-    # Body-frame directions to world frame: x right -> (sin, -cos), y ahead -> (cos, sin).
-    s, co = np.sin(pose[:, 2])[:, None], np.cos(pose[:, 2])[:, None]
-    bx, by = body[..., 0], body[..., 1]
-    return np.stack([bx * s + by * co, -bx * co + by * s], -1) + center[:, None, :]
+def _rows(rows: list[tuple[Telemetry, Pose, tuple[float, float] | None]]) -> np.ndarray:
+    """A follower's joined telemetry as columns: time, pose (3), true target (2),
+    measured (2), estimate (2), cov (3), then crowd.SERIES (rho, alpha, V_N,
+    wheels, link drops)."""
+    nan = math.nan
+    return np.array(
+        [
+            (
+                tel.time_s,
+                *pose,
+                *(target or (nan, nan)),
+                *(tel.measured or (nan, nan)),
+                *(tel.estimate or (nan, nan)),
+                *(tel.target_cov or (nan, nan, nan)),
+                _nan(tel.rho_m),
+                _nan(tel.alpha_rad),
+                _nan(tel.vn),
+                tel.left_mps,
+                tel.right_mps,
+                tel.obs_dropped,
+                tel.formation_dropped,
+            )
+            for tel, pose, target in rows
+        ]
+    ).reshape(-1, 20)

@@ -15,9 +15,14 @@ import rerun as rr
 
 from formation_swarm.nodes.logger import viewer
 from formation_swarm.nodes.logger.blueprint import blueprint
+from formation_swarm.nodes.logger.columns import CROWD_BATCH_S, FILE_BATCH_S
+from formation_swarm.nodes.logger.crowd import CROWD_ROBOTS
 
 if TYPE_CHECKING:
     from formation_swarm.spec.scenario import Scenario
+
+FOOTER_MAX_CHUNKS = 20_000  # about 20 MB of the logger's memory
+ENTITIES_PER_ROBOT = 20  # about: a chunk each per batch of the file
 
 
 def open_recording(
@@ -36,7 +41,7 @@ def open_recording(
     out.parent.mkdir(parents=True, exist_ok=True)
     bp = blueprint(sc)
     rec = Recording(file=_stream(run_id))
-    rec.file.set_sinks(rr.FileSink(str(out)))
+    rec.file.set_sinks(rr.FileSink(str(out), write_footer=footer_fits(sc)))
     sinks: list[Any] = []
     if live and (why := viewer.unreachable(live)) is not None:
         rec.dropped = f"no Rerun viewer answers at {live} ({why})"
@@ -55,6 +60,17 @@ def open_recording(
     for stream in rec.streams():
         stream.send_blueprint(bp, make_active=True, make_default=True)
     return rec
+
+
+def footer_fits(sc: Scenario) -> bool:
+    """Whether the file gets Rerun's footer, a manifest of its chunks that the
+    stream keeps in memory (about 1 kB per chunk) until the file closes: for
+    a run of at most FOOTER_MAX_CHUNKS chunks, estimated from its robots and
+    length. A longer run's file has none, and the logger's memory stays
+    bounded; the viewer and the report read it the same (as a file cut by a
+    kill), only Rerun's random access to it is slower."""
+    batch_s = CROWD_BATCH_S if len(sc.robots) > CROWD_ROBOTS else FILE_BATCH_S
+    return sc.duration_s / batch_s * ENTITIES_PER_ROBOT * len(sc.robots) <= FOOTER_MAX_CHUNKS
 
 
 def _stream(run_id: str) -> rr.RecordingStream:

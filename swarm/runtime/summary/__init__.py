@@ -34,7 +34,8 @@ Besides the metrics it says which code made the run and why the run ended:
     those that hung (runtime.summary.slow); a robot not reproducible or hung
     fails the run.
 
-Its parts are made beside it: why the run ended (``end_reason``), the links'
+Lists that grow with the run's length are capped, each cap stated
+(``runtime.summary.caps``). Its parts are made beside it: why the run ended (``end_reason``), the links'
 counts (``link_counts``), what each fault did (``fault_effects``) and what the
 recording misses (``recording_check``).
 """
@@ -50,6 +51,7 @@ from typing import TYPE_CHECKING, Any, NotRequired, TypedDict, Unpack
 
 from formation_swarm.common.version import __version__
 from formation_swarm.runtime.proc import write_json
+from formation_swarm.runtime.summary import caps
 from formation_swarm.runtime.summary.end_reason import (
     DURATION_REACHED,
     END_REASONS,
@@ -183,7 +185,7 @@ def build(
     out["recording_cut"] = recording_cut(out)  # the logger was killed or lost before the run's end
     if out["failure"] is None:  # lost outside the schedule: the run has no whole recording
         out["failure"] = logger_lost(world, events)
-    return out
+    return caps.cap(out)  # a size independent of the run's length
 
 
 def rejections(parts: Mapping[str, Any]) -> dict[str, dict[str, int]]:
