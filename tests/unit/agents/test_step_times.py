@@ -86,4 +86,5 @@ def test_a_step_asleep_a_little_over_the_tick_is_counted_not_noted() -> None:
     role.take_observation(observation(0))
     assert role.answer() is not None
     [note] = [n for n in role.notes if "longer than the tick" in n]
-    assert note.startswith("controller fuzzy took 0.6")
+    assert note.startswith("controller fuzzy took ")
+    assert float(note.split()[3]) >= 0.6
