@@ -8,7 +8,7 @@ N robots in a line on a straight path (``bench/scale.py --straight
 recording.rrd, wire.mcap and summary.json, the first two in MB per robot
 and minute of sim time.
 
-    python bench/logger_memory.py [--robots 50] [--minutes 20] [--record-every 1]
+    python bench/logger_memory.py [--robots 50] [--minutes 20] [--record-every 1] [--agents-per-process 1]
 """
 
 from __future__ import annotations
@@ -57,6 +57,7 @@ def main() -> None:
     ap.add_argument("--robots", type=int, default=50)
     ap.add_argument("--minutes", type=float, default=20.0, help="sim minutes, in real time (default 20)")
     ap.add_argument("--record-every", type=int, default=1, help="run.record_every (default 1: every tick)")
+    ap.add_argument("--agents-per-process", type=int, default=1, help="run.agents_per_process (default 1)")
     args = ap.parse_args()
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}", flush=True)
     overrides = {
@@ -66,11 +67,14 @@ def main() -> None:
         "run.duration_s": 60.0 * args.minutes,
         "controller.lookahead_m": 1.0,
         "run.record_every": args.record_every,
+        "run.agents_per_process": args.agents_per_process,
     }
     samples: list[tuple[float, float]] = []
     with (
         tempfile.TemporaryDirectory() as tmp,
-        Launch(SCENARIO, out=Path(tmp) / "run", overrides=overrides, progress=lambda _line: None) as launch,
+        Launch(
+            SCENARIO, out=Path(tmp) / "run", mode="realtime", overrides=overrides, progress=lambda _line: None
+        ) as launch,
     ):
         t0 = time.monotonic()
         if not launch.wait_until(lambda: launch.sim_time() >= 0.0, timeout_s=300.0):

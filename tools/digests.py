@@ -10,6 +10,9 @@ check the changed code against it:
     python tools/digests.py --check /tmp/digests.txt
 
 ``--check`` prints every case that differs and exits 1 if one does.
+``--agents-per-process K`` runs every case with K robots' agents to a process
+(``run.agents_per_process``): checked against a list written with K = 1, it
+shows that sharing processes moves no robot.
 ``tools/digests.txt`` is the list recorded on the development machine
 (Python 3.11, numpy 2.4, a CPU with AVX-512) since the cameras draw their
 noise for the markers in view only (world.camera); another machine's libm,
@@ -89,6 +92,7 @@ def main() -> int:
     what.add_argument("--check", metavar="FILE", help="compare the digests with FILE's")
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     ap.add_argument("--only", default="", help="only the cases whose name contains this")
+    ap.add_argument("--agents-per-process", type=int, default=1, metavar="K", help="run.agents_per_process (default 1)")
     args = ap.parse_args()
     todo = [c for c in cases(args.seeds) if args.only in c[0]]
     stored: dict[str, str] = {}
@@ -97,11 +101,12 @@ def main() -> int:
             name, _, dig = line.partition("\t")
             stored[name] = dig
         todo = [c for c in todo if c[0] in stored]
-    print(f"{len(todo)} runs; load average {os.getloadavg()[0]:.2f}", flush=True)
+    k = args.agents_per_process
+    print(f"{len(todo)} runs, {k} agents to a process; load average {os.getloadavg()[0]:.2f}", flush=True)
     same = differ = 0
     with tempfile.TemporaryDirectory() as tmp:
         for name, sc, seed, overrides, faults in todo:
-            got = digest(sc, seed, overrides, faults, Path(tmp))
+            got = digest(sc, seed, {**overrides, "run.agents_per_process": args.agents_per_process}, faults, Path(tmp))
             if args.write:
                 with open(args.write, "a") as f:
                     f.write(f"{name}\t{got}\n")
