@@ -61,13 +61,16 @@ bench: $(STAMP)
 	$(BIN)/python bench/start.py
 
 # The generated tables and figures of docs/results.md: the baseline (180 lockstep
-# runs), the same under wheel noise (180), the paper's claims over 30 seeds as
-# shipped (with the rows tests/system/test_claims.py checks, and claim d's
-# ablation of the avoidance), under wheel noise, with the EKF told it (3 x 240),
-# and the claims at every value of one setting at a time (10 seeds per value:
-# 2,720 runs beyond the claims' own, which it shares; their rows, and the list of
-# where each claim holds, written from them); resumable: an interrupted
-# `make results` goes on where it stopped.
+# runs, one process per robot), the same under wheel noise (180); then, stepped in
+# one process (the lockstep runs' very rows, in minutes), the paper's claims over
+# 30 seeds as shipped (with the rows tests/system/test_claims.py checks against
+# its lockstep runs, and the avoidance's ablation), under wheel noise, with the
+# EKF told it (3 x 240), the claims at every value of one setting at a time (10
+# seeds per value: 2,720 runs beyond the claims' own, which it shares; their rows,
+# and the lists of where each claim holds and of the rank swap, written from
+# them), the claims as margins with intervals, the EKF's NEES and the avoidance's
+# study (1,410 runs); resumable: an interrupted `make results` goes on where it
+# stopped.
 NOISE_SET := --set robot.wheel_noise_mps=0.1
 EKF_TOLD := --set controller.ekf.q_pos_m=0.13 --set controller.ekf.q_phi_rad=0.09
 results: $(STAMP)
@@ -77,6 +80,7 @@ results: $(STAMP)
 	$(BIN)/swarm results --claims --seeds 30 $(NOISE_SET) --write docs/results.md
 	$(BIN)/swarm results --claims --seeds 30 $(NOISE_SET) $(EKF_TOLD) --write docs/results.md
 	$(BIN)/swarm results --sensitivity --seeds 10 --rows docs/results/sensitivity.csv --write docs/results.md
+	$(BIN)/python -m formation_swarm.studies.margins --seeds 30 --rows docs/results/margins.csv --write docs/results.md
 
 # Reference documents generated from the code (a test fails when one is stale).
 docs: $(STAMP)

@@ -4,10 +4,12 @@
 The claims and their criteria are those of tests/system/test_claims.py (the claims
 themselves, not fitted margins); here they are evaluated seed by seed and
 said in a table: the figures (min-max over the seeds) and in how many seeds
-each holds. Claim d is judged twice: on the paper's Fig. 11 run, and on a
-rank that swaps sides, where eq. 11-13 decide it; that run is flown without
-them too (``avoidance_table``, the ablation). Nothing here runs anything:
-``SWEEPS`` names the runs, ``table`` reads their rows.
+each holds. Claim d is judged on the paper's Fig. 11 run. A rank that swaps
+sides (``fig11_rank_swap``, a scenario of ours, not the paper's) is where
+eq. 11-13 decide a contact: ``rank_swap`` states it for the avoidance's
+section, and both runs are flown without them too (``avoidance_table``, the
+ablation). Nothing here runs anything: ``SWEEPS`` names the runs, ``table``
+reads their rows.
 """
 
 from __future__ import annotations
@@ -47,7 +49,8 @@ SWEEPS: dict[str, Source] = {
     "ekf": Source("fig9_ekf_noise.toml", logger=True),
     "obstacles": Source("fig11_obstacles.toml"),
     "obstacles, no avoidance": Source("fig11_obstacles.toml", overrides=NO_AVOIDANCE, tag="no-avoidance"),
-    # A rank that swaps sides behind its references: eq. 11-13 keep it apart, and without them it touches.
+    # Not the paper's: a rank that swaps sides behind its references, for the avoidance's section
+    # (eq. 11-13 keep it apart, and without them it touches).
     "rank swap": Source("fig11_rank_swap.toml"),
     "rank swap, no avoidance": Source("fig11_rank_swap.toml", overrides=NO_AVOIDANCE, tag="no-avoidance"),
 }
@@ -192,9 +195,10 @@ def claim_d(rows: Rows) -> Claim:
     return Claim("d. the obstacle run goes triangle, line, triangle, no collision", text, ok, n)
 
 
-def claim_d_avoidance(rows: Rows) -> Claim:
-    """Claim d where eq. 11-13 decide it: judged on the runs with them; the same
-    seeds without them (the ablation) say that they do."""
+def rank_swap(rows: Rows) -> Claim:
+    """The avoidance's statement on the rank swap, a scenario of ours where eq. 11-13
+    decide a contact: judged on the runs with them; the same seeds without them
+    (the ablation) say that they do. Not one of the paper's claims."""
     swap, off = rows["rank swap"], rows["rank swap, no avoidance"]
     n = len(swap)
     changed, ok, said = _switched_clear(swap, "rank_left>rank_right")
@@ -205,10 +209,11 @@ def claim_d_avoidance(rows: Rows) -> Claim:
         f"({sum(r['collisions'] for r in off)} contacts), minimum distance "
         f"{min(r['min_distance_m'] for r in off):.2f} m."
     )
-    return Claim("d. with eq. 11-13 a rank swaps sides and back without collision", text, ok, n)
+    return Claim("with eq. 11-13 the rank swaps sides and back without contact", text, ok, n)
 
 
-CLAIMS = (claim_a, claim_b_behind, claim_b_overshoot, claim_c, claim_d, claim_d_avoidance)
+# The paper's claims a-d.
+CLAIMS = (claim_a, claim_b_behind, claim_b_overshoot, claim_c, claim_d)
 
 
 def measure(rows: Rows) -> list[Claim]:
@@ -218,7 +223,8 @@ def measure(rows: Rows) -> list[Claim]:
 def table(rows: Rows, settings: str) -> str:
     n = len(rows["dynamic"])
     lines = [
-        f"The paper's claims with {settings or 'the scenarios as shipped'}: lockstep runs, seeds 0-{n - 1}; "
+        f"The paper's claims with {settings or 'the scenarios as shipped'}: seeds 0-{n - 1}, runs in one "
+        "process (`formation_swarm.engine`); "
         "the criteria of tests/system/test_claims.py, evaluated seed by seed.",
         "",
         f"| claim | measured (min-max over {n} seeds; mean ± 95% confidence half-width) | holds |",
@@ -241,7 +247,8 @@ def avoidance_table(rows: Rows) -> str:
     """Claim d's ablation: its runs with and without eq. 11-13, seed for seed, and what that says."""
     n = len(rows["rank swap"])
     lines = [
-        f"Lockstep runs, seeds 0-{n - 1}, with the partition-zone avoidance (eq. 11-13) and without it "
+        f"Seeds 0-{n - 1}, runs in one process (`formation_swarm.engine`), with the partition-zone "
+        "avoidance (eq. 11-13) and without it "
         "(`controller.avoidance = false`: a follower goes straight to its new slot); robots are 0.4 m "
         "across, closer than that they touch.",
         "",

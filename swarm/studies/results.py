@@ -4,14 +4,16 @@ or, with --claims, the paper's claims a-d measured seed by seed (and, as
 shipped, claim d's runs without the avoidance beside them); or, with
 --sensitivity, those claims at every value of one setting at a time.
 
-Runs the grid through swarm sweep (resumable: rerunning reuses finished runs),
-then prints a markdown table of the follower's RMS and max formation error
-(mean over seeds, with the 95% confidence half-width) and, with --write,
-replaces the table between the markers in that file. --set changes a
-scenario key in every run (e.g. robot.wheel_noise_mps=0.1); the table then
-goes between markers that name the setting, so tables of several settings
-live side by side. A run that failed or missed a lockstep tick keeps the
-table from being written.
+Runs the grid through swarm sweep, lockstep, one process per robot; the
+claims and the sensitivity step their runs in one process instead
+(studies.engine_sweep: the lockstep runs' very rows). Resumable: rerunning
+reuses finished runs. It then prints a markdown table of the follower's
+RMS and max formation error (mean over seeds, with the 95% confidence
+half-width) and, with --write, replaces the table between the markers in
+that file. --set changes a scenario key in every run (e.g.
+robot.wheel_noise_mps=0.1); the table then goes between markers that name
+the setting, so tables of several settings live side by side. A run that
+failed or missed a lockstep tick keeps the table from being written.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from formation_swarm.runtime.cliargs import USAGE_ERROR, Parser, integer, make_folder
 from formation_swarm.runtime.proc import interrupt_on_stop_signals
@@ -244,7 +246,7 @@ def _plan(args: argparse.Namespace, out: Path, writes: Sequence[Path]) -> _Plan:
     if args.sensitivity:
         plan.axes = [sensitivity.AXIS_NAMES[a] for a in args.axis] or list(sensitivity.AXES)
         wanted = [markers("sensitivity", axis.name) for axis in plan.axes]
-        wanted += [sensitivity_run.WHERE] if args.rows else []
+        wanted += [sensitivity_run.WHERE, sensitivity_run.SWAP] if args.rows else []
     else:
         plan.tables = _tables(args, plan.settings)
         wanted = [marks for marks, _make in plan.tables]
@@ -284,7 +286,12 @@ def main(argv: list[str] | None = None) -> int:
                 writes=writes,
                 rows_csv=Path(args.rows) if args.rows else None,
             )
-        rows = run_sweeps(plan.sweeps, out)
+        if args.claims:  # stepped in one process: the lockstep runs' rows (studies.engine_sweep)
+            from formation_swarm.studies.engine_sweep import EngineSweep, run_engine_sweeps
+
+            rows = run_engine_sweeps(cast("dict[str, EngineSweep]", plan.sweeps), out)
+        else:
+            rows = run_sweeps(plan.sweeps, out)
     except KeyboardInterrupt:
         return 130
     if rows is None:

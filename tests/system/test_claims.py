@@ -2,17 +2,21 @@
 
 - over seeds 0-9 here, lockstep runs with every robot its own process;
 - over seeds 0-29 in docs/results/claims.csv, the rows ``make results`` wrote
-  (``swarm results --claims --seeds 30 --rows ...``), read back and judged by
-  formation_swarm.studies.claims, the same criteria; the rows of seeds 0-9 there must
-  be the very figures of the runs here, so the 30 seeds are this code's.
+  (``swarm results --claims --seeds 30 --rows ...``, runs stepped in one
+  process), read back and judged by formation_swarm.studies.claims, the same
+  criteria; the rows of seeds 0-9 there must be the very figures of the
+  runs here, so the 30 seeds are this code's, and one process gives what
+  one process per robot gives.
 
 Figures are in docs/results.md; the bounds are the claims themselves, not
 fitted margins. They hold for the scenarios as shipped; docs/results.md,
 "Where each claim holds", says where they fail (another leader speed,
 observation drops, a quieter camera, noise or bias on the wheels). Claim d
-is judged on fig11_obstacles and on fig11_rank_swap, each flown without
-the avoidance (eq. 11-13) too: only the second needs it. The last test compares with
-the runs of the tests before it, so it skips when run alone."""
+is judged on fig11_obstacles, flown without the avoidance (eq. 11-13) too.
+The rank swap (fig11_rank_swap, a scenario of ours, not the paper's) is
+tested as the statements of docs/results.md's section on the avoidance: it
+needs eq. 11-13. The last test compares with the runs of the tests before
+it, so it skips when run alone."""
 
 from __future__ import annotations
 
@@ -83,17 +87,18 @@ def test_d_obstacle_run_goes_triangle_line_triangle_without_collision(tmp_path_f
 
 
 def test_d_fig11_obstacles_has_no_contact_without_eq_11_13_either(tmp_path_factory: pytest.TempPathFactory) -> None:
-    """Why claim d is judged on the rank swap too: here eq. 11-13 decide nothing."""
+    """Why the avoidance has a section of its own: here eq. 11-13 decide nothing."""
     for r in _sweep(tmp_path_factory, "obstacles, no avoidance"):
         assert [r[f"r{i}_formations"] for i in (1, 2, 3)] == ["line>triangle"] * 3, r["seed"]
         assert (r["collisions"], r["obstacle_collisions"]) == (0, 0), r["seed"]
         assert r["min_distance_m"] > 0.4
 
 
-def test_d_a_rank_swaps_sides_without_collision_with_eq_11_13_and_touches_without(
+def test_avoidance_the_rank_swap_swaps_without_contact_with_eq_11_13_and_touches_without(
     tmp_path_factory: pytest.TempPathFactory,
 ) -> None:
-    """fig11_rank_swap: each follower crosses behind its reference; eq. 13 sends it
+    """Not a claim of the paper: docs/results.md, "Where the rank swap needs it".
+    fig11_rank_swap: each follower crosses behind its reference; eq. 13 sends it
     round the reference's stern, the straight way grazes the reference."""
     for r in _sweep(tmp_path_factory, "rank swap"):
         assert [r[f"r{i}_formations"] for i in (1, 2, 3)] == ["rank_left>rank_right"] * 3, r["seed"]
@@ -111,6 +116,16 @@ def test_the_claims_hold_in_each_of_the_30_committed_seeds() -> None:
     assert all(r["exit_code"] == 0 and r["lockstep_misses"] == 0 for runs in rows.values() for r in runs)
     verdicts = {c.name: (c.holds, c.seeds) for c in claims.measure(rows)}
     assert verdicts == {c.name: (30, 30) for c in claims.measure(rows)}
+    assert len(verdicts) == 5  # a, b twice, c, d: the paper's; the rank swap is the avoidance's
+
+
+def test_avoidance_the_rank_swap_statements_hold_in_each_of_the_30_committed_seeds() -> None:
+    """The avoidance's section: with eq. 11-13 the rank swaps without contact in every seed,
+    without them two robots touch in every seed."""
+    rows = claims.read_rows(COMMITTED)
+    swap = claims.rank_swap(rows)
+    assert (swap.holds, swap.seeds) == (30, 30)
+    assert sum(1 for r in rows["rank swap, no avoidance"] if r["collisions"]) == 30
 
 
 def test_the_committed_seeds_are_this_codes_runs() -> None:

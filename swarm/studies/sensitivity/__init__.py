@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 from formation_swarm.studies import claims
 
 if TYPE_CHECKING:
-    from formation_swarm.studies.sweep import Sweep
+    from formation_swarm.studies.engine_sweep import EngineSweep
 
 ROOT = Path(__file__).resolve().parents[3]
 # Controllers flown beside the claims' own runs, on the path of claims a-b (the dynamic run's scenario).
@@ -45,10 +45,7 @@ LINES = {
     "static 2": "fuzzy, V_N = 2",
     "l-psi": "l-psi",
 }
-SHORT = {
-    c.__name__: name
-    for c, name in zip(claims.CLAIMS, ("a", "b, behind", "b, overshoot", "c", "d", "d, rank swap"), strict=True)
-}
+SHORT = {c.__name__: name for c, name in zip(claims.CLAIMS, ("a", "b, behind", "b, overshoot", "c", "d"), strict=True)}
 
 
 def _camera(sigma_rho_m: float) -> dict[str, Any]:
@@ -162,12 +159,13 @@ def plan(
     *,
     workers: int | None,
     extras: Sequence[str] = (),
-) -> dict[str, Sweep]:
+) -> dict[str, EngineSweep]:
     """The sweeps of one point: the claims' (one per ``claims.SWEEPS``, in ``out/<its folder>``) and the extra
     controllers' (in ``out/<scenario>-<extra>``). Every run's label names the settings and the faults,
-    so the points of an axis share those folders and a point without either is the claims' own runs."""
+    so the points of an axis share those folders and a point without either is the claims' own runs.
+    Their runs are stepped in one process (studies.engine_sweep): the lockstep runs' very rows."""
+    from formation_swarm.studies.engine_sweep import EngineSweep as Sweep
     from formation_swarm.studies.jobs import Job, settings_text
-    from formation_swarm.studies.sweep import Sweep
 
     label = "; ".join(t for t in (settings_text(settings), ", ".join(faults)) if t)
     out_sweeps = {
@@ -219,8 +217,8 @@ METRICS: tuple[tuple[str, str, tuple[str, ...], float | None], ...] = (
 )
 
 
-# Claim d's runs, flown with and without eq. 11-13: in Point.counts, "robot contact, <sweep>" and
-# "obstacle contact, <sweep>" count the runs in which two robots, or a robot and an obstacle, touched.
+# Claim d's runs and the rank swap's, flown with and without eq. 11-13: in Point.counts, "robot contact,
+# <sweep>" and "obstacle contact, <sweep>" count the runs in which two robots, or a robot and an obstacle, touched.
 CONTACT_SWEEPS = ("obstacles", "obstacles, no avoidance", "rank swap", "rank swap, no avoidance")
 # The leader's distance from its path, on the path of claims a-c (the dynamic run's).
 LEADER = ("leader_off_path_m", "leader_end_m")
@@ -233,11 +231,13 @@ class Point:
     stats: dict[tuple[str, str], Stat] = field(default_factory=dict)  # (sweep, metric) -> over the seeds
     # Claim d's runs in which something touched (CONTACT_SWEEPS), and the runs of each sweep ("runs <sweep>").
     counts: dict[str, int] = field(default_factory=dict)
+    # The avoidance's statement on the rank swap (claims.rank_swap): not one of the paper's claims.
+    swap: claims.Claim | None = None
 
 
 def measure(value: float, rows: claims.Rows) -> Point:
-    """The claims and the figures' statistics of one point, from its sweeps' rows."""
-    pt = Point(value, claims.measure(rows))
+    """The claims, the rank swap's statement and the figures' statistics of one point, from its sweeps' rows."""
+    pt = Point(value, claims.measure(rows), swap=claims.rank_swap(rows))
     for _title, key, sweeps, _thr in METRICS:
         for name in sweeps:
             if name in rows:

@@ -9,13 +9,15 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from formation_swarm.studies import sensitivity
+from formation_swarm.studies.engine_sweep import run_engine_sweeps
 from formation_swarm.studies.sections import markers, write_all
 from formation_swarm.studies.sensitivity import figure as sensitivity_figure
 from formation_swarm.studies.sensitivity import rows as sensitivity_rows
 from formation_swarm.studies.sensitivity import text as sensitivity_text
-from formation_swarm.studies.sweep import run_sweeps
 
 WHERE = markers("where the claims hold")
+# The rank swap along the axes, in the avoidance's section (not a claim of the paper).
+SWAP = markers("rank swap along the axes")
 
 
 def run(
@@ -39,7 +41,7 @@ def run(
             )
             settings, faults = axis.point(value)
             sweeps = sensitivity.plan(range(seeds), settings, faults, out, workers=workers, extras=axis.extras)
-            rows = run_sweeps(sweeps, out)
+            rows = run_engine_sweeps(sweeps, out)
             if rows is None:
                 return 1
             points.append(sensitivity.measure(value, rows))
@@ -55,17 +57,28 @@ def run(
             sensitivity_rows.merge(rows_csv, axis.name, point_rows)
     if rows_csv is None:
         return 0
-    text = where_text(rows_csv)
-    print(text)
-    return 0 if write_all(writes, text, *WHERE) else 1
+    for text, marks in ((where_text(rows_csv), WHERE), (swap_text(rows_csv), SWAP)):
+        print(text)
+        if not write_all(writes, text, *marks):
+            return 1
+    return 0
 
 
-def where_text(rows_csv: Path) -> str:
-    """The summary of every claim along every axis of the CSV, in the axes' order."""
+def _found(rows_csv: Path) -> dict[str, tuple[sensitivity.Axis, list[sensitivity.Point]]]:
+    """Every axis of the CSV, in the axes' order, with its points."""
     table = sensitivity_rows.read(rows_csv)
-    found = {
+    return {
         a.name: (a, [sensitivity.measure(v, table[a.name][v]) for v in a.values if v in table[a.name]])
         for a in sensitivity.AXES
         if a.name in table
     }
-    return sensitivity_text.where(found)
+
+
+def where_text(rows_csv: Path) -> str:
+    """The summary of every claim along every axis of the CSV, in the axes' order."""
+    return sensitivity_text.where(_found(rows_csv))
+
+
+def swap_text(rows_csv: Path) -> str:
+    """The rank swap along every axis of the CSV (the avoidance's section)."""
+    return sensitivity_text.rank_swap(_found(rows_csv))

@@ -26,7 +26,7 @@ def _claims(holds: list[int], seeds: int = 10) -> list[claims.Claim]:
 
 
 def _points(axis: sensitivity.Axis, holds_a: list[int]) -> list[Point]:
-    return [Point(v, _claims([h, 10, 0, 5, 10, 10])) for v, h in zip(axis.values, holds_a, strict=True)]
+    return [Point(v, _claims([h, 10, 0, 5, 10])) for v, h in zip(axis.values, holds_a, strict=True)]
 
 
 SPEED = Axis("s", "leader speed", "m/s", (1.0, 1.25, 1.5, 1.75, 2.0), 1.5, lambda v: {"leader.speed_mps": v})
@@ -163,7 +163,9 @@ def _rows(dynamic_rms: float) -> dict[str, list[dict]]:
 
 def test_a_point_measures_the_claims_and_the_figures_metrics() -> None:
     pt = sensitivity.measure(1.0, _rows(0.7))
-    assert [c.holds for c in pt.claims] == [3, 3, 3, 3, 3, 3]
+    assert [c.holds for c in pt.claims] == [3, 3, 3, 3, 3]  # the paper's a-d
+    assert pt.swap is not None
+    assert (pt.swap.holds, pt.swap.seeds) == (3, 3)
     assert pt.counts["robot contact, rank swap"] == pt.counts["obstacle contact, rank swap"] == 0
     assert pt.counts["robot contact, rank swap, no avoidance"] == pt.counts["runs rank swap, no avoidance"] == 3
     assert pt.stats["dynamic", "leader_off_path_m"].mean == pytest.approx(5.05)
@@ -187,9 +189,7 @@ def test_the_section_and_the_figure_of_an_axis(tmp_path: Path) -> None:
     assert "| claim d: runs in which a robot touches an obstacle | 0/3 | 0/3 | 0/3 |" in text
     least = "| least distance between two robots' centres, m (claim d, fig11_obstacles; touching below 0.4) |"
     assert least + " 1.30 ± 0.00 | 1.30 ± 0.00 | 1.30 ± 0.00 |" in text
-    assert "| claim d, rank swap: seeds where it holds | 3/3 | 3/3 | 3/3 |" in text
-    assert "| the rank swap without eq. 11-13: the same | 3/3 | 3/3 | 3/3 |" in text
-    assert "| claim d, rank swap: runs in which a robot touches an obstacle | 0/3 | 0/3 | 0/3 |" in text
+    assert "rank swap" not in text  # the avoidance's section says it, not the claims'
     assert "| the leader's largest distance from its path, m | 5.05 ± 0.00 | 5.05 ± 0.00 | 5.05 ± 0.00 |" in text
     assert "![wheel noise](figures/sensitivity-wheel_noise.png)" in text
     fig = sensitivity_figure.figure(axis, pts)
@@ -256,20 +256,29 @@ def test_where_each_claim_holds_is_written_from_the_csv(tmp_path: Path) -> None:
         f"  - {speed.title}: {say(speed, Band(seeds=3, tried=2, every=(1.5,), some=((1.0, 1, 3),)))}.",
         f"  - {drops.title}: {say(drops, Band(seeds=3, tried=2, every=(0.0,), some=((50.0, 1, 3),)))}.",
     ]
-    d = lines.index("- **d. with eq. 11-13 a rank swaps sides and back without collision.**")
-    assert lines[d + 3].startswith("  - `fig11_rank_swap` without eq. 11-13 (`controller.avoidance = false`)")
+    assert "rank swap" not in text  # not one of the paper's claims
+    d = lines.index("- **d. the obstacle run goes triangle, line, triangle, no collision.**")
+    assert lines[d + 3].startswith("  - `fig11_obstacles` without eq. 11-13 (`controller.avoidance = false`)")
+    swap = sensitivity_run.swap_text(path).splitlines()
+    assert swap[0].startswith("`fig11_rank_swap` at every value of the sensitivity axes (seeds 0-2,")
     touch = "two robots touch"  # without eq. 11-13, in every seed at every value
-    assert lines[d + 4 : d + 6] == [
-        f"    - {speed.title}: {say(speed, Band(seeds=3, tried=2, every=(1.0, 1.5)), touch)}.",
-        f"    - {drops.title}: {say(drops, Band(seeds=3, tried=2, every=(0.0, 50.0)), touch)}.",
+    assert swap[2:7] == [
+        f"- {speed.title}:",
+        f"  - with eq. 11-13: {say(speed, Band(seeds=3, tried=2, every=(1.0, 1.5)), 'swaps without contact')}; "
+        f"{say(speed, Band(seeds=3, tried=2, none=(1.0, 1.5)), touch)}; "
+        f"{say(speed, Band(seeds=3, tried=2, none=(1.0, 1.5)), 'a robot touches a post')}.",
+        f"  - without: {say(speed, Band(seeds=3, tried=2, every=(1.0, 1.5)), touch)}.",
+        "  - closest approach with: 1 m/s 1.20 ± 0.00, 1.5 m/s 1.20 ± 0.00.",
+        "  - closest approach without: 1 m/s 0.35 ± 0.00, 1.5 m/s 0.35 ± 0.00.",
     ]
+    assert swap[8].startswith("  - with eq. 11-13: swaps without contact in 3/3 seeds at every value tried (0, 50 %); ")
 
 
 def test_the_ablation_table_says_both_ways_with_closest_approaches() -> None:
     rows = _rows(0.7)
     rows["rank swap, no avoidance"][2] = {**rows["rank swap, no avoidance"][2], "collisions": 0, "min_distance_m": 0.41}
     text = claims.avoidance_table(rows)
-    assert text.startswith("Lockstep runs, seeds 0-2, with the partition-zone avoidance")
+    assert text.startswith("Seeds 0-2, runs in one process (`formation_swarm.engine`), with the partition-zone")
     assert "| `fig11_obstacles` | off | 0 of 3 | 0 | 0 | 1.300-1.300 (1.300) |" in text
     assert "| `fig11_rank_swap` | on (as shipped) | 0 of 3 | 0 | 0 | 1.200-1.200 (1.200) |" in text
     assert "| `fig11_rank_swap` | off | 2 of 3 | 4 | 0 | 0.350-0.410 (0.350) |" in text
