@@ -2,7 +2,7 @@
 3's place in fig11's formations (pursuit.py).
 
     export RMW_IMPLEMENTATION=rmw_zenoh_cpp
-    export ZENOH_SESSION_CONFIG_URI=$PWD/swarm_session.json5   # session_config.py writes it
+    export ZENOH_SESSION_CONFIG_URI=$PWD/runs/swarm_session.json5   # session_config.py writes it
     python3 follower.py [--robot 3] [--robots 3] [--namespace NS]
 
 It subscribes to every robot's /robotN/odom, to /formation and to /clock,

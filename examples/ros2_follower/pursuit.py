@@ -18,7 +18,7 @@ to robot 2's right in the triangle (code 0), and 1.5 m behind it in the
 line (code 1), which takes it between the obstacles. Before the poses it
 needs have come, it answers (0, 0).
 
-follower.py (rclpy) and the tests' non-ROS client both call ``answer``.
+follower.py (rclpy), without_ros.py (no ROS) and the tests' clients call ``answer``.
 """
 
 from __future__ import annotations

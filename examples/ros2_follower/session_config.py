@@ -2,8 +2,8 @@
 swarm run: a client of the run's router, logged in with the login that
 ``swarm run --ros2 --ros2-login FILE`` writes.
 
-    python3 session_config.py LOGIN.json ENDPOINT swarm_session.json5
-    export ZENOH_SESSION_CONFIG_URI=$PWD/swarm_session.json5
+    python3 session_config.py runs/ros2.json ENDPOINT runs/swarm_session.json5
+    export ZENOH_SESSION_CONFIG_URI=$PWD/runs/swarm_session.json5
 
 ENDPOINT is the router's, as swarm run prints it (tcp/HOST:PORT, or tls/...
 with the run's CA, which the login names). The login is a JSON object of

@@ -43,7 +43,7 @@ examples:
   (every fault kind: docs/faults.md)
   swarm run fig11_obstacles --external 3        (then start robot 3's agent as the run says)
   swarm run fig11_obstacles --observer-login observer.json
-  swarm run fig11_obstacles --ros2 --external 3 --ros2-login ros2.json   (docs/ros2.md)
+  swarm run fig11_obstacles --ros2 --external 3 --ros2-login runs/ros2.json   (docs/ros2.md)
 """
 
 
@@ -141,6 +141,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return USAGE_ERROR
     interrupts.exit_at_once()  # nothing runs yet
     from formation_swarm.launch.console import describe_laws, print_result
+    from formation_swarm.launch.sharing import per_process
+    from formation_swarm.launch.words import describe_robots
     from formation_swarm.runtime.proc import interrupt_on_stop_signals
     from formation_swarm.spec.laws import laws
     from formation_swarm.spec.scenario import ScenarioError
@@ -151,8 +153,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"swarm run: {exc}", file=sys.stderr)
         return USAGE_ERROR
     interrupt_on_stop_signals()  # from here Ctrl-C and SIGTERM stop the run cleanly
+    robots = describe_robots(len(launch.sc.robots), per_process(launch.sc))
     print(
-        f"[swarm] run {launch.run_id}: {launch.sc.name}, {len(launch.sc.robots)} robots, {args.mode}, "
+        f"[swarm] run {launch.run_id}: {launch.sc.name}, {robots}, {args.mode}, "
         f"seed {launch.sc.seed}, {describe_laws(laws(launch.sc))}, folder {launch.run_dir}",
         flush=True,
     )

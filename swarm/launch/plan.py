@@ -299,6 +299,7 @@ class Plan:
             *zenoh_role,
             *["--expect-logger"] * opts.logger,
             *["--expect-bridge"] * self.bridge,
+            *[arg for r in self.ros2_robots for arg in ("--ros2-robot", str(r))],
             *["--truth-every-tick"] * (bool(self.ros2_robots) and opts.mode == "lockstep"),
             *["--process-faults"] * self.process_faults,
             *(["--rt-priority", str(opts.rt_priority)] if opts.rt_priority is not None else []),

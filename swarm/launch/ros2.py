@@ -116,10 +116,12 @@ def hand_over(say: Callable[[str], None], plan: Plan, endpoint: str) -> None:
 
 def login_line(login: Path, endpoint: str) -> str:
     """The console line that names a ROS node's login and how to make its session
-    configuration from it (examples/ros2_follower/session_config.py)."""
+    configuration from it (examples/ros2_follower/session_config.py), beside
+    the login: it holds the same password, kept out of the current folder."""
+    session = login.with_name("swarm_session.json5")
     return (
         f"[swarm] ROS 2 node's login: {login}; its Zenoh session (ZENOH_SESSION_CONFIG_URI): python3 "
-        f"examples/ros2_follower/session_config.py {login} {endpoint} swarm_session.json5 (docs/ros2.md)"
+        f"examples/ros2_follower/session_config.py {login} {endpoint} {session} (docs/ros2.md)"
     )
 
 

@@ -1,7 +1,7 @@
 """Robots that share a process (``run.agents_per_process`` = K above 1): the
 run's agents' command lines grouped K by K into nodes.agent.shared's, and the
 calls by which the launcher kills, freezes and thaws one robot of such a
-process (a signal would act on all K)."""
+process (a signal would act on all K), in RUN_DIR/control/, made at the first call."""
 
 from __future__ import annotations
 
@@ -31,7 +31,6 @@ def group(lines: Mapping[str, list[str]], k: int, control_dir: Path) -> dict[str
         return dict(lines)
     agents = [name for name in lines if name.startswith("agent-")]
     out = {name: argv for name, argv in lines.items() if name not in agents}
-    control_dir.mkdir(exist_ok=True)
     for i in range(0, len(agents), k):
         names = agents[i : i + k]
         first, last = names[0].removeprefix("agent-"), names[-1].removeprefix("agent-")
@@ -77,6 +76,7 @@ class Control:
     def call(self, action: str, process: str) -> None:
         """``action`` (kill, freeze, thaw) on robot ``process`` (agent-N)."""
         self.seq += 1
+        self.path.parent.mkdir(exist_ok=True)  # at the first call: a run without one has no control/
         with self.path.open("a", encoding="utf-8") as f:
             f.write(f"{self.seq} {action} {process.removeprefix('agent-')}\n")
         if self.wake is not None:

@@ -19,6 +19,13 @@ def num(value: Any, fmt: str = ".3f") -> str:
     return format(value, fmt) if isinstance(value, (int, float)) and not isinstance(value, bool) else "-"
 
 
+def describe_robots(n: int, per_process: int) -> str:
+    """A run's robots, as its first line says them: "3 robots"; with K robots'
+    agents a process, "100 robots, 10 a process (--agents-per-process)"."""
+    said = f"{n} robot{'s' if n != 1 else ''}"
+    return said + (f", {per_process} a process (--agents-per-process)" if per_process > 1 else "")
+
+
 def describe_laws(laws: Mapping[str, Any]) -> str:
     """The leader's policy and the followers' laws (spec.laws) in a phrase:
     "leader path, law fuzzy (V_N dynamic)" when every follower flies one law,

@@ -28,8 +28,11 @@ A value the run did not record is empty in CSV and null in Parquet.
 sim time, with ROS 2 Jazzy schemas, as rosbag2 writes them. It needs the
 ros2 extra (pip install 'formation-swarm[ros2]').
 
-Every file is written beside its name and renamed to it once complete. A
-file named by --out that exists already is left alone unless --force.
+Every file is written beside its name and renamed to it once complete. The
+default file is the run's own, made from the run folder alone: an export
+makes it again over the one there (and says so), as swarm report draws its
+figures again. A file named by --out, which may be anyone's, that exists
+already is left alone unless --force.
 """
 
 from __future__ import annotations
@@ -172,14 +175,19 @@ def build_parser() -> Parser:
         "--out",
         default=None,
         metavar="FILE",
-        help="the file to write (default: RUN_DIR/run.csv, run.parquet or run.mcap)",
+        help="the file to write (default: RUN_DIR/run.csv, run.parquet or run.mcap, the run's own file, "
+        "made again over the one there)",
     )
-    ap.add_argument("--force", action="store_true", help="replace the file --out names if it exists")
+    ap.add_argument(
+        "--force", action="store_true", help="replace the file --out names if it exists (the default is replaced)"
+    )
     return ap
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    default = Path(args.run_dir) / f"run.{args.format}"
+    again = args.out is None and default.is_file()  # the run's own file: made again, said so
     try:
         path = export(args.run_dir, args.format, args.out, force=args.force)
     except ValueError as exc:
@@ -188,5 +196,5 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"swarm export: cannot write {args.out or 'the table'}: {exc}", file=sys.stderr)
         return USAGE_ERROR
-    print(f"[export] {path}")
+    print(f"[export] {path}" + (" (made again over the one there)" if again else ""))
     return 0

@@ -139,7 +139,7 @@ def _switch_hint(line: str, avoid: str) -> str:
     alone = f"--set leader.formation={line}" + ("" if avoid == line else " --set leader.avoid_formation=''")
     return (
         f"; to keep the {line!r} throughout: {alone} (with --set controller.lookahead_m=1 for a long chain; "
-        f"README, 'Running things'); or a {line!r} with follow = 'pairs', which has the references of a wedge "
+        f"docs/running.md#many-robots); or a {line!r} with follow = 'pairs', which has the references of a wedge "
         f"(--set formations.{line}.follow=pairs): the switch is then accepted, but measured with 30 robots it "
         "let them touch (docs/paper.md, 'Beyond the paper: formations of many robots')"
     )

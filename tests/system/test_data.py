@@ -69,7 +69,9 @@ def test_load_run_holds_every_tick_and_the_summarys_numbers(runs: tuple[Path, Pa
         run.index(9)
 
 
-def test_export_writes_one_row_per_robot_per_tick(runs: tuple[Path, Path], tmp_path: Path) -> None:
+def test_export_writes_one_row_per_robot_per_tick(
+    runs: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     import pyarrow.parquet as pq
 
     from formation_swarm.report.export import main
@@ -86,6 +88,12 @@ def test_export_writes_one_row_per_robot_per_tick(runs: tuple[Path, Path], tmp_p
         assert _rms(err) == pytest.approx(run.summary["followers"][str(rid)]["rms_m"], abs=1e-9)
     leader_rows = [r for r in rows if r["robot"] == "1"]
     assert all(r["formation_error_m"] == "" and r["formation"] == "" for r in leader_rows)
+    capsys.readouterr()
+    assert main([str(runs[0])]) == 0  # the run's own file: made again over the one there, said so
+    said = capsys.readouterr().out
+    assert said.startswith(f"[export] {run.run_dir / 'run.csv'} ")
+    assert said.endswith(" (made again over the one there)\n")
+    assert main([str(runs[0]), "--out", str(runs[0] / "run.csv")]) == 2  # named by --out: refused without --force
     assert main([str(runs[0]), "--format", "parquet", "--out", str(tmp_path / "t.parquet")]) == 0
     table = pq.read_table(tmp_path / "t.parquet")
     assert table.num_rows == 120

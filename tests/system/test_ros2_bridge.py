@@ -205,11 +205,12 @@ def twists_are_recorded_and_exported(run: RunData, follower: Follower, tmp_path:
 
 
 def test_a_ros_node_that_never_comes_is_named_and_nothing_stays(tmp_path: Path) -> None:
-    """As an outside agent that never connects: exit code 1, the robot and the topics waited for named."""
+    """As an outside agent that never connects: exit code 1, the robot and the topics waited for named; the
+    logger, which left when the world did, is not blamed; the world says it missed robot 3's commands."""
     out = tmp_path / "run"
     argv = [sys.executable, "-m", "formation_swarm.cli", "run", "fig11_obstacles", "--ros2", "--external", "3"]
     done = subprocess.run(
-        [*argv, "--no-logger", "--peers-timeout", "3", "--out", str(out)],
+        [*argv, "--peers-timeout", "3", "--out", str(out)],
         capture_output=True,
         text=True,
         timeout=120,
@@ -225,6 +226,9 @@ def test_a_ros_node_that_never_comes_is_named_and_nothing_stays(tmp_path: Path) 
     assert s["parts"]["world"]["waited_for"]["robots"] == [3]
     assert s["parts"]["bridge"]["waited_for"]["robots"] == [3]
     assert [line for line in done.stdout.splitlines() if line.startswith("  ended: ")] == [f"  ended: {said}"]
+    assert s["failure"] is None  # the ended line says why; the logger left with the world, before tick 0
+    assert not [line for line in done.stdout.splitlines() if line.startswith("  failed: ")]
+    assert s["parts"]["world"]["waited_for"]["missing"].startswith("no commands for robot 3 from the ROS 2 bridge")
     left = [p for p in Path("/proc").iterdir() if p.name.isdigit() and _runs(p, s["run_id"])]
     assert left == []
 

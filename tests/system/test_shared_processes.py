@@ -73,6 +73,7 @@ def test_lockstep_digests_do_not_depend_on_the_robots_per_process(
         assert res.exit_code == 0, res.summary.get("failure")
         digests.append((res.summary["trajectory_digest"], res.summary["robot_digests"]))
         assert len(res.summary["processes"]) == 1 + (robots if k == 1 else 1)
+        assert not (res.run_dir / "control").exists()  # no fault, no call to a shared process: no control/
     assert digests[0] == digests[1]
 
 

@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from formation_swarm.nodes.world.node import Options, World
+from formation_swarm.nodes.world.waits import waiting_for
 from formation_swarm.protocol import session
 from formation_swarm.runtime import cliargs, proc
 from formation_swarm.runtime import process as process_mod
@@ -84,6 +85,14 @@ def build_parser() -> cliargs.Parser:
     ap.add_argument("--expect-logger", action="store_true", help="also wait for the logger before the first tick")
     ap.add_argument("--expect-bridge", action="store_true", help="also wait for the ROS 2 bridge before the first tick")
     ap.add_argument(
+        "--ros2-robot",
+        type=cliargs.integer(1),
+        action="append",
+        default=[],
+        metavar="N",
+        help="robot N is driven from ROS 2: its commands come from the bridge, not an agent (repeatable)",
+    )
+    ap.add_argument(
         "--truth-every-tick",
         action="store_true",
         help="send each tick's ground truth at once, not in batches (a ROS 2 bridge in lockstep waits for it)",
@@ -132,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
         (Path(args.out) / "scenario.toml").write_text(scenario_files.dumps(sc.raw))
     where = process_mod.describe_session(args)
     with sess_cm as sess:
-        waits = f"agents {', '.join(map(str, sc.robots))}" + (" and the logger" if args.expect_logger else "")
+        waits = waiting_for(sc.robots, args.ros2_robot, logger=args.expect_logger, bridge=args.expect_bridge)
         role.say(f"{where}; run {args.run}: waiting up to {role.peers_timeout_s:g} s for {waits}")
         opts = Options(
             run_id=args.run,
@@ -144,6 +153,7 @@ def main(argv: list[str] | None = None) -> int:
             logins=args.zenoh_mode == "router" and bool(args.auth),  # it sees sessions close: nodes.world.sessions
             truth_every_tick=args.truth_every_tick,
             expect_bridge=args.expect_bridge,
+            ros2_robots=tuple(args.ros2_robot),
         )
         world = World(sess, sc, role, opts)
         code = _run_spooled(args, role, world)

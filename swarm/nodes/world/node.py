@@ -21,6 +21,7 @@ from typing import Any
 
 import zenoh
 
+from formation_swarm.nodes.world import waits
 from formation_swarm.nodes.world.clock import CLOCKS
 from formation_swarm.nodes.world.inbox import Inbox
 from formation_swarm.nodes.world.outbox import TRUTH_WINDOW_S, Outbox, Peers
@@ -55,6 +56,7 @@ class Options:
     # Each tick's truth sent at once, never held for the batch's window: a ROS 2
     # bridge answers tick k once it has published tick k - 1 (nodes.bridge).
     truth_every_tick: bool = False
+    ros2_robots: tuple[int, ...] = ()  # driven from ROS 2: their commands come from the bridge
 
 
 class World:
@@ -199,15 +201,15 @@ class World:
         return False
 
     def _give_up(self, want: set[int], out: Outbox) -> None:
-        missing, peers = [], self.peers
-        if absent := sorted(want - peers.agents_seen):
-            missing.append(f"no agent for robot{'s' if len(absent) > 1 else ''} {', '.join(map(str, absent))}")
-        if self.opts.expect_logger and not peers.logger_seen:
-            missing.append("no logger")
-        if self.opts.expect_bridge and not peers.bridge_seen:
-            missing.append("no ROS 2 bridge")
-        if self.opts.executor and not peers.executor_seen:
-            missing.append("no executor of the process faults (the launcher's token alive/launcher/0)")
+        peers, opts = self.peers, self.opts
+        absent = sorted(want - peers.agents_seen)
+        missing = waits.missed(
+            absent,
+            opts.ros2_robots,
+            logger=opts.expect_logger and not peers.logger_seen,
+            bridge=opts.expect_bridge and not peers.bridge_seen,
+            executor=opts.executor and not peers.executor_seen,
+        )
         if deaf := sorted(r for r in out.obs if r in peers.agents_seen and not out.hears(r)):
             missing.append(f"agents {', '.join(map(str, deaf))} present but not subscribed to their observations")
         said = " and ".join(missing)

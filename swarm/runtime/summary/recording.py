@@ -43,11 +43,14 @@ def logger_lost(world: Mapping[str, Any], events: Sequence[Mapping[str, Any]]) -
     """How the logger was lost outside the fault schedule, when (the world's
     record of its token going, ``logger_lost`` in its stats, else the
     launcher's of its exit), in words; None when it was not (or a fault
-    killed it)."""
+    killed it). A logger that left before the run's first tick lost nothing
+    of a recording: the run's end names why it did not start."""
     mine = [e for e in events if isinstance(e, Mapping) and e.get("process") == "logger"]
     if any(e.get("event") == "killed" for e in mine):
         return None
     exited = next((e for e in mine if e.get("event") == "exited" and isinstance(e.get("code"), int)), None)
+    if exited is not None and _before_start(exited.get("sim_time_s")):
+        exited = None
     seen = world.get("logger_lost")
     if exited is None and not isinstance(seen, Mapping):
         return None
@@ -55,6 +58,11 @@ def logger_lost(world: Mapping[str, Any], events: Sequence[Mapping[str, Any]]) -
     if isinstance(seen, Mapping):
         return f"{how}{_when(seen.get('time_s'), seen.get('tick'))}, outside the fault schedule"
     return f"{how}{_when(exited.get('sim_time_s'), exited.get('tick'))}, outside the fault schedule"
+
+
+def _before_start(t: Any) -> bool:
+    """Whether an event's sim time says it came before tick 0 (the launcher writes -1 then)."""
+    return isinstance(t, (int, float)) and t < 0
 
 
 def _when(t: Any, tick: Any = None) -> str:

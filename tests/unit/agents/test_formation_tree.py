@@ -181,7 +181,7 @@ def test_the_loader_refuses_the_papers_switch_for_ten_robots_unless_the_line_is_
         f"{fig11} (with run.robots = 10): leader.avoid_formation: switching from formation 'triangle' to 'line':"
         " robot 7's new reference robot 6 is 9.0 m away from its slot in 'triangle', beyond the camera's 10 m range"
         " (margin 2 m: at most 8 m); to keep the 'line' throughout: --set leader.formation=line (with --set"
-        " controller.lookahead_m=1 for a long chain; README, 'Running things'); or a 'line' with follow = 'pairs',"
+        " controller.lookahead_m=1 for a long chain; docs/running.md#many-robots); or a 'line' with follow = 'pairs',"
         " which has the references of a wedge (--set formations.line.follow=pairs): the switch is then accepted,"
         " but measured with 30 robots it let them touch (docs/paper.md, 'Beyond the paper: formations of many"
         " robots')"

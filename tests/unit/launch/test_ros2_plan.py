@@ -93,8 +93,8 @@ def test_the_bridge_spools_what_it_takes_and_the_console_says_how_long_and_how_t
     said: list[str] = []
     ros2_mod.hand_over(said.append, p, "tcp/127.0.0.1:7447")
     assert "the world waits up to 60 s (--peers-timeout) for a node that publishes" in said[1]
-    line = ros2_mod.login_line(Path("ros2.json"), "tcp/127.0.0.1:7447")
-    assert "session_config.py ros2.json tcp/127.0.0.1:7447 swarm_session.json5" in line
+    line = ros2_mod.login_line(Path("runs/ros2.json"), "tcp/127.0.0.1:7447")
+    assert "session_config.py runs/ros2.json tcp/127.0.0.1:7447 runs/swarm_session.json5 (" in line
 
 
 def test_a_ros_node_that_never_came_is_named_with_what_the_bridge_waited_for() -> None:

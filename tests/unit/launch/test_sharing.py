@@ -42,6 +42,7 @@ def test_eleven_robots_ten_by_ten_make_two_processes_each_robots_line_kept_whole
 
 def test_a_robots_fault_is_a_call_to_its_process_read_back_in_order(tmp_path: Path) -> None:
     argv = sharing.group(_lines(4), 4, tmp_path / "control")["agents-1-4"]
+    assert not (tmp_path / "control").exists()  # made at the first call: a run with none has no control/
     procs = Processes(journal=None)  # type: ignore[arg-type]
     procs.children["agents-1-4"] = Child("agents-1-4", argv, tmp_path / "log")
     procs.current["agents-1-4"] = "agents-1-4"
