@@ -71,6 +71,7 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))  # lockstep_ros2, also when loaded as a module
 
 import zenoh  # noqa: E402
 from lockstep_ros2 import ros2_rounds  # noqa: E402

@@ -23,7 +23,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from formation_swarm.protocol import acl
-from formation_swarm.ros2 import topics
 from formation_swarm.runtime.process import DEFAULT_PEERS_TIMEOUT_S
 from formation_swarm.runtime.spool import path_for as spool_path
 from formation_swarm.runtime.summary import PEERS_TIMEOUT
@@ -41,6 +40,12 @@ def check(sc: Scenario, external: Sequence[int]) -> tuple[bool, tuple[int, ...]]
     external ones, then); ValueError naming the problem."""
     if not ros2_settings(sc.raw).bridge:
         return False, ()
+    try:  # the ROS 2 messages come from rosbags, in the ros2 extra; a run without a bridge needs none
+        import rosbags  # noqa: F401
+    except ImportError:
+        raise ValueError(
+            "ros2: the ROS 2 bridge needs the ros2 extra (rosbags): pip install 'formation-swarm[ros2]'"
+        ) from None
     if sc.leader.robot_id in external:
         raise ValueError(
             f"ros2: robot {sc.leader.robot_id} is the leader, which only its own agent flies; "
@@ -97,6 +102,8 @@ def hand_over(say: Callable[[str], None], plan: Plan, endpoint: str) -> None:
     """The console lines that name the bridge, its topics and the robots left to ROS."""
     if not plan.bridge:
         return
+    from formation_swarm.ros2 import topics  # rosbags: checked in check()
+
     s = ros2_settings(plan.sc.raw)
     ns = s.namespace
     say(
