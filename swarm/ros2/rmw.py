@@ -262,6 +262,12 @@ class Publisher:
         when = time.time_ns() if stamp_ns is None else stamp_ns
         self._pub.put(payload, attachment=attachment(self.seq, when, self.gid))
 
+    @property
+    def matched(self) -> bool:
+        """Whether a subscriber's declaration has reached this publisher (Zenoh's
+        matching status): a ROS node's liveliness token may come before it."""
+        return bool(self._pub.matching_status.matching)
+
     def close(self) -> None:
         self._token.undeclare()
         self._pub.undeclare()

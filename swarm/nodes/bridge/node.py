@@ -164,8 +164,12 @@ class Bridge:
         """What the robots left to ROS still miss of a ROS node: its cmd_vel publisher, its /clock subscription."""
         ns = self.brain.settings.namespace
         missing = [f"no ROS publisher of {topics.cmd_vel(r, ns)}" for r in self._unanswered(with_clock=False)]
-        if self.brain.robots and ("MS", topics.topic("clock", ns)) not in self.graph:
-            missing.append(f"no ROS subscription to {topics.topic('clock', ns)}")
+        clock = topics.topic("clock", ns)
+        if self.brain.robots and ("MS", clock) not in self.graph:
+            missing.append(f"no ROS subscription to {clock}")
+        elif self.brain.robots and clock in self.pubs and not self.pubs[clock].matched:
+            # Its token came before its subscriber reached us: a /clock put now would be lost.
+            missing.append(f"no ROS subscription to {clock} matched yet")
         return missing
 
     def _unanswered(self, *, with_clock: bool = True) -> list[int]:
