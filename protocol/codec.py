@@ -333,8 +333,9 @@ class Message:
         return cached  # type: ignore[no-any-return]
 
 
-def unpack_batch(payload: bytes) -> list[bytes]:
-    """The encoded messages of a batch; DecodeError if it is not one."""
+def unpack_tagged(payload: bytes, tag: int, what: str) -> object:
+    """The items of a msgpack ``[tag, version, items]`` payload (``what``: its
+    name in the errors, "a batch"); DecodeError if it is not one."""
     if len(payload) > MAX_PAYLOAD_BYTES:
         raise DecodeError("oversized", f"{len(payload)} bytes > {MAX_PAYLOAD_BYTES}")
     try:
@@ -342,12 +343,17 @@ def unpack_batch(payload: bytes) -> list[bytes]:
     except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError) as exc:
         raise DecodeError("not msgpack", type(exc).__name__) from None
     if not isinstance(raw, list) or len(raw) != 3:
-        raise DecodeError("wrong type", "a batch is a msgpack list [tag, version, items]")
-    if type(raw[0]) is not int or raw[0] != BATCH_TAG:
-        raise DecodeError("wrong message type", f"tag {raw[0]!r}, expected a batch ({BATCH_TAG})")
+        raise DecodeError("wrong type", f"{what} is a msgpack list [tag, version, items]")
+    if type(raw[0]) is not int or raw[0] != tag:
+        raise DecodeError("wrong message type", f"tag {raw[0]!r}, expected {what} ({tag})")
     if type(raw[1]) is not int or raw[1] != VERSION:
         raise DecodeError("unknown version", f"{raw[1]!r}, expected {VERSION}")
-    items = raw[2]
+    return raw[2]
+
+
+def unpack_batch(payload: bytes) -> list[bytes]:
+    """The encoded messages of a batch; DecodeError if it is not one."""
+    items = unpack_tagged(payload, BATCH_TAG, "a batch")
     if not isinstance(items, list) or not all(isinstance(b, bytes) for b in items):
         raise DecodeError("wrong type", "a batch's items must be a list of encoded messages")
     return items

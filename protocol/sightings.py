@@ -22,6 +22,7 @@ from formation_swarm.protocol.codec import (
     WORLD_ID,
     DecodeError,
     Rejections,
+    unpack_tagged,
 )
 from formation_swarm.protocol.keys import MAX_ROBOT_ID
 from formation_swarm.protocol.messages import Observation
@@ -66,18 +67,7 @@ def unpack(payload: bytes, rejections: Rejections) -> list[tuple[int, Observatio
 
 
 def _items(payload: bytes) -> list[object]:
-    if len(payload) > MAX_PAYLOAD_BYTES:
-        raise DecodeError("oversized", f"{len(payload)} bytes > {MAX_PAYLOAD_BYTES}")
-    try:
-        raw = msgpack.unpackb(payload, raw=False, max_array_len=MAX_BATCH_ITEMS, max_map_len=0)
-    except (ValueError, msgpack.ExtraData, msgpack.FormatError, msgpack.StackError) as exc:
-        raise DecodeError("not msgpack", type(exc).__name__) from None
-    if not isinstance(raw, list) or len(raw) != 3:
-        raise DecodeError("wrong type", "sightings are a msgpack list [tag, version, items]")
-    if type(raw[0]) is not int or raw[0] != SIGHTINGS_TAG:
-        raise DecodeError("wrong message type", f"tag {raw[0]!r}, expected sightings ({SIGHTINGS_TAG})")
-    if type(raw[1]) is not int or raw[1] != VERSION:
-        raise DecodeError("unknown version", f"{raw[1]!r}, expected {VERSION}")
-    if not isinstance(raw[2], list):
+    items = unpack_tagged(payload, SIGHTINGS_TAG, "a sightings payload")
+    if not isinstance(items, list):
         raise DecodeError("wrong type", "the sightings' items must be a list")
-    return raw[2]
+    return items

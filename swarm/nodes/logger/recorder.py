@@ -50,7 +50,7 @@ import rerun as rr
 
 from formation_swarm.nodes.logger.blueprint import LEADER_FRAME, MEAN_S, SMOOTHED, TIMELINE, static_entities
 from formation_swarm.nodes.logger.columns import CROWD_BATCH_S, FILE_BATCH_S, ColumnSink
-from formation_swarm.nodes.logger.crowd import CROWD_ROBOTS, Crowd, crowd_styles
+from formation_swarm.nodes.logger.crowd import CROWD_ROBOTS, FIRST_SERIES, SERIES, Crowd, crowd_styles
 from formation_swarm.nodes.logger.running_mean import CentredMean
 from formation_swarm.nodes.logger.shapes import ellipses, to_world
 from formation_swarm.world.kinematics import Pose, from_body_frame
@@ -280,16 +280,7 @@ class Recorder:
         t, pose, target = a[:, 0], a[:, 1:4], a[:, 4:6]
         measured, estimate = to_world(pose, a[:, 6:8]), to_world(pose, a[:, 8:10])
         cov = a[:, 10:13]
-        scalars = (
-            "fis/rho",
-            "fis/alpha",
-            "fis/v_n",
-            "wheels/left",
-            "wheels/right",
-            "links/obs_dropped",
-            "links/formation_dropped",
-        )
-        for col, name in enumerate(scalars, start=13):
+        for col, name in enumerate(SERIES, start=FIRST_SERIES):
             ok = ~np.isnan(a[:, col])
             self._columns(f"{base}/{name}", "scalar", t[ok], a[ok, col])
             if name in SMOOTHED:
