@@ -334,8 +334,7 @@ class Message:
 
 
 def unpack_tagged(payload: bytes, tag: int, what: str) -> object:
-    """The items of a msgpack ``[tag, version, items]`` payload (``what``: its
-    name in the errors, "a batch"); DecodeError if it is not one."""
+    """The items of a ``[tag, version, items]`` payload named ``what``; DecodeError if not one."""
     if len(payload) > MAX_PAYLOAD_BYTES:
         raise DecodeError("oversized", f"{len(payload)} bytes > {MAX_PAYLOAD_BYTES}")
     try:
@@ -352,8 +351,7 @@ def unpack_tagged(payload: bytes, tag: int, what: str) -> object:
 
 
 def unpack_batch(payload: bytes) -> list[bytes]:
-    """The encoded messages of a batch; DecodeError if it is not one."""
-    items = unpack_tagged(payload, BATCH_TAG, "a batch")
+    items = unpack_tagged(payload, BATCH_TAG, "a batch")  # DecodeError if it is not one
     if not isinstance(items, list) or not all(isinstance(b, bytes) for b in items):
         raise DecodeError("wrong type", "a batch's items must be a list of encoded messages")
     return items
