@@ -57,7 +57,8 @@ def fast_decoder(
     when every value passes as it is, else None. ``header``: the bounds of
     the three header ints (sender, seq, tick); ``checks``: the other fields'.
     A check with a ``fast`` attribute (a test of ``{v}`` that holds exactly
-    when it returns ``v`` unchanged) is written out; any other is called."""
+    when it returns ``v`` unchanged, or ``fast_value`` of ``{v}`` when it has
+    one) is written out; any other is called."""
     _identifiers(names, owner)
     space: dict[str, Any] = {"build": build, "isfinite": math.isfinite}
     tests, args = [], []
@@ -70,7 +71,7 @@ def fast_decoder(
         fast = getattr(check, "fast", None)
         if fast is not None:
             tests.append("(" + fast.format(v=name) + ")")
-            args.append(name)
+            args.append(getattr(check, "fast_value", "{v}").format(v=name))
         else:
             space[f"check_{k}"] = check
             args.append(f"check_{k}({name!r}, {name})")

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from formation_swarm.protocol.batch import BatchPublisher, pack_batch
 from formation_swarm.protocol.codec import (
@@ -41,7 +41,6 @@ from formation_swarm.protocol.codec import (
     numbers,
     one_of,
     opt_number,
-    process_name,
     records,
     robot_id,
 )
@@ -210,6 +209,18 @@ class Status(Message):
     TAG: ClassVar[int] = 6
     SENDERS: ClassVar[tuple[int, int]] = (WORLD_ID, WORLD_ID)
     CHECKS = (number, one_of("waiting", "running", "done"), count)
+
+
+_AGENT = re.compile(r"agent-[1-9][0-9]{0,4}")
+
+
+def process_name(name: str, v: Any) -> str:
+    """A process of a run a fault can hit: ``logger`` or ``agent-N`` (N a robot id)."""
+    if type(v) is not str:
+        raise DecodeError("wrong type", f"{name} must be a string, got {type(v).__name__}")
+    if v == "logger" or (_AGENT.fullmatch(v) and int(v[6:]) <= MAX_ROBOT_ID):
+        return v
+    raise DecodeError("out of range", f"{name}={v[:40]!r} is neither logger nor agent-<robot id>")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

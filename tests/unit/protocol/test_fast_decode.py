@@ -36,6 +36,11 @@ ODD = [
     b"x",
     [],
     [1.0, 2.0, 3.0],
+    [1.0, 2.0],
+    [1, 2.0],
+    [True, 2.0],
+    [1.0, math.nan],
+    [1e308, 1e308],  # each finite, their sum not
     [[1, 1.0, 0.5, 0.5]],
     math.nan,
     math.inf,
