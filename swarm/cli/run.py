@@ -23,6 +23,8 @@ from formation_swarm.runtime.cliargs import (
 )
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from formation_swarm.launch.launcher import Launch
 
 GRPC_PORT, WEB_PORT = 9876, 9090  # --serve-web's defaults: Rerun's own
@@ -109,14 +111,14 @@ def _launch(args: argparse.Namespace) -> Launch:
     return launch
 
 
-def _start(launch: Launch) -> int | None:
-    """Start every process; the command's exit code if the run could not start."""
+def _start(launch: Launch, announce: Callable[[], None]) -> int | None:
+    """Start every process, saying so first; the command's exit code if the run could not start."""
     import zenoh
 
     from formation_swarm.launch.remote import HostError
 
     try:
-        launch.start()
+        launch.start(announce)
     except KeyboardInterrupt:
         print(f"[swarm] interrupted while starting; every process stopped; folder {launch.run_dir}", flush=True)
         return 130
@@ -154,12 +156,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return USAGE_ERROR
     interrupt_on_stop_signals()  # from here Ctrl-C and SIGTERM stop the run cleanly
     robots = describe_robots(len(launch.sc.robots), per_process(launch.sc))
-    print(
+    line = (
         f"[swarm] run {launch.run_id}: {launch.sc.name}, {robots}, {args.mode}, "
-        f"seed {launch.sc.seed}, {describe_laws(laws(launch.sc))}, folder {launch.run_dir}",
-        flush=True,
+        f"seed {launch.sc.seed}, {describe_laws(laws(launch.sc))}, folder {launch.run_dir}"
     )
-    if (code := _start(launch)) is not None:
+    if (code := _start(launch, lambda: print(line, flush=True))) is not None:
         return code
     if args.ros2_login is not None and (settings := launch.login("ros2")) is not None:
         from formation_swarm.launch.ros2 import login_line, write_login

@@ -146,13 +146,16 @@ class Launch:
     def __exit__(self, *exc: object) -> None:
         self.stop()
 
-    def start(self) -> None:
-        """Spawn every process (once); on any failure (Ctrl-C included) reap what started."""
+    def start(self, announce: Callable[[], None] | None = None) -> None:
+        """Spawn every process (once), after ``announce()`` if given; on any failure
+        (Ctrl-C included, in ``announce`` too) reap what started and write the summary."""
         if self.children:
             return
         if self.plan.options.fork:  # its children import the main script again: refused unguarded
             mainguard.check()
         try:
+            if announce is not None:  # a Ctrl-C its reader sends at once lands here, not before the summary's guard
+                announce()
             self._start()
         except BaseException as exc:
             host_failed = isinstance(exc, (remote.HostError, ValueError))  # a host missing, refusing, unfit
