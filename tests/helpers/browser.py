@@ -14,6 +14,7 @@ import os
 import shutil
 import signal
 import subprocess
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -93,10 +94,14 @@ def chromium(exe: str, profile: Path) -> Iterator[Page]:
         os.dup2(a, 3)
         os.dup2(b, 4)
 
+    # Its singleton socket's folder (org.chromium.Chromium.*) goes under TMPDIR, removed after; a short
+    # path of its own, as a socket's path holds at most 107 bytes (a test's tmp_path can be longer).
+    scratch = Path(tempfile.mkdtemp(prefix="chromium-"))
     proc = subprocess.Popen(
         [exe, *FLAGS, f"--user-data-dir={profile}", "about:blank"],
         preexec_fn=pipes_as_3_and_4,
         close_fds=False,
+        env={**os.environ, "TMPDIR": str(scratch)},
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
         start_new_session=True,
@@ -111,3 +116,4 @@ def chromium(exe: str, profile: Path) -> Iterator[Page]:
         proc.wait()
         os.close(we_write)
         os.close(we_read)
+        shutil.rmtree(scratch, ignore_errors=True)
