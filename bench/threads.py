@@ -3,9 +3,10 @@ path in real time, the logger on; over a window of the run, each process's
 CPU per tick (user + system, from ``/proc/<pid>/task/*/stat``) split by
 thread: the Python threads (named after the process) and Zenoh's runtime
 threads (``rx-0``, ``net-0``, ...), and Rerun's in the logger. The followers
-are averaged; the leader (agent-1) is shown apart.
+are averaged; the leader (agent-1) is shown apart. With ``--agents-per-process K``
+the shared processes' CPU is given per robot.
 
-    python bench/threads.py [--robots 100] [--window 10]
+    python bench/threads.py [--robots 100] [--window 10] [--agents-per-process K]
 
 Ticks are counted on the run's sim clock over the window, so a run that
 falls behind the wall clock shows its CPU per tick it made, not per 50 ms.
@@ -58,9 +59,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--robots", type=int, default=100)
     ap.add_argument("--window", type=float, default=10.0, help="wall seconds measured, after 2 s of sim (default 10)")
+    ap.add_argument("--agents-per-process", type=int, default=1, metavar="K", help="robots per agent process")
     args = ap.parse_args()
     print(f"machine: {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}", flush=True)
-    overrides = {"run.robots": args.robots, "leader.formation": "line", "run.duration_s": args.window + 8.0}
+    overrides = {
+        "run.robots": args.robots,
+        "leader.formation": "line",
+        "run.duration_s": args.window + 8.0,
+        "run.agents_per_process": args.agents_per_process,
+    }
     with (
         tempfile.TemporaryDirectory() as tmp,
         Launch(
@@ -84,7 +91,12 @@ def main() -> None:
     count: collections.Counter[str] = collections.Counter()
     for name in pids:
         group = "follower" if name.startswith("agent-") and name != "agent-1" else name
-        count[group] += 1
+        if name.startswith("agents-"):  # K robots in one process: per robot
+            first, _, last = name[len("agents-") :].partition("-")
+            group, robots = "robot of a shared process", int(last or first) - int(first) + 1
+        else:
+            robots = 1
+        count[group] += robots
         per = groups.setdefault(group, collections.Counter())
         for tid, (tname, user, system) in after[name].items():
             _, user0, system0 = before[name].get(tid, (tname, 0.0, 0.0))
