@@ -22,7 +22,6 @@ logger killed with SIGKILL loses.
 from __future__ import annotations
 
 import contextlib
-import gc
 import math
 import os
 import queue
@@ -45,6 +44,7 @@ from formation_swarm.protocol.messages import FaultCall, FormationCode, Status, 
 from formation_swarm.runtime import cliargs
 from formation_swarm.runtime import process as process_mod
 from formation_swarm.runtime import spool as spool_mod
+from formation_swarm.runtime.memory import steady_collector
 from formation_swarm.runtime.proc import exit_after_main, write_json
 from formation_swarm.spec import scenario as scenario_mod
 
@@ -131,7 +131,7 @@ class Logger:
         # Its token goes after its last telemetry (same link, in order): a follower
         # gone has nothing more on its way.
         s.liveliness().declare_subscriber(k.alive_all("agent"), self._on_agent_alive, history=True)
-        gc.freeze()  # start-up objects (numpy, scipy, zenoh) leave the collector's scans
+        steady_collector()  # start-up objects (numpy, scipy, zenoh) leave the collector's scans
         token = s.liveliness().declare_token(k.alive("logger", 0))
         last_send = last_flush = time.monotonic()
         cpu0 = time.process_time()

@@ -49,7 +49,7 @@ import numpy as np
 import rerun as rr
 
 from formation_swarm.nodes.logger.blueprint import LEADER_FRAME, MEAN_S, SMOOTHED, TIMELINE, static_entities
-from formation_swarm.nodes.logger.columns import CROWD_BATCH_S, FILE_BATCH_S, ColumnSink
+from formation_swarm.nodes.logger.columns import ColumnSink, batch_s
 from formation_swarm.nodes.logger.crowd import CROWD_ROBOTS, FIRST_SERIES, SERIES, Crowd, crowd_styles
 from formation_swarm.nodes.logger.running_mean import CentredMean
 from formation_swarm.nodes.logger.shapes import ellipses, to_world
@@ -85,7 +85,7 @@ class Recorder:
         self.schedule: list[tuple[float, str, str]] = []  # fault schedule events still to come: time s, text, level
         self.last_time_s = -1.0
         crowd = len(sc.robots) > CROWD_ROBOTS
-        self.sink = ColumnSink(rec, TIMELINE, CROWD_BATCH_S if crowd else FILE_BATCH_S)
+        self.sink = ColumnSink(rec, TIMELINE, batch_s(len(sc.robots), CROWD_ROBOTS))
         self.crowd = Crowd(sc, self.sink, self._target_errors) if crowd else None
         self.every = record_every(sc)
         self.means: dict[tuple[int, str], CentredMean] = {}  # (follower, series) -> its 1 s mean

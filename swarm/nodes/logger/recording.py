@@ -15,7 +15,7 @@ import rerun as rr
 
 from formation_swarm.nodes.logger import viewer
 from formation_swarm.nodes.logger.blueprint import blueprint
-from formation_swarm.nodes.logger.columns import CROWD_BATCH_S, FILE_BATCH_S
+from formation_swarm.nodes.logger.columns import batch_s
 from formation_swarm.nodes.logger.crowd import CROWD_ROBOTS
 
 if TYPE_CHECKING:
@@ -69,8 +69,8 @@ def footer_fits(sc: Scenario) -> bool:
     length. A longer run's file has none, and the logger's memory stays
     bounded; the viewer and the report read it the same (as a file cut by a
     kill), only Rerun's random access to it is slower."""
-    batch_s = CROWD_BATCH_S if len(sc.robots) > CROWD_ROBOTS else FILE_BATCH_S
-    return sc.duration_s / batch_s * ENTITIES_PER_ROBOT * len(sc.robots) <= FOOTER_MAX_CHUNKS
+    batches = sc.duration_s / batch_s(len(sc.robots), CROWD_ROBOTS)
+    return batches * ENTITIES_PER_ROBOT * len(sc.robots) <= FOOTER_MAX_CHUNKS
 
 
 def _stream(run_id: str) -> rr.RecordingStream:

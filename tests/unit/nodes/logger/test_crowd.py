@@ -183,3 +183,16 @@ def _tel(rid: int, k: int, dt_s: float) -> Telemetry:
         rho_m=0.5, alpha_rad=0.1, vn=0.2, left_mps=0.2, right_mps=0.21,
         steering_to=0, changing=False, obs_dropped=0, formation_dropped=0, rejected=0,
     )  # fmt: skip
+
+
+def test_a_batch_spans_more_sim_time_as_the_robots_grow_beyond_a_hundred() -> None:
+    """A robot's series cost a call per entity and batch: the calls per sim second
+    of 100 robots stay those of 200 and 500, up to a batch of a minute."""
+    from formation_swarm.nodes.logger.columns import FILE_BATCH_S, MAX_BATCH_S, batch_s
+    from formation_swarm.nodes.logger.crowd import CROWD_ROBOTS
+
+    assert batch_s(CROWD_ROBOTS, CROWD_ROBOTS) == FILE_BATCH_S
+    calls = {n: n / batch_s(n, CROWD_ROBOTS) for n in (13, 100, 200, 500)}
+    assert calls[100] == calls[200] == calls[500] == 10.0
+    assert calls[13] == 1.3
+    assert batch_s(10_000, CROWD_ROBOTS) == MAX_BATCH_S
