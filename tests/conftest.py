@@ -35,32 +35,32 @@ def _stop_signals_as_they_were() -> object:
                 signal.signal(sig, handler)
 
 
-# The longest files first (in that order: seconds of a serial run, 21 s to 87 s),
-# so that `make test`'s workers (pytest-xdist, --dist loadfile, files handed out
-# one at a time in collection order) take them early and end together; every
+# The longest files first (in that order: seconds of `make test`'s run, 20 s to 185 s
+# of its two workers' time), so that its workers (pytest-xdist, --dist loadfile, files
+# handed out one at a time in collection order) take them early and end together; every
 # other file keeps its place after them. A stale list only costs balance.
 LONGEST_FIRST = (
-    "tests/system/test_claims.py",
-    "tests/system/test_distributed.py",
-    "tests/system/test_many_robots.py",
-    "tests/system/test_process_faults.py",
     "tests/system/test_web_view.py",
-    "tests/system/test_report_gaps.py",
     "tests/hosts/test_hosts.py",
+    "tests/system/test_distributed.py",
+    "tests/system/test_ros2_bridge.py",
+    "tests/system/test_claims.py",
+    "tests/system/test_process_faults.py",
+    "tests/system/test_endings.py",
     "tests/system/test_attacks.py",
     "tests/system/test_external.py",
-    "tests/system/test_example_package.py",
-    "tests/system/test_leaked_logins.py",
-    "tests/system/test_ci_doc.py",
-    "tests/system/test_endings.py",
-    "tests/system/test_report.py",
-    "tests/hosts/test_stolen_logins_on_hosts.py",
     "tests/unit/studies/test_published.py",
+    "tests/system/test_many_robots.py",
+    "tests/system/test_report_gaps.py",
+    "tests/system/test_leaked_logins.py",
+    "tests/system/test_report.py",
+    "tests/system/test_outside_deaths.py",
+    "tests/hosts/test_stolen_logins_on_hosts.py",
+    "tests/system/test_bad_input.py",
     "tests/system/test_interrupt.py",
     "tests/hosts/test_hosts_netns.py",
-    "tests/system/test_bad_input.py",
-    "tests/system/test_fixture_ends.py",
-    "tests/system/test_packaging.py",
+    "tests/system/test_ci_doc.py",
+    "tests/system/test_slow_controllers.py",
 )
 
 
