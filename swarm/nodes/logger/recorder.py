@@ -300,12 +300,16 @@ class Recorder:
         self._send_extras(base, rows)
 
     def _send_formations(self, rid: int, rows: list[tuple[Telemetry, Pose, tuple[float, float] | None]]) -> None:
-        """Each change of the formation a follower flies: a row and an event."""
+        """Each change of the formation a follower flies: a row and an event (in a
+        crowd, its first formation a row only: not a hundred events at the start)."""
         for tel, _pose, _target in rows:
             if self.formation.get(rid) != tel.formation:
+                first = rid not in self.formation
                 self.formation[rid] = tel.formation
                 when, code = np.array([tel.time_s]), np.array([float(tel.formation)])
                 self._columns(f"robots/r{rid}/formation", "scalar", when, code)
+                if first and self.crowd is not None:
+                    continue
                 names = self.sc.formation_names
                 self._event(tel.time_s, f"R{rid} flies {names[tel.formation] if tel.formation < len(names) else '?'}")
 

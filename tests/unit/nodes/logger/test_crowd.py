@@ -196,3 +196,25 @@ def test_a_batch_spans_more_sim_time_as_the_robots_grow_beyond_a_hundred() -> No
     assert calls[100] == calls[200] == calls[500] == 10.0
     assert calls[13] == 1.3
     assert batch_s(10_000, CROWD_ROBOTS) == MAX_BATCH_S
+
+
+def test_a_crowd_s_events_are_its_followers_changes_not_their_first_formations() -> None:
+    """14 robots: the 13 followers' first formation makes no event; robot 5's
+    change at tick 40 makes one."""
+    import dataclasses
+
+    sc, rng = _scenario(14), np.random.default_rng(6)
+    stream = FakeStream()
+    recorder = Recorder(Recording(file=stream), sc)  # type: ignore[arg-type]
+    for k in range(80):
+        truth, _ = _truth(sc, k, rng)
+        recorder.add_truths([truth])
+        tels = [_tel(r, k, sc.dt_s) for r in sc.follower_ids]
+        recorder.add_telemetry([dataclasses.replace(t, formation=0) if t.sender == 5 and k >= 40 else t for t in tels])
+        if k % 5 == 4:
+            recorder.send()
+        if k == 39:
+            assert stream.logged.count("events") == 0  # 13 first formations, no change yet
+    recorder.send(final=True)
+    assert stream.logged.count("events") == 1  # robot 5's change
+    assert recorder.formation == dict.fromkeys(sc.follower_ids, 1) | {5: 0}
